@@ -1,0 +1,96 @@
+"""Reduced body data: everything a body needs at run time, nothing of the FE model.
+
+This is what an FMU carries in its resources (saved with `save`/`load` as one .npz): a partner
+receives reduced matrices only.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class SuperelementData:
+    """One reduced superelement (geradin section 7), body axes = model axes, origin at its CM.
+
+    Reduced coordinates q_bar = [q_B; eta] (eq. 76): q_B holds 6 dofs per boundary node
+    (d_x, d_y, d_z, alpha_x, alpha_y, alpha_z), nodes in the order of `nodes`, then the modal
+    amplitudes eta.
+    """
+
+    mass: float
+    J0: np.ndarray  # (3, 3) inertia about the CM, eq. (13)
+    x_cm: np.ndarray  # (3,) reference CM position in world axes
+    X_B: np.ndarray  # (nb, 3) boundary node positions relative to the CM
+    nodes: np.ndarray  # (nb,) global boundary node indices
+    K: np.ndarray  # (n, n) K_bar = Y^T K Y
+    M: np.ndarray  # (n, n) M_bar = Y^T M Y
+    G: np.ndarray  # (3, n, n) G_k = Y^T M_k Y, M_k = int N^T skew(e_k) N rho dV
+    frequencies_hz: np.ndarray  # (n_modes,) free-free frequencies of the kept modes
+
+    @property
+    def n_boundary(self) -> int:
+        return 6 * len(self.nodes)
+
+    @property
+    def n(self) -> int:
+        return self.K.shape[0]
+
+
+@dataclass(frozen=True)
+class PortData:
+    name: str
+    node: int
+    translation: str  # "motion" | "force"
+    rotation: str
+
+
+@dataclass(frozen=True, eq=False)
+class BodyData:
+    name: str
+    superelements: tuple[SuperelementData, ...]
+    node_positions: np.ndarray  # (n_nodes, 3) reference boundary node positions, world axes
+    ports: tuple[PortData, ...]
+
+    def port(self, name: str) -> PortData:
+        for p in self.ports:
+            if p.name == name:
+                return p
+        raise KeyError(f"body {self.name!r} has no port {name!r}; ports: {[p.name for p in self.ports]}")
+
+    def save(self, path) -> None:
+        arrays = {"node_positions": self.node_positions}
+        for i, se in enumerate(self.superelements):
+            for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz"):
+                arrays[f"se{i}_{key}"] = getattr(se, key)
+            arrays[f"se{i}_mass"] = np.array(se.mass)
+        meta = {
+            "name": self.name,
+            "n_se": len(self.superelements),
+            "ports": [[p.name, p.node, p.translation, p.rotation] for p in self.ports],
+        }
+        import json
+
+        arrays["meta"] = np.array(json.dumps(meta))
+        np.savez(path, **arrays)
+
+    @classmethod
+    def load(cls, path) -> "BodyData":
+        import json
+
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            ses = tuple(
+                SuperelementData(
+                    mass=float(z[f"se{i}_mass"]),
+                    **{k: z[f"se{i}_{k}"] for k in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz")},
+                )
+                for i in range(meta["n_se"])
+            )
+            return cls(
+                name=meta["name"],
+                superelements=ses,
+                node_positions=z["node_positions"],
+                ports=tuple(PortData(n, int(k), t, r) for n, k, t, r in meta["ports"]),
+            )

@@ -1,0 +1,44 @@
+"""Scalar time functions s(t), s'(t), s''(t) for drives and loads (kinds listed in model.TimeFunction).
+
+Runtime module: numpy only, no import from the rest of ffrf_fmu, so that it ships inside FMUs.
+"""
+from __future__ import annotations
+
+import math
+
+KINDS = {
+    "constant": ("value",),
+    "haug_spinup": ("omega", "T"),
+    "ramp": ("rate", "t_start"),
+    "window": ("value", "t_start", "t_end"),
+    "sine": ("amplitude", "frequency_hz", "phase"),
+}
+
+
+def evaluate(kind: str, params: dict, t: float) -> tuple[float, float, float]:
+    """Return (s, ds/dt, d2s/dt2) at time t."""
+    p = params
+    if kind == "constant":
+        return p["value"], 0.0, 0.0
+    if kind == "haug_spinup":
+        # benchmarks.md B1, with the 1/(2 pi)^2 factor that geradin eq. (93) misprints
+        w, T = p["omega"], p["T"]
+        if t < T:
+            tau = t / T
+            two_pi = 2.0 * math.pi
+            phi = w * T * (tau**2 / 2.0 + (math.cos(two_pi * tau) - 1.0) / two_pi**2)
+            dphi = w * (tau - math.sin(two_pi * tau) / two_pi)
+            ddphi = (w / T) * (1.0 - math.cos(two_pi * tau))
+            return phi, dphi, ddphi
+        return w * T * (t / T - 0.5), w, 0.0
+    if kind == "ramp":
+        dt = t - p["t_start"]
+        return (p["rate"] * dt, p["rate"], 0.0) if dt > 0.0 else (0.0, 0.0, 0.0)
+    if kind == "window":
+        inside = p["t_start"] <= t < p["t_end"]
+        return (p["value"] if inside else 0.0), 0.0, 0.0
+    if kind == "sine":
+        a, f, ph = p["amplitude"], p["frequency_hz"], p.get("phase", 0.0)
+        w = 2.0 * math.pi * f
+        return a * math.sin(w * t + ph), a * w * math.cos(w * t + ph), -a * w * w * math.sin(w * t + ph)
+    raise ValueError(f"unknown time function kind {kind!r}; known: {sorted(KINDS)}")
