@@ -6,10 +6,26 @@ and what was expected.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+import difflib
+import math
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 
 PART_CAUSALITIES = ("motion", "force")
 TERM_SETS = ("linear", "gyroscopic")
+METRICS = ("haug", "spherical", "free", "")
+PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
 
 
 class ModelError(ValueError):
@@ -147,3 +163,454 @@ class Model:
             if s.name == name:
                 return s
         raise ModelError(f"{self.path}: no scene named {name!r} (scenes: {[s.name for s in self.scenes]})")
+
+
+# ---------------------------------------------------------------------------------------------
+# Parsing. Each schema maps a key to what it expects; the text is used verbatim in messages.
+
+TOP_KEYS = {"body": "a table [body]", "scenes": "a table of scenes [scenes.NAME]"}
+BODY_KEYS = {
+    "name": "a name of letters, digits and _ (default: the file name)",
+    "length": "a positive length [m]",
+    "origin": "3 numbers [m] (default [0, 0, 0])",
+    "direction": "3 numbers, not all zero (default [1, 0, 0])",
+    "superelements": "an integer >= 1",
+    "elements_per_superelement": "an integer >= 2 (F_BB must be invertible: a superelement needs interior nodes)",
+    "modes": "an integer >= 0 free-free modes per superelement",
+    "section": "a table [body.section]",
+    "ports": "a table of ports [body.ports.NAME]",
+}
+SECTION_KEYS = {
+    "EA": "a positive axial stiffness [N]",
+    "GA2": "a positive shear stiffness [N] (omit GA2 and GA3 together for Euler-Bernoulli)",
+    "GA3": "a positive shear stiffness [N] (omit GA2 and GA3 together for Euler-Bernoulli)",
+    "GJ": "a positive torsional stiffness [N m^2]",
+    "EI2": "a positive bending stiffness [N m^2]",
+    "EI3": "a positive bending stiffness [N m^2]",
+    "m": "a positive mass per length [kg/m]",
+    "m22": "a non-negative rotary inertia per length [kg m]",
+    "m33": "a non-negative rotary inertia per length [kg m]",
+    "m11": "a positive torsional inertia per length [kg m] (default m22 + m33)",
+}
+PORT_KEYS = {
+    "node": "a boundary node index 0..superelements (negative counts from the end)",
+    "translation": "'motion' or 'force' (default 'force')",
+    "rotation": "'motion' or 'force' (default 'force')",
+}
+SCENE_KEYS = {
+    "duration": "a positive time [s]",
+    "step": "a positive time step [s], at most the duration",
+    "rho_inf": "a spectral radius in [0, 1] (default 0.8)",
+    "terms": f"one of {', '.join(TERM_SETS)} (default linear)",
+    "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
+    "metrics": "one of haug, spherical, free or '' (default '')",
+    "outputs": "an array of probe names (default [])",
+    "drives": "a table of drives [scenes.NAME.drives.PORT]",
+    "loads": "an array of tables [[scenes.NAME.loads]]",
+    "initial": "a table [scenes.NAME.initial]",
+    "causality": "a table of causality overrides [scenes.NAME.causality.PORT]",
+}
+DRIVE_KEYS = {"rotation": "a table {axis, angle}", "translation": "a table {direction, displacement}"}
+ROTATION_DRIVE_KEYS = {"axis": "3 numbers, not all zero", "angle": "a time function [rad]"}
+TRANSLATION_DRIVE_KEYS = {"direction": "3 numbers, not all zero", "displacement": "a time function [m]"}
+LOAD_KEYS = {
+    "port": "a port name",
+    "force": "3 numbers [N], world axes (default [0, 0, 0])",
+    "moment": "3 numbers [N m], world axes (default [0, 0, 0])",
+    "t_start": "a time [s] (default 0)",
+    "t_end": "a time [s] after t_start (default inf)",
+}
+INITIAL_KEYS = {
+    "velocity": "3 numbers [m/s] (default [0, 0, 0])",
+    "angular_velocity": "3 numbers [rad/s] (default [0, 0, 0])",
+    "port_displacements": "a table PORT = [dx, dy, dz] [m]",
+}
+CAUSALITY_KEYS = {"translation": PORT_KEYS["translation"], "rotation": PORT_KEYS["rotation"]}
+# Optional time-function parameters; every other parameter in drives.KINDS is required.
+TIME_FUNCTION_DEFAULTS = {"sine": {"phase": 0.0}, "ramp": {"t_start": 0.0}}
+# Short `--set` keys -> dotted paths; "scenes.*" means every scene.
+OVERRIDE_ALIASES = {
+    "superelements": ("body.superelements",),
+    "elements": ("body.elements_per_superelement",),
+    "modes": ("body.modes",),
+    "length": ("body.length",),
+    "rotary_inertia": ("body.section.m22", "body.section.m33"),
+    **{k: (f"body.section.{k}",) for k in SECTION_KEYS},
+    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics")},
+}
+
+_REQUIRED = object()
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+\Z")
+
+
+def _positive(x: float) -> bool:
+    return 0.0 < x < math.inf
+
+
+def _nonnegative(x: float) -> bool:
+    return 0.0 <= x < math.inf
+
+
+def _finite(x: float) -> bool:
+    return math.isfinite(x)
+
+
+def _join(path: str, key: str | int) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    key = key if _BARE_KEY.match(key) else '"' + key.replace('"', '\\"') + '"'
+    return f"{path}.{key}" if path else key
+
+
+def _nearest(key: str, known) -> str | None:
+    lower = {k.lower(): k for k in known}
+    hit = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.5)
+    return lower[hit[0]] if hit else None
+
+
+def _toml_type(v: Any) -> str:
+    names = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array", dict: "table"}
+    return names.get(type(v), type(v).__name__)
+
+
+class _Reader:
+    """Typed access to the raw TOML tables; every failure names file, dotted key, expectation."""
+
+    def __init__(self, file: str, origins: dict[str, str]):
+        self.file, self.origins = file, origins
+
+    def fail(self, path: str, message: str):
+        note = f" (set by --set {self.origins[path]})" if path in self.origins else ""
+        raise ModelError(f"{self.file}: {path}: {message}{note}")
+
+    def expected(self, path: str, what: str, value: Any):
+        self.fail(path, f"expected {what}, got {value!r} ({_toml_type(value)})")
+
+    def table(self, value: Any, path: str, known: dict | None, required: Sequence[str] = ()) -> dict:
+        """Check `value` is a table with only `known` keys (None: any key) and all `required` ones."""
+        if not isinstance(value, dict):
+            self.expected(path, "a table", value)
+        for k in value if known is not None else ():
+            if k not in known:
+                near = _nearest(k, known)
+                hint = f"; did you mean {_join(path, near)}?" if near else ""
+                self.fail(_join(path, k), f"unknown key{hint} (known keys here: {', '.join(known)})")
+        for k in required:
+            if k not in value:
+                self.fail(_join(path, k), f"missing; expected {known[k]}")
+        return value
+
+    def _value(self, t: dict, path: str, key: str, what: str, default: Any):
+        if key in t:
+            return t[key], False
+        if default is _REQUIRED:
+            self.fail(_join(path, key), f"missing; expected {what}")
+        return default, True
+
+    def real(self, t, path, key, what, default=_REQUIRED, ok=_finite) -> float:
+        v, is_default = self._value(t, path, key, what, default)
+        if is_default:
+            return v
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v) or not ok(v):
+            self.expected(_join(path, key), what, v)
+        return float(v)
+
+    def integer(self, t, path, key, what, default=_REQUIRED, low=0) -> int:
+        v, is_default = self._value(t, path, key, what, default)
+        if is_default:
+            return v
+        if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            self.expected(_join(path, key), what, v)
+        return v
+
+    def string(self, t, path, key, what, default=_REQUIRED, choices: Sequence[str] | None = None) -> str:
+        v, is_default = self._value(t, path, key, what, default)
+        if is_default:
+            return v
+        if not isinstance(v, str) or (choices is not None and v not in choices):
+            self.expected(_join(path, key), what, v)
+        return v
+
+    def vec3(self, t, path, key, what, default=_REQUIRED, unit=False) -> tuple[float, float, float]:
+        """Three finite numbers; unit=True: not all zero, returned normalized."""
+        v, is_default = self._value(t, path, key, what, default)
+        if is_default:
+            return v
+        ok = isinstance(v, list) and len(v) == 3
+        ok = ok and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+        norm = math.sqrt(sum(x * x for x in v)) if ok else 0.0
+        if not ok or (unit and norm == 0.0):
+            self.expected(_join(path, key), what, v)
+        return tuple(float(x) / norm for x in v) if unit else tuple(float(x) for x in v)
+
+    def port_name(self, ports: dict, path: str, name: Any) -> str:
+        if name not in ports:
+            near = _nearest(str(name), ports)
+            hint = f"; did you mean {near!r}?" if near else ""
+            self.fail(path, f"expected the name of a body port, got {name!r}{hint} (ports: {', '.join(ports) or 'none'})")
+        return name
+
+
+def _parse_override_value(text: str) -> Any:
+    """A TOML value (`8`, `2e-3`, `"gyroscopic"`, `[0, 0, -9.81]`); anything else is a bare string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _apply_overrides(raw: dict, overrides: Sequence[str], file: str) -> dict[str, str]:
+    """Write `key=value` overrides into the raw tables (validated with the rest afterwards).
+
+    Returns {dotted path: override text}, so that a message about an overridden key says so.
+    """
+    origins: dict[str, str] = {}
+    for text in overrides:
+        key, sep, value_text = text.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ModelError(f"{file}: --set {text!r}: expected key=value, e.g. step=1e-3")
+        if "." in key:
+            targets = (key,)
+        elif key in OVERRIDE_ALIASES:
+            targets = OVERRIDE_ALIASES[key]
+        else:
+            near = _nearest(key, OVERRIDE_ALIASES)
+            hint = f"did you mean {near}? " if near else ""
+            raise ModelError(
+                f"{file}: --set {text}: unknown key {key!r}; {hint}(short keys: {', '.join(OVERRIDE_ALIASES)}; "
+                "or a dotted path such as body.section.EI2 or scenes.spinup.step)"
+            )
+        value = _parse_override_value(value_text.strip())
+        for target in targets:
+            parts = target.split(".")
+            if parts[:2] == ["scenes", "*"]:  # scene keys apply to every scene
+                scenes = raw.get("scenes")
+                paths = [["scenes", name, *parts[2:]] for name in (scenes if isinstance(scenes, dict) else ())]
+            else:
+                paths = [parts]
+            for p in paths:
+                node, shown = raw, ""
+                for i, part in enumerate(p):
+                    if isinstance(node, list):
+                        if not (part.isdigit() and int(part) < len(node)):
+                            raise ModelError(f"{file}: --set {text}: {shown} is an array of {len(node)}; "
+                                             f"expected an index 0..{len(node) - 1}, got {part!r}")
+                        part = int(part)
+                    elif not isinstance(node, dict):
+                        raise ModelError(f"{file}: --set {text}: {shown} is not a table")
+                    shown = _join(shown, part)
+                    if i == len(p) - 1:
+                        node[part] = value
+                    else:
+                        if isinstance(node, dict):
+                            node.setdefault(part, {})
+                        node = node[part]
+                origins[shown] = text
+    return origins
+
+
+def load_model(path, overrides: Sequence[str] = ()) -> Model:
+    """Read a TOML model file, apply `--set key=value` overrides, validate, return a Model."""
+    file = str(path)
+    try:
+        raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise ModelError(f"{file}: cannot read the model file: {e.strerror or e}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ModelError(f"{file}: not valid TOML: {e}") from None
+    r = _Reader(file, _apply_overrides(raw, overrides, file))
+    r.table(raw, "", TOP_KEYS, required=("body", "scenes"))
+    default_name = re.sub(r"\W", "_", Path(path).stem)
+    body = _parse_body(r, raw["body"], default_name if _NAME.match(default_name) else "body", file)
+    scenes = r.table(raw["scenes"], "scenes", None)
+    if not scenes:
+        r.fail("scenes", "expected at least one scene table [scenes.NAME]")
+    return Model(body, tuple(_parse_scene(r, body, name, t) for name, t in scenes.items()), file)
+
+
+def _parse_body(r: _Reader, t: Any, default_name: str, file: str) -> Body:
+    b = "body"
+    r.table(t, b, BODY_KEYS, required=("length", "superelements", "elements_per_superelement", "modes", "section"))
+    name = r.string(t, b, "name", BODY_KEYS["name"], default_name)
+    if not _NAME.match(name):  # becomes part of FMU and variable names
+        r.expected(_join(b, "name"), BODY_KEYS["name"], name)
+    n_se = r.integer(t, b, "superelements", BODY_KEYS["superelements"], low=1)
+    n_el = r.integer(t, b, "elements_per_superelement", BODY_KEYS["elements_per_superelement"], low=2)
+    modes = r.integer(t, b, "modes", BODY_KEYS["modes"], low=0)
+    if modes > 6 * (n_el - 1):  # the modal columns of Y live on the interior dofs (eq. 76)
+        r.fail(_join(b, "modes"), f"expected at most 6 * (elements_per_superelement - 1) = {6 * (n_el - 1)} "
+               f"(interior dofs of a superelement), got {modes}")
+
+    s, st = "body.section", t["section"]
+    r.table(st, s, SECTION_KEYS, required=("EA", "GJ", "EI2", "EI3", "m", "m22", "m33"))
+    vals = {k: r.real(st, s, k, SECTION_KEYS[k], None, ok=_nonnegative if k in ("m22", "m33") else _positive)
+            for k in SECTION_KEYS}
+    if (vals["GA2"] is None) != (vals["GA3"] is None):
+        missing = "GA3" if vals["GA3"] is None else "GA2"
+        r.fail(_join(s, missing), "missing; expected GA2 and GA3 together (Timoshenko) or neither (Euler-Bernoulli)")
+    if vals["m11"] is None and vals["m22"] + vals["m33"] == 0.0:
+        r.fail(_join(s, "m11"), "missing; expected a positive torsional inertia when m22 = m33 = 0")
+
+    ports = []
+    pt = r.table(t.get("ports", {}), "body.ports", None)
+    for pname, p in pt.items():
+        pp = _join("body.ports", pname)
+        if not _NAME.match(pname):  # becomes an FMU variable prefix (ports.md)
+            r.fail(pp, "expected a port name of letters, digits and _ (it prefixes FMU variable names)")
+        r.table(p, pp, PORT_KEYS, required=("node",))
+        node = r.integer(p, pp, "node", PORT_KEYS["node"], low=-math.inf)
+        if not -n_se - 1 <= node <= n_se:
+            r.fail(_join(pp, "node"), f"expected a boundary node in 0..{n_se} (or -{n_se + 1}..-1 from the end) "
+                   f"for {n_se} superelements, got {node}")
+        node = node % (n_se + 1)
+        for other in ports:
+            if other.node == node:
+                r.fail(_join(pp, "node"), f"expected a node without a port, but port {other.name!r} is on node {node}")
+        tr = r.string(p, pp, "translation", PORT_KEYS["translation"], "force", PART_CAUSALITIES)
+        rot = r.string(p, pp, "rotation", PORT_KEYS["rotation"], "force", PART_CAUSALITIES)
+        ports.append(Port(pname, node, tr, rot))
+
+    return Body(
+        name=name,
+        length=r.real(t, b, "length", BODY_KEYS["length"], ok=_positive),
+        origin=r.vec3(t, b, "origin", BODY_KEYS["origin"], (0.0, 0.0, 0.0)),
+        direction=r.vec3(t, b, "direction", BODY_KEYS["direction"], (1.0, 0.0, 0.0), unit=True),
+        section=Section(**vals),
+        superelements=n_se,
+        elements_per_superelement=n_el,
+        modes=modes,
+        ports=tuple(ports),
+        source=file,
+    )
+
+
+def _parse_time_function(r: _Reader, t: dict, path: str, key: str) -> TimeFunction:
+    p, v = _join(path, key), t[key]
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+        return TimeFunction("constant", (("value", float(v)),))  # a plain number is a constant
+    kinds = ", ".join(TIME_FUNCTION_KINDS)
+    if not isinstance(v, dict):
+        r.expected(p, f"a number or an inline table {{ kind = ..., <parameters> }} (kinds: {kinds})", v)
+    kind = r.string(v, p, "kind", f"one of {kinds}")
+    if kind not in TIME_FUNCTION_KINDS:
+        near = _nearest(kind, TIME_FUNCTION_KINDS)
+        r.fail(_join(p, "kind"), f"expected one of {kinds}, got {kind!r}" + (f"; did you mean {near!r}?" if near else ""))
+    names, defaults = TIME_FUNCTION_KINDS[kind], TIME_FUNCTION_DEFAULTS.get(kind, {})
+    what = f"a number (parameters of {kind}: {', '.join(names)})"
+    r.table(v, p, {"kind": "a time-function kind", **{n: what for n in names}},
+            required=[n for n in names if n not in defaults])
+    params = {n: r.real(v, p, n, what, defaults.get(n, _REQUIRED)) for n in names}
+    if kind == "haug_spinup" and params["T"] <= 0.0:
+        r.expected(_join(p, "T"), "a positive spin-up time [s]", params["T"])
+    if kind == "window" and params["t_end"] <= params["t_start"]:
+        r.expected(_join(p, "t_end"), f"a time after t_start = {params['t_start']}", params["t_end"])
+    return TimeFunction(kind, tuple(sorted(params.items())))
+
+
+def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
+    sp = _join("scenes", name)
+    r.table(t, sp, SCENE_KEYS, required=("duration", "step"))
+    ports = {p.name: p for p in body.ports}
+
+    # causality first: drives and loads are checked against the scene's effective causality
+    causality, effective = [], {p.name: (p.translation, p.rotation) for p in body.ports}
+    cp = _join(sp, "causality")
+    for pname, c in r.table(t.get("causality", {}), cp, None).items():
+        path = _join(cp, pname)
+        r.port_name(ports, path, pname)
+        r.table(c, path, CAUSALITY_KEYS)
+        tr = r.string(c, path, "translation", CAUSALITY_KEYS["translation"], ports[pname].translation, PART_CAUSALITIES)
+        rot = r.string(c, path, "rotation", CAUSALITY_KEYS["rotation"], ports[pname].rotation, PART_CAUSALITIES)
+        causality.append((pname, tr, rot))
+        effective[pname] = (tr, rot)
+
+    def require_part(path: str, pname: str, part: str, want: str, why: str):
+        have = effective[pname][PART_INDEX[part]]
+        if have != want:
+            r.fail(path, f"expected a {want}-driven {part}: port {pname!r} {part} is {have}-driven in this scene "
+                   f"({why})")
+
+    drives = []
+    dp = _join(sp, "drives")
+    for pname, d in r.table(t.get("drives", {}), dp, None).items():
+        path = _join(dp, pname)
+        r.port_name(ports, path, pname)
+        r.table(d, path, DRIVE_KEYS)
+        rotation = translation = None
+        if "rotation" in d:
+            rp = _join(path, "rotation")
+            require_part(rp, pname, "rotation", "motion", "only a motion-driven part can be prescribed")
+            rt = r.table(d["rotation"], rp, ROTATION_DRIVE_KEYS, required=("axis", "angle"))
+            rotation = RotationDrive(r.vec3(rt, rp, "axis", ROTATION_DRIVE_KEYS["axis"], unit=True),
+                                     _parse_time_function(r, rt, rp, "angle"))
+        if "translation" in d:
+            tp = _join(path, "translation")
+            require_part(tp, pname, "translation", "motion", "only a motion-driven part can be prescribed")
+            tt = r.table(d["translation"], tp, TRANSLATION_DRIVE_KEYS, required=("direction", "displacement"))
+            translation = TranslationDrive(r.vec3(tt, tp, "direction", TRANSLATION_DRIVE_KEYS["direction"], unit=True),
+                                           _parse_time_function(r, tt, tp, "displacement"))
+        drives.append(Drive(pname, rotation, translation))
+
+    loads = []
+    lv = t.get("loads", [])
+    if not isinstance(lv, list):
+        r.expected(_join(sp, "loads"), SCENE_KEYS["loads"], lv)
+    for i, lt in enumerate(lv):
+        lp = _join(_join(sp, "loads"), i)
+        r.table(lt, lp, LOAD_KEYS, required=("port",))
+        pname = r.port_name(ports, _join(lp, "port"), lt["port"])
+        force = r.vec3(lt, lp, "force", LOAD_KEYS["force"], (0.0, 0.0, 0.0))
+        moment = r.vec3(lt, lp, "moment", LOAD_KEYS["moment"], (0.0, 0.0, 0.0))
+        why = "its reaction is an output; a load needs a force-driven part"
+        if any(force):
+            require_part(_join(lp, "force"), pname, "translation", "force", why)
+        if any(moment):
+            require_part(_join(lp, "moment"), pname, "rotation", "force", why)
+        t0 = r.real(lt, lp, "t_start", LOAD_KEYS["t_start"], 0.0)
+        t1 = r.real(lt, lp, "t_end", LOAD_KEYS["t_end"], math.inf, ok=lambda x: x > t0)
+        loads.append(Load(pname, force, moment, t0, t1))
+
+    ip = _join(sp, "initial")
+    it = r.table(t.get("initial", {}), ip, INITIAL_KEYS)
+    displacements = []
+    pdp = _join(ip, "port_displacements")
+    for pname in r.table(it.get("port_displacements", {}), pdp, None):
+        path = _join(pdp, pname)
+        r.port_name(ports, path, pname)
+        require_part(path, pname, "translation", "force", "a motion-driven port starts at its reference position")
+        displacements.append((pname, r.vec3(it["port_displacements"], pdp, pname, "3 numbers [m]")))
+    initial = Initial(
+        r.vec3(it, ip, "velocity", INITIAL_KEYS["velocity"], (0.0, 0.0, 0.0)),
+        r.vec3(it, ip, "angular_velocity", INITIAL_KEYS["angular_velocity"], (0.0, 0.0, 0.0)),
+        tuple(displacements),
+    )
+
+    duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=_positive)
+    outputs = t.get("outputs", [])
+    if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
+        r.expected(_join(sp, "outputs"), SCENE_KEYS["outputs"], outputs)
+    return Scene(
+        name=name,
+        duration=duration,
+        step=r.real(t, sp, "step", SCENE_KEYS["step"], ok=lambda x: 0.0 < x <= duration),
+        rho_inf=r.real(t, sp, "rho_inf", SCENE_KEYS["rho_inf"], 0.8, ok=lambda x: 0.0 <= x <= 1.0),
+        terms=r.string(t, sp, "terms", SCENE_KEYS["terms"], "linear", TERM_SETS),
+        gravity=r.vec3(t, sp, "gravity", SCENE_KEYS["gravity"], (0.0, 0.0, 0.0)),
+        drives=tuple(drives),
+        loads=tuple(loads),
+        initial=initial,
+        causality=tuple(causality),
+        metrics=r.string(t, sp, "metrics", SCENE_KEYS["metrics"], "", METRICS),
+        outputs=tuple(outputs),
+    )
+
+
+def effective_ports(model: Model, scene: Scene) -> tuple[Port, ...]:
+    """The body's ports with the scene's causality overrides applied."""
+    over = {name: (tr, rot) for name, tr, rot in scene.causality}
+    return tuple(
+        dataclasses.replace(p, translation=over[p.name][0], rotation=over[p.name][1]) if p.name in over else p
+        for p in model.body.ports
+    )

@@ -1,0 +1,174 @@
+"""`ffrf-fmu` command line: one function per subcommand, registered with @command.
+
+A subcommand is `def name(args) -> int` whose docstring is its help; its arguments come from
+the decorator. Expected failures (a bad model file, a missing file) print
+`ffrf-fmu: error: <message>` on stderr and exit 2, without a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from typing import Callable, Sequence
+
+from .model import Model, ModelError, Scene, effective_ports, load_model
+
+PROG = "ffrf-fmu"
+_COMMANDS: list[tuple[Callable, tuple]] = []
+
+
+def arg(*names, **kwargs):
+    """One argparse argument, as given to `command`."""
+    return names, kwargs
+
+
+# The model arguments most subcommands share.
+MODEL_ARGS = (
+    arg("model", help="model file (TOML, see docs/model-format.md)"),
+    arg("--scene", help="scene name (default: the first scene in the file)"),
+    arg("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        help="override a model value, e.g. --set superelements=2 --set step=1e-3 (repeatable)"),
+)
+
+
+def command(*arguments):
+    """Register the decorated function as a subcommand named after it."""
+
+    def register(fn):
+        _COMMANDS.append((fn, arguments))
+        return fn
+
+    return register
+
+
+def _load(args) -> tuple[Model, Scene]:
+    model = load_model(args.model, args.overrides)
+    return model, model.scene(args.scene)
+
+
+def _body_for_scene(model: Model, scene: Scene):
+    """The body with the scene's causality, built and reduced: (BodyData, reductions)."""
+    from .reduction import build_body  # heavy (scipy); only the commands that need it pay
+
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))
+
+
+def _hz(values, n: int = 6) -> str:
+    shown = ", ".join(f"{f:.4f}" for f in values[:n])
+    return shown + (f", ... ({len(values)} in all)" if len(values) > n else "")
+
+
+@command(*MODEL_ARGS, arg("--json", action="store_true", help="print a JSON object instead of text"))
+def info(args) -> int:
+    """Summarize a model: superelements, dofs before/after reduction, modes and frequencies."""
+    model, scene = _load(args)
+    from .linear import natural_frequencies  # after the model loads: file errors come first
+
+    body_data, reductions = _body_for_scene(model, scene)
+    freqs = [float(f) for f in natural_frequencies(body_data)]  # fixed: the motion-driven port parts
+    ses = [
+        {
+            "n_fe_dofs": int(red.n_fe_dofs),
+            "n_reduced_dofs": int(red.data.n),
+            "n_modes": int(len(red.data.frequencies_hz)),
+            "orthogonality_error": float(red.orthogonality_error),
+            "block_diagonality_error": float(red.block_diagonality_error),
+            "frequencies_hz": [float(f) for f in red.data.frequencies_hz],
+        }
+        for red in reductions
+    ]
+    body, ports = model.body, body_data.ports
+    n_nodes = len(body_data.node_positions)
+    # two-field coordinates: boundary frames (shared by neighbours), one CM frame per superelement, modes
+    n_body_dofs = 6 * n_nodes + 6 * len(ses) + sum(s["n_modes"] for s in ses)
+    fixed = [f"{p.name}.{part}" for p in ports for part in ("translation", "rotation") if getattr(p, part) == "motion"]
+    if args.json:
+        out = {
+            "model": model.path,
+            "body": body.name,
+            "scene": scene.name,
+            "length": body.length,
+            "nodes": n_nodes,
+            "ports": [dataclasses.asdict(p) for p in ports],
+            "superelements": ses,
+            "n_body_dofs": n_body_dofs,
+            "fixed": fixed,
+            "frequencies_hz": freqs,
+        }
+        json.dump(out, sys.stdout, indent=2)
+        print()
+        return 0
+    sec = body.section
+    kind = "Timoshenko" if sec.GA2 is not None else "Euler-Bernoulli"
+    print(f"model {model.path}: body {body.name!r}, scene {scene.name!r}")
+    print(f"  beam: L = {body.length:g} m from {list(body.origin)} along {list(body.direction)}, {kind}, "
+          f"EA = {sec.EA:g} N, EI2 = {sec.EI2:g}, EI3 = {sec.EI3:g} N m^2, m = {sec.m:g} kg/m")
+    print(f"  {len(ses)} superelements x {body.elements_per_superelement} elements, "
+          f"{n_nodes} boundary nodes, {body.modes} free-free modes kept per superelement")
+    for p in ports:
+        print(f"  port {p.name}: node {p.node}, translation {p.translation}, rotation {p.rotation}")
+    print("  superelement  FE dofs -> reduced  |U^T M Y|  block-diag  free-free modes [Hz]")
+    for i, s in enumerate(ses):
+        print(f"  {i:>12}  {s['n_fe_dofs']:>7} -> {s['n_reduced_dofs']:<7}  {s['orthogonality_error']:9.1e}  "
+              f"{s['block_diagonality_error']:10.1e}  {_hz(s['frequencies_hz'])}")
+    print(f"  body: {n_body_dofs} coordinates = {n_nodes} boundary frames x 6 + {len(ses)} CM frames x 6 "
+          f"+ {n_body_dofs - 6 * (n_nodes + len(ses))} modal; fixed: {', '.join(fixed) or 'nothing (free-free)'}")
+    print(f"  body frequencies [Hz]: {_hz(freqs, 8)}")
+    return 0
+
+
+@command(
+    *MODEL_ARGS,
+    arg("--out", metavar="results.csv", help="write time, every port's frame, velocity and load, and the energies"),
+    arg("--summary", metavar="summary.json", help="write wall time, steps, Newton iterations, energy balance, metrics"),
+    arg("--plot", metavar="fig.png", help="plot the tip deflection (or port angular velocity) and the energies"),
+)
+def simulate(args) -> int:
+    """Run a scene standalone (no FMU) and report the benchmark metrics."""
+    from . import simulate as sim
+
+    model, scene = _load(args)
+    body_data, _ = _body_for_scene(model, scene)
+    result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
+    s = result.summary
+    if args.out:
+        result.write_csv(args.out)
+    if args.summary:
+        result.write_summary(args.summary)
+    if args.plot:
+        sim.plot(result, scene, args.plot)
+    print(f"{model.body.name}/{scene.name}: {s['steps']} steps to t = {s['t_end']:.4g} s in {s['wall_time_s']:.2f} s "
+          f"(real-time factor {s['real_time_factor']:.2f}), {s['newton_iterations_mean']:.2f} Newton iterations/step, "
+          f"energy balance {s['energy_balance_max_rel']:.2e}")
+    for k, v in s["metrics"].items():
+        print(f"  {k} = {v}")
+    if not s["completed"]:
+        print(f"{PROG}: error: {s['failure']}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description="Flexible beams as FFRF superelement FMUs.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for fn, arguments in _COMMANDS:
+        doc = (fn.__doc__ or "").strip()
+        p = sub.add_parser(fn.__name__, help=doc.splitlines()[0] if doc else None, description=doc)
+        for names, kwargs in arguments:
+            p.add_argument(*names, **kwargs)
+        p.set_defaults(run=fn)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except (ModelError, OSError) as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

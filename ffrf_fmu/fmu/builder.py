@@ -1,0 +1,297 @@
+"""Build a body FMU: reduced data + a private copy of the runtime + a pythonfmu script.
+
+Layout of resources/ in the FMU (the FMU is a black box: no FE mesh, no model file):
+
+    ffrf_slave_<body>_<hash>.py     pythonfmu script, one class FfrfBody_<body>_<hash>(Fmi2Slave)
+    ffrf_rt_<body>_<hash>/          private package: runtime/ (copy of ffrf_fmu/runtime) and
+                                    fmu/ (core.py, variables.py); imports numpy, scipy only
+    body.npz                        BodyData.save: reduced matrices, node positions, ports
+    ffrf_fmu.json                   parameter defaults, body origin, description, build info
+    pythonfmu/                      embedded by pythonfmu
+
+<hash> is a digest of the reduced data, the configuration and the shipped sources, so two
+different bodies (or two versions of the code) never share a module name in one process.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import re
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..runtime.data import BodyData
+from .core import CONFIG_FILE, DATA_FILE
+from .slave_template import TEMPLATE
+from .variables import TERM_SETS
+
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
+RUNTIME_DIR = PACKAGE_ROOT / "runtime"
+SHIPPED_FMU_MODULES = ("core.py", "variables.py")
+ALLOWED_IMPORTS = {"numpy", "scipy"}
+
+DESCRIPTION = (
+    "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
+    "All vectors in world axes, SI units. Inputs between communication points: the values set before "
+    "doStep(t_c, H) are the values at t_c; motion inputs are extrapolated with their own rates, "
+    "r(t) = r_c + v_c (t - t_c), R(t) = expm((t - t_c) skew(w_c)) R_c, with v and w held; force and "
+    "moment inputs are held. The body takes internal steps of solver.step, the last one shortened to "
+    "land on t_c + H; the run converges to the standalone run as H shrinks. Outputs are the values at "
+    "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
+    "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
+    "at t_c. FMU state get/set/serialize save the complete integrator state."
+)
+
+
+class BuildError(RuntimeError):
+    """The FMU cannot be built (the message says why)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneParameters:
+    """The scene values an FMU takes as parameter defaults (all can be changed at instantiation)."""
+
+    step: float
+    rho_inf: float = 0.8
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    terms: str = "linear"
+    initial_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    initial_angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    duration: float | None = None  # DefaultExperiment stopTime when given
+
+    @classmethod
+    def of_scene(cls, scene) -> "SceneParameters":
+        return cls(
+            step=scene.step,
+            rho_inf=scene.rho_inf,
+            gravity=tuple(scene.gravity),
+            terms=scene.terms,
+            initial_velocity=tuple(scene.initial.velocity),
+            initial_angular_velocity=tuple(scene.initial.angular_velocity),
+            port_displacements=tuple(scene.initial.port_displacements),
+            duration=scene.duration,
+        )
+
+    def as_config(self) -> dict:
+        if self.terms not in TERM_SETS:
+            raise BuildError(f"terms must be one of {TERM_SETS}, got {self.terms!r}")
+        return {
+            "step": float(self.step),
+            "rho_inf": float(self.rho_inf),
+            "gravity": [float(g) for g in self.gravity],
+            "terms": self.terms,
+            "initial_velocity": [float(x) for x in self.initial_velocity],
+            "initial_angular_velocity": [float(x) for x in self.initial_angular_velocity],
+            "port_displacements": {k: [float(x) for x in v] for k, v in self.port_displacements},
+        }
+
+
+def identifier(text: str) -> str:
+    s = re.sub(r"\W", "_", text)
+    return s if re.match(r"[A-Za-z_]", s) else f"b_{s}"
+
+
+def _sources(directory: Path, names=None) -> dict[str, str]:
+    files = sorted(directory.glob("*.py")) if names is None else [directory / n for n in names]
+    return {f.name: f.read_text(encoding="utf-8") for f in files}
+
+
+_STDLIB = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
+
+
+def check_shipped_imports(sources: dict[str, str]) -> None:
+    """The shipped modules may import only the standard library, numpy, scipy and each other
+    (relative imports): anything else would be missing where the FMU runs."""
+    import ast
+
+    for name, text in sources.items():
+        for node in ast.walk(ast.parse(text, filename=name)):
+            if isinstance(node, ast.ImportFrom):
+                mods = [] if node.level else [node.module or ""]
+            elif isinstance(node, ast.Import):
+                mods = [a.name for a in node.names]
+            else:
+                continue
+            for mod in mods:
+                top = mod.split(".")[0]
+                if top in ALLOWED_IMPORTS or top in _STDLIB:
+                    continue
+                raise BuildError(
+                    f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, the "
+                    "standard library and each other (relative imports)"
+                )
+
+
+def body_digest(data: BodyData, config: dict, sources: dict[str, str]) -> str:
+    h = hashlib.sha256()
+    for se in data.superelements:
+        for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz"):
+            a = np.ascontiguousarray(getattr(se, key))
+            h.update(key.encode() + str(a.dtype).encode() + str(a.shape).encode() + a.tobytes())
+        h.update(repr(float(se.mass)).encode())
+    h.update(np.ascontiguousarray(data.node_positions, dtype=float).tobytes())
+    h.update(json.dumps([dataclasses.astuple(p) for p in data.ports]).encode())
+    h.update(json.dumps(config, sort_keys=True).encode())
+    for name in sorted(sources):
+        h.update(name.encode() + sources[name].encode())
+    return h.hexdigest()[:10]
+
+
+def build_fmu(
+    data: BodyData,
+    dest,
+    params: SceneParameters,
+    *,
+    origin=None,
+    build_info: dict | None = None,
+) -> Path:
+    """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
+
+    origin: body origin for the initial rigid velocity field (default: node 0 position).
+    build_info: free JSON-able facts stored in the resources (model file, scene, overrides).
+    """
+    from pythonfmu import FmuBuilder  # build-time only
+
+    runtime_src = _sources(RUNTIME_DIR)
+    if "system.py" not in runtime_src:
+        raise BuildError(f"{RUNTIME_DIR}/system.py is missing: the body dynamics are not there")
+    fmu_src = _sources(Path(__file__).resolve().parent, SHIPPED_FMU_MODULES)
+    check_shipped_imports({**{f"runtime/{k}": v for k, v in runtime_src.items()},
+                           **{f"fmu/{k}": v for k, v in fmu_src.items()}})
+    config = {
+        "parameters": params.as_config(),
+        "origin": [float(x) for x in (origin if origin is not None else data.node_positions[0])],
+        "body": data.name,
+        "ffrf_fmu_version": __version__,
+        "build": build_info or {},
+    }
+    ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
+    config["description"] = DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text)
+    if params.duration is not None:
+        config["experiment"] = {"stop_time": float(params.duration), "step_size": float(params.step)}
+    digest = body_digest(data, {k: v for k, v in config.items() if k != "build"}, {**runtime_src, **fmu_src})
+    name = identifier(data.name)
+    package = f"ffrf_rt_{name}_{digest}"
+    module = f"ffrf_slave_{name}_{digest}"
+    cls = f"FfrfBody_{name}_{digest}"
+    config["names"] = {"package": package, "module": module, "class": cls, "digest": digest}
+
+    dest = Path(dest)
+    if dest.suffix != ".fmu":
+        dest = dest / f"{data.name}.fmu"
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="ffrf_fmu_build_") as tmp:
+        stage = Path(tmp)
+        pkg = stage / package
+        (pkg / "runtime").mkdir(parents=True)
+        (pkg / "fmu").mkdir()
+        (pkg / "__init__.py").write_text(f'"""Private runtime of FMU {cls} (ffrf-fmu {__version__})."""\n')
+        for fname, text in runtime_src.items():
+            (pkg / "runtime" / fname).write_text(text, encoding="utf-8")
+        (pkg / "fmu" / "__init__.py").write_text("")
+        for fname, text in fmu_src.items():
+            (pkg / "fmu" / fname).write_text(text, encoding="utf-8")
+        data.save(stage / DATA_FILE)
+        (stage / CONFIG_FILE).write_text(json.dumps(config, indent=1), encoding="utf-8")
+        script = stage / f"{module}.py"
+        script.write_text(TEMPLATE.format(body=data.name, version=__version__, package=package, cls=cls),
+                          encoding="utf-8")
+        saved_path = list(sys.path)
+        try:
+            out = FmuBuilder.build_FMU(
+                script,
+                dest=dest,
+                project_files=[pkg, stage / DATA_FILE, stage / CONFIG_FILE],
+                canHandleVariableCommunicationStepSize=True,
+                canGetAndSetFMUstate=True,
+                canSerializeFMUstate=True,
+                canBeInstantiatedOnlyOncePerProcess=False,
+            )
+        finally:
+            # the build imported the script and the package from the staging directory: forget
+            # them, so that loading the FMU later in this process imports its own resources
+            sys.path[:] = saved_path
+            for key in [k for k in sys.modules if k == module or k == package or k.startswith(package + ".")]:
+                del sys.modules[key]
+    return Path(out)
+
+
+# ---------------------------------------------------------------------------------------------
+# from a model file
+
+
+def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()) -> Path:
+    """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
+    from ..model import load_model
+    from ..reduction import build_body
+
+    model = load_model(model_path, overrides)
+    sc = model.scene(scene)
+    data, _ = build_body(model.body, sc.causality)
+    info = {
+        "model_file": str(Path(model_path).name),
+        "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
+        "scene": sc.name,
+        "overrides": list(overrides),
+        "scenes": [s.name for s in model.scenes],
+    }
+    return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info)
+
+
+def read_fmu_config(fmu_path) -> dict:
+    """The ffrf_fmu.json of a built FMU (names, parameters, build info)."""
+    import zipfile
+
+    with zipfile.ZipFile(fmu_path) as z:
+        return json.loads(z.read(f"resources/{CONFIG_FILE}").decode("utf-8"))
+
+
+def add_build_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("model", help="model file (TOML, see docs/model-format.md)")
+    parser.add_argument("--scene", help="scene whose causality and parameters the FMU takes (default: the first)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a model value (repeatable), e.g. --set superelements=2")
+    parser.add_argument("-o", "--output", default=None,
+                        help="FMU file to write (default: <body name>.fmu in the current directory)")
+
+
+def build_command(args) -> int:
+    """`ffrf-fmu build MODEL [--scene NAME] [--set k=v ...] [-o Body.fmu]`."""
+    from ..model import ModelError
+
+    try:
+        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides)
+    except (ModelError, BuildError, OSError) as e:
+        print(f"ffrf-fmu build: error: {e}", file=sys.stderr)
+        return 2
+    cfg = read_fmu_config(out)
+    print(f"wrote {out} (model identifier {cfg['names']['class']}, scene {cfg['build'].get('scene')!r})")
+    return 0
+
+
+def add_build_parser(subparsers) -> argparse.ArgumentParser:
+    """Register `build` on an argparse subparsers object; the command runs `args.run(args)`."""
+    doc = "Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."
+    p = subparsers.add_parser("build", help=doc, description=doc)
+    add_build_arguments(p)
+    p.set_defaults(run=build_command)
+    return p
+
+
+def add_validate_parser(subparsers) -> argparse.ArgumentParser:
+    """Register `validate` (implemented in ffrf_fmu/validate.py)."""
+    from ..validate import add_validate_arguments, validate_command
+
+    doc = "Run a scene through the FMU under fmpy and standalone, compare every output, write a report."
+    p = subparsers.add_parser("validate", help=doc, description=doc)
+    add_validate_arguments(p)
+    p.set_defaults(run=validate_command)
+    return p

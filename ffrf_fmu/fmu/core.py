@@ -1,0 +1,370 @@
+"""What a body FMU does, without pythonfmu: values, initialization, communication steps, state.
+
+The pythonfmu slave (slave_template.py) is a thin shell around `BodyCoSim`; keeping the logic
+here makes it testable in-process and the same code runs inside every FMU (the builder copies
+this module next to a copy of ffrf_fmu/runtime). Imports: numpy, the standard library and the
+runtime package (relative), nothing else.
+
+Inputs between communication points (stated in the modelDescription and docs/fmu.md): the
+values set before doStep(t_c, H) are the values at t_c. Over [t_c, t_c + H] motion inputs are
+extrapolated with their own rates, r(t) = r_c + v_c (t - t_c), v(t) = v_c,
+R(t) = expm((t - t_c) skew(w_c)) R_c, w(t) = w_c (world axes); force inputs are held,
+f(t) = f_c, t(t) = t_c. The body takes internal steps of `solver.step`, the last one shortened
+to land on t_c + H. As H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run
+tends to the standalone run (which evaluates the exact signals at every internal step).
+"""
+from __future__ import annotations
+
+import io
+import json
+import math
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..runtime.data import BodyData
+from ..runtime.ports import PortValues, StepFailure
+from ..runtime.rotation import expm
+from ..runtime.system import BodySystem
+from .variables import TERM_SETS, Variable, body_variables
+
+ROTATION_TOL = 1e-6  # reject R when max |R^T R - I| exceeds this
+ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
+STATE_VERSION = 1
+
+CONFIG_FILE = "ffrf_fmu.json"
+DATA_FILE = "body.npz"
+
+
+@dataclass
+class StepReport:
+    ok: bool
+    message: str = ""  # cause of a failure, naming the time
+    detail: str = ""  # traceback of an unexpected exception
+    iterations: int = 0
+
+
+class BodyCoSim:
+    """A body behind the FMI co-simulation calls.
+
+    Every variable value lives in one float64 array `values` indexed by value reference
+    (Integers stored as floats), so that the FMU state is a few arrays.
+    """
+
+    def __init__(self, data: BodyData, config: dict):
+        self.data = data
+        self.config = config
+        self.variables: list[Variable] = body_variables(data.ports, data.node_positions, config["parameters"])
+        self.origin = np.asarray(config.get("origin", data.node_positions[0]), dtype=float)
+        n = len(self.variables)
+        self.values = np.array([v.start if v.start is not None else 0.0 for v in self.variables], dtype=float)
+        self.causality = [v.causality for v in self.variables]
+        self.is_integer = np.array([v.type == "Integer" for v in self.variables])
+        self.index: dict[tuple[str, str], np.ndarray] = {}
+        for i, v in enumerate(self.variables):
+            key = (v.port, v.field) if v.kind == "port" else (v.kind, v.field)
+            self.index.setdefault(key, []).append(i)
+        self.index = {k: np.array(ix, dtype=int) for k, ix in self.index.items()}
+        self.by_name = {v.name: i for i, v in enumerate(self.variables)}
+        self.input_ix = np.array([i for i in range(n) if self.causality[i] == "input"], dtype=int)
+        self.param_ix = np.array([i for i in range(n) if self.causality[i] == "parameter"], dtype=int)
+        self.output_ix = np.array([i for i in range(n) if self.causality[i] == "output"], dtype=int)
+        self.mode = "instantiated"  # -> "initialization" -> "step"
+        self.start_time = 0.0
+        self.system: BodySystem | None = None
+        self._system_params: tuple | None = None
+        self._initialized_with: np.ndarray | None = None  # inputs + parameters used by the last initialize
+        self.failure = ""  # set when initialization failed: every doStep then reports it
+
+    # ------------------------------------------------------------------ loading
+    @classmethod
+    def from_resources(cls, resources) -> "BodyCoSim":
+        res = Path(resources)
+        config = json.loads((res / CONFIG_FILE).read_text(encoding="utf-8"))
+        return cls(BodyData.load(res / DATA_FILE), config)
+
+    # ------------------------------------------------------------------ values
+    def get(self, vr: int) -> float:
+        if self.mode == "initialization" and self.causality[vr] == "output":
+            self.refresh_initial_outputs()
+        return self.values[vr]
+
+    def set(self, vr: int, value: float) -> str:
+        """Set one input or parameter; returns a warning text when the call was ignored."""
+        c = self.causality[vr]
+        name = self.variables[vr].name
+        if c == "output":
+            return f"{name} is an output: setting it is ignored"
+        if c == "parameter" and self.mode == "step":
+            return f"{name} is a fixed parameter: it cannot change after initialization (ignored)"
+        self.values[vr] = value
+        return ""
+
+    def _vec(self, port: str, field: str) -> np.ndarray:
+        return self.values[self.index[(port, field)]]
+
+    def parameters(self) -> dict:
+        v = self.values
+        terms = int(round(v[self.index[("parameter", "terms")][0]]))
+        disp = {}
+        for p in self.data.ports:
+            ix = self.index.get((p.name, "port_displacement"))
+            if ix is not None:
+                disp[p.name] = v[ix].copy()
+        return {
+            "step": float(v[self.index[("parameter", "step")][0]]),
+            "rho_inf": float(v[self.index[("parameter", "rho_inf")][0]]),
+            "terms": terms,
+            "gravity": v[self.index[("parameter", "gravity")]].copy(),
+            "initial_velocity": v[self.index[("parameter", "initial_velocity")]].copy(),
+            "initial_angular_velocity": v[self.index[("parameter", "initial_angular_velocity")]].copy(),
+            "port_displacements": disp,
+        }
+
+    def _check_parameters(self, p: dict) -> str:
+        if not (p["step"] > 0.0 and math.isfinite(p["step"])):
+            return f"parameter solver.step must be positive and finite, got {p['step']!r}"
+        if not 0.0 <= p["rho_inf"] <= 1.0:
+            return f"parameter solver.rho_inf must be in [0, 1], got {p['rho_inf']!r}"
+        if p["terms"] not in range(len(TERM_SETS)):
+            return f"parameter solver.terms must be 0 (linear) or 1 (gyroscopic), got {p['terms']!r}"
+        for key in ("gravity", "initial_velocity", "initial_angular_velocity"):
+            if not np.all(np.isfinite(p[key])):
+                return f"parameter {key} is not finite: {p[key]!r}"
+        return ""
+
+    def _make_system(self) -> BodySystem:
+        p = self.parameters()
+        key = (p["rho_inf"], p["terms"], tuple(p["gravity"]))
+        if self.system is None or self._system_params != key:
+            self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"])
+            self._system_params = key
+        return self.system
+
+    # ------------------------------------------------------------------ inputs
+    def _held_inputs(self, t_c: float) -> tuple[dict, str]:
+        """The input values set for t_c, checked: ({port: PortValues at t_c}, failure text)."""
+        bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(self.values[i])]
+        if bad:
+            shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
+            return {}, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
+        held = {}
+        for p in self.data.ports:
+            pv = PortValues()
+            if p.translation == "motion":
+                pv.r, pv.v = self._vec(p.name, "r").copy(), self._vec(p.name, "v").copy()
+            else:
+                pv.f = self._vec(p.name, "f").copy()
+            if p.rotation == "motion":
+                R = self._vec(p.name, "R").reshape(3, 3).copy()
+                dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+                det = float(np.linalg.det(R))
+                if dev > ROTATION_TOL or det <= 0.0:
+                    return {}, (
+                        f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
+                        f"(max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g} or det = {det:.6g} <= 0)"
+                    )
+                if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
+                    U, _, Vt = np.linalg.svd(R)
+                    R = U @ Vt
+                pv.R, pv.w = R, self._vec(p.name, "w").copy()
+            else:
+                pv.t = self._vec(p.name, "t").copy()
+            held[p.name] = pv
+        return held, ""
+
+    @staticmethod
+    def extrapolation(t_c: float, held: dict):
+        """inputs(t) over the communication step from the values held at t_c (see module doc)."""
+
+        def inputs(t: float) -> dict:
+            dt = t - t_c
+            out = {}
+            for name, pv in held.items():
+                q = PortValues(f=pv.f, t=pv.t, v=pv.v, w=pv.w)
+                if pv.r is not None:
+                    q.r = pv.r + pv.v * dt
+                if pv.R is not None:
+                    q.R = expm(pv.w * dt) @ pv.R
+                out[name] = q
+            return out
+
+        return inputs
+
+    # ------------------------------------------------------------------ modes
+    def setup_experiment(self, start_time: float) -> None:
+        self.start_time = float(start_time)
+
+    def enter_initialization_mode(self) -> None:
+        self.mode = "initialization"
+
+    def _initialize(self) -> str:
+        """Consistent initial state from the current inputs and parameters; failure text or ''."""
+        self.failure = ""
+        p = self.parameters()
+        msg = self._check_parameters(p)
+        if msg:
+            self.failure = f"initialization: {msg}"
+            return self.failure
+        held, msg = self._held_inputs(self.start_time)
+        if msg:
+            self.failure = f"initialization: {msg}"
+            return self.failure
+        try:
+            system = self._make_system()
+            system.initialize(
+                self.start_time,
+                self.extrapolation(self.start_time, held),
+                velocity=p["initial_velocity"],
+                angular_velocity=p["initial_angular_velocity"],
+                port_displacements=p["port_displacements"] or None,
+                origin=self.origin,
+            )
+        except StepFailure as e:
+            self.failure = f"initialization failed at t = {e.time:.6g} s: {e.cause}"
+            return self.failure
+        except Exception as e:  # noqa: BLE001 - reported to the host, never raised into it
+            self.failure = f"initialization failed at t = {self.start_time:.6g} s: {type(e).__name__}: {e}"
+            return self.failure
+        self._write_outputs(0)
+        self._initialized_with = self.values[np.concatenate([self.input_ix, self.param_ix])].copy()
+        return ""
+
+    def _inputs_changed(self) -> bool:
+        now = self.values[np.concatenate([self.input_ix, self.param_ix])]
+        return self._initialized_with is None or not np.array_equal(now, self._initialized_with, equal_nan=True)
+
+    def refresh_initial_outputs(self) -> None:
+        """Outputs read in initialization mode reflect the inputs and parameters set so far."""
+        if self._inputs_changed():
+            self._initialize()
+
+    def exit_initialization_mode(self) -> str:
+        msg = self._initialize() if (self._inputs_changed() or self.failure) else ""
+        self.mode = "step"
+        return msg
+
+    # ------------------------------------------------------------------ stepping
+    def do_step(self, t_c: float, H: float) -> StepReport:
+        if self.failure:
+            return StepReport(False, self.failure)
+        if self.mode != "step" or self.system is None:
+            return StepReport(False, f"t = {t_c:.6g} s: doStep before the end of initialization")
+        system = self.system
+        h = float(self.values[self.index[("parameter", "step")][0]])
+        t_end = t_c + H
+        tol = 1e-9 * max(1.0, abs(t_c)) + 1e-6 * h
+        if not (H > 0.0 and math.isfinite(H)):
+            return StepReport(False, f"t = {t_c:.6g} s: communication step must be positive and finite, got {H!r}")
+        if abs(t_c - system.t) > tol:
+            return StepReport(
+                False,
+                f"t = {t_c:.6g} s: the FMU is at t = {system.t:.9g} s; doStep must start where the last step "
+                "ended (or restore a saved FMU state first)",
+            )
+        held, msg = self._held_inputs(t_c)
+        if msg:
+            return StepReport(False, msg)
+        inputs = self.extrapolation(t_c, held)
+        saved = system.get_state()
+        worst = 0
+        try:
+            while True:
+                remaining = t_end - system.t
+                if remaining <= 1e-9 * h:
+                    break
+                hh = h if remaining > h * (1.0 + 1e-6) else remaining  # last step lands on t_end
+                worst = max(worst, system.step(hh, inputs))
+            self._check_finite(system)
+        except StepFailure as e:
+            system.set_state(saved)
+            return StepReport(False, f"t = {e.time:.6g} s: {e.cause}")
+        except Exception as e:  # noqa: BLE001
+            system.set_state(saved)
+            return StepReport(False, f"t = {system.t:.6g} s: {type(e).__name__}: {e}", traceback.format_exc())
+        self._write_outputs(worst)
+        return StepReport(True, iterations=worst)
+
+    @staticmethod
+    def _check_finite(system: BodySystem) -> None:
+        if not np.all(np.isfinite(system.get_state())):
+            raise StepFailure(system.t, "the state is not finite (NaN or overflow)")
+
+    def _write_outputs(self, iterations: int) -> None:
+        outs = self.system.outputs()
+        v = self.values
+        for p in self.data.ports:
+            pv = outs[p.name]
+            for field in ("r", "R", "v", "w", "f", "t"):
+                ix = self.index[(p.name, field)]
+                if self.causality[ix[0]] == "output":
+                    v[ix] = np.ravel(getattr(pv, field))
+        for key, value in self.system.energies().items():
+            ix = self.index.get(("energy", key))
+            if ix is not None:
+                v[ix] = value
+        v[self.index[("solver", "newton_iterations")]] = iterations
+
+    # ------------------------------------------------------------------ FMU state
+    def get_state(self) -> dict:
+        """A complete snapshot (arrays are copies): values, mode, time, body integrator state.
+
+        The body drops its cached Newton iteration matrix on set_state; it is dropped here too
+        (set_state(get_state())), so that the run continuing after a save and a run restored
+        from that save take bit-identical steps."""
+        sys_state = None
+        if self.system is not None:
+            sys_state = self.system.get_state()
+            self.system.set_state(sys_state)
+        return {
+            "version": STATE_VERSION,
+            "values": self.values.copy(),
+            "mode": self.mode,
+            "start_time": self.start_time,
+            "failure": self.failure,
+            "system": None if sys_state is None else sys_state.copy(),
+            "initialized_with": None if self._initialized_with is None else self._initialized_with.copy(),
+        }
+
+    def set_state(self, state: dict) -> None:
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(f"FMU state version {state.get('version')!r} is not {STATE_VERSION}")
+        values = np.asarray(state["values"], dtype=float)
+        if values.shape != self.values.shape:
+            raise ValueError(f"FMU state has {values.size} values, this FMU has {self.values.size}")
+        self.values = values.copy()
+        self.mode = str(state["mode"])
+        self.start_time = float(state["start_time"])
+        self.failure = str(state["failure"])
+        iw = state.get("initialized_with")
+        self._initialized_with = None if iw is None else np.asarray(iw, dtype=float).copy()
+        if state["system"] is None:
+            self.system = None
+            self._system_params = None
+        else:
+            self._make_system().set_state(np.asarray(state["system"], dtype=float))
+
+    @staticmethod
+    def state_to_bytes(state: dict) -> bytes:
+        buf = io.BytesIO()
+        arrays = {
+            "values": state["values"],
+            "meta": np.array(json.dumps({k: state[k] for k in ("version", "mode", "start_time", "failure")})),
+        }
+        if state["system"] is not None:
+            arrays["system"] = state["system"]
+        if state["initialized_with"] is not None:
+            arrays["initialized_with"] = state["initialized_with"]
+        np.savez(buf, **arrays)
+        return buf.getvalue()
+
+    @staticmethod
+    def state_from_bytes(blob: bytes) -> dict:
+        with np.load(io.BytesIO(bytes(blob)), allow_pickle=False) as z:
+            state = json.loads(str(z["meta"]))
+            state["values"] = z["values"].copy()
+            state["system"] = z["system"].copy() if "system" in z.files else None
+            state["initialized_with"] = z["initialized_with"].copy() if "initialized_with" in z.files else None
+        return state

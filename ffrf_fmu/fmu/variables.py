@@ -1,0 +1,195 @@
+"""The FMU variables of a body (shared/spec/ports.md): names, causality, units, descriptions.
+
+One table, `body_variables`, drives everything: the slave registers it with pythonfmu, the
+builder writes the unit definitions and the ModelStructure from it, validate.py and master.py
+read names from it. Shipped inside every FMU: standard library only (no numpy, no pythonfmu).
+
+Value references are the positions in the returned list. Index conventions: `P.r[i]` i = 1..3,
+`P.R[i,j]` = component i (world axis) of nodal axis j, both 1-based.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from xml.etree.ElementTree import Element, SubElement
+
+# FMI 2.0 unit definitions (BaseUnit exponents of SI base units; rad is FMI's extra base unit)
+UNITS: dict[str, dict[str, int]] = {
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "rad/s": {"rad": 1, "s": -1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "N.m": {"kg": 1, "m": 2, "s": -2},
+    "J": {"kg": 1, "m": 2, "s": -2},
+    "s": {"s": 1},
+}
+
+TERM_SETS = ("linear", "gyroscopic")  # solver.terms: Integer enumeration, index into this tuple
+
+# (shape, unit, meaning) of the six fields of a port
+FIELDS = {
+    "r": ((3,), "m", "position of the nodal frame origin, world axes"),
+    "R": ((3, 3), None, "rotation matrix of the nodal frame: R[i,j] = world component i of nodal axis j"),
+    "v": ((3,), "m/s", "velocity of the node, world axes"),
+    "w": ((3,), "rad/s", "angular velocity of the nodal frame, world axes"),
+    "f": ((3,), "N", "force the environment applies ON the body at the node, world axes"),
+    "t": ((3,), "N.m", "moment the environment applies ON the body at the node, world axes"),
+}
+PART_FIELDS = {"translation": ("r", "v", "f"), "rotation": ("R", "w", "t")}
+
+ENERGIES = {
+    "kinetic_rigid": "kinetic energy of the rigid (CM frame) motion of all superelements",
+    "kinetic_elastic": "kinetic energy of the elastic velocity field, 1/2 r^T M r",
+    "strain": "strain energy of the elastic deformation, 1/2 q^T K q",
+    "work_external": "work done on the body by the port loads and gravity since initialization",
+}
+
+INPUT_RULE = {
+    "r": "held from the communication point t_c and extrapolated with {p}.v: r(t) = r_c + v_c (t - t_c)",
+    "v": "held constant over the communication step (the slope of the extrapolation of {p}.r)",
+    "R": "extrapolated with {p}.w: R(t) = expm((t - t_c) skew(w_c)) R_c; must be a rotation "
+    "(|R^T R - I| <= 1e-6, det > 0, re-orthonormalized when not exact)",
+    "w": "held constant over the communication step (the rate of the extrapolation of {p}.R)",
+    "f": "held constant over the communication step",
+    "t": "held constant over the communication step",
+}
+
+
+@dataclass(frozen=True)
+class Variable:
+    name: str
+    type: str  # "Real" | "Integer"
+    causality: str  # "input" | "output" | "parameter"
+    variability: str  # "continuous" | "discrete" | "fixed"
+    unit: str | None
+    description: str
+    start: float | int | None  # None for calculated outputs
+    kind: str  # "port" | "energy" | "solver" | "parameter"
+    port: str = ""
+    field: str = ""  # port field (r R v w f t), energy key, or parameter key
+    index: tuple[int, ...] = ()  # 0-based component
+
+
+def port_field_causality(translation: str, rotation: str, field: str) -> str:
+    """'input' or 'output' for one field of a port with the given part causalities (ports.md)."""
+    part = "translation" if field in PART_FIELDS["translation"] else "rotation"
+    motion = (translation if part == "translation" else rotation) == "motion"
+    is_load = field in ("f", "t")
+    return "output" if motion == is_load else "input"
+
+
+def _components(shape):
+    if shape == (3,):
+        return [((i,), f"[{i + 1}]") for i in range(3)]
+    return [((i, j), f"[{i + 1},{j + 1}]") for i in range(3) for j in range(3)]
+
+
+def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
+    """Every variable of a body FMU, in value-reference order.
+
+    ports: objects with name, node, translation, rotation (runtime.data.PortData);
+    node_positions: reference node positions (start values of motion-driven r inputs);
+    parameters: defaults with keys step, rho_inf, gravity (3), terms (name), initial_velocity (3),
+    initial_angular_velocity (3), port_displacements {port: (3,)} (force-driven translations).
+    """
+    out: list[Variable] = []
+    for p in ports:
+        r_ref = [float(x) for x in node_positions[p.node]]
+        for field in ("r", "R", "v", "w", "f", "t"):
+            shape, unit, meaning = FIELDS[field]
+            causality = port_field_causality(p.translation, p.rotation, field)
+            part = "translation" if field in PART_FIELDS["translation"] else "rotation"
+            how = f"{part} {getattr(p, part)}-driven"
+            if causality == "input":
+                desc = f"{meaning} [input, {how}; {INPUT_RULE[field].format(p=p.name)}]"
+            else:
+                desc = f"{meaning} [output at the communication point, {how}]"
+            for idx, suffix in _components(shape):
+                if causality == "input":
+                    if field == "r":
+                        start = r_ref[idx[0]]
+                    elif field == "R":
+                        start = 1.0 if idx[0] == idx[1] else 0.0
+                    else:
+                        start = 0.0
+                else:
+                    start = None
+                out.append(
+                    Variable(f"{p.name}.{field}{suffix}", "Real", causality, "continuous", unit, desc, start,
+                             "port", p.name, field, idx)
+                )
+    for key, meaning in ENERGIES.items():
+        out.append(Variable(f"energy.{key}", "Real", "output", "continuous", "J", meaning, None, "energy", field=key))
+    out.append(
+        Variable("solver.newton_iterations", "Integer", "output", "discrete", None,
+                 "largest number of Newton iterations of the internal steps of the last communication step",
+                 None, "solver", field="newton_iterations")
+    )
+    par = parameters
+    out.append(Variable("solver.step", "Real", "parameter", "fixed", "s",
+                        "internal integrator step; the last internal step of a communication step is shortened "
+                        "to land on the communication point", float(par["step"]), "parameter", field="step"))
+    out.append(Variable("solver.rho_inf", "Real", "parameter", "fixed", None,
+                        "spectral radius at infinite frequency of generalized-alpha, in [0, 1]",
+                        float(par["rho_inf"]), "parameter", field="rho_inf"))
+    out.append(Variable("solver.terms", "Integer", "parameter", "fixed", None,
+                        "term set of the body equations (Integer enumeration): 0 = linear, 1 = gyroscopic",
+                        TERM_SETS.index(par["terms"]), "parameter", field="terms"))
+    for i in range(3):
+        out.append(Variable(f"gravity[{i + 1}]", "Real", "parameter", "fixed", "m/s2",
+                            "uniform gravity acceleration, world axes", float(par["gravity"][i]), "parameter",
+                            field="gravity", index=(i,)))
+    for i in range(3):
+        out.append(Variable(f"initial.v[{i + 1}]", "Real", "parameter", "fixed", "m/s",
+                            "initial rigid velocity field v + w x (X - origin) of a body with no motion-driven port: v",
+                            float(par["initial_velocity"][i]), "parameter", field="initial_velocity", index=(i,)))
+    for i in range(3):
+        out.append(Variable(f"initial.w[{i + 1}]", "Real", "parameter", "fixed", "rad/s",
+                            "initial rigid velocity field v + w x (X - origin) of a body with no motion-driven port: w",
+                            float(par["initial_angular_velocity"][i]), "parameter",
+                            field="initial_angular_velocity", index=(i,)))
+    disp = par.get("port_displacements", {})
+    for p in ports:
+        if p.translation != "force":
+            continue
+        d = disp.get(p.name, (0.0, 0.0, 0.0))
+        for i in range(3):
+            out.append(Variable(f"initial.{p.name}.d[{i + 1}]", "Real", "parameter", "fixed", "m",
+                                f"initial elastic displacement of port {p.name} from its reference position",
+                                float(d[i]), "parameter", port=p.name, field="port_displacement", index=(i,)))
+    return out
+
+
+def patch_model_description(root: Element, variables: list[Variable]) -> Element:
+    """Complete pythonfmu's modelDescription: units, UnitDefinitions and a ModelStructure with
+    Outputs (no direct feedthrough: dependencies="") and InitialUnknowns (every output; depends
+    on all inputs and parameters), so that fmpy's validate_fmu finds nothing to report."""
+    by_name = {v.name: v for v in variables}
+    used_units = set()
+    mv = root.find("ModelVariables")
+    for sv in mv.findall("ScalarVariable"):
+        var = by_name[sv.get("name")]
+        typ = sv.find(var.type)
+        if var.unit:
+            typ.set("unit", var.unit)
+            used_units.add(var.unit)
+    # UnitDefinitions come right after CoSimulation (FMI 2.0 schema order)
+    units = Element("UnitDefinitions")
+    for name in sorted(used_units):
+        u = SubElement(units, "Unit", {"name": name})
+        SubElement(u, "BaseUnit", {k: str(e) for k, e in UNITS[name].items()})
+    pos = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(pos, units)
+    old = root.find("ModelStructure")
+    if old is not None:
+        root.remove(old)
+    structure = SubElement(root, "ModelStructure")
+    outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
+    if outputs:
+        o = SubElement(structure, "Outputs")
+        for i in outputs:
+            SubElement(o, "Unknown", {"index": str(i), "dependencies": ""})
+        iu = SubElement(structure, "InitialUnknowns")
+        for i in outputs:
+            SubElement(iu, "Unknown", {"index": str(i)})
+    return root

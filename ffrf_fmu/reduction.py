@@ -1,0 +1,201 @@
+"""Superelement reduction of geradin section 7 (formulation.md section 2).
+
+Basis (eq. 76): free attachment modes with inertia relief recast on the boundary displacements,
+plus free-free vibration modes, all mass-orthogonal to the rigid modes about the CM (eq. 74),
+so the reduced coordinates are elastic displacements seen from the CM frame. Craig-Bampton
+is not admissible here (its constraint modes are not orthogonal to the rigid modes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import scipy.linalg as sla
+
+from .fe import FEModel, node_dofs, rigid_modes
+from .fe.beam import beam_model
+from .model import Body, ModelError, PART_CAUSALITIES
+from .runtime.data import BodyData, PortData, SuperelementData
+
+
+@dataclass(frozen=True, eq=False)
+class Reduction:
+    data: SuperelementData  # from ffrf_fmu.runtime.data
+    Y: np.ndarray  # (n_dof, n) basis of eq. (76)
+    U: np.ndarray  # (n_dof, 6) rigid modes about the CM
+    orthogonality_error: float  # max|U^T M Y| / max|M|
+    block_diagonality_error: float  # max|K_bar boundary-modal block| / max|K_bar|
+    n_fe_dofs: int
+
+
+def mass_properties(fe: FEModel) -> tuple[float, np.ndarray]:
+    """Mass and centre of mass from the rigid modes about the model origin (eq. 11-13).
+
+    U0_t^T M U0_t = m I and U0_t^T M U0_r = -m skew(x_cm).
+    """
+    U0 = rigid_modes(fe.coords, np.zeros(3))
+    MU = U0.T @ fe.M @ U0
+    mass = np.trace(MU[:3, :3]) / 3.0
+    S = -MU[:3, 3:] / mass  # = skew(x_cm)
+    return mass, np.array([S[2, 1], S[0, 2], S[1, 0]])
+
+
+def mass_projector(M: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """P = I - M U (U^T M U)^-1 U^T: removes from a load its rigid (inertia-relief) resultant."""
+    return np.eye(M.shape[0]) - M @ U @ np.linalg.solve(U.T @ M @ U, U.T)
+
+
+def free_free_modes(fe: FEModel, U: np.ndarray, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
+    """First n_modes elastic modes of K x = w^2 M x (6 rigid ones dropped), mass-normalized and
+    projected explicitly against the rigid modes: the raw eigenvectors are orthogonal to U only
+    to ~1e-8 when the axial stiffness dwarfs the bending one (formulation.md section 2).
+
+    Returns (Xi (n_dof, n_modes), omega^2 (n_modes,)).
+    """
+    if n_modes == 0:
+        return np.zeros((fe.n_dof, 0)), np.zeros(0)
+    try:
+        w2, X = sla.eigh(fe.K, fe.M, subset_by_index=[6, 5 + n_modes])
+    except np.linalg.LinAlgError as err:
+        raise ValueError(f"mass matrix not positive definite (zero rotary/torsional inertia?): {err}") from None
+    A = U.T @ fe.M @ U
+    X = X - U @ np.linalg.solve(A, U.T @ (fe.M @ X))
+    X = X / np.sqrt(np.einsum("ij,ik,kj->j", X, fe.M, X))
+    return X, w2
+
+
+def attachment_modes(fe: FEModel, U: np.ndarray, boundary: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """Free attachment modes with inertia relief F_B = G_e L_B^T, G_e = P^T G_c P.
+
+    G_c is the flexibility with the dofs `support` held (any isostatic support: G_e does not
+    depend on it, since P L_B^T is self-equilibrated). boundary, support: dof index arrays.
+    """
+    P = mass_projector(fe.M, U)
+    free = np.setdiff1d(np.arange(fe.n_dof), support)
+    load = P[:, boundary]  # P L_B^T
+    x = np.zeros_like(load)
+    x[free] = sla.solve(fe.K[np.ix_(free, free)], load[free], assume_a="sym")
+    # P^T applied twice: the first pass leaves U^T M F at round-off of |U^T M x|, which the
+    # stiffness F_BB^-1 then amplifies (~1e-10 on B2 at 32 elements); the second pass removes it
+    return P.T @ (P.T @ x)
+
+
+def reduce_superelement(
+    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int]
+) -> Reduction:
+    """Reduce `fe` to eq. (76): q = Y [q_B; eta], q_B = 6 dofs per boundary node (node-major,
+    order of boundary_nodes), eta = amplitudes of the n_modes free-free modes.
+
+    Y = [[I, 0], [F_IB F_BB^-1, Xi_I - F_IB F_BB^-1 Xi_B]] (rows: boundary, interior dofs).
+    Body axes = model axes (no principal-axis rotation), origin at the CM.
+    """
+    boundary = node_dofs(boundary_nodes)
+    n_b = boundary.size
+    mass, x_cm = mass_properties(fe)
+    U = rigid_modes(fe.coords, x_cm)
+    F = attachment_modes(fe, U, boundary, support=boundary[:6])  # first boundary node clamped
+    F_BB = F[boundary]
+    F_BB = 0.5 * (F_BB + F_BB.T)  # symmetric in exact arithmetic (L_B G_e L_B^T)
+    d = 1.0 / np.sqrt(np.abs(np.diag(F_BB)))
+    # Jacobi-scaled condition: axial and bending flexibilities differ by ~1e5 legitimately
+    # (measured ~80-170 scaled for 2..32 elements); with no interior node it is ~1e17
+    if np.linalg.cond(F_BB * np.outer(d, d)) > 1e10:
+        raise ValueError(
+            "boundary flexibility F_BB is singular: a superelement needs interior nodes "
+            "(at least 2 elements per superelement)"
+        )
+    if n_modes < 0 or n_b + n_modes > fe.n_dof - 6:
+        raise ValueError(
+            f"{n_modes} modes requested but the FE model ({fe.n_nodes} nodes, {fe.n_dof} dofs) has room for "
+            f"at most {fe.n_dof - 6 - n_b} besides its 6 rigid modes and {n_b} boundary dofs: use more elements"
+        )
+    Xi, w2 = free_free_modes(fe, U, n_modes)
+    interior = np.setdiff1d(np.arange(fe.n_dof), boundary)
+    FBinv = np.linalg.solve(F_BB, F[interior].T).T  # F_IB F_BB^-1 (F_BB symmetric)
+    Y = np.zeros((fe.n_dof, n_b + n_modes))
+    Y[boundary, :n_b] = np.eye(n_b)
+    Y[interior, :n_b] = FBinv
+    Y[interior, n_b:] = Xi[interior] - FBinv @ Xi[boundary]
+    K_bar = Y.T @ fe.K @ Y
+    M_bar = Y.T @ fe.M @ Y
+    d = 1.0 / np.sqrt(np.diag(M_bar))
+    # Y must have full rank: a mode whose shape the boundary attachment modes already span
+    # (e.g. 3 bending pairs on a 3-element beam) makes M_bar singular (scaled cond ~1e16)
+    if np.linalg.cond(M_bar * np.outer(d, d)) > 1e10:
+        raise ValueError(
+            f"the {n_modes} kept modes are not independent of the boundary attachment modes on this mesh "
+            f"({fe.n_nodes - 1} elements): use more elements or fewer modes"
+        )
+    G = np.einsum("ia,kij,jb->kab", Y, fe.M_kernel, Y, optimize=True)
+    J0 = U[:, 3:].T @ fe.M @ U[:, 3:]  # eq. (13) about the CM, model axes
+    data = SuperelementData(
+        mass=float(mass),
+        J0=0.5 * (J0 + J0.T),
+        x_cm=x_cm,
+        X_B=fe.coords[np.asarray(boundary_nodes)] - x_cm,
+        nodes=np.asarray(global_nodes, dtype=int),
+        K=0.5 * (K_bar + K_bar.T),  # symmetrized: the asymmetry is round-off
+        M=0.5 * (M_bar + M_bar.T),
+        G=0.5 * (G - G.transpose(0, 2, 1)),  # skew-symmetrized: the symmetric part is round-off
+        frequencies_hz=np.sqrt(np.maximum(w2, 0.0)) / (2.0 * np.pi),
+    )
+    return Reduction(
+        data=data,
+        Y=Y,
+        U=U,
+        orthogonality_error=float(np.abs(U.T @ fe.M @ Y).max() / np.abs(fe.M).max()),
+        block_diagonality_error=float(np.abs(K_bar[:n_b, n_b:]).max(initial=0.0) / np.abs(K_bar).max()),
+        n_fe_dofs=fe.n_dof,
+    )
+
+
+def _port_data(body: Body, n_nodes: int, causality: Sequence[tuple[str, str, str]]) -> tuple[PortData, ...]:
+    override = {name: (t, r) for name, t, r in causality}
+    unknown = set(override) - {p.name for p in body.ports}
+    if unknown:
+        raise ModelError(f"{body.source}: causality override for unknown port(s) {sorted(unknown)}")
+    ports = []
+    for p in body.ports:
+        node = p.node + n_nodes if p.node < 0 else p.node
+        if not 0 <= node < n_nodes:
+            raise ModelError(f"{body.source}: port {p.name!r} node {p.node} outside 0..{n_nodes - 1}")
+        t, r = override.get(p.name, (p.translation, p.rotation))
+        if t not in PART_CAUSALITIES or r not in PART_CAUSALITIES:
+            raise ModelError(f"{body.source}: port {p.name!r} causality must be one of {PART_CAUSALITIES}")
+        ports.append(PortData(p.name, node, t, r))
+    return tuple(ports)
+
+
+def build_body(body: Body, causality: Sequence[tuple[str, str, str]] = ()) -> tuple[BodyData, tuple[Reduction, ...]]:
+    """Split the beam into body.superelements equal segments, each its own FE model of
+    body.elements_per_superelement elements, reduce each on its two end nodes.
+
+    Global boundary node i sits at s = i L / n_se; superelement e joins nodes (e, e+1).
+    causality: optional (port, translation, rotation) overrides (model.Scene.causality).
+    """
+    n_se, n_el = body.superelements, body.elements_per_superelement
+    if n_se < 1:
+        raise ValueError(f"body {body.name!r}: needs at least one superelement")
+    if n_el < 2:
+        raise ValueError(
+            f"body {body.name!r}: {n_el} element(s) per superelement leaves F_BB singular; use at least 2"
+        )
+    d = np.asarray(body.direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    node_positions = np.asarray(body.origin, dtype=float) + np.outer(np.arange(n_se + 1) * body.length / n_se, d)
+    reductions = []
+    for e in range(n_se):
+        fe = beam_model(body.section, node_positions[e], d, body.length / n_se, n_el)
+        try:
+            reductions.append(reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1)))
+        except ValueError as err:
+            raise ValueError(f"body {body.name!r} ({body.source}), superelement {e}: {err}") from None
+    reductions = tuple(reductions)
+    data = BodyData(
+        name=body.name,
+        superelements=tuple(r.data for r in reductions),
+        node_positions=node_positions,
+        ports=_port_data(body, n_se + 1, causality),
+    )
+    return data, reductions

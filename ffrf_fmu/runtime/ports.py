@@ -1,0 +1,29 @@
+"""Port values exchanged with the environment (ports.md): all vectors in world axes, SI."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class PortValues:
+    """Values of one port. As input only the parts named by the causality are read:
+    motion translation -> r, v; motion rotation -> R, w; force translation -> f; force rotation -> t.
+    As output every field is filled."""
+
+    r: np.ndarray | None = None  # (3,) position of the nodal frame origin [m]
+    R: np.ndarray | None = None  # (3, 3) nodal axes in world axes
+    v: np.ndarray | None = None  # (3,) velocity [m/s]
+    w: np.ndarray | None = None  # (3,) angular velocity, world axes [rad/s]
+    f: np.ndarray | None = None  # (3,) force ON the body [N]
+    t: np.ndarray | None = None  # (3,) moment ON the body [N m]
+
+
+class StepFailure(RuntimeError):
+    """A time step that could not be completed: Newton did not converge, a NaN, a bad input."""
+
+    def __init__(self, time: float, cause: str):
+        super().__init__(f"step failed at t = {time:.6g} s: {cause}")
+        self.time = time
+        self.cause = cause

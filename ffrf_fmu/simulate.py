@@ -1,0 +1,351 @@
+"""Standalone runs: a scene's drives and loads as port inputs, the body stepped to the end,
+time series under the FMU's variable names, the benchmark metrics and a summary."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .model import Model, Scene, effective_ports, load_model
+from .runtime import drives
+from .runtime.data import BodyData
+from .runtime.ports import PortValues, StepFailure
+from .runtime.rotation import expm, logm
+from .runtime.system import BodySystem
+
+PORT_FIELDS = (("r", (3,)), ("R", (3, 3)), ("v", (3,)), ("w", (3,)), ("f", (3,)), ("t", (3,)))
+ENERGIES = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")
+
+
+def variable_names(port: str) -> list[str]:
+    """FMU variable names of one port (ports.md), 1-based structured names, in output order."""
+    names = []
+    for fld, shape in PORT_FIELDS:
+        if len(shape) == 1:
+            names += [f"{port}.{fld}[{i + 1}]" for i in range(3)]
+        else:
+            names += [f"{port}.{fld}[{i + 1},{j + 1}]" for i in range(3) for j in range(3)]
+    return names
+
+
+def flatten_port(values: PortValues) -> np.ndarray:
+    return np.concatenate([np.ravel(getattr(values, fld)) for fld, _ in PORT_FIELDS])
+
+
+def _tf(fn, t):
+    return drives.evaluate(fn.kind, dict(fn.params), t)
+
+
+def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, PortValues]]:
+    """Port inputs of a scene as a function of time: drives on motion parts, loads on force parts."""
+    drive_of = {d.port: d for d in scene.drives}
+    loads = scene.loads
+
+    def inputs(t: float) -> dict[str, PortValues]:
+        out = {}
+        for p in body.ports:
+            pv = PortValues()
+            d = drive_of.get(p.name)
+            if p.translation == "motion":
+                r0 = body.node_positions[p.node]
+                if d is not None and d.translation is not None:
+                    u, du, _ = _tf(d.translation.displacement, t)
+                    e = np.asarray(d.translation.direction, float)
+                    pv.r, pv.v = r0 + u * e, du * e
+                else:
+                    pv.r, pv.v = r0.copy(), np.zeros(3)
+            if p.rotation == "motion":
+                if d is not None and d.rotation is not None:
+                    phi, dphi, _ = _tf(d.rotation.angle, t)
+                    axis = np.asarray(d.rotation.axis, float)
+                    pv.R, pv.w = expm(phi * axis), dphi * axis
+                else:
+                    pv.R, pv.w = np.eye(3), np.zeros(3)
+            f, m = np.zeros(3), np.zeros(3)
+            for ld in loads:
+                if ld.port == p.name and ld.t_start <= t < ld.t_end:
+                    f += ld.force
+                    m += ld.moment
+            if p.translation == "force":
+                pv.f = f
+            if p.rotation == "force":
+                pv.t = m
+            out[p.name] = pv
+        return out
+
+    return inputs
+
+
+@dataclass
+class SimulationResult:
+    t: np.ndarray
+    columns: dict[str, np.ndarray]
+    summary: dict
+    body: BodyData = field(repr=False)
+
+    def port(self, name: str, fld: str) -> np.ndarray:
+        """(nt, 3) or (nt, 3, 3) series of one port field."""
+        shape = dict(PORT_FIELDS)[fld]
+        if len(shape) == 1:
+            return np.stack([self.columns[f"{name}.{fld}[{i + 1}]"] for i in range(3)], -1)
+        return np.stack(
+            [np.stack([self.columns[f"{name}.{fld}[{i + 1},{j + 1}]"] for j in range(3)], -1) for i in range(3)], -2
+        )
+
+    def write_csv(self, path) -> None:
+        names = ["time"] + list(self.columns)
+        data = np.column_stack([self.t] + [self.columns[k] for k in self.columns])
+        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+
+    def write_summary(self, path) -> None:
+        with open(path, "w") as fh:
+            json.dump(self.summary, fh, indent=2)
+            fh.write("\n")
+
+
+class Progress:
+    """A one-line progress bar on a terminal; silent otherwise (CI logs stay clean)."""
+
+    def __init__(self, total: float, label: str, stream=None):
+        self.total, self.label = total, label
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty()
+        self.shown = -1
+        self.start = time.perf_counter()
+
+    def update(self, done: float) -> None:
+        if not self.enabled:
+            return
+        pct = int(100 * done / self.total) if self.total > 0 else 100
+        if pct != self.shown:
+            self.shown = pct
+            bar = "#" * (pct // 4) + "." * (25 - pct // 4)
+            el = time.perf_counter() - self.start
+            self.stream.write(f"\r{self.label} [{bar}] {pct:3d}% t={done:.3g}s wall={el:.1f}s")
+            self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0)) -> tuple[BodySystem, Callable]:
+    """A BodySystem for the scene, initialized at t = 0; returns it with its input function."""
+    system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
+    inputs = scene_inputs(body, scene)
+    init = scene.initial
+    system.initialize(
+        0.0,
+        inputs,
+        velocity=init.velocity,
+        angular_velocity=init.angular_velocity,
+        port_displacements=dict(init.port_displacements),
+        origin=origin,
+    )
+    return system, inputs
+
+
+def record(system: BodySystem) -> np.ndarray:
+    outs = system.outputs()
+    e = system.energies()
+    vals = [flatten_port(outs[p.name]) for p in system.data.ports]
+    return np.concatenate(vals + [np.array([e[k] for k in ENERGIES] + [system.iterations])])
+
+
+def column_names(body: BodyData) -> list[str]:
+    names = [n for p in body.ports for n in variable_names(p.name)]
+    return names + [f"energy.{k}" for k in ENERGIES] + ["solver.newton_iterations"]
+
+
+def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool = True) -> SimulationResult:
+    """Step the body through the scene with the scene's constant step; record every step."""
+    start = time.perf_counter()
+    system, inputs = build_system(body, scene, origin)
+    n_steps = int(round(scene.duration / scene.step))
+    rows = np.empty((n_steps + 1, len(column_names(body))))
+    rows[0] = record(system)
+    times = np.empty(n_steps + 1)
+    times[0] = 0.0
+    momenta = [system.momenta()]
+    bar = Progress(scene.duration, f"{body.name}/{scene.name}") if progress else None
+    iterations = 0
+    failure = None
+    k = 0
+    for k in range(1, n_steps + 1):
+        try:
+            iterations += system.step(scene.step, inputs)
+        except StepFailure as exc:
+            failure = str(exc)
+            k -= 1
+            break
+        rows[k] = record(system)
+        times[k] = system.t
+        if scene.metrics == "free":
+            momenta.append(system.momenta())
+        if bar is not None:
+            bar.update(system.t)
+    if bar is not None:
+        bar.close()
+    rows, times = rows[: k + 1], times[: k + 1]
+    wall = time.perf_counter() - start
+    columns = dict(zip(column_names(body), rows.T))
+    summary = {
+        "body": body.name,
+        "scene": scene.name,
+        "terms": scene.terms,
+        "superelements": len(body.superelements),
+        "step": scene.step,
+        "rho_inf": scene.rho_inf,
+        "completed": failure is None,
+        "failure": failure,
+        "t_end": float(times[-1]),
+        "wall_time_s": wall,
+        "steps": int(k),
+        "real_time_factor": float(times[-1] / wall) if wall > 0 else None,
+        "newton_iterations_mean": iterations / max(k, 1),
+        "energy_balance_max_rel": energy_balance(columns),
+    }
+    result = SimulationResult(times, columns, summary, body)
+    summary["metrics"] = metrics(result, scene, momenta)
+    return result
+
+
+def energy_balance(columns: dict[str, np.ndarray]) -> float:
+    """max |E(t) - E(0) - W_ext(t)| over the peak of E = rigid + elastic kinetic + strain energy."""
+    total = columns["energy.kinetic_rigid"] + columns["energy.kinetic_elastic"] + columns["energy.strain"]
+    gap = total - total[0] - columns["energy.work_external"]
+    peak = max(np.max(np.abs(total)), np.max(np.abs(columns["energy.work_external"])))
+    return float(np.max(np.abs(gap)) / peak) if peak > 0 else 0.0
+
+
+def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False):
+    """Load (if a path), build and reduce the body for the scene, run it standalone."""
+    from .reduction import build_body
+
+    if not isinstance(model, Model):
+        model = load_model(model, overrides)
+    scene = model.scene(scene_name)
+    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))
+    return run(body, scene, origin=model.body.origin, progress=progress)
+
+
+# ----------------------------------------------------------------------------------- metrics
+def end_ports(body: BodyData) -> tuple[str, str]:
+    """The ports at the first and the last boundary node (hub/root and tip of a beam)."""
+    by_node = sorted(body.ports, key=lambda p: p.node)
+    return by_node[0].name, by_node[-1].name
+
+
+def elastic_tip(result: SimulationResult, hub: str, tip: str) -> np.ndarray:
+    """Eq. (92): d = R_hub^T (x_tip - x_hub) - X_tip, X_tip the tip seen from the hub at rest."""
+    body = result.body
+    X = body.node_positions[body.port(tip).node] - body.node_positions[body.port(hub).node]
+    R = result.port(hub, "R")
+    return np.einsum("nji,nj->ni", R, result.port(tip, "r") - result.port(hub, "r")) - X
+
+
+def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float) -> float:
+    """Frequency of the best-fitting sinusoid (plus a linear trend) to y(t), searched in [f_min, f_max].
+
+    A least-squares fit resolves a frequency from a couple of periods, where an FFT could not."""
+    from scipy.optimize import minimize_scalar
+
+    def misfit(f):
+        w = 2 * np.pi * f
+        A = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t), t - t[0]])
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        return float(np.sum((A @ coef - y) ** 2))
+
+    grid = np.linspace(f_min, f_max, 400)
+    i = int(np.argmin([misfit(f) for f in grid]))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    return float(minimize_scalar(misfit, bounds=(lo, hi), method="bounded").x)
+
+
+def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
+    t = result.t
+    if scene.metrics == "haug":
+        hub, tip = end_ports(result.body)
+        d = elastic_tip(result, hub, tip)
+        axis = result.body.node_positions[-1] - result.body.node_positions[0]
+        axis = axis / np.linalg.norm(axis)
+        axial = d @ axis
+        transverse = np.linalg.norm(d - axial[:, None] * axis, axis=1)
+        i = int(np.argmax(transverse))
+        out = {"tip_deflection_max_m": float(transverse[i]), "tip_axial_at_max_m": float(axial[i]), "t_at_max_s": float(t[i])}
+        T_spin = next((dict(dr.rotation.angle.params).get("T") for dr in scene.drives if dr.rotation), None)
+        if T_spin is not None and t[-1] > T_spin + 2.0:
+            after = t > T_spin
+            signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
+            out["oscillation_frequency_hz"] = dominant_frequency(t[after], signed, 0.1, 2.0)
+        return out
+    if scene.metrics == "spherical":
+        root, tip = end_ports(result.body)
+        w = result.port(root, "w")
+        out = {}
+        if t[-1] >= 15.0:
+            out["omega_z_at_15s"] = float(np.interp(15.0, t, w[:, 2]))
+        t_load_end = max((ld.t_end for ld in scene.loads if ld.port == tip), default=None)
+        if t_load_end is not None and t[-1] > t_load_end + 1.0:
+            after = t >= t_load_end
+            out["omega_y_mean_after_load"] = float(np.mean(w[after, 1]))
+            d = elastic_tip(result, root, tip)
+            out["tip_frequency_hz"] = dominant_frequency(t[after], d[after, 2], 0.5, 5.0)
+        R_end = result.port(root, "R")[-1]
+        out["hub_rotation_vector_end"] = [float(x) for x in logm(R_end)]
+        out["t_end_s"] = float(t[-1])
+        return out
+    if scene.metrics == "free" and len(momenta) > 1:
+        p = np.array([m[0] for m in momenta])
+        h = np.array([m[1] for m in momenta])
+        return {
+            "linear_momentum_drift_rel": float(np.max(np.linalg.norm(p - p[0], axis=1)) / max(np.linalg.norm(p[0]), 1e-300)),
+            "angular_momentum_drift_rel": float(np.max(np.linalg.norm(h - h[0], axis=1)) / max(np.linalg.norm(h[0]), 1e-300)),
+            "total_energy_drift_rel": energy_balance(result.columns),
+        }
+    return {}
+
+
+# ------------------------------------------------------------------------------------ plots
+def plot(result: SimulationResult, scene: Scene, path) -> None:
+    """Energies, and the benchmark's quantity of interest (tip deflection or port angular velocity)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    t = result.t
+    hub, tip = end_ports(result.body)
+    if scene.metrics == "spherical":
+        w = result.port(hub, "w")
+        for i, c in enumerate("xyz"):
+            ax1.plot(t, w[:, i], label=f"{hub} omega_{c}")
+        ax1.set_ylabel("angular velocity [rad/s]")
+    else:
+        d = elastic_tip(result, hub, tip)
+        for i, c in enumerate("xyz"):
+            ax1.plot(t, d[:, i], label=f"{tip} elastic d_{c} (eq. 92)")
+        ax1.set_ylabel("elastic tip displacement [m]")
+    ax1.legend(loc="best")
+    ax1.grid(True, alpha=0.3)
+    c = result.columns
+    total = c["energy.kinetic_rigid"] + c["energy.kinetic_elastic"] + c["energy.strain"]
+    for k in ENERGIES:
+        ax2.plot(t, c[f"energy.{k}"], label=k.replace("_", " "))
+    ax2.plot(t, total, "k--", lw=1, label="total")
+    ax2.set_xlabel("time [s]")
+    ax2.set_ylabel("energy [J]")
+    ax2.legend(loc="best")
+    ax2.grid(True, alpha=0.3)
+    fig.suptitle(f"{result.body.name} / {scene.name}: {len(result.body.superelements)} SE, terms {scene.terms}, "
+                 f"h = {scene.step:g} s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
