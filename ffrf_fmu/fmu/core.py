@@ -275,7 +275,9 @@ class BodyCoSim:
                 remaining = t_end - system.t
                 if remaining <= 1e-9 * h:
                     break
-                hh = h if remaining > h * (1.0 + 1e-6) else remaining  # last step lands on t_end
+                # the last step is shortened to land on t_end; a remainder equal to h up to round-off
+                # is taken as h itself (the body keeps its iteration matrix only for an unchanged step)
+                hh = h if remaining > h * (1.0 - 1e-9) else remaining
                 worst = max(worst, system.step(hh, inputs))
             self._check_finite(system)
         except StepFailure as e:

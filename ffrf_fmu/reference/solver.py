@@ -392,8 +392,8 @@ def simulate_reference(
     max_iterations: int = 25,
     duration: float | None = None,
     newton: str = "modified",
-    max_jacobian_age: int = 10,
-    predictor: float = 1.0,
+    jacobian_age: int = 10,
+    predictor: float = 0.0,
 ) -> ReferenceResult:
     """Run `scene` on the full-order geometrically exact beam model of `body`.
 
@@ -402,6 +402,14 @@ def simulate_reference(
     progress(t, duration) is called about 100 times during the run.
     tol: Newton stops when the last correction moved every node by less than tol * L (positions)
     and tol rad (rotations).
+    newton: "modified" (default) reuses the factorized iteration matrix for up to `jacobian_age`
+    steps (1: a fresh matrix at the first iteration of every step) and refreshes it whenever the
+    iteration contracts slowly or diverges (the diverging correction is discarded); "full"
+    refactorizes at every iteration. A matrix older than a step is risky for spinning bodies:
+    a rigid rotation turns the axial stiffness, which dwarfs the bending one, into the transverse
+    directions. Both converge to the same solution (to tol).
+    predictor: vdot_{n+1} guess = vdot_n + predictor (vdot_n - vdot_{n-1}); 0 (constant) is
+    robust when a near-Nyquist component (rho_inf close to 1) is present.
     """
     t_wall = time.perf_counter()
     if scene.initial.port_displacements:
@@ -532,17 +540,25 @@ def simulate_reference(
                 fac_age = 0
                 refresh = newton == "full"
             dvd = band.solve(fac, -r.ravel()).reshape(nn, 6)
-            vd1 = vd1 + dvd
             iters_total += 1
             dx = beta_p * np.abs(dvd[:, :3]).max()
             dth = beta_p * np.abs(dvd[:, 3:]).max()
             corr = max(dx / tol_x, dth / tol)
+            if corr > prev and fac_age > 0:
+                # a stale iteration matrix made the iteration diverge: drop this correction, go back to
+                # the best iterate and continue from there with a fresh matrix
+                vd1 = vd_best
+                refresh = True
+                prev = float("nan")
+                continue
+            vd_best = vd1
+            vd1 = vd1 + dvd
             converged = corr < 1.0
             if corr > 0.1 * prev:  # slow contraction: fresh iteration matrix for the next correction
                 refresh = True
             prev = corr
         fac_age += 1
-        if it > 3 or fac_age >= max_jacobian_age:
+        if it > 3 or fac_age >= jacobian_age:
             refresh = True
         # dvd for prescribed dofs is zero; keep drive accelerations there
         vd_prev = vd0

@@ -11,6 +11,23 @@ import numpy as np
 _EPS = 1e-5  # below this angle the series expansions are exact to round-off
 
 
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+
+
+_CROSS = _LEVI_CIVITA.reshape(3, 9).T.copy()  # (a outer b).ravel() @ _CROSS = a x b
+_VECT = -0.5 * _CROSS  # Q.ravel() @ _VECT = axial vector of the skew part of Q
+_TRACE = np.eye(3).ravel()
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over broadcast stacks: one outer product and one matmul, far faster than np.cross
+    on the tiny arrays of the body equations."""
+    outer = a[..., :, None] * b[..., None, :]
+    return outer.reshape(outer.shape[:-2] + (9,)) @ _CROSS
+
+
 def skew(a: np.ndarray) -> np.ndarray:
     """skew(a) b = a x b."""
     a = np.asarray(a, dtype=float)
@@ -34,10 +51,17 @@ def _coefficients(theta: np.ndarray):
 
 
 def expm(theta: np.ndarray) -> np.ndarray:
-    """Rodrigues: exp(skew(theta))."""
-    a, b, _ = _coefficients(theta)
-    S = skew(theta)
-    return np.eye(3) + a[..., None, None] * S + b[..., None, None] * (S @ S)
+    """Rodrigues: exp(skew(theta)) = cos(t) I + sinc(t) skew(theta) + (1 - cos t)/t^2 theta theta^T.
+
+    Written with np.sinc, which is exact at t = 0, so no branch for small angles is needed."""
+    theta = np.asarray(theta, dtype=float)
+    t = np.sqrt(np.einsum("...i,...i->...", theta, theta))
+    a = np.sinc(t / np.pi)  # sin(t)/t
+    b = 0.5 * np.sinc(t / (2.0 * np.pi)) ** 2  # (1 - cos t)/t^2
+    out = b[..., None, None] * (theta[..., :, None] * theta[..., None, :])
+    out += np.einsum("ijk,...k->...ij", -_LEVI_CIVITA, a[..., None] * theta)
+    out += np.cos(t)[..., None, None] * np.eye(3)
+    return out
 
 
 def tangent(theta: np.ndarray) -> np.ndarray:
@@ -73,12 +97,12 @@ def vect(Q: np.ndarray) -> np.ndarray:
 
     alpha = vect(Q) equals the rotation vector to O(|alpha|^3); it is the map the paper uses and
     its variation is linear in Q: delta alpha = H(Q) eps for delta Q = Q skew(eps)."""
-    return 0.5 * np.stack([Q[..., 2, 1] - Q[..., 1, 2], Q[..., 0, 2] - Q[..., 2, 0], Q[..., 1, 0] - Q[..., 0, 1]], -1)
+    return Q.reshape(Q.shape[:-2] + (9,)) @ _VECT
 
 
 def vect_tangent(Q: np.ndarray) -> np.ndarray:
     """H(Q) = (tr(Q) I - Q^T) / 2: the exact tangent of `vect` for right variations of Q."""
-    tr = np.trace(Q, axis1=-2, axis2=-1)
+    tr = Q.reshape(Q.shape[:-2] + (9,)) @ _TRACE
     return 0.5 * (tr[..., None, None] * np.eye(3) - np.swapaxes(Q, -1, -2))
 
 
@@ -86,4 +110,5 @@ def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
     R = np.asarray(R, dtype=float)
     if R.shape != (3, 3) or not np.all(np.isfinite(R)):
         return False
-    return bool(np.max(np.abs(R.T @ R - np.eye(3))) <= tol and np.linalg.det(R) > 0)
+    det = R[0] @ cross(R[1], R[2])
+    return bool(np.max(np.abs(R.T @ R - np.eye(3))) <= tol and det > 0.0)

@@ -40,10 +40,11 @@ from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg.lapack import dgetrs as getrs
 
 from .data import BodyData
 from .ports import PortValues, StepFailure
-from .rotation import expm, is_rotation, skew, tangent, vect, vect_tangent
+from .rotation import cross, expm, is_rotation, skew, tangent, vect, vect_tangent
 
 TERM_SETS = ("linear", "gyroscopic")
 
@@ -101,6 +102,18 @@ class Layout:
         return cls(N, E, nb, nm, n, nc, nv, ny, cfg_map, vel_map, free, rot_cols)
 
 
+def _input(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
+    """One input array of a port, checked: present, the right shape, finite."""
+    val = getattr(values, field)
+    if val is None:
+        raise StepFailure(t, f"port {port!r}: input {field} is missing")
+    val = np.asarray(val, dtype=float)
+    shape = (3, 3) if field == "R" else (3,)
+    if val.shape != shape or not np.isfinite(val).all():
+        raise StepFailure(t, f"port {port!r}: input {field} is not a finite array of shape {shape}: {val!r}")
+    return val
+
+
 class BodySystem:
     """One flexible body and its integrator state. Instances share nothing (FMU-safe)."""
 
@@ -111,7 +124,7 @@ class BodySystem:
         terms: str = "linear",
         rho_inf: float = 0.8,
         gravity=(0.0, 0.0, 0.0),
-        tol: float = 1e-10,
+        tol: float = 1e-9,
         max_iter: int = 25,
     ):
         if terms not in TERM_SETS:
@@ -145,6 +158,8 @@ class BodySystem:
         pos = np.cumsum(L.free) - 1  # index of each unknown among the free ones
         trip = pos[np.flatnonzero(world & L.free)].reshape(-1, 3)
         self._world_free = trip
+        self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
+        self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         self.t = 0.0
         self.iterations = 0
         self._reset_reference()
@@ -208,42 +223,42 @@ class BodySystem:
         v0, Om0, rb = v[:, 0:3], v[:, 3:6], v[:, 6:]
         v0d, Om0d, rbd = vd[:, 0:3], vd[:, 3:6], vd[:, 6:]
         R0T = np.swapaxes(R0, -1, -2)
-
-        rho = np.einsum("eij,epj->epi", R0T, xP - x0[:, None])  # X_P + d_P
+        # matmul forms: (x @ R) = R^T x, (x @ R^T) = R x, for stacks of row vectors x
+        rho = (xP - x0[:, None]) @ R0  # X_P + d_P
         d = rho - self.X_B
-        Q = np.einsum("eij,epjk->epik", R0T, RP)  # R0^T R_P
+        Q = R0T[:, None] @ RP  # R0^T R_P
         QT = np.swapaxes(Q, -1, -2)
         alpha = vect(Q)
         H = vect_tangent(Q)
         q = np.concatenate([np.concatenate([d, alpha], axis=2).reshape(E, 6 * nb), eta], axis=1)
         # q_dot = A zdot (eq. 91 applied to rates)
-        ru = np.einsum("eij,epj->epi", R0T, xPd - x0d[:, None])
-        dd = ru + np.cross(rho, W0[:, None])
-        c = WP - np.einsum("epij,ej->epi", QT, W0)
-        ad = np.einsum("epij,epj->epi", H, c)
+        ru = (xPd - x0d[:, None]) @ R0
+        dd = ru + cross(rho, W0[:, None])
+        c = WP - (W0[:, None, None, :] @ Q)[:, :, 0]  # W_P - Q^T W0
+        ad = (H @ c[..., None])[..., 0]
         qd = np.concatenate([np.concatenate([dd, ad], axis=2).reshape(E, 6 * nb), etad], axis=1)
 
         K, M = self.K, self.M
-        kq = np.einsum("eij,ej->ei", M, qd - rb)
-        g = np.einsum("eij,ej->ei", K, q) + np.einsum("eij,ej->ei", M, rbd)
-        J0Om = np.einsum("eij,ej->ei", self.J0, Om0)
+        kq = (M @ (qd - rb)[..., None])[..., 0]
+        g = (K @ q[..., None] + M @ rbd[..., None])[..., 0]
+        J0Om = (self.J0 @ Om0[..., None])[..., 0]
         h_ang = J0Om
         if self.gyro:
             Gw = np.einsum("ek,ekij->eij", W0, self.G)
             Gq = np.einsum("ekij,ej->eik", self.G, q)  # (E, n, 3): column k = G_k q
             Gr = np.einsum("ekij,ej->eik", self.G, rb)
-            kq = kq + np.einsum("eij,ej->ei", Gw, q)
-            g = g + np.einsum("eij,ej->ei", Gw, rb)
+            kq = kq + (Gw @ q[..., None])[..., 0]
+            g = g + (Gw @ rb[..., None])[..., 0]
             s = np.einsum("ei,eik->ek", rb, Gq)  # s_k = r^T G_k q
-            sdot = np.einsum("ei,eik->ek", rbd, Gq) + np.einsum("ei,eik->ek", qd, -Gr)  # rdot^T G q + r^T G qdot
+            sdot = np.einsum("ei,eik->ek", rbd, Gq) - np.einsum("ei,eik->ek", qd, Gr)  # rdot^T G q + r^T G qdot
             h_ang = J0Om + s
         gB = g[:, : 6 * nb].reshape(E, nb, 6)
         gd, ga = gB[..., 0:3], gB[..., 3:6]
-        Fd = np.einsum("eij,epj->epi", R0, gd)  # R0 g_d
-        Fa = np.einsum("epji,epj->epi", H, ga)  # H^T g_alpha
-        QFa = np.einsum("epij,epj->epi", Q, Fa)
+        Fd = gd @ R0T  # R0 g_d
+        Fa = (ga[..., None, :] @ H)[:, :, 0]  # H^T g_alpha
+        QFa = (Fa[..., None, :] @ QT)[:, :, 0]
         e_x0 = self.mass[:, None] * (v0d - self.gravity) - Fd.sum(1)
-        e_T0 = np.einsum("eij,ej->ei", self.J0, Om0d) + np.cross(W0, h_ang) - (np.cross(rho, gd) + QFa).sum(1)
+        e_T0 = (self.J0 @ Om0d[..., None])[..., 0] + cross(W0, h_ang) - (cross(rho, gd) + QFa).sum(1)
         if self.gyro:
             e_T0 = e_T0 + sdot
         res = np.concatenate(
@@ -397,50 +412,37 @@ class BodySystem:
             pv = values.get(p.name)
             if pv is None:
                 raise StepFailure(t, f"no input values for port {p.name!r}")
-
-            def need(field, shape):
-                val = getattr(pv, field)
-                if val is None:
-                    raise StepFailure(t, f"port {p.name!r}: input {field} is missing")
-                val = np.asarray(val, dtype=float)
-                if val.shape != shape or not np.all(np.isfinite(val)):
-                    raise StepFailure(t, f"port {p.name!r}: input {field} is not a finite array of shape {shape}: {val!r}")
-                return val
-
             k = p.node
             if p.translation == "motion":
-                xN[k], zN[k, 0:3] = need("r", (3,)), need("v", (3,))
+                xN[k], zN[k, 0:3] = _input(pv, "r", p.name, t), _input(pv, "v", p.name, t)
             elif pv.f is not None:
-                f[k] = need("f", (3,))
+                f[k] = _input(pv, "f", p.name, t)
             if p.rotation == "motion":
-                R = need("R", (3, 3))
+                R = _input(pv, "R", p.name, t)
                 if not is_rotation(R):
                     raise StepFailure(t, f"port {p.name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
-                RN[k], zN[k, 3:6] = R, R.T @ need("w", (3,))
+                RN[k], zN[k, 3:6] = R, _input(pv, "w", p.name, t) @ R  # body-axes rate R^T w
             elif pv.t is not None:
-                tq[k] = need("t", (3,))
+                tq[k] = _input(pv, "t", p.name, t)
         return xN, RN, zN, f, tq
 
     def _configuration(self, xN_pres, RN_pres, delta_h):
         """Configuration at t_{n+1} from the increment h*Delta (global ydot layout); prescribed nodes from inputs."""
         L = self.layout
         dN, dS, dv = self._split_cfg_rates(delta_h)
-        free_nodes = L.free[: 6 * L.n_nodes].reshape(L.n_nodes, 6)
-        xN = np.where(free_nodes[:, 0:3], self.xN + dN[:, 0:3], xN_pres)
-        RN = np.where(free_nodes[:, 3:4, None], self.RN @ expm(dN[:, 3:6]), RN_pres)
-        x0 = self.x0 + dS[:, 0:3]
-        R0 = self.R0 @ expm(dS[:, 3:6])
-        eta = self.eta + dS[:, 6:]
-        v = self.v + dv
-        return xN, RN, x0, R0, eta, v
+        rot = expm(np.concatenate([dN[:, 3:6], dS[:, 3:6]]))
+        xN = self.xN + dN[:, 0:3]
+        RN = self.RN @ rot[: L.n_nodes]
+        xN[self._motion_x] = xN_pres[self._motion_x]
+        RN[self._motion_R] = RN_pres[self._motion_R]
+        return xN, RN, self.x0 + dS[:, 0:3], self.R0 @ rot[L.n_nodes :], self.eta + dS[:, 6:], self.v + dv
 
     def _residual(self, yd, cfg, loads, jacobian=False, beta=None, delta_h=None):
         L = self.layout
         xN, RN, x0, R0, eta, v = cfg
         out = self._local(xN, RN, x0, R0, eta, v, yd, jacobian)
         res_loc = out[0]
-        F = np.zeros(L.ny)
-        np.add.at(F, self._rows, res_loc)
+        F = np.bincount(self._rows.ravel(), res_loc.ravel(), minlength=L.ny)
         F[: 6 * L.n_nodes] += self._loads(RN, *loads).ravel()
         if not jacobian:
             return F, out[1], out[2]
@@ -456,9 +458,7 @@ class BodySystem:
             c = slice(6 + L.nm + 6 * p + 3, 6 + L.nm + 6 * p + 6)
             Fy[:, :, c] = Fy[:, :, c] @ TNl[:, p]
         Jl = Fz + beta * Fy
-        J = np.zeros(L.ny * L.ny)
-        np.add.at(J, self._flat_idx, Jl.ravel())
-        J = J.reshape(L.ny, L.ny)
+        J = np.bincount(self._flat_idx, Jl.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
         # load term -R^T t on free node rotations: d = -skew(R^T t) dTheta
         RtT = np.einsum("nji,nj->ni", RN, loads[1])
         for k in range(L.n_nodes):
@@ -558,7 +558,8 @@ class BodySystem:
         w = self._world_free  # (k, 3) positions of world-axes triplets among the unknowns
         F = F.copy()
         F[w] = F[w] @ P  # P^T F on each triplet
-        dx = -sla.lu_solve((lu, piv), F, check_finite=False)
+        dx, info = getrs(lu, piv, F)  # LAPACK directly: scipy's lu_solve wrapper costs more than the solve
+        dx = -dx
         dx[w] = dx[w] @ P.T  # P dx
         return dx
 

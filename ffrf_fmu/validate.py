@@ -1,0 +1,406 @@
+"""`ffrf-fmu validate`: one scene through the FMU under fmpy and standalone, every output compared.
+
+    ffrf-fmu validate MODEL.toml --scene NAME [--comm-step H] [--report DIR] [--set k=v ...]
+    ffrf-fmu validate Body.fmu --model MODEL.toml --scene NAME [...]
+
+Given a model file, the FMU is built from it first (into DIR). Given an .fmu, the model file is
+required (--model): the standalone reference needs the body, which an FMU deliberately does not
+carry (it holds reduced matrices only), and the scene needs its drives and loads. The FMU's
+reduced data is checked against the one the model gives (`fmu_matches_model` in the report).
+
+The scene's port inputs (simulate.scene_inputs) are sampled on the communication grid
+t_k = k H and given to fmpy.simulate_fmu as an input table with output_interval = H: fmpy sets
+the values at t_k before each doStep(t_k, H), so the FMU sees the exact signal values at the
+communication points and applies its own rule in between (docs/fmu.md). The run must reach the
+scene's duration (simulate_fmu stops early on fmi2Discard without raising). Every FMU output is
+compared with the standalone run at the communication points, per group (`port.part`, e.g.
+`tip.r`, and the energies together): max_abs_diff, and max_rel_diff = max_abs_diff / max |standalone| of
+the group. A group passes when max_rel_diff <= rtol (default 1e-3; groups whose standalone
+values stay below `atol` pass on the absolute difference). The scene's benchmark metrics
+(simulate.metrics, e.g. the maximum tip deflection of eq. 92) are computed from both runs.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_RTOL = 1e-3
+DEFAULT_ATOL = 1e-9
+
+
+class ValidationError(RuntimeError):
+    """The validation could not run (bad arguments, missing model)."""
+
+
+def fmu_input_table(fmu_path, inputs, times) -> np.ndarray:
+    """fmpy input table: every FMU input sampled at `times` from inputs(t) -> {port: PortValues}."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(fmu_path))
+    names = [v.name for v in md.modelVariables if v.causality == "input"]
+    table = np.zeros(len(times), dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
+    table["time"] = times
+    for k, t in enumerate(times):
+        values = inputs(float(t))
+        for n in names:
+            port, _, rest = n.partition(".")
+            field, idx = rest[0], rest[2:-1]
+            arr = getattr(values[port], field)
+            table[n][k] = arr[tuple(int(i) - 1 for i in idx.split(","))]
+    return table
+
+
+def scene_start_values(scene, fmu_path) -> dict:
+    """The scene's solver and initial values as FMU parameter start values."""
+    from fmpy import read_model_description
+
+    from .fmu.variables import TERM_SETS
+
+    names = {v.name for v in read_model_description(str(fmu_path)).modelVariables}
+    sv = {"solver.step": scene.step, "solver.rho_inf": scene.rho_inf, "solver.terms": TERM_SETS.index(scene.terms)}
+    for i in range(3):
+        sv[f"gravity[{i + 1}]"] = scene.gravity[i]
+        sv[f"initial.v[{i + 1}]"] = scene.initial.velocity[i]
+        sv[f"initial.w[{i + 1}]"] = scene.initial.angular_velocity[i]
+    for port, d in scene.initial.port_displacements:
+        for i in range(3):
+            sv[f"initial.{port}.d[{i + 1}]"] = d[i]
+    missing = [k for k in sv if k not in names]
+    if missing:
+        raise ValidationError(f"{fmu_path}: the FMU has no parameter(s) {missing}: not an ffrf-fmu body FMU?")
+    return sv
+
+
+def run_fmu(fmu_path, scene, inputs, comm_step: float, record_names=None):
+    """Simulate the FMU through the scene with fmpy. Returns (result array, wall time, log)."""
+    import fmpy
+
+    n = int(round(scene.duration / comm_step))
+    times = np.arange(n + 1) * comm_step
+    if times[-1] < scene.duration * (1 - 1e-12):
+        times = np.append(times, scene.duration)
+    table = fmu_input_table(fmu_path, inputs, times)
+    log: list[str] = []
+
+    def logger(component, instance, status, category, message):
+        dec = lambda b: b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b)
+        log.append(f"[{dec(category)}] {dec(message)}")
+
+    t0 = time.perf_counter()
+    res = fmpy.simulate_fmu(
+        str(fmu_path),
+        start_time=0.0,
+        stop_time=scene.duration,
+        output_interval=comm_step,
+        input=table,
+        output=record_names,
+        start_values=scene_start_values(scene, fmu_path),
+        debug_logging=True,
+        logger=logger,
+    )
+    return res, time.perf_counter() - t0, log
+
+
+def _groups(names):
+    """FMU output names -> {group: [names]}: `port.part` for port fields (e.g. tip.r), `energies`
+    for the four energies together (scaled by the largest of them: a negligible energy, such as
+    the elastic kinetic energy of B1, is judged against the energy level of the body)."""
+    groups: dict[str, list[str]] = {}
+    for n in names:
+        if n.startswith("solver."):
+            continue
+        if n.startswith("energy."):
+            g = "energies"
+        else:
+            port, _, rest = n.partition(".")
+            g = f"{port}.{rest.split('[')[0]}"
+        groups.setdefault(g, []).append(n)
+    return groups
+
+
+def compare(fmu_t, fmu_cols: dict, ref_t, ref_cols: dict, names, rtol: float, atol: float) -> dict:
+    """Per-group differences at the FMU's communication points (the reference interpolated)."""
+    out = {}
+    for g, members in _groups(names).items():
+        diff = 0.0
+        scale = 0.0
+        for n in members:
+            ref = np.interp(fmu_t, ref_t, ref_cols[n])
+            diff = max(diff, float(np.max(np.abs(fmu_cols[n] - ref))))
+            scale = max(scale, float(np.max(np.abs(ref_cols[n]))))
+        rel = diff / scale if scale > atol else 0.0
+        passed = bool(diff <= atol) if scale <= atol else bool(rel <= rtol)
+        out[g] = {"max_abs_diff": diff, "max_rel_diff": rel, "scale": scale, "passed": passed}
+    return out
+
+
+def _fmu_body(fmu_path):
+    from .runtime.data import BodyData
+
+    with zipfile.ZipFile(fmu_path) as z, tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "body.npz"
+        p.write_bytes(z.read("resources/body.npz"))
+        return BodyData.load(p)
+
+
+def same_body(a, b, rtol: float = 1e-10) -> bool:
+    """Same reduced data (ports, node positions, every superelement matrix) to round-off."""
+    if [(p.name, p.node, p.translation, p.rotation) for p in a.ports] != \
+            [(p.name, p.node, p.translation, p.rotation) for p in b.ports]:
+        return False
+    if len(a.superelements) != len(b.superelements) or not np.allclose(a.node_positions, b.node_positions):
+        return False
+    for x, y in zip(a.superelements, b.superelements):
+        for key in ("K", "M", "G", "J0", "x_cm", "X_B"):
+            u, v = np.asarray(getattr(x, key)), np.asarray(getattr(y, key))
+            if u.shape != v.shape or not np.allclose(u, v, rtol=rtol, atol=rtol * max(np.max(np.abs(v)), 1e-300)):
+                return False
+    return True
+
+
+def validate(source, *, scene: str | None = None, model=None, overrides=(), comm_step: float | None = None,
+             report_dir=None, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, plots: bool = True) -> dict:
+    """Run the validation; returns the report (also written to report_dir/report.json)."""
+    from .fmu.builder import build_from_model
+    from .model import load_model
+    from .simulate import SimulationResult, metrics, run_scene, scene_inputs
+
+    source = Path(source)
+    report_dir = Path(report_dir) if report_dir else None
+    if report_dir:
+        report_dir.mkdir(parents=True, exist_ok=True)
+    if source.suffix == ".fmu":
+        if model is None:
+            raise ValidationError(
+                f"{source}: an FMU carries no model file (only reduced data): give the model with --model "
+                "MODEL.toml for the scene and the standalone reference"
+            )
+        model_path = Path(model)
+        fmu_path = source
+        built = False
+    else:
+        model_path = source
+        m0 = load_model(model_path, overrides)
+        sc0 = m0.scene(scene)
+        out_dir = report_dir or Path(tempfile.mkdtemp(prefix="ffrf_validate_"))
+        fmu_path = build_from_model(model_path, out_dir / f"{m0.body.name}.fmu", scene=sc0.name, overrides=overrides)
+        built = True
+    mdl = load_model(model_path, overrides)
+    sc = mdl.scene(scene)
+    H = float(comm_step) if comm_step else sc.step
+
+    t0 = time.perf_counter()
+    ref = run_scene(mdl, sc.name)
+    wall_ref = time.perf_counter() - t0
+    body = ref.body
+    matches = same_body(_fmu_body(fmu_path), body)
+
+    from fmpy import read_model_description
+
+    md = read_model_description(str(fmu_path))
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    port_vars = [v.name for v in md.modelVariables if v.causality in ("input", "output")
+                 and not v.name.startswith(("energy.", "solver."))]
+    res, wall_fmu, log = run_fmu(fmu_path, sc, scene_inputs(body, sc), H,
+                                 record_names=port_vars + [n for n in outputs if n not in port_vars])
+    t_fmu = np.asarray(res["time"], dtype=float)
+    reached = bool(abs(t_fmu[-1] - sc.duration) <= 1e-9 * max(1.0, sc.duration))
+    # fmpy records the last sample twice when a step is discarded: keep strictly increasing times
+    keep = np.concatenate([np.diff(t_fmu) > 0, [True]])
+    t_fmu = t_fmu[keep]
+    fmu_cols = {n: np.asarray(res[n], dtype=float)[keep] for n in res.dtype.names if n != "time"}
+    # fmpy records after doStep(t_c, H) at t_c + H, when the inputs still hold the values set for
+    # t_c: take the input columns from the input signal itself at the recorded times
+    exact = fmu_input_table(fmu_path, scene_inputs(body, sc), t_fmu)
+    for n in exact.dtype.names[1:]:
+        fmu_cols[n] = np.asarray(exact[n], dtype=float)
+    ref_ok = bool(ref.summary.get("completed", True))
+    compared = [n for n in outputs if n in ref.columns]
+    groups = compare(t_fmu, fmu_cols, ref.t, ref.columns, compared, rtol, atol)
+
+    # benchmark metrics of both runs (from port signals: the FMU side uses its own port values)
+    fmu_result = SimulationResult(t_fmu, {n: fmu_cols[n] for n in fmu_cols}, {}, body)
+    metric_rows = {}
+    try:
+        m_fmu, m_ref = metrics(fmu_result, sc), metrics(ref, sc)
+    except Exception as e:  # noqa: BLE001 - metrics are informative, never block the report
+        m_fmu, m_ref = {"error": str(e)}, {}
+    for k, v in m_ref.items():
+        if isinstance(v, float) and isinstance(m_fmu.get(k), float):
+            metric_rows[k] = {"fmu": m_fmu[k], "standalone": v,
+                              "rel_diff": abs(m_fmu[k] - v) / abs(v) if v else abs(m_fmu[k])}
+    passed = reached and ref_ok and all(g["passed"] for g in groups.values())
+    report = {
+        "passed": passed,
+        "fmu": str(fmu_path),
+        "fmu_built_from_model": built,
+        "fmu_matches_model": matches,
+        "model": str(model_path),
+        "overrides": list(overrides),
+        "scene": sc.name,
+        "duration": sc.duration,
+        "internal_step": sc.step,
+        "comm_step": H,
+        "fmu_reached_stop_time": reached,
+        "fmu_t_end": float(t_fmu[-1]),
+        "standalone_completed": ref_ok,
+        "standalone_failure": ref.summary.get("failure"),
+        "tolerances": {"rtol": rtol, "atol": atol,
+                       "rule": "group passes when max_abs_diff / max|standalone| <= rtol "
+                               "(absolute max_abs_diff <= atol when max|standalone| <= atol)"},
+        "groups": groups,
+        "metrics": metric_rows,
+        "wall_time_s": {"fmu": wall_fmu, "standalone": wall_ref,
+                        "ratio_fmu_over_standalone": wall_fmu / wall_ref if wall_ref > 0 else None},
+        "fmu_log": log[-50:],
+        "input_treatment": "inputs sampled at the communication points; FMU extrapolates motion inputs with "
+                           "v and w and holds force inputs over each communication step (docs/fmu.md)",
+    }
+    if not matches:
+        report["warning"] = "the FMU's reduced data differs from what the model gives: it was built from another model"
+    if report_dir:
+        (report_dir / "report.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        if plots:
+            report["plots"] = write_plots(report_dir, t_fmu, fmu_cols, ref, compared, sc, fmu_result)
+            (report_dir / "report.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    return report
+
+
+def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_result) -> list[str]:
+    """DIR/port_<name>.png (each output part: both runs and their difference), DIR/energies.png,
+    DIR/tip_deflection.png (eq. 92, both runs) for beams with a hub and a tip."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .simulate import elastic_tip, end_ports
+
+    written = []
+    groups = _groups(compared)
+    ports: dict[str, list[str]] = {}
+    for g in groups:
+        if g != "energies":
+            ports.setdefault(g.split(".")[0], []).append(g)
+    for port, gs in ports.items():
+        fig, axes = plt.subplots(len(gs), 2, figsize=(12, 2.6 * len(gs)), squeeze=False, sharex=True)
+        for row, g in enumerate(gs):
+            for n in groups[g]:
+                ref_i = np.interp(t_fmu, ref.t, ref.columns[n])
+                line, = axes[row, 0].plot(ref.t, ref.columns[n], lw=1.2, label=f"{n} standalone")
+                axes[row, 0].plot(t_fmu, fmu_cols[n], "--", lw=1.0, color=line.get_color(), label=f"{n} FMU")
+                axes[row, 1].plot(t_fmu, fmu_cols[n] - ref_i, lw=1.0, color=line.get_color(), label=n)
+            axes[row, 0].set_ylabel(g)
+            axes[row, 0].legend(fontsize=6, ncol=3, loc="best")
+            axes[row, 1].set_ylabel(f"{g}: FMU - standalone")
+            for ax in axes[row]:
+                ax.grid(True, alpha=0.3)
+        axes[-1, 0].set_xlabel("time [s]")
+        axes[-1, 1].set_xlabel("time [s]")
+        fig.suptitle(f"port {port}: FMU (dashed) vs standalone, scene {scene.name}")
+        fig.tight_layout()
+        path = report_dir / f"port_{port}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        written.append(path.name)
+    energies = groups.get("energies", [])
+    if energies:
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+        for n in energies:
+            line, = a1.plot(ref.t, ref.columns[n], lw=1.2, label=f"{n} standalone")
+            a1.plot(t_fmu, fmu_cols[n], "--", color=line.get_color(), label=f"{n} FMU")
+            a2.plot(t_fmu, fmu_cols[n] - np.interp(t_fmu, ref.t, ref.columns[n]), color=line.get_color(), label=n)
+        a1.set_ylabel("energy [J]")
+        a2.set_ylabel("FMU - standalone [J]")
+        a2.set_xlabel("time [s]")
+        for ax in (a1, a2):
+            ax.legend(fontsize=7)
+            ax.grid(True, alpha=0.3)
+        fig.tight_layout()
+        path = report_dir / "energies.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        written.append(path.name)
+    try:
+        hub, tip = end_ports(ref.body)
+        if hub != tip:
+            d_ref, d_fmu = elastic_tip(ref, hub, tip), elastic_tip(fmu_result, hub, tip)
+            fig, ax = plt.subplots(figsize=(10, 4))
+            for i, c in enumerate("xyz"):
+                line, = ax.plot(ref.t, d_ref[:, i], label=f"d_{c} standalone")
+                ax.plot(t_fmu, d_fmu[:, i], "--", color=line.get_color(), label=f"d_{c} FMU")
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(f"elastic {tip} displacement seen from {hub} [m] (eq. 92)")
+            ax.legend(fontsize=8)
+            ax.grid(True, alpha=0.3)
+            fig.tight_layout()
+            path = report_dir / "tip_deflection.png"
+            fig.savefig(path, dpi=100)
+            plt.close(fig)
+            written.append(path.name)
+    except (KeyError, ValueError):
+        pass
+    return written
+
+
+# ------------------------------------------------------------------------------------- CLI
+def add_validate_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("source", metavar="MODEL|FMU", help="model file (.toml; the FMU is built) or a built .fmu")
+    parser.add_argument("--scene", help="scene to run (default: the first scene of the model)")
+    parser.add_argument("--model", help="model file, required with an .fmu (scene and standalone reference)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a model value (repeatable), e.g. --set duration=2")
+    parser.add_argument("--comm-step", type=float, default=None,
+                        help="communication step H [s] (default: the scene's internal step)")
+    parser.add_argument("--report", default=None, metavar="DIR",
+                        help="write DIR/report.json and DIR/*.png (and the built FMU)")
+    parser.add_argument("--rtol", type=float, default=DEFAULT_RTOL,
+                        help=f"relative tolerance per output group (default {DEFAULT_RTOL:g})")
+    parser.add_argument("--atol", type=float, default=DEFAULT_ATOL,
+                        help=f"absolute tolerance for groups that stay near zero (default {DEFAULT_ATOL:g})")
+
+
+def validate_command(args) -> int:
+    """Exit 0 when every group is within tolerance and the FMU reached the stop time, 1 when not,
+    2 when the validation could not run."""
+    from .fmu.builder import BuildError
+    from .model import ModelError
+
+    try:
+        rep = validate(args.source, scene=args.scene, model=args.model, overrides=args.overrides,
+                       comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol)
+    except (ValidationError, ModelError, BuildError, OSError) as e:
+        print(f"ffrf-fmu validate: error: {e}", file=sys.stderr)
+        return 2
+    print(f"FMU {rep['fmu']} / scene {rep['scene']}: H = {rep['comm_step']:g} s, internal step "
+          f"{rep['internal_step']:g} s, t_end {rep['fmu_t_end']:g} of {rep['duration']:g} s")
+    if not rep["fmu_reached_stop_time"]:
+        print("  FMU run stopped early: " + (rep["fmu_log"][-1] if rep["fmu_log"] else "(no message)"))
+    if not rep["fmu_matches_model"]:
+        print("  warning: " + rep["warning"])
+    for g, d in rep["groups"].items():
+        mark = "ok " if d["passed"] else "BAD"
+        print(f"  {mark} {g:28s} max|diff| {d['max_abs_diff']:.3e}  rel {d['max_rel_diff']:.3e}")
+    for k, d in rep["metrics"].items():
+        print(f"  metric {k}: FMU {d['fmu']:.6g}, standalone {d['standalone']:.6g}, rel diff {d['rel_diff']:.2e}")
+    w = rep["wall_time_s"]
+    print(f"  wall time: FMU {w['fmu']:.2f} s, standalone {w['standalone']:.2f} s")
+    print(("PASSED" if rep["passed"] else "FAILED") + f" (rtol {rep['tolerances']['rtol']:g})")
+    return 0 if rep["passed"] else 1
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="ffrf-fmu validate", description=validate.__doc__)
+    add_validate_arguments(parser)
+    return validate_command(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
