@@ -116,7 +116,21 @@ class FmuInstance:
         return [self.variable(n).valueReference for n in names]
 
     def get(self, names: list[str]) -> np.ndarray:
-        return np.array(self.fmu.getReal(self._vrs(names)), dtype=float)
+        """Values as floats (Integer and Boolean variables converted)."""
+        out = np.empty(len(names))
+        real = [i for i, n in enumerate(names) if self.variable(n).type == "Real"]
+        other = [i for i in range(len(names)) if i not in set(real)]
+        if real:
+            out[real] = self.fmu.getReal([self.variable(names[i]).valueReference for i in real])
+        for i in other:
+            v = self.variable(names[i])
+            if v.type in ("Integer", "Enumeration"):
+                out[i] = self.fmu.getInteger([v.valueReference])[0]
+            elif v.type == "Boolean":
+                out[i] = float(self.fmu.getBoolean([v.valueReference])[0])
+            else:
+                raise CoSimulationError(f"{self.name}.{names[i]} is a {v.type}: not a number")
+        return out
 
     def set(self, names: list[str], values) -> None:
         if names:

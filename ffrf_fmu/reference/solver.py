@@ -485,6 +485,8 @@ def simulate_reference(
     every = max(1, nsteps // 100)
 
     fac = None
+    R_fac = None
+    kref = nn // 2
     refresh = True
     fac_age = 0
     n_factor = 0
@@ -536,10 +538,19 @@ def simulate_reference(
                 if sc.has_moments:
                     Kr = Kr - beta_p * hat(np.einsum("nji,nj->ni", R1, T)) @ Tm
                 fac = band.factor(Ke, Kr)
+                R_fac = R1[kref].copy()
                 n_factor += 1
                 fac_age = 0
                 refresh = newton == "full"
-            dvd = band.solve(fac, -r.ravel()).reshape(nn, 6)
+            # co-rotated reuse: for a configuration rigidly rotated by Q the iteration matrix is
+            # P S P^T with P = diag(Q on nodal translations, I on material rotations) (M is
+            # isotropic, the rotational dofs are material): S'^-1 = P S^-1 P^T. Q is estimated
+            # from the rotation of a reference node since the factorization.
+            Q = R1[kref] @ R_fac.T
+            rhs = -r
+            rhs[:, :3] = rhs[:, :3] @ Q
+            dvd = band.solve(fac, rhs.ravel()).reshape(nn, 6)
+            dvd[:, :3] = dvd[:, :3] @ Q.T
             iters_total += 1
             dx = beta_p * np.abs(dvd[:, :3]).max()
             dth = beta_p * np.abs(dvd[:, 3:]).max()

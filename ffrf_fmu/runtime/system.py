@@ -184,20 +184,35 @@ class BodySystem:
     _STATE_FIELDS = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "a", "fN", "tN")
 
     def get_state(self) -> np.ndarray:
+        """Flat copy of everything the next step depends on, the Newton iteration matrix included
+        (modified Newton reuses it, so a restored state must continue with the same one to give
+        bit-identical steps)."""
         parts = [np.ravel(getattr(self, k)) for k in self._STATE_FIELDS]
-        return np.concatenate(parts + [np.array([self.t, self.work, self.power, self.iterations])])
+        scalars = np.array([self.t, self.work, self.power, self.iterations, self._lu is not None])
+        if self._lu is not None:
+            lu, piv, beta, R_ref = self._lu
+            parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel()]
+        return np.concatenate([scalars] + parts)
 
     def set_state(self, state: np.ndarray) -> None:
         state = np.asarray(state, dtype=float)
-        i = 0
-        for k in self._STATE_FIELDS:
-            cur = getattr(self, k)
-            setattr(self, k, state[i : i + cur.size].reshape(cur.shape).copy())
-            i += cur.size
-        if state.size != i + 4:
-            raise ValueError(f"state has {state.size} entries, this body needs {i + 4}")
-        self.t, self.work, self.power, self.iterations = state[i], state[i + 1], state[i + 2], int(state[i + 3])
+        n = self._free_idx.size
+        sizes = [getattr(self, k).size for k in self._STATE_FIELDS]
+        expected = 5 + sum(sizes) + (n * n + n + 10 if state.size > 4 and state[4] else 0)
+        if state.size != expected:
+            raise ValueError(f"state has {state.size} entries, this body needs {expected}")
+        self.t, self.work, self.power = state[0], state[1], state[2]
+        self.iterations, has_lu = int(state[3]), bool(state[4])
+        i = 5
+        for k, size in zip(self._STATE_FIELDS, sizes):
+            setattr(self, k, state[i : i + size].reshape(getattr(self, k).shape).copy())
+            i += size
         self._lu = None
+        if has_lu:
+            lu = np.asfortranarray(state[i : i + n * n].reshape(n, n))
+            piv = state[i + n * n : i + n * n + n].astype(np.int32)
+            beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 :].reshape(3, 3).copy()
+            self._lu = (lu, piv, beta, R_ref)
 
     # ------------------------------------------------------------- equations
     def _split_cfg_rates(self, yd):
@@ -205,6 +220,16 @@ class BodySystem:
         L = self.layout
         nN, nS = 6 * L.n_nodes, L.n_se * (6 + L.nm)
         return yd[:nN].reshape(L.n_nodes, 6), yd[nN : nN + nS].reshape(L.n_se, 6 + L.nm), yd[nN + nS :].reshape(L.n_se, L.nv)
+
+    def _elastic(self, xP, RP, x0, R0T, eta):
+        """q_bar of eq. (89): d_P = R0^T (x_P - x0) - X_P, alpha_P = vect(R0^T R_P), then eta.
+        Matmul forms used throughout: (x @ R) = R^T x and (x @ R^T) = R x for stacks of row vectors."""
+        rho = (xP - x0[:, None]) @ np.swapaxes(R0T, -1, -2)  # X_P + d_P
+        Q = R0T[:, None] @ RP  # R0^T R_P
+        alpha = vect(Q)
+        E = len(x0)
+        q = np.concatenate([np.concatenate([rho - self.X_B, alpha], axis=2).reshape(E, -1), eta], axis=1)
+        return q, rho, Q, alpha
 
     def _local(self, xN, RN, x0, R0, eta, v, yd, jacobian: bool):
         """Residual (E, nv + nc) of every superelement and, on request, its derivatives.
@@ -223,14 +248,9 @@ class BodySystem:
         v0, Om0, rb = v[:, 0:3], v[:, 3:6], v[:, 6:]
         v0d, Om0d, rbd = vd[:, 0:3], vd[:, 3:6], vd[:, 6:]
         R0T = np.swapaxes(R0, -1, -2)
-        # matmul forms: (x @ R) = R^T x, (x @ R^T) = R x, for stacks of row vectors x
-        rho = (xP - x0[:, None]) @ R0  # X_P + d_P
-        d = rho - self.X_B
-        Q = R0T[:, None] @ RP  # R0^T R_P
+        q, rho, Q, alpha = self._elastic(xP, RP, x0, R0T, eta)
         QT = np.swapaxes(Q, -1, -2)
-        alpha = vect(Q)
         H = vect_tangent(Q)
-        q = np.concatenate([np.concatenate([d, alpha], axis=2).reshape(E, 6 * nb), eta], axis=1)
         # q_dot = A zdot (eq. 91 applied to rates)
         ru = (xPd - x0d[:, None]) @ R0
         dd = ru + cross(rho, W0[:, None])
@@ -617,17 +637,18 @@ class BodySystem:
         self.x0 = place(self.x0)
         self.RN = np.repeat(R_rig[None], len(self.xN), 0)
         self.R0 = np.repeat(R_rig[None], len(self.x0), 0)
-        vel = lambda x: v_lin + np.cross(w, x - o)
-        L = self.layout
-        zN, zS, v = self._split_cfg_rates(self.yd)  # views into self.yd
-        zN[:, 0:3] = vel(self.xN)
-        zN[:, 3:6] = w @ R_rig  # R^T w
-        zS[:, 0:3] = vel(self.x0)
-        zS[:, 3:6] = w @ R_rig
-        self.v[:, 0:3] = zS[:, 0:3]
-        self.v[:, 3:6] = zS[:, 3:6]
         for name, u in (port_displacements or {}).items():
             self.xN[self.data.port(name).node] += np.asarray(u, float)
+        if port_displacements:
+            self._relax(set(port_displacements))
+        vel = lambda x: v_lin + cross(w, x - o)
+        zN, zS, v = self._split_cfg_rates(self.yd)  # views into self.yd
+        zN[:, 0:3] = vel(self.xN)
+        zN[:, 3:6] = w @ self.RN  # R^T w, body-axes rates of the rigid field
+        zS[:, 0:3] = vel(self.x0)
+        zS[:, 3:6] = w @ self.R0
+        self.v[:, 0:3] = zS[:, 0:3]
+        self.v[:, 3:6] = zS[:, 3:6]
         # r_bar = q_dot_bar of the rigid field (zero unless ports were displaced)
         _, q, qd = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)
         self.v[:, 6:] = qd
@@ -645,6 +666,45 @@ class BodySystem:
         self.power = self._external_power()
         self.work = 0.0
         self._lu = None
+
+    def _relax(self, displaced: set[str], tol: float = 1e-12, max_iter: int = 30) -> None:
+        """Static equilibrium (no inertia, no loads) with every port's translation held and the rotation
+        of every port that was not displaced: the smooth deformed shape through displaced ports (for a
+        free beam with its far end displaced, the cantilever shape), instead of a kink of the
+        attachment modes at the displaced node."""
+        L = self.layout
+        relax = np.zeros(L.ny, dtype=bool)
+        relax[: 6 * L.n_nodes + L.n_se * (6 + L.nm)] = True
+        for p in self.data.ports:
+            relax[6 * p.node : 6 * p.node + 3] = False
+            if p.name not in displaced or p.rotation == "motion":
+                relax[6 * p.node + 3 : 6 * p.node + 6] = False
+        idx = np.flatnonzero(relax)
+        zero_v, zero_yd = np.zeros_like(self.v), np.zeros(L.ny)
+        gravity, self.gravity = self.gravity, np.zeros(3)
+        try:
+            for _ in range(max_iter):
+                res, _, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, zero_v, zero_yd, True)
+                F = np.bincount(self._rows.ravel(), res.ravel(), minlength=L.ny)
+                J = np.bincount(self._flat_idx, Fy.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
+                delta = np.zeros(L.ny)
+                delta[idx] = np.linalg.solve(J[np.ix_(idx, idx)], -F[idx])
+                self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
+                if np.max(np.abs(delta)) < tol:
+                    return
+        finally:
+            self.gravity = gravity
+        raise ValueError("initial port displacements: no static equilibrium of the deformed body found")
+
+    def linearization(self) -> tuple[np.ndarray, np.ndarray]:
+        """(F_ydot, F_y) of the assembled equations at the current state, restricted to the unknowns:
+        small motions obey F_ydot d(ydot) + F_y d(y) = 0, so their frequencies solve
+        det(i w F_ydot + F_y) = 0 (a check of the dynamic equations against the modal analysis)."""
+        L = self.layout
+        _, Fz, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, True)
+        fi = self._free_idx
+        scatter = lambda A: np.bincount(self._flat_idx, A.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)[np.ix_(fi, fi)]
+        return scatter(Fz), scatter(Fy)
 
     # ----------------------------------------------------------------- outputs
     def outputs(self) -> dict[str, PortValues]:
@@ -664,7 +724,8 @@ class BodySystem:
 
     def elastic_coordinates(self) -> np.ndarray:
         """q_bar of every superelement (E, n) at the current state, eq. (89)."""
-        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[1]
+        nodes = self.se_nodes
+        return self._elastic(self.xN[nodes], self.RN[nodes], self.x0, np.swapaxes(self.R0, -1, -2), self.eta)[0]
 
     def energies(self) -> dict[str, float]:
         """The split (20): rigid kinetic, elastic kinetic 1/2 r^T M r, strain 1/2 q^T K q, external work."""

@@ -1,0 +1,198 @@
+"""Two-field superelement dynamics: Jacobian, linearization, and the published benchmarks B1, B2, B4.
+
+Reference values: shared/spec/benchmarks.md (Geradin, two-field FFRF paper, sections 9.1-9.2).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from ffrf_fmu import simulate as sim
+from ffrf_fmu.linear import natural_frequencies
+from ffrf_fmu.model import Body, Initial, Port, Section, load_model
+from ffrf_fmu.reduction import build_body
+from ffrf_fmu.runtime.ports import PortValues, StepFailure
+from ffrf_fmu.runtime.rotation import expm
+from ffrf_fmu.runtime.system import BodySystem
+
+B1_SECTION = Section(EA=5.03e6, GJ=435.38, EI2=566.0, EI3=566.0, m=0.201, m22=22.7e-6, m33=22.7e-6, GA2=1.94e6, GA3=1.94e6)
+
+
+def _random_state_system(terms: str) -> tuple[BodySystem, dict]:
+    body = Body("j", 8.0, (0, 0, 0), (1, 0, 0), B1_SECTION, 2, 4, 3,
+                (Port("hub", 0, "motion", "force"), Port("tip", 2, "force", "force")))
+    data, _ = build_body(body)
+    rng = np.random.default_rng(1)
+    s = BodySystem(data, terms=terms, rho_inf=0.7)
+    s.xN += rng.normal(size=s.xN.shape) * 0.05
+    s.x0 += rng.normal(size=s.x0.shape) * 0.05
+    s.RN = expm(rng.normal(size=(3, 3)) * 0.7)
+    s.R0 = expm(rng.normal(size=(2, 3)) * 0.7)
+    s.eta += rng.normal(size=s.eta.shape) * 0.01
+    s.v += rng.normal(size=s.v.shape)
+    s.yd = rng.normal(size=s.yd.shape)
+    s.a = rng.normal(size=s.a.shape)
+    values = {
+        "hub": PortValues(r=np.array([0.1, 0.2, 0.3]), v=np.array([1.0, 2.0, 3.0]), t=rng.normal(size=3)),
+        "tip": PortValues(f=rng.normal(size=3), t=rng.normal(size=3)),
+    }
+    return s, values
+
+
+@pytest.mark.parametrize("terms", ["linear", "gyroscopic"])
+def test_newton_jacobian_matches_finite_differences(terms):
+    """The analytic iteration matrix (incl. SO(3) tangents, vect tangent, gyroscopic terms) equals
+    central differences of the residual at a random, far-from-reference state. Central differences
+    with eps = 1e-6 on rates of O(1) are accurate to ~1e-8 of the entry; we allow 1e-6."""
+    s, values = _random_state_system(terms)
+    h, eps = 0.01, 1e-6
+    yd = s.yd + 0.3
+    F, J = s.newton_system(yd, h, values)
+    fi = s._free_idx
+    J_fd = np.zeros_like(J)
+    for j, g in enumerate(fi):
+        yp, ym = yd.copy(), yd.copy()
+        yp[g] += eps
+        ym[g] -= eps
+        J_fd[:, j] = (s.newton_system(yp, h, values, jacobian=False) - s.newton_system(ym, h, values, jacobian=False)) / (2 * eps)
+    assert np.max(np.abs(J - J_fd)) <= 1e-6 * np.max(np.abs(J))
+
+
+def test_linearized_dynamics_reproduce_modal_frequencies():
+    """Small motions of the nonlinear two-field equations about rest have exactly the frequencies of
+    the linearized reduced chain (linear.py): two independent codings of the same body (1e-6 rel)."""
+    model = load_model("models/haug_beam.toml")
+    body, _ = build_body(model.body)
+    system, _ = sim.build_system(body, model.scene("spinup"))
+    A, B = system.linearization()
+    lam = sla.eigvals(-B, A)
+    lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e4)]
+    dynamic = np.sort(np.abs(lam.imag[lam.imag > 1e-3])) / (2 * np.pi)
+    modal = natural_frequencies(body)
+    np.testing.assert_allclose(dynamic[:10], modal[:10], rtol=1e-6)
+    assert dynamic[0] == pytest.approx(0.4640, rel=5e-3)  # benchmarks.md B1 closed form
+
+
+def _b1(superelements: int):
+    return sim.run_scene("models/haug_beam.toml", "spinup", [f"superelements={superelements}"])
+
+
+@pytest.fixture(scope="module")
+def b1_runs():
+    return {n: _b1(n) for n in (1, 2, 4)}
+
+
+PAPER_TABLE_1 = {1: 0.6015, 2: 0.5520, 4: 0.5386}
+
+
+@pytest.mark.parametrize("n", [1, 2, 4])
+def test_b1_max_tip_deflection_matches_paper_table_1(b1_runs, n):
+    """Term set `linear`, 6 modes, h = 2 ms, rho_inf = 0.8, as in the paper. 2 %: the paper does not
+    give its FE mesh per superelement nor its rotary inertia (we use 22.7e-6, benchmarks.md note 2);
+    both move the peak by well under 1 %."""
+    m = b1_runs[n].summary["metrics"]
+    assert b1_runs[n].summary["completed"]
+    assert m["tip_deflection_max_m"] == pytest.approx(PAPER_TABLE_1[n], rel=0.02)
+
+
+def test_b1_deflection_decreases_with_superelements(b1_runs):
+    """More superelements carry the centrifugal axial force between CM frames: geometric stiffening."""
+    d = [b1_runs[n].summary["metrics"]["tip_deflection_max_m"] for n in (1, 2, 4)]
+    assert d[0] > d[1] > d[2]
+
+
+def test_b1_shortening_and_rigid_energy(b1_runs):
+    """Axial shortening ~0.28 % of L at the peak (paper 9.2) and peak rigid kinetic energy
+    m L^3 w^2 / 6 = 274.43 J (no hub inertia). 10 % on the shortening: the paper prints one digit
+    pair; 0.1 % on the energy: elastic energy is below 1 J of it."""
+    r = b1_runs[1]
+    assert -r.summary["metrics"]["tip_axial_at_max_m"] / 8.0 == pytest.approx(0.0028, rel=0.1)
+    assert np.max(r.columns["energy.kinetic_rigid"]) == pytest.approx(0.201 * 8.0**3 * 16 / 6, rel=1e-3)
+
+
+def test_b1_slow_oscillation_after_spin_up(b1_runs):
+    """After spin-up (t > 15 s) a slow oscillation of 0.446 Hz remains with 4 SE (paper 9.2). 5 %:
+    the frequency is read from 5 s of signal (about two periods)."""
+    f = b1_runs[4].summary["metrics"]["oscillation_frequency_hz"]
+    assert f == pytest.approx(0.446, rel=0.05)
+
+
+@pytest.mark.parametrize("n", [1, 4])
+def test_b1_energy_balance(b1_runs, n):
+    """External work of the hub drive against the sum of the energies: within 1 % of the peak."""
+    assert b1_runs[n].summary["energy_balance_max_rel"] < 0.01
+
+
+@pytest.fixture(scope="module")
+def b2_run():
+    return sim.run_scene("models/spherical_beam.toml", "torque_then_tip")
+
+
+def test_b2_published_values(b2_run):
+    """Paper 9.1 with our reconstruction of the load windows (benchmarks.md B2).
+    omega_z after the torque: 3 % (rigid estimate 2000/66183 = 0.0302 is itself 2.4 % above the
+    printed 0.0295); mean omega_y after the tip impulse: 5 %; hinged-free frequency 1.74 Hz: 2 %."""
+    m = b2_run.summary["metrics"]
+    assert b2_run.summary["completed"]
+    assert m["omega_z_at_15s"] == pytest.approx(0.0295, rel=0.03)
+    assert m["omega_y_mean_after_load"] == pytest.approx(-0.0434, rel=0.05)
+    assert m["tip_frequency_hz"] == pytest.approx(1.74, rel=0.02)
+    assert b2_run.summary["energy_balance_max_rel"] < 0.01
+
+
+def test_b4_free_body_conserves_momentum_and_energy():
+    """B4: free flight, spin about a non-principal axis plus an initial bend. Linear momentum is
+    conserved to round-off (the scheme is linear in it). Angular momentum and energy are quadratic:
+    the trapezoidal-like scheme (rho_inf = 1) keeps them to a bounded O(h^2) oscillation without
+    drift; the bound we state, measured at h = 2 ms, is 1e-4 relative."""
+    model = load_model("models/free_beam.toml", ["duration=2.0"])
+    r = sim.run_scene(model, "tumble")
+    m = r.summary["metrics"]
+    assert r.summary["completed"]
+    assert m["linear_momentum_drift_rel"] < 1e-12
+    assert m["angular_momentum_drift_rel"] < 1e-4
+    assert m["total_energy_drift_rel"] < 1e-4
+
+
+def test_b4_angular_momentum_error_is_second_order_in_h():
+    """Halving the step divides the angular momentum error by ~4 (2nd order, no secular drift)."""
+    errs = []
+    for h in (2e-3, 1e-3):
+        model = load_model("models/free_beam.toml", ["duration=0.5", f"step={h}"])
+        scene = dataclasses.replace(model.scene("tumble"), initial=Initial(angular_velocity=(0.3, 0.5, 2.0)))
+        r = sim.run_scene(dataclasses.replace(model, scenes=(scene,)))
+        errs.append(r.summary["metrics"]["angular_momentum_drift_rel"])
+    assert 3.0 < errs[0] / errs[1] < 5.0
+
+
+def test_step_failure_names_time_and_cause():
+    """A NaN input is reported as a StepFailure naming the port, the input and the time."""
+    model = load_model("models/haug_beam.toml")
+    body, _ = build_body(model.body)
+    system, inputs = sim.build_system(body, model.scene("spinup"))
+
+    def bad(t):
+        values = inputs(t)
+        values["hub"].w = np.array([np.nan, 0.0, 0.0])
+        return values
+
+    with pytest.raises(StepFailure, match=r"t = 0.002.*'hub'.*input w"):
+        system.step(0.002, bad)
+
+
+def test_state_roundtrip_is_bit_identical():
+    """get_state / set_state restore everything the next step depends on (FMU rollback)."""
+    model = load_model("models/haug_beam.toml", ["superelements=2"])
+    body, _ = build_body(model.body)
+    system, inputs = sim.build_system(body, model.scene("spinup"))
+    for _ in range(5):
+        system.step(0.01, inputs)
+    saved = system.get_state()
+    system.step(0.01, inputs)
+    first = sim.record(system)
+    system.set_state(saved)
+    system.step(0.01, inputs)
+    assert np.array_equal(first, sim.record(system))
