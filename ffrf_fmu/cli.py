@@ -83,6 +83,12 @@ def info(args) -> int:
     # two-field coordinates: boundary frames (shared by neighbours), one CM frame per superelement, modes
     n_body_dofs = 6 * n_nodes + 6 * len(ses) + sum(s["n_modes"] for s in ses)
     fixed = [f"{p.name}.{part}" for p in ports for part in ("translation", "rotation") if getattr(p, part) == "motion"]
+    from .invariants import body_inertia_report, scene_spin  # Witteveen's invariants and indicators
+
+    spin, axis, spin_source = scene_spin(scene)
+    inertia = body_inertia_report(dataclasses.replace(body, ports=effective_ports(model, scene)), spin, axis,
+                                  first_frequency_hz=freqs[0] if freqs else None, reductions=reductions)
+    inertia["spin_source"] = spin_source
     if args.json:
         out = {
             "model": model.path,
@@ -95,6 +101,7 @@ def info(args) -> int:
             "n_body_dofs": n_body_dofs,
             "fixed": fixed,
             "frequencies_hz": freqs,
+            "inertia": inertia,
         }
         json.dump(out, sys.stdout, indent=2)
         print()
@@ -115,6 +122,18 @@ def info(args) -> int:
     print(f"  body: {n_body_dofs} coordinates = {n_nodes} boundary frames x 6 + {len(ses)} CM frames x 6 "
           f"+ {n_body_dofs - 6 * (n_nodes + len(ses))} modal; fixed: {', '.join(fixed) or 'nothing (free-free)'}")
     print(f"  body frequencies [Hz]: {_hz(freqs, 8)}")
+    worst = lambda key: max(s.get(key, 0.0) for s in inertia["superelements"])  # noqa: E731
+    print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} deflection):\n"
+          f"    about the worst axis W1 q/I0 {worst('W1q_over_I0_axis'):.1e}, q W2 q/I0 {worst('qW2q_over_I0_axis'):.1e}, "
+          f"coupling q W3 {worst('W3q_over_I0_axis'):.1e}")
+    if spin:
+        print(f"  spin {spin:g} rad/s from {spin_source}, {inertia['spin_over_first_frequency'] or float('nan'):.2f} x first "
+              f"frequency: about the spin axis W1 q/I0 {worst('W1q_spin_axis'):.1e}, q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n"
+              f"    centrifugal softening {worst('softening'):.1e}, Coriolis {worst('coriolis'):.1e}, "
+              f"widening {worst('widening'):.1e} of the length")
+    needed = [k for k, v in inertia["needed"].items() if v]
+    print(f"  needed: {', '.join(needed) or 'nothing beyond the linear terms'}; "
+          f"recommended term set: {inertia['recommended_terms']}")
     return 0
 
 

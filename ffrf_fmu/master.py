@@ -46,9 +46,6 @@ from typing import Callable, Iterable
 import numpy as np
 
 
-_DEBUG = False
-
-
 class CoSimulationError(RuntimeError):
     """An FMU refused a step (discard/error) or the setup is inconsistent."""
 
@@ -568,8 +565,6 @@ class CoSimulation:
                 r = xt - x
                 self._scale = max(self._scale, float(np.max(np.abs(xt))))
                 limit = self.tolerance * self._scale + self.abs_tolerance
-                if _DEBUG:
-                    print(f"t={t:.4f} sweep {k} |r|={np.max(np.abs(r)):.3e} limit={limit:.3e}")
                 if np.max(np.abs(r)) <= limit:
                     accel.end_step()
                     return k

@@ -19,7 +19,6 @@ import dataclasses
 import hashlib
 import json
 import re
-import shutil
 import sys
 import tempfile
 from pathlib import Path

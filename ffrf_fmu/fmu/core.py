@@ -311,15 +311,10 @@ class BodyCoSim:
 
     # ------------------------------------------------------------------ FMU state
     def get_state(self) -> dict:
-        """A complete snapshot (arrays are copies): values, mode, time, body integrator state.
-
-        The body drops its cached Newton iteration matrix on set_state; it is dropped here too
-        (set_state(get_state())), so that the run continuing after a save and a run restored
-        from that save take bit-identical steps."""
-        sys_state = None
-        if self.system is not None:
-            sys_state = self.system.get_state()
-            self.system.set_state(sys_state)
+        """A complete snapshot (arrays are copies): values, mode, time, body integrator state
+        (which includes the body's Newton iteration matrix: a restored run takes bit-identical
+        steps)."""
+        sys_state = None if self.system is None else self.system.get_state()
         return {
             "version": STATE_VERSION,
             "values": self.values.copy(),

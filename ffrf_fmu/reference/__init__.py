@@ -1,8 +1,54 @@
 """Full-order geometrically exact beam: the independent reference for the superelement path.
 
-See `solver` (dynamics, statics, scene semantics) and `beam` (element). Shares no dynamics code
-with the superelement path: it uses only the model dataclasses and the drive time functions.
+Shares no dynamics code with the superelement path: it imports only the model dataclasses
+(`ffrf_fmu.model`) and the drive time functions (`ffrf_fmu.runtime.drives`); SO(3) helpers,
+element, mass, integrator and Newton solver are its own (`so3`, `beam`, `solver`).
+
+Formulation choice: Simo-Reissner (geometrically exact) rather than co-rotational.
+- It is exact for arbitrarily large displacements, rotations and (within the linear section law)
+  strains; the only error is the spatial discretization, which converges as 1/n^2 (checked: static
+  cantilever, elastica, B1). A co-rotational element is exact only in the limit of small rotations
+  relative to each element's co-rotated frame, i.e. it contains a floating-frame approximation of
+  its own, and the reference must not share the kind of approximation it is meant to check.
+- Two-node elements with the strain-objective, path-independent rotation interpolation of
+  Crisfield & Jelenic (1999), R(s) = R1 exp(s/L log(R1^T R2)): curvature exactly constant per
+  element, shear/axial strain at the midpoint only (one-point reduced integration: no shear
+  locking). The discrete energy is the exact element energy under this interpolation with the
+  force strains sampled at the midpoint; forces are its exact gradient and the tangent is the
+  exact (analytic) derivative, checked against finite differences in tests/test_reference.py.
+- Shear: section GA2/GA3 used as given; None (Euler-Bernoulli section) is a shear-rigid limit
+  realized by a penalty GA = 1e4 * 12 EI_max / L_e^2 (shear flexibility 1e-4 of an element's
+  bending flexibility; locking-free thanks to the reduced integration).
+- Inertia: consistent translational mass (exact for the linear velocity field, so centrifugal
+  loads are integrated exactly), rotary inertia diag(m11, m22, m33) (m11 None -> m22 + m33) lumped
+  at the nodes in section axes.
+- Time integration: Lie-group generalized-alpha for second-order systems (Bruls, Cardona & Arnold
+  2012) on (R^3 x SO(3))^N, rho_inf from the scene, Newton with the consistent iteration matrix,
+  LAPACK band factorization reused across steps in a co-rotated way (see `solver`).
+
+Conventions (same scene semantics as the superelement path):
+- Section axes: axis 1 = beam direction, axis 2 = normalize(e_z x axis 1) (e_y for a beam along
+  Z), axis 3 = axis 1 x axis 2; EI2 bends about axis 2.
+- Ports sit at boundary nodes of the superelement chain (s = node * L / superelements); the mesh
+  has n_elements (default max(16, 4 * superelements)), a multiple of body.superelements.
+- Port outputs: r, v (world), R = nodal rotation relative to the world-aligned reference nodal
+  frame (R = I at rest; for a beam along +X this is also the section frame), w = world angular
+  velocity, f/t = force/moment applied ON the body by the environment at the node (the reaction
+  for motion-driven parts, the scene's load for force-driven parts). RotationDrive: R(t) =
+  exp(phi(t) axis) about the world axis through the port's reference position; TranslationDrive:
+  r = r_ref + u(t) direction (axes and directions are normalized); a motion part without drive is
+  held at the reference. Loads are dead (world-fixed) forces and moments, active on
+  [t_start, t_end). Gravity acts on the (consistent) mass.
+- Energies: "kinetic" (translational + rotary), "strain", "work_external" (trapezoidal integral
+  of the power of loads, gravity and reactions); kinetic + strain - work_external is the
+  integrator's energy error (O(h^2) plus the numerical dissipation set by rho_inf).
+
+Limits: relative rotation across one element below pi (always true on sane meshes);
+Initial.port_displacements (initially deformed body) raises NotImplementedError.
+
+Entry points: `simulate_reference`, `static_reference`, `tip_from_hub`; convergence study on B1:
+`python -m ffrf_fmu.reference.convergence`.
 """
-from .solver import ReferenceResult, StaticResult, Mesh, simulate_reference, static_reference, tip_from_hub
+from .solver import Mesh, ReferenceResult, StaticResult, simulate_reference, static_reference, tip_from_hub
 
 __all__ = ["ReferenceResult", "StaticResult", "Mesh", "simulate_reference", "static_reference", "tip_from_hub"]

@@ -49,13 +49,16 @@ def main(argv=None) -> int:
     els = [4, 8, 16] if a.quick else [int(x) for x in a.elements.split(",")]
     steps = [0.01, 0.002] if a.quick else [float(x) for x in a.steps.split(",")]
     rows = []
-    print(f"{'elements':>8} {'step [s]':>9} {'max defl [m]':>13} {'axial min [m]':>14} {'wall [s]':>9} {'newton/step':>11}")
+    print(f"{'elements':>8} {'step [s]':>9} {'max defl [m]':>13} {'axial min [m]':>14} {'wall [s]':>9} "
+          f"{'cpu [s]':>8} {'newton/step':>11}")
     for ne in els:
         for h in steps:
             res, d = b1_run(ne, h)
-            row = (ne, h, float(np.abs(d[:, 1]).max()), float(d[:, 0].min()), res.wall_time_s, res.newton_iterations_mean)
+            row = (ne, h, float(np.abs(d[:, 1]).max()), float(d[:, 0].min()), res.wall_time_s,
+                   res.info["cpu_time_s"], res.newton_iterations_mean)
             rows.append(row)
-            print(f"{row[0]:>8d} {row[1]:>9.4g} {row[2]:>13.6f} {row[3]:>14.6f} {row[4]:>9.2f} {row[5]:>11.2f}", flush=True)
+            print(f"{row[0]:>8d} {row[1]:>9.4g} {row[2]:>13.6f} {row[3]:>14.6f} {row[4]:>9.2f} {row[5]:>8.2f} "
+                  f"{row[6]:>11.2f}", flush=True)
     best = rows[-1]
     print(f"\nrelative to the finest run ({best[0]} elements, h = {best[1]:g} s: {best[2]:.6f} m):")
     for r in rows:

@@ -1,0 +1,114 @@
+"""SO(3) in one place: skew, exponential, tangent operator and the elastic rotation map `vect`.
+
+Conventions: rotations are matrices R (columns = rotated axes in fixed axes), updated on the
+right, R <- R exp(skew(theta)), with theta in the rotated (body) axes. All functions accept
+stacks (..., 3) / (..., 3, 3) so that the body equations vectorize over nodes and superelements.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_EPS = 1e-5  # below this angle the series expansions are exact to round-off
+
+
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+
+
+_CROSS = _LEVI_CIVITA.reshape(3, 9).T.copy()  # (a outer b).ravel() @ _CROSS = a x b
+_VECT = -0.5 * _CROSS  # Q.ravel() @ _VECT = axial vector of the skew part of Q
+_TRACE = np.eye(3).ravel()
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over broadcast stacks: one outer product and one matmul, far faster than np.cross
+    on the tiny arrays of the body equations."""
+    outer = a[..., :, None] * b[..., None, :]
+    return outer.reshape(outer.shape[:-2] + (9,)) @ _CROSS
+
+
+def skew(a: np.ndarray) -> np.ndarray:
+    """skew(a) b = a x b."""
+    a = np.asarray(a, dtype=float)
+    out = np.zeros(a.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = a[..., 2], -a[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -a[..., 1], a[..., 0]
+    return out
+
+
+def _coefficients(theta: np.ndarray):
+    """sin(t)/t, (1 - cos t)/t^2, (t - sin t)/t^3 for t = |theta|, series near 0."""
+    t2 = np.einsum("...i,...i->...", theta, theta)
+    t = np.sqrt(t2)
+    small = t < _EPS
+    ts = np.where(small, 1.0, t)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / ts**2)
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (ts - np.sin(ts)) / ts**3)
+    return a, b, c
+
+
+def expm(theta: np.ndarray) -> np.ndarray:
+    """Rodrigues: exp(skew(theta)) = cos(t) I + sinc(t) skew(theta) + (1 - cos t)/t^2 theta theta^T.
+
+    Written with np.sinc, which is exact at t = 0, so no branch for small angles is needed."""
+    theta = np.asarray(theta, dtype=float)
+    t = np.sqrt(np.einsum("...i,...i->...", theta, theta))
+    a = np.sinc(t / np.pi)  # sin(t)/t
+    b = 0.5 * np.sinc(t / (2.0 * np.pi)) ** 2  # (1 - cos t)/t^2
+    out = b[..., None, None] * (theta[..., :, None] * theta[..., None, :])
+    out += np.einsum("ijk,...k->...ij", -_LEVI_CIVITA, a[..., None] * theta)
+    out += np.cos(t)[..., None, None] * np.eye(3)
+    return out
+
+
+def tangent(theta: np.ndarray) -> np.ndarray:
+    """T(theta) with exp(skew(theta + d)) = exp(skew(theta)) exp(skew(T(theta) d)) + O(d^2)."""
+    _, b, c = _coefficients(theta)
+    S = skew(theta)
+    return np.eye(3) - b[..., None, None] * S + c[..., None, None] * (S @ S)
+
+
+def logm(R: np.ndarray) -> np.ndarray:
+    """Rotation vector of R (angle in [0, pi]); used for outputs, not in the equations."""
+    R = np.asarray(R, dtype=float)
+    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    t = np.arccos(cos)
+    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    small = t < _EPS
+    factor = np.where(small, 1.0 + t**2 / 6.0, t / np.where(small, 1.0, np.sin(np.where(small, 1.0, t))))
+    out = factor[..., None] * v
+    # near pi, sin(t) -> 0: take the axis from the symmetric part instead
+    near_pi = t > np.pi - 1e-4
+    if np.any(near_pi):
+        B = (R + np.swapaxes(R, -1, -2)) / 2.0 - cos[..., None, None] * np.eye(3)
+        k = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
+        col = np.take_along_axis(B, k[..., None, None].repeat(3, -1), axis=-1)[..., 0]
+        axis = col / np.linalg.norm(col, axis=-1, keepdims=True)
+        axis = axis * np.where(np.einsum("...i,...i->...", axis, v) < 0, -1.0, 1.0)[..., None]
+        out = np.where(near_pi[..., None], t[..., None] * axis, out)
+    return out
+
+
+def vect(Q: np.ndarray) -> np.ndarray:
+    """Axial vector of the skew part of Q, the elastic rotation of geradin eq. (89).
+
+    alpha = vect(Q) equals the rotation vector to O(|alpha|^3); it is the map the paper uses and
+    its variation is linear in Q: delta alpha = H(Q) eps for delta Q = Q skew(eps)."""
+    return Q.reshape(Q.shape[:-2] + (9,)) @ _VECT
+
+
+def vect_tangent(Q: np.ndarray) -> np.ndarray:
+    """H(Q) = (tr(Q) I - Q^T) / 2: the exact tangent of `vect` for right variations of Q."""
+    tr = Q.reshape(Q.shape[:-2] + (9,)) @ _TRACE
+    return 0.5 * (tr[..., None, None] * np.eye(3) - np.swapaxes(Q, -1, -2))
+
+
+def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        return False
+    det = R[0] @ cross(R[1], R[2])
+    return bool(np.max(np.abs(R.T @ R - np.eye(3))) <= tol and det > 0.0)
