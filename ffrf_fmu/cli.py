@@ -123,14 +123,14 @@ def info(args) -> int:
           f"+ {n_body_dofs - 6 * (n_nodes + len(ses))} modal; fixed: {', '.join(fixed) or 'nothing (free-free)'}")
     print(f"  body frequencies [Hz]: {_hz(freqs, 8)}")
     worst = lambda key: max(s.get(key, 0.0) for s in inertia["superelements"])  # noqa: E731
-    print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} deflection):\n"
-          f"    about the worst axis W1 q/I0 {worst('W1q_over_I0_axis'):.1e}, q W2 q/I0 {worst('qW2q_over_I0_axis'):.1e}, "
-          f"coupling q W3 {worst('W3q_over_I0_axis'):.1e}")
+    print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} "
+          f"deflection):\n    about the worst axis W1 q/I0 {worst('W1q_over_I0_axis'):.1e}, "
+          f"q W2 q/I0 {worst('qW2q_over_I0_axis'):.1e}, coupling q W3 {worst('W3q_over_I0_axis'):.1e}")
     if spin:
-        print(f"  spin {spin:g} rad/s from {spin_source}, {inertia['spin_over_first_frequency'] or float('nan'):.2f} x first "
-              f"frequency: about the spin axis W1 q/I0 {worst('W1q_spin_axis'):.1e}, q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n"
-              f"    centrifugal softening {worst('softening'):.1e}, Coriolis {worst('coriolis'):.1e}, "
-              f"widening {worst('widening'):.1e} of the length")
+        print(f"  spin {spin:g} rad/s from {spin_source}, {inertia['spin_over_first_frequency'] or float('nan'):.2f} x "
+              f"first frequency: about the spin axis W1 q/I0 {worst('W1q_spin_axis'):.1e}, "
+              f"q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n    centrifugal softening {worst('softening'):.1e}, "
+              f"Coriolis {worst('coriolis'):.1e}, widening {worst('widening'):.1e} of the length")
     needed = [k for k, v in inertia["needed"].items() if v]
     print(f"  needed: {', '.join(needed) or 'nothing beyond the linear terms'}; "
           f"recommended term set: {inertia['recommended_terms']}")

@@ -25,7 +25,7 @@ columns of the rigid modes about the CM, eq. 11). The invariants (Witteveen's na
 notation, Geradin's equations) are then exact for the FE interpolation:
     I0          = int X~^T X~ rho = U_r^T M U_r                                (eq. 13: J0)
     W1_j        = int (X~^T Phi_j~ + Phi_j~^T X~) rho = C_j + C_j^T,  C_j[:, k] = U_r^T M_k Phi_j
-    W2_jl       = int Phi_j~^T Phi_l~ rho (sym.) = tr(P_jl) I - (P_jl + P_jl^T)/2,  P_jl[a, b] = Phi_j^T T_ab Phi_l
+    W2_jl       = int Phi_j~^T Phi_l~ rho = tr(P_jl) I - P_jl^T,  P_jl[a, b] = Phi_j^T T_ab Phi_l
     I(q)        = I0 + sum_j q_j W1_j + sum_jl q_j q_l W2_jl      (his I0 + W1 Qf + Qf^T W2 Qf)
     coupling    = int (X + u)~ Phi rho = C0 + S(q),  C0 = U_r^T M Phi (= 0 for free modes),
                   S(q) = int u~ Phi rho (geradin 54), S(q)[k, :] = (G_k q)^T, i.e. W3[j][k, l] = G_k[l, j]
@@ -94,7 +94,7 @@ class Invariants:
     length: float  # largest node distance (superelement length)
     I0: np.ndarray  # (3, 3)
     W1: np.ndarray  # (n, 3, 3)
-    W2: np.ndarray  # (n, n, 3, 3), symmetric in (j, l) and in (a, b)
+    W2: np.ndarray  # (n, n, 3, 3), W2[l, j] = W2[j, l]^T (3n x 3n symmetric)
     W3: np.ndarray  # (n, 3, n): S(q) = sum_j q_j W3[j]
     C0: np.ndarray  # (3, n) constant rotation-elastic coupling U_r^T M Phi (zero for free modes)
     G: np.ndarray  # (3, n, n) G_k = Phi^T M_k Phi
@@ -118,7 +118,9 @@ class Invariants:
         return np.einsum("k,kij->ij", np.asarray(w, dtype=float), self.G)
 
 
-def modal_invariants(fe: FEModel, T: np.ndarray, U: np.ndarray, Phi: np.ndarray, omega=None, n_vibration=None) -> Invariants:
+def modal_invariants(
+    fe: FEModel, T: np.ndarray, U: np.ndarray, Phi: np.ndarray, omega=None, n_vibration=None
+) -> Invariants:
     """Invariants of the mode set Phi (n_dof, n), taken as mass-normalized and free (not checked:
     C0 reports the rigid coupling). U: rigid modes about the CM (reduction.Reduction.U)."""
     Ur = U[:, 3:]
@@ -127,7 +129,7 @@ def modal_invariants(fe: FEModel, T: np.ndarray, U: np.ndarray, Phi: np.ndarray,
     C = np.einsum("ia,kij,jm->mak", Ur, Mk, Phi, optimize=True)  # C[j][:, k] = U_r^T M_k Phi_j
     P = np.einsum("ij,abik,kl->jlab", Phi, T, Phi, optimize=True)
     trP = np.einsum("jlaa->jl", P)
-    W2 = trP[:, :, None, None] * np.eye(3) - 0.5 * (P + P.transpose(0, 1, 3, 2))
+    W2 = trP[:, :, None, None] * np.eye(3) - P.transpose(0, 1, 3, 2)
     G = np.einsum("ij,kil,lm->kjm", Phi, Mk, Phi, optimize=True)
     G = 0.5 * (G - G.transpose(0, 2, 1))  # skew: the symmetric part is round-off
     X = fe.coords - fe.coords.mean(0)
@@ -174,7 +176,8 @@ def body_invariants(body: Body, reductions=None) -> list[Invariants]:
     out = []
     for e, red in enumerate(reductions):
         fe = beam_model(body.section, np.asarray(body.origin, dtype=float) + e * length * d, d, length, n_el)
-        if fe.n_dof != red.Y.shape[0] or not np.allclose(fe.coords[[0, -1]] - red.data.x_cm, red.data.X_B, atol=1e-9 * body.length):
+        X_B = fe.coords[[0, -1]] - red.data.x_cm
+        if fe.n_dof != red.Y.shape[0] or not np.allclose(X_B, red.data.X_B, atol=1e-9 * body.length):
             raise RuntimeError(f"superelement {e}: FE model rebuilt here does not match reduction.build_body")
         out.append(superelement_invariants(fe, T, red))
     return out
@@ -184,11 +187,12 @@ def indicators(inv: Invariants, spin_rate: float | None = None, spin_axis=None) 
     """Magnitude indicators of Witteveen's sections 6-7 for one superelement (JSON-able).
 
     Amplitude indicators (largest over the kept vibration modes j, each at its characteristic
-    amplitude a_j: largest displacement DEFLECTION x length): W1q/I0 = |a W1_j| / |I0|, qW2q/I0 = |a^2 W2_jj| / |I0| (inertia change,
-    his 7.1), W3q/I0 = |a W3_j| / sqrt|I0| (coupling S(q) against the diagonal blocks I0 and 1 of
-    the mass matrix, his 7.2). Norms are spectral; the `_axis` variants use I0^-1/2 (.) I0^-1/2
-    (I0^-1/2 (.) for W3), i.e. the worst relative change about any axis, which is what matters
-    for a beam spun about its own axis (tiny I0 there).
+    amplitude a_j: largest displacement DEFLECTION x length): W1q/I0 = |a W1_j| / |I0|,
+    qW2q/I0 = |a^2 W2_jj| / |I0| (inertia change, his 7.1), W3q/I0 = |a W3_j| / sqrt|I0|
+    (coupling S(q) against the diagonal blocks I0 and 1 of the mass matrix, his 7.2). Norms are
+    spectral; the `_axis` variants use I0^-1/2 (.) I0^-1/2 (I0^-1/2 (.) for W3), i.e. the worst
+    relative change about any axis, which is what matters for a beam turning about its own axis
+    (tiny I0 there); the `_spin_axis` ones n^T (.) n / n^T I0 n about the spin axis n.
     Spin indicators (all modes, rate w about the unit axis n, w_1 = lowest mode):
       softening = max eig(Kc, K) <= (w / w_1)^2: centrifugal q part against the elastic stiffness
         (instability at 1); softening_gyroscopic_set = max eig(G(w)^T G(w), K): what the
@@ -224,13 +228,15 @@ def indicators(inv: Invariants, spin_rate: float | None = None, spin_axis=None) 
         nI0, s = np.linalg.norm(inv.I0, 2), np.linalg.inv(sla.sqrtm(inv.I0).real)  # s = I0^-1/2
 
         def worst(A, left, right, scale):  # max_j |A_j|_2 / scale, max_j |left A_j right|_2
-            return float(np.linalg.norm(A, 2, axis=(1, 2)).max() / scale), float(np.linalg.norm(left @ A @ right, 2, axis=(1, 2)).max())
+            norm = lambda B: float(np.linalg.norm(B, 2, axis=(1, 2)).max())  # noqa: E731
+            return norm(A) / scale, norm(left @ A @ right)
 
         jj = np.arange(nv)
         out["amplitude"] = a.tolist()
         out["W1q_over_I0"], out["W1q_over_I0_axis"] = worst(a[:, None, None] * inv.W1[:nv], s, s, nI0)
         out["qW2q_over_I0"], out["qW2q_over_I0_axis"] = worst(a[:, None, None] ** 2 * inv.W2[jj, jj], s, s, nI0)
-        out["W3q_over_I0"], out["W3q_over_I0_axis"] = worst(a[:, None, None] * inv.W3[:nv], s, np.eye(len(inv.omega)), math.sqrt(nI0))
+        one = np.eye(len(inv.omega))  # the modal block of the mass matrix
+        out["W3q_over_I0"], out["W3q_over_I0_axis"] = worst(a[:, None, None] * inv.W3[:nv], s, one, math.sqrt(nI0))
     if spin_rate:
         n = np.asarray(spin_axis, dtype=float)
         n = n / np.linalg.norm(n)
@@ -274,7 +280,12 @@ def scene_spin(scene: Scene, n_max: int = 100_001) -> tuple[float | None, np.nda
 
 
 def body_inertia_report(
-    body: Body, spin_rate: float | None = None, spin_axis=None, *, first_frequency_hz: float | None = None, reductions=None
+    body: Body,
+    spin_rate: float | None = None,
+    spin_axis=None,
+    *,
+    first_frequency_hz: float | None = None,
+    reductions=None,
 ) -> dict:
     """Witteveen's invariants, indicators and guidelines for every superelement of `body` (JSON-able).
 
@@ -309,23 +320,23 @@ def body_inertia_report(
         "centrifugal_stretch": worst("widening") >= NEGLIGIBLE * DEFLECTION,
     }
     notes = {
-        "deformed_inertia": f"inertia change up to {deformed:.0%} about some axis at {DEFLECTION:.0%} deflection (beam-like): "
-        "I0 + W1 q + q^T W2 q is needed (his III); no term set has it (J0 is constant in both)",
+        "deformed_inertia": f"inertia change up to {deformed:.0%} about some axis at {DEFLECTION:.0%} deflection "
+        "(beam-like): I0 + W1 q + q^T W2 q is needed (his III); no term set has it (J0 is constant in both)",
         "inertia_coupling": "rotation-elastic coupling S(q) = q^T W3 is needed (his III): term set `gyroscopic`",
         "coriolis": "spin not considerably below the first frequency: Coriolis G(w) on the modes is needed (his IV): "
         "term set `gyroscopic`",
         "centrifugal_softening": "centrifugal softening Kc(w) >= 1 % of a superelement's stiffness, and the geometric "
         "stiffening that balances it is missing from linear superelements: use more superelements as w approaches w_1",
-        "geometric_stiffening": f"(spin / first frequency)^2 = {(spin_ratio or 0.0) ** 2:.2g}: centrifugal stiffening shifts "
-        "the squared frequencies by O(w^2); linear superelements get it only through the chain of superelement frames: "
-        "converge in the number of superelements (benchmark B3)",
-        "centrifugal_stretch": f"centrifugal widening f0 = W1^T w w / 2 is >= {NEGLIGIBLE:.0%} of the reference deflection; "
-        "no term set applies it inside a superelement (only at the CMs, between superelements)",
+        "geometric_stiffening": f"(spin / first frequency)^2 = {(spin_ratio or 0.0) ** 2:.2g}: centrifugal stiffening "
+        "shifts the squared frequencies by O(w^2); linear superelements get it only through the chain of "
+        "superelement frames: converge in the number of superelements (benchmark B3)",
+        "centrifugal_stretch": f"centrifugal widening f0 = W1^T w w / 2 is >= {NEGLIGIBLE:.0%} of the reference "
+        "deflection; no term set applies it inside a superelement (only at the CMs, between superelements)",
     }
     notes = [text for key, text in notes.items() if g[key]]
     if connected:
-        notes.append("a port rotation is motion-driven (stiff connection): deformed inertia and coupling are not needed "
-                     "whatever their indicators (his 7.1.3, 7.2.3, I-II)")
+        notes.append("a port rotation is motion-driven (stiff connection): deformed inertia and coupling are not "
+                     "needed whatever their indicators (his 7.1.3, 7.2.3, I-II)")
     if not spin_rate:
         w1s = min(inv.omega[0] for inv in invs)
         lim = [f"{0.1 * w1s:.3g} rad/s (softening < 1 %)"] + ([f"{SLOW_SPIN * w1:.3g} rad/s (Coriolis)"] if w1 else [])

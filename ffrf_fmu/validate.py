@@ -195,12 +195,26 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     mdl = load_model(model_path, overrides)
     sc = mdl.scene(scene)
     H = float(comm_step) if comm_step else sc.step
+    fmu_body = _fmu_body(fmu_path)
+    ports = lambda b: [(p.name, p.node, p.translation, p.rotation) for p in b.ports]
+    if not built:
+        import dataclasses
+
+        from .model import effective_ports
+        from .reduction import build_body
+
+        scene_body, _ = build_body(dataclasses.replace(mdl.body, ports=effective_ports(mdl, sc)))
+        if ports(fmu_body) != ports(scene_body):
+            raise ValidationError(
+                f"{fmu_path}: the FMU's ports {ports(fmu_body)} differ from those of scene {sc.name!r} of "
+                f"{model_path}: {ports(scene_body)} (build the FMU for this scene: ffrf-fmu build --scene {sc.name})"
+            )
 
     t0 = time.perf_counter()
     ref = run_scene(mdl, sc.name)
     wall_ref = time.perf_counter() - t0
     body = ref.body
-    matches = same_body(_fmu_body(fmu_path), body)
+    matches = same_body(fmu_body, body)
 
     from fmpy import read_model_description
 

@@ -235,6 +235,11 @@ def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
     args = parser.parse_args(["validate", str(small_fmu), "--scene", "spin"])
     assert args.run(args) == 2
     assert "--model" in capsys.readouterr().err
+    # an .fmu built for another causality than the scene's: exit 2 with a message
+    free_fmu = build_from_model(small, tmp_path / "free.fmu", scene="free")
+    args = parser.parse_args(["validate", str(free_fmu), "--model", str(small), "--scene", "spin"])
+    assert args.run(args) == 2
+    assert "build the FMU for this scene" in capsys.readouterr().err
     # a tolerance no run can meet: exit 1
     args = parser.parse_args(["validate", str(small_fmu), "--model", str(small), "--scene", "spinup",
                               "--rtol", "1e-12", "--report", str(tmp_path / "r")])

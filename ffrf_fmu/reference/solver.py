@@ -124,9 +124,7 @@ class Mesh:
         self.mass = m * self.length
         self.M_dense = None
         if self.nn <= 80:  # one dense mat-vec beats five sliced updates at these sizes
-            Md = np.zeros((self.nn, 6, self.nn, 6))
-            self.M_dense = Md.reshape(6 * self.nn, 6 * self.nn)
-            self.M_dense[:] = self._mass_columns()
+            self.M_dense = self._mass_columns()
         per = n_elements // nse
         self.port_node = {p.name: (p.node % (nse + 1)) * per for p in body.ports}
 
@@ -142,11 +140,12 @@ class Mesh:
         return out
 
     def _mass_columns(self) -> np.ndarray:
+        """Dense M (6 nn x 6 nn), built column by column from the sliced product."""
         eye = np.eye(6 * self.nn).reshape(6 * self.nn, self.nn, 6)
         saved, self.M_dense = self.M_dense, None
         cols = self.mass_times(eye).reshape(6 * self.nn, 6 * self.nn)
         self.M_dense = saved
-        return cols.T
+        return np.ascontiguousarray(cols.T)
 
     def kinetic_energy(self, v: np.ndarray) -> np.ndarray:
         """0.5 v^T M v for (..., nn, 6) velocities."""
@@ -414,12 +413,12 @@ def simulate_reference(
     progress(t, duration) is called about 100 times during the run.
     tol: Newton stops when the last correction moved every node by less than tol * L (positions)
     and tol rad (rotations).
-    newton: "modified" (default) reuses the factorized iteration matrix for up to `jacobian_age`
-    steps (1: a fresh matrix at the first iteration of every step) and refreshes it whenever the
-    iteration contracts slowly or diverges (the diverging correction is discarded); "full"
-    refactorizes at every iteration. A matrix older than a step is risky for spinning bodies:
-    a rigid rotation turns the axial stiffness, which dwarfs the bending one, into the transverse
-    directions. Both converge to the same solution (to tol).
+    newton: "modified" (default) reuses the factorized iteration matrix, co-rotated with the body
+    (module docstring), for up to `jacobian_age` steps and refreshes it whenever the iteration
+    contracts slowly or diverges (the diverging correction is discarded); "full" refactorizes at
+    every iteration. Without the co-rotation a matrix older than a step fails on spinning bodies:
+    the rigid rotation turns the axial stiffness, which dwarfs the bending one, into the
+    transverse directions. Both converge to the same solution (to tol).
     predictor: guess of vdot_{n+1}: "constant" (vdot_n), "linear" (2 vdot_n - vdot_{n-1}; amplifies
     near-Nyquist components) or "corotated" (vdot_n with its translational part turned by the
     last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation).
