@@ -17,8 +17,9 @@ Formulation choice: Simo-Reissner (geometrically exact) rather than co-rotationa
   force strains sampled at the midpoint; forces are its exact gradient and the tangent is the
   exact (analytic) derivative, checked against finite differences in tests/test_reference.py.
 - Shear: section GA2/GA3 used as given; None (Euler-Bernoulli section) is a shear-rigid limit
-  realized by a penalty GA = 1e4 * 12 EI_max / L_e^2 (shear flexibility 1e-4 of an element's
-  bending flexibility; locking-free thanks to the reduced integration).
+  realized by a penalty GA = 100 * 12 EI_max / L_e^2 (shear flexibility 1 % of an element's
+  bending flexibility: 1/(400 n^2) relative on a cantilever tip deflection; locking-free thanks
+  to the reduced integration).
 - Inertia: consistent translational mass (exact for the linear velocity field, so centrifugal
   loads are integrated exactly), rotary inertia diag(m11, m22, m33) (m11 None -> m22 + m33) lumped
   at the nodes in section axes.
@@ -40,8 +41,16 @@ Conventions (same scene semantics as the superelement path):
   held at the reference. Loads are dead (world-fixed) forces and moments, active on
   [t_start, t_end). Gravity acts on the (consistent) mass.
 - Energies: "kinetic" (translational + rotary), "strain", "work_external" (trapezoidal integral
-  of the power of loads, gravity and reactions); kinetic + strain - work_external is the
-  integrator's energy error (O(h^2) plus the numerical dissipation set by rho_inf).
+  of the power of loads, gravity and reactions); kinetic + strain - work_external minus its
+  initial value is the integrator's energy error (O(h^2) plus the numerical dissipation set by
+  rho_inf).
+
+Step size: B1 (4 rad/s) is within 0.11 % of the converged maximum deflection at h = 20 ms; on
+B3's profile the error at h = 20 ms is +0.29 % at 8 rad/s, and at 12 rad/s h = 20 ms goes
+unstable with rho_inf 0.8 (generalized-alpha has no nonlinear stability guarantee; stable with
+rho_inf 0.5) while h = 10 ms is within 0.12 %. Keep the rotation per step (spin rate * h) below
+~0.12 rad; `info["energy_error"]` (that energy error / energy level, ~0.2 % for B1 at
+20 ms, O(h^2)) is reported and a RuntimeWarning is issued above 2 %.
 
 Limits: relative rotation across one element below pi (always true on sane meshes);
 Initial.port_displacements (initially deformed body) raises NotImplementedError.
