@@ -1,5 +1,11 @@
 """Benchmark beam sections of benchmarks.md (B1, B2), built directly from model.Section."""
-import pytest
+import os
+
+# as the CLI does (ffrf_fmu/cli.py): one BLAS thread for the small body matrices, before numpy loads
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import pytest  # noqa: E402
 
 from ffrf_fmu.model import Section
 
