@@ -1,28 +1,48 @@
 """Cost of one integrator step of the body (B1, Haug's rotating beam, 1, 2 and 4 superelements).
 
-    python benchmarks/step_profile.py [--steps 200] [--repeats 7] [--warmup 250] [--no-profile]
+    python benchmarks/step_profile.py [--phases 0.5,5,15] [--steps 40] [--repeats 10]
+                                      [--blas-threads 1|default] [--no-profile]
 
-Prints, per configuration, microseconds per residual evaluation (stage + residual at given rates,
-the body of a Newton iteration), per step (runtime.BodySystem.step, scene inputs included), per
-step with the per-step recording of simulate.run (outputs and energies), per simulated second
-(h = 2 ms: 500 steps) and Newton iterations per step; then a cProfile top-15 of the 4-superelement
-steps. Each figure is the best of --repeats runs of --steps steps from the same saved state (the
-machine is shared and noisy: the minimum is the reproducible figure). The state is taken after
---warmup steps of the spin-up, so the iteration matrix exists and the beam rotates.
+The spin-up changes character over its 20 s (about 2 Newton iterations per step early on, the
+iteration matrix rebuilt at nearly every step around t = 4 s, 4 iterations per step after the
+spin-up), so steps are timed in windows starting at several phase times: the current code runs
+the scene once and saves its state (without the iteration matrix, so every implementation starts
+the window by building its own) at each phase time.
+
+Prints, per configuration: microseconds per residual evaluation (stage + residual at given rates,
+the body of a Newton iteration), per step in each window (BodySystem.step, scene inputs included)
+and their mean, the mean per step with the per-step recording of simulate.run (outputs, energies),
+milliseconds per simulated second (h = 2 ms: 500 steps of that mean, recording included) and the
+Newton iterations per step; then a cProfile top-15 of the current code (4 superelements, the
+middle window). Each call is timed alone, --repeats times from the same state, and keeps its best
+time: on a shared machine the minimum of a short call is the reproducible figure.
+
+BLAS runs on one thread unless --blas-threads default: the target is one core, and a multi-threaded
+OpenBLAS makes the LU of the iteration matrix (n ~ 170) hundreds of times slower when the other
+core is busy.
 
 If benchmarks/_baseline_system.py exists (a frozen copy of an earlier runtime/system.py, kept only
 while optimizing), the same figures are measured for it in the same run and reported as ratios.
 """
 from __future__ import annotations
 
-import argparse
-import cProfile
-import importlib
-import io
-import pstats
+import os
 import sys
-import time
-from pathlib import Path
+
+if "--blas-threads" not in sys.argv or sys.argv[sys.argv.index("--blas-threads") + 1] != "default":
+    threads = sys.argv[sys.argv.index("--blas-threads") + 1] if "--blas-threads" in sys.argv else "1"
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = threads  # before numpy is imported
+
+import argparse  # noqa: E402
+import cProfile  # noqa: E402
+import importlib  # noqa: E402
+import io  # noqa: E402
+import pstats  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -45,13 +65,37 @@ def implementations():
     return out
 
 
-def build(cls, body, scene, warmup):
-    system = cls(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
-    inputs = sim.scene_inputs(body, scene)
-    system.initialize(0.0, inputs)
-    for _ in range(warmup):
-        system.step(scene.step, inputs)
-    return system, inputs
+def phase_states(body, scene, phases):
+    """States of the current code at the phase times, without the iteration matrix."""
+    system, inputs = sim.build_system(body, scene)
+    n_plain = 5 + sum(getattr(system, k).size for k in system._STATE_FIELDS)
+    states = []
+    for t_phase in phases:
+        while system.t < t_phase - 0.5 * scene.step:
+            system.step(scene.step, inputs)
+        state = system.get_state()[:n_plain].copy()
+        state[4] = 0.0  # no factorization
+        states.append(state)
+    return states
+
+
+def best_per_call(call, n, repeats, setup=None):
+    """Seconds per call: each of n consecutive calls is timed alone, each call index keeps its best over
+    the repeats (which all start from the same state), and the mean of those is returned. Timing single
+    calls rather than blocks keeps the figure clean on a shared machine, where a block of many
+    milliseconds is almost always interrupted by other processes."""
+    best = [float("inf")] * n
+    clock = time.perf_counter
+    for _ in range(repeats):
+        if setup is not None:
+            setup()
+        for k in range(n):
+            t0 = clock()
+            call()
+            dt = clock() - t0
+            if dt < best[k]:
+                best[k] = dt
+    return sum(best) / n
 
 
 def residual_call(system, h, inputs):
@@ -60,82 +104,76 @@ def residual_call(system, h, inputs):
     values = inputs(system.t + h)
     yd = system.yd.copy()
     if hasattr(system, "_prepare_step"):  # current code: per-step constants, then stage + residual
-        system._prepare_step(h, values, am, af, gamma)
+        system._prepare_step(system.t + h, h, values, am, af, gamma)
         return lambda: system._residual_at(yd)
     prescribed = system._read_inputs(system.t + h, values)
     loads = prescribed[3:5]
     return lambda: system._residual(yd, system._stage(yd, h, am, af, gamma, prescribed)[0], loads)[0]
 
 
-def best_time(fn, n, repeats, setup=None):
-    best = float("inf")
-    for _ in range(repeats):
-        if setup is not None:
-            setup()
-        t0 = time.perf_counter()
-        fn(n)
-        best = min(best, time.perf_counter() - t0)
-    return best / n
-
-
-def measure(cls, record, body, scene, args):
-    system, inputs = build(cls, body, scene, args.warmup)
+def measure(cls, record, body, scene, states, args):
+    system = cls(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
+    inputs = sim.scene_inputs(body, scene)
     h = scene.step
-    saved = system.get_state()
-    restore = lambda: system.set_state(saved)  # noqa: E731
-
-    res = residual_call(system, h, inputs)
-
-    def residuals(n):
-        for _ in range(n):
-            res()
-
-    def steps(n):
-        it = 0
-        for _ in range(n):
-            it += system.step(h, inputs)
-        steps.iterations = it / n
-
-    def steps_recorded(n):
-        for _ in range(n):
-            system.step(h, inputs)
-            record(system)
-
-    restore()
-    t_res = best_time(residuals, 10 * args.steps, args.repeats, restore)
-    t_step = best_time(steps, args.steps, args.repeats, restore)
-    t_rec = best_time(steps_recorded, args.steps, args.repeats, restore)
-    return {"residual": t_res, "step": t_step, "step+record": t_rec, "iterations": steps.iterations}
+    out = {"step": [], "step+record": [], "iterations": []}
+    for i, state in enumerate(states):
+        restore = lambda: system.set_state(state)  # noqa: E731
+        restore()
+        system.step(h, inputs)  # a first step builds the iteration matrix; the window starts after it
+        state = system.get_state()
+        restore()
+        if i == 0:
+            out["residual"] = best_per_call(residual_call(system, h, inputs), 5, 20 * args.repeats)
+            restore()
+        iterations = []
+        step = lambda: iterations.append(system.step(h, inputs))  # noqa: E731
+        out["step"].append(best_per_call(step, args.steps, args.repeats, restore))
+        out["iterations"].append(np.mean(iterations))
+        out["step+record"].append(
+            best_per_call(lambda: (system.step(h, inputs), record(system)), args.steps, args.repeats, restore)
+        )
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=200)
-    ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--warmup", type=int, default=250)
+    ap.add_argument("--phases", default="0.5,5,15", help="window start times [s] in the 20 s spin-up")
+    ap.add_argument("--steps", type=int, default=40, help="steps per window")
+    ap.add_argument("--repeats", type=int, default=10)
+    ap.add_argument("--blas-threads", default="1", help="BLAS threads, or 'default' to leave them alone")
     ap.add_argument("--no-profile", action="store_true")
     args = ap.parse_args(argv)
+    phases = [float(x) for x in args.phases.split(",")]
     impls = implementations()
-    print(f"B1 spin-up, h = 2 ms; best of {args.repeats} x {args.steps} steps after {args.warmup} warm-up steps")
-    print(f"{'SE':>3} {'code':>9} {'us/residual':>11} {'us/step':>8} {'us/step+rec':>11} {'ms/sim s':>9} "
-          f"{'Newton/step':>11}  ratios baseline/current (residual, step, step+rec)")
+    print(f"B1 spin-up, h = 2 ms, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS', 'default')}; windows of "
+          f"{args.steps} steps at t = {', '.join(f'{p:g}' for p in phases)} s; best of {args.repeats} per step")
+    head = " ".join(f"{f't={p:g}':>7}" for p in phases)
+    print(f"{'SE':>3} {'code':>9} {'us/resid':>8}  us/step: {head} {'mean':>7} {'+record':>8} {'ms/sim s':>8} "
+          f"{'Newton/step':>11}  baseline/current: residual, step, step+record")
+    mid = None
     for n in (1, 2, 4):
         model = load_model(MODEL, [f"superelements={n}"])
         scene = model.scene("spinup")
         body, _ = build_body(model.body)
-        rows = {label: measure(cls, rec, body, scene, args) for label, cls, rec in impls}
+        states = phase_states(body, scene, phases)
+        if n == 4:
+            mid = (body, scene, states[len(states) // 2])
+        rows = {label: measure(cls, rec, body, scene, states, args) for label, cls, rec in impls}
         for label, r in rows.items():
+            step, rec = np.mean(r["step"]), np.mean(r["step+record"])
             ratio = ""
             if label == "current" and "baseline" in rows:
                 b = rows["baseline"]
-                ratio = "  " + ", ".join(f"{b[k] / r[k]:.1f}x" for k in ("residual", "step", "step+record"))
-            print(f"{n:>3} {label:>9} {1e6 * r['residual']:11.1f} {1e6 * r['step']:8.1f} {1e6 * r['step+record']:11.1f} "
-                  f"{1e3 * r['step+record'] / scene.step:9.1f} {r['iterations']:11.2f}{ratio}")
+                ratio = (f"  {b['residual'] / r['residual']:.1f}x, {np.mean(b['step']) / step:.1f}x, "
+                         f"{np.mean(b['step+record']) / rec:.1f}x")
+            steps = " ".join(f"{1e6 * x:7.0f}" for x in r["step"])
+            print(f"{n:>3} {label:>9} {1e6 * r['residual']:8.1f}           {steps} {1e6 * step:7.0f} {1e6 * rec:8.0f} "
+                  f"{1e3 * rec / scene.step:8.0f} {' '.join(f'{x:.2f}' for x in r['iterations']):>11}{ratio}")
     if not args.no_profile:
-        model = load_model(MODEL, ["superelements=4"])
-        scene = model.scene("spinup")
-        body, _ = build_body(model.body)
-        system, inputs = build(BodySystem, body, scene, args.warmup)
+        body, scene, state = mid
+        system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
+        inputs = sim.scene_inputs(body, scene)
+        system.set_state(state)
         prof = cProfile.Profile()
         prof.enable()
         for _ in range(5 * args.steps):
@@ -144,7 +182,8 @@ def main(argv=None) -> int:
         prof.disable()
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("tottime").print_stats(15)
-        print(f"\ncProfile, current code, 4 SE, {5 * args.steps} steps with recording (tottime):")
+        t_mid = phases[len(phases) // 2]
+        print(f"\ncProfile, current code, 4 SE, {5 * args.steps} steps with recording from t = {t_mid:g} s (tottime):")
         print(out.getvalue())
     return 0
 

@@ -149,14 +149,20 @@ def info(args) -> int:
     arg("--out", metavar="results.csv", help="write time, every port's frame, velocity and load, and the energies"),
     arg("--summary", metavar="summary.json", help="write wall time, steps, Newton iterations, energy balance, metrics"),
     arg("--plot", metavar="fig.png", help="plot the tip deflection (or port angular velocity) and the energies"),
+    arg("--solver", choices=("superelements", "reference"), default="superelements",
+        help="superelements (the product) or reference: the full-order geometrically exact beam on the "
+             "unreduced FE mesh (superelements x elements per superelement; change with --set elements=N)"),
 )
 def simulate(args) -> int:
     """Run a scene standalone (no FMU) and report the benchmark metrics."""
     from . import simulate as sim
 
     model, scene = _load(args)
-    body_data, _ = _body_for_scene(model, scene)
-    result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
+    if args.solver == "reference":
+        result = sim.run_reference(model, scene)
+    else:
+        body_data, _ = _body_for_scene(model, scene)
+        result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
     s = result.summary
     if args.out:
         result.write_csv(args.out)
@@ -228,6 +234,90 @@ def stability(args) -> int:
     st.PLOTS[args.map](rows, out / "map.png")
     print(f"wrote {out / 'map.csv'} ({len(rows)} runs) and {out / 'map.png'}")
     return 0
+
+
+@command(
+    *MODEL_ARGS,
+    arg("--sweep", nargs="+", action="append", metavar="KEY=V1,V2", default=None,
+        help="swept values, e.g. --sweep superelements=1,2,4 modes=2,4,6 terms=linear,gyroscopic step=2e-3,1e-2 "
+             "(cartesian product; repeat --sweep to add another group; unswept keys keep the model's values)"),
+    arg("--fmu", action="store_true", help="also run every configuration through its FMU under fmpy "
+        "(communication step = internal step)"),
+    arg("--reference-elements", type=int, metavar="N", help="elements of the full-order reference beam "
+        "(default max(16, 4 x superelements of the model))"),
+    arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's)"),
+    arg("--workers", type=int, metavar="K", help="local processes (default: cpu count; wall times of concurrent "
+        "runs are measured per process and grow when K exceeds the free cores)"),
+    arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
+        "chart.json and the cached reference run (npz)"),
+)
+def chart(args) -> int:
+    """Accuracy against cost: error of each configuration against the full-order reference over its wall time."""
+    from . import chart as ch
+
+    try:
+        groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
+        out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu,
+                       reference_elements=args.reference_elements, reference_step=args.reference_step,
+                       workers=args.workers, out_dir=args.output)
+    except ch.ChartError as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        return 2
+    ref = out["reference"]
+    if ref.get("failure"):
+        print(f"reference: full-order beam, {ref['n_elements']} elements FAILED ({ref['failure']}): no errors")
+    else:
+        cost = "cached" if ref["cached"] else f"{ref['wall_time_s']:.1f} s wall"
+        print(f"reference: full-order beam, {ref['n_elements']} elements, h = {ref['step']:g} s, {cost}: "
+              + ", ".join(f"{k} = {v:.6g}" for k, v in ref["metrics"].items() if isinstance(v, float)))
+    print(ch.format_table(out["rows"]))
+    print(f"wrote {out['csv']}, {out['png']}, {out['json']}")
+    return 0 if all(r["completed"] for r in out["rows"]) else 1
+
+
+def _fraction(text: str) -> float:
+    """'1%' -> 0.01, '0.01' -> 0.01."""
+    t = text.strip()
+    try:
+        return float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a fraction (0.01) or a percentage (1%), got {text!r}") from None
+
+
+@command(
+    *MODEL_ARGS,
+    arg("--tolerance", type=_fraction, required=True, metavar="TOL",
+        help="relative error allowed on the scene's primary metric, e.g. 1%% or 0.01"),
+    arg("--check", action="store_true", help="run the advised configuration and the reference; report the "
+        "achieved error and cost"),
+    arg("--chart", metavar="chart.csv", help="with --check: compare the cost with the cheapest configuration of "
+        "this chart that meets the tolerance"),
+    arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
+    arg("-o", "--output", default="chart", metavar="DIR", help="where the reference run is cached (with --check)"),
+    arg("--json", action="store_true", help="print a JSON object instead of text"),
+)
+def advise(args) -> int:
+    """Pick superelements, modes, term set and step for a scene and a tolerance, with the reasons."""
+    from . import advise as ad
+
+    model, scene = _load(args)
+    if not 0.0 < args.tolerance < 1.0:
+        print(f"{PROG}: error: --tolerance must be between 0 and 100 %, got {args.tolerance:g}", file=sys.stderr)
+        return 2
+    advice = ad.advise(model, scene.name, args.tolerance)
+    out = advice.as_dict()
+    if not args.json:
+        print(ad.format_advice(advice, model.body.name, scene.name))
+    if args.check:
+        res = ad.check(args.model, scene.name, advice, overrides=args.overrides,
+                       reference_elements=args.reference_elements, cache_dir=args.output, chart_csv=args.chart)
+        out["check"] = res
+        if not args.json:
+            print(ad.format_check(res, advice.tolerance))
+    if args.json:
+        json.dump(out, sys.stdout, indent=2, default=float)
+        print()
+    return 0 if not args.check or out["check"]["within_tolerance"] else 1
 
 
 def build_parser() -> argparse.ArgumentParser:

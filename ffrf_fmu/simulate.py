@@ -24,13 +24,7 @@ ENERGIES = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")
 
 def variable_names(port: str) -> list[str]:
     """FMU variable names of one port (ports.md), 1-based structured names, in output order."""
-    names = []
-    for fld, shape in PORT_FIELDS:
-        if len(shape) == 1:
-            names += [f"{port}.{fld}[{i + 1}]" for i in range(3)]
-        else:
-            names += [f"{port}.{fld}[{i + 1},{j + 1}]" for i in range(3) for j in range(3)]
-    return names
+    return [name for fld, shape in PORT_FIELDS for name in _field_names(port, fld, shape)]
 
 
 def flatten_port(values: PortValues) -> np.ndarray:
@@ -151,11 +145,13 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0)) -> tuple[
     return system, inputs
 
 
+assert BodySystem.OUTPUT_FIELDS == tuple(fld for fld, _ in PORT_FIELDS)  # port_array columns = variable order
+
+
 def record(system: BodySystem) -> np.ndarray:
-    outs = system.outputs()
+    """One row of the time series: every port's outputs (column_names order), energies, Newton iterations."""
     e = system.energies()
-    vals = [flatten_port(outs[p.name]) for p in system.data.ports]
-    return np.concatenate(vals + [np.array([e[k] for k in ENERGIES] + [system.iterations])])
+    return np.concatenate([system.port_array().ravel(), [e[k] for k in ENERGIES], [system.iterations]])
 
 
 def column_names(body: BodyData) -> list[str]:
@@ -218,7 +214,10 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
 
 def energy_balance(columns: dict[str, np.ndarray]) -> float:
     """max |E(t) - E(0) - W_ext(t)| over the peak of E = rigid + elastic kinetic + strain energy."""
-    total = columns["energy.kinetic_rigid"] + columns["energy.kinetic_elastic"] + columns["energy.strain"]
+    if "energy.kinetic" in columns:  # the full-order reference has no rigid/elastic split
+        total = columns["energy.kinetic"] + columns["energy.strain"]
+    else:
+        total = columns["energy.kinetic_rigid"] + columns["energy.kinetic_elastic"] + columns["energy.strain"]
     gap = total - total[0] - columns["energy.work_external"]
     peak = max(np.max(np.abs(total)), np.max(np.abs(columns["energy.work_external"])))
     return float(np.max(np.abs(gap)) / peak) if peak > 0 else 0.0
@@ -340,16 +339,57 @@ def plot(result: SimulationResult, scene: Scene, path) -> None:
     ax1.legend(loc="best")
     ax1.grid(True, alpha=0.3)
     c = result.columns
-    total = c["energy.kinetic_rigid"] + c["energy.kinetic_elastic"] + c["energy.strain"]
-    for k in ENERGIES:
+    energies = [k.removeprefix("energy.") for k in c if k.startswith("energy.")]
+    total = sum(c[f"energy.{k}"] for k in energies if k != "work_external")
+    for k in energies:
         ax2.plot(t, c[f"energy.{k}"], label=k.replace("_", " "))
     ax2.plot(t, total, "k--", lw=1, label="total")
     ax2.set_xlabel("time [s]")
     ax2.set_ylabel("energy [J]")
     ax2.legend(loc="best")
     ax2.grid(True, alpha=0.3)
-    fig.suptitle(f"{result.body.name} / {scene.name}: {len(result.body.superelements)} SE, terms {scene.terms}, "
-                 f"h = {scene.step:g} s")
+    model = (f"reference beam, {result.summary['elements']} elements" if result.summary.get("solver") == "reference"
+             else f"{len(result.body.superelements)} SE, terms {scene.terms}")
+    fig.suptitle(f"{result.body.name} / {scene.name}: {model}, h = {result.summary['step']:g} s")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def run_reference(model: Model, scene: Scene, n_elements: int | None = None, step: float | None = None) -> SimulationResult:
+    """The scene on the full-order geometrically exact beam (ffrf_fmu/reference), as a SimulationResult
+    with the same port columns and metrics. Default mesh: the FE mesh the superelements are reduced
+    from (superelements x elements per superelement), unreduced."""
+    from .reference import simulate_reference
+    from .runtime.data import BodyData, PortData
+
+    body = dataclasses.replace(model.body, ports=effective_ports(model, scene))
+    n = n_elements or body.superelements * body.elements_per_superelement
+    ref = simulate_reference(body, scene, n_elements=n, step=step)
+    L, e = body.length, np.asarray(body.direction, float) / np.linalg.norm(body.direction)
+    nodes = np.asarray(body.origin, float) + np.outer(np.arange(body.superelements + 1) * L / body.superelements, e)
+    ports = tuple(PortData(p.name, p.node, p.translation, p.rotation) for p in body.ports)
+    shell = BodyData(name=body.name, superelements=(), node_positions=nodes, ports=ports)
+    columns = {}
+    for p in ports:
+        for fld, shape in PORT_FIELDS:
+            arr = ref.ports[p.name][fld].reshape(len(ref.t), -1)
+            columns.update(zip(_field_names(p.name, fld, shape), arr.T))
+    for k in ("kinetic", "strain", "work_external"):
+        columns[f"energy.{k}"] = ref.energy[k]
+    summary = {
+        "body": body.name, "scene": scene.name, "solver": "reference", "elements": n,
+        "step": (ref.info or {}).get("step", step or scene.step), "completed": bool(ref.t[-1] >= scene.duration - 1e-9),
+        "failure": None, "t_end": float(ref.t[-1]), "wall_time_s": ref.wall_time_s, "steps": len(ref.t) - 1,
+        "real_time_factor": float(ref.t[-1] / ref.wall_time_s) if ref.wall_time_s > 0 else None,
+        "newton_iterations_mean": ref.newton_iterations_mean, "energy_balance_max_rel": energy_balance(columns),
+    }
+    result = SimulationResult(ref.t, columns, summary, shell)
+    summary["metrics"] = metrics(result, scene)
+    return result
+
+
+def _field_names(port: str, fld: str, shape) -> list[str]:
+    if len(shape) == 1:
+        return [f"{port}.{fld}[{i + 1}]" for i in range(3)]
+    return [f"{port}.{fld}[{i + 1},{j + 1}]" for i in range(3) for j in range(3)]

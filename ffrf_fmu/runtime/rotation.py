@@ -28,14 +28,13 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return outer.reshape(outer.shape[:-2] + (9,)) @ _CROSS
 
 
+_SKEW = np.einsum("ijk->kij", -_LEVI_CIVITA).reshape(3, 9)  # a @ _SKEW = skew(a).ravel()
+
+
 def skew(a: np.ndarray) -> np.ndarray:
-    """skew(a) b = a x b."""
+    """skew(a) b = a x b (one matmul with a constant operator, for stacks of vectors)."""
     a = np.asarray(a, dtype=float)
-    out = np.zeros(a.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = a[..., 2], -a[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -a[..., 1], a[..., 0]
-    return out
+    return (a @ _SKEW).reshape(a.shape[:-1] + (3, 3))
 
 
 def _coefficients(theta: np.ndarray):
@@ -50,18 +49,44 @@ def _coefficients(theta: np.ndarray):
     return a, b, c
 
 
-def expm(theta: np.ndarray) -> np.ndarray:
-    """Rodrigues: exp(skew(theta)) = cos(t) I + sinc(t) skew(theta) + (1 - cos t)/t^2 theta theta^T.
+def _quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the unit quaternion q = (w, v): (w^2 - v.v) I + 2 v v^T + 2 w skew(v)."""
+    w, v = q[0], q[1:]
+    return (w * w - v @ v) * np.eye(3) + 2.0 * np.outer(v, v) + 2.0 * w * skew(v)
 
-    Written with np.sinc, which is exact at t = 0, so no branch for small angles is needed."""
+
+def _quadratic_form(f, n: int) -> np.ndarray:
+    """B (n*n, m) with f(q).ravel() = (q outer q).ravel() @ B for a quadratic f (polarization)."""
+    e = np.eye(n)
+    B = np.zeros((n, n, np.size(f(e[0]))))
+    for a in range(n):
+        for b in range(n):
+            B[a, b] = np.ravel(f(e[a]) if a == b else 0.5 * (f(e[a] + e[b]) - f(e[a]) - f(e[b])))
+    return B.reshape(n * n, -1)
+
+
+# (16, 9): R.ravel() = (q' outer q').ravel() @ _QUAT2_TO_R for q' = (w, 2 v), the unit quaternion (w, v)
+# with its vector part doubled
+_QUAT2_TO_R = _quadratic_form(lambda q: _quaternion_matrix(q * np.array([1.0, 0.5, 0.5, 0.5])), 4)
+_QUARTER3 = np.full(3, 0.25)
+_TINY = np.finfo(float).tiny
+
+
+def expm(theta: np.ndarray) -> np.ndarray:
+    """exp(skew(theta)) through the unit quaternion q = (cos(t/2), sin(t/2)/t theta), t = |theta|:
+    R is a quadratic form in q, so one outer product and one matmul with a constant operator give
+    every rotation of a stack. Exact for all angles, no series: with s = sin(t/2)/(t/2), taken 0 at
+    t = 0 where it multiplies theta = 0, the quaternion is (cos(t/2), s theta/2); the operator takes
+    (cos(t/2), s theta)."""
     theta = np.asarray(theta, dtype=float)
-    t = np.sqrt(np.einsum("...i,...i->...", theta, theta))
-    a = np.sinc(t / np.pi)  # sin(t)/t
-    b = 0.5 * np.sinc(t / (2.0 * np.pi)) ** 2  # (1 - cos t)/t^2
-    out = b[..., None, None] * (theta[..., :, None] * theta[..., None, :])
-    out += np.einsum("ijk,...k->...ij", -_LEVI_CIVITA, a[..., None] * theta)
-    out += np.cos(t)[..., None, None] * np.eye(3)
-    return out
+    shape = theta.shape[:-1]
+    th = theta.reshape(-1, 3)
+    half = np.sqrt((th * th) @ _QUARTER3)  # t/2
+    q = np.empty((len(th), 4))
+    np.cos(half, out=q[:, 0])
+    np.multiply(th, (np.sin(half) / np.maximum(half, _TINY))[:, None], out=q[:, 1:])
+    R = (q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _QUAT2_TO_R
+    return R.reshape(shape + (3, 3))
 
 
 def tangent(theta: np.ndarray) -> np.ndarray:
@@ -107,8 +132,15 @@ def vect_tangent(Q: np.ndarray) -> np.ndarray:
 
 
 def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
+    """R is a (3, 3) array with |R^T R - I| <= tol and det(R) > 0 (in floats: cheaper than numpy at
+    this size; a NaN or inf entry makes det NaN or |R^T R - I| infinite, so it fails)."""
     R = np.asarray(R, dtype=float)
-    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+    if R.shape != (3, 3):
         return False
-    det = R[0] @ cross(R[1], R[2])
-    return bool(np.max(np.abs(R.T @ R - np.eye(3))) <= tol and det > 0.0)
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    err = max(
+        abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0), abs(c * c + f * f + i * i - 1.0),
+        abs(a * b + d * e + g * h), abs(a * c + d * f + g * i), abs(b * c + e * f + h * i),
+    )
+    return bool(err <= tol and det > 0.0)
