@@ -270,15 +270,16 @@ class BodyCoSim:
         inputs = self.extrapolation(t_c, held)
         saved = system.get_state()
         worst = 0
+        # n equal internal steps of at most solver.step (up to round-off in H / h). Never a sliver: a
+        # step of 1e-11 s makes the iteration matrix nearly the singular F_ydot of the DAE and leaves
+        # a lasting high-frequency error in the reactions.
+        ratio = H / h
+        n = max(1, round(ratio)) if abs(ratio - round(ratio)) < 1e-6 * max(1.0, ratio) else math.ceil(ratio)
+        hh = H / n
         try:
-            while True:
-                remaining = t_end - system.t
-                if remaining <= 1e-9 * h:
-                    break
-                # the last step is shortened to land on t_end; a remainder equal to h up to round-off
-                # is taken as h itself (the body keeps its iteration matrix only for an unchanged step)
-                hh = h if remaining > h * (1.0 - 1e-9) else remaining
+            for _ in range(n):
                 worst = max(worst, system.step(hh, inputs))
+            system.t = t_end  # the master's clock, not the sum of n rounded steps
             self._check_finite(system)
         except StepFailure as e:
             system.set_state(saved)

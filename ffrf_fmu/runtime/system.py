@@ -864,7 +864,9 @@ class BodySystem:
         fi, order = self._free_idx, self._newton_idx
         dx_prev = np.inf
         for it in range(0, self.max_iter + 1):
-            refresh = self._lu is None or self._lu[2] != beta
+            # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
+            # communication grid repeats its step only up to round-off
+            refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
             if refresh:
                 F, J = self._residual_at(yd, jacobian=True, beta=beta)
             else:
