@@ -250,16 +250,25 @@ def stability(args) -> int:
         "runs are measured per process and grow when K exceeds the free cores)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
         "chart.json and the cached reference run (npz)"),
+    arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
+        "(default wall; cpu is the load-independent measure on a busy machine)"),
+    arg("--plot-only", action="store_true", help="redraw DIR/chart.png from DIR/chart.csv and chart.json, run nothing"),
 )
 def chart(args) -> int:
     """Accuracy against cost: error of each configuration against the full-order reference over its wall time."""
+    from pathlib import Path
+
     from . import chart as ch
 
+    if args.plot_only:
+        out = ch.replot(Path(args.output), cost=args.cost)
+        print(f"wrote {out}")
+        return 0
     try:
         groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
         out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu,
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
-                       workers=args.workers, out_dir=args.output)
+                       workers=args.workers, out_dir=args.output, cost=args.cost)
     except ch.ChartError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2
@@ -292,6 +301,8 @@ def _fraction(text: str) -> float:
         "achieved error and cost"),
     arg("--chart", metavar="chart.csv", help="with --check: compare the cost with the cheapest configuration of "
         "this chart that meets the tolerance"),
+    arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
+        "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
     arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="where the reference run is cached (with --check)"),
     arg("--json", action="store_true", help="print a JSON object instead of text"),
@@ -304,7 +315,7 @@ def advise(args) -> int:
     if not 0.0 < args.tolerance < 1.0:
         print(f"{PROG}: error: --tolerance must be between 0 and 100 %, got {args.tolerance:g}", file=sys.stderr)
         return 2
-    advice = ad.advise(model, scene.name, args.tolerance)
+    advice = ad.advise(model, scene.name, args.tolerance, fmu=args.fmu)
     out = advice.as_dict()
     if not args.json:
         print(ad.format_advice(advice, model.body.name, scene.name))

@@ -1,0 +1,197 @@
+"""pythonfmu script of the hub drive FMU (B5 partner of the beam FMU): a rigid hub inertia on a
+fixed bearing, driven by a motor under a PI speed controller that tracks the Wu-Haug spin-up
+speed profile, and joined to the beam root by a torsional shaft (stiffness k, damping c).
+
+Built by `ffrf_fmu.examples.build_hub_drive`, which renames the module and the class with a digest
+of this file (pythonfmu FMUs whose scripts share a name collide in one process, ports.md). Only
+the standard library and pythonfmu are imported: the FMU runs wherever pythonfmu runs.
+
+Port `hub` follows shared/spec/ports.md, seen from the drive:
+- translation force-driven: outputs hub.r = 0, hub.v = 0 (the bearing holds the hub axis at the
+  origin), input hub.f (force of the beam on the hub: taken by the bearing, unused);
+- rotation motion-driven: inputs hub.R, hub.w = the beam root frame and angular velocity (world
+  axes); output hub.t = the moment the beam applies ON the drive = -(shaft torque on the beam).
+Joined with master.CoSimulation.connect_ports to the beam FMU's hub port (rotation
+force-driven, translation motion-driven), the beam receives -hub.t = the shaft torque.
+
+Equations (about the world Z axis, which is the drive axis):
+    theta_b  = beam root angle from hub.R (unwrapped next to the hub angle), omega_b = hub.w[3]
+    tau_s    = k (theta - theta_b) + c (omega - omega_b)            shaft torque on the beam
+    tau_m    = Kp (omega_ref(t) - omega) + Ki z                      PI motor torque
+    J dtheta/dt = J omega,  J domega/dt = tau_m - tau_s,  dz/dt = omega_ref(t) - omega
+omega_ref is the Wu-Haug spin-up rate (benchmarks.md B1): omega_f (tau - sin(2 pi tau)/(2 pi)),
+tau = t/T, then omega_f. Inputs between communication points (same rule as the body FMUs,
+docs/fmu.md): the values set before doStep(t_c, H) are the values at t_c; the beam angle is
+extrapolated with its rate, theta_b(t) = theta_b(t_c) + omega_b(t_c) (t - t_c), omega_b held.
+Integration: classical Runge-Kutta with n = ceil(H / solver.substep) equal substeps.
+Outputs are the values at the end of the step (no direct feedthrough).
+"""
+import json
+import math
+
+from pythonfmu import Fmi2Slave, Real
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+
+PARAMETERS = {
+    # name: (default, unit, description)
+    "drive.J": (5.0, "kg.m2", "hub inertia about the drive axis"),
+    "drive.k": (300.0, "N.m/rad", "torsional stiffness of the shaft between hub and beam root"),
+    "drive.c": (0.0, "N.m.s/rad", "torsional damping of the shaft"),
+    "drive.Kp": (100.0, "N.m.s/rad", "PI speed controller: proportional gain"),
+    "drive.Ki": (200.0, "N.m/rad", "PI speed controller: integral gain"),
+    "profile.omega": (4.0, "rad/s", "final spin rate of the Wu-Haug speed reference"),
+    "profile.T": (15.0, "s", "spin-up time of the Wu-Haug speed reference"),
+    "solver.substep": (5.0e-4, "s", "largest Runge-Kutta substep"),
+}
+OUTPUTS = {
+    "drive.angle": ("rad", "hub angle"),
+    "drive.speed": ("rad/s", "hub speed"),
+    "drive.speed_reference": ("rad/s", "speed reference of the PI controller"),
+    "drive.motor_torque": ("N.m", "motor torque on the hub"),
+    "drive.shaft_torque": ("N.m", "shaft torque on the beam root (about Z)"),
+    "drive.integral": ("rad", "integral of the speed error"),
+}
+
+
+def speed_reference(t, omega, T):
+    """Wu-Haug spin-up rate (benchmarks.md B1, with the 1/(2 pi)^2 factor of the angle law)."""
+    if t >= T:
+        return omega
+    tau = max(t, 0.0) / T
+    return omega * (tau - math.sin(2.0 * math.pi * tau) / (2.0 * math.pi))
+
+
+class HubDrive(Fmi2Slave):
+
+    author = "ffrf-fmu"
+    DESCRIPTION = ("Hub inertia + motor + PI speed controller (Wu-Haug speed profile) + torsional shaft to "
+                   "the beam root. Port hub (ports.md): rotation motion-driven (inputs R, w of the beam root; "
+                   "output t = moment of the beam on the hub), translation force-driven (r = v = 0 outputs, "
+                   "f input unused). Inputs are values at t_c; the beam angle is extrapolated with its rate "
+                   "over the step. RK4 substeps. Outputs at the step end, no direct feedthrough.")
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.description = self.DESCRIPTION
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=2e-3)
+        self.p = {k: v[0] for k, v in PARAMETERS.items()}
+        self.R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]  # row-major, R[i,j] = R[3(i-1) + j-1]
+        self.w = [0.0, 0.0, 0.0]
+        self.f = [0.0, 0.0, 0.0]
+        self.x = [0.0, 0.0, 0.0]  # theta, omega, z
+        self.t = 0.0
+        self.out = {k: 0.0 for k in OUTPUTS}
+        self.torque_on_drive = [0.0, 0.0, 0.0]
+        reg = self.register_variable
+        for name, (default, unit, desc) in PARAMETERS.items():
+            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
+                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
+                nested=False)
+        for i in range(3):
+            reg(Real(f"hub.r[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0, description="hub position (fixed bearing) [m]",
+                     getter=lambda: 0.0), nested=False)
+        for i in range(3):
+            for j in range(3):
+                reg(Real(f"hub.R[{i + 1},{j + 1}]", causality=Fmi2Causality.input,
+                         variability=Fmi2Variability.continuous, start=1.0 if i == j else 0.0,
+                         description="beam root frame: world component i of nodal axis j",
+                         getter=lambda k=3 * i + j: self.R[k], setter=lambda v, k=3 * i + j: self.R.__setitem__(k, float(v))),
+                    nested=False)
+        for i in range(3):
+            reg(Real(f"hub.v[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0, description="hub velocity (fixed bearing) [m/s]",
+                     getter=lambda: 0.0), nested=False)
+        for i in range(3):
+            reg(Real(f"hub.w[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                     start=0.0, description="beam root angular velocity, world axes [rad/s]",
+                     getter=lambda k=i: self.w[k], setter=lambda v, k=i: self.w.__setitem__(k, float(v))), nested=False)
+        for i in range(3):
+            reg(Real(f"hub.f[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                     start=0.0, description="force of the beam on the hub (taken by the bearing, unused) [N]",
+                     getter=lambda k=i: self.f[k], setter=lambda v, k=i: self.f.__setitem__(k, float(v))), nested=False)
+        for i in range(3):
+            reg(Real(f"hub.t[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0,
+                     description="moment of the beam ON the hub = -(shaft torque on the beam), world axes [N.m]",
+                     getter=lambda k=i: self.torque_on_drive[k]), nested=False)
+        for name, (unit, desc) in OUTPUTS.items():
+            reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0, description=f"{desc} [{unit}]",
+                     getter=lambda n=name: self.out[n]), nested=False)
+
+    # ------------------------------------------------------------------ dynamics
+    def _beam_angle(self, theta_hub):
+        raw = math.atan2(self.R[3], self.R[0])  # R[2,1], R[1,1]
+        return theta_hub + math.remainder(raw - theta_hub, 2.0 * math.pi)
+
+    def _rhs(self, t, x, theta_b, omega_b):
+        p = self.p
+        theta, omega, z = x
+        ref = speed_reference(t, p["profile.omega"], p["profile.T"])
+        tau_s = p["drive.k"] * (theta - theta_b) + p["drive.c"] * (omega - omega_b)
+        tau_m = p["drive.Kp"] * (ref - omega) + p["drive.Ki"] * z
+        return [omega, (tau_m - tau_s) / p["drive.J"], ref - omega]
+
+    def _update_outputs(self, t, theta_b, omega_b):
+        p = self.p
+        theta, omega, z = self.x
+        ref = speed_reference(t, p["profile.omega"], p["profile.T"])
+        tau_s = p["drive.k"] * (theta - theta_b) + p["drive.c"] * (omega - omega_b)
+        self.out.update({"drive.angle": theta, "drive.speed": omega, "drive.speed_reference": ref,
+                         "drive.motor_torque": p["drive.Kp"] * (ref - omega) + p["drive.Ki"] * z,
+                         "drive.shaft_torque": tau_s, "drive.integral": z})
+        self.torque_on_drive = [0.0, 0.0, -tau_s]
+
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self.t = float(start_time)
+
+    def exit_initialization_mode(self):
+        self._update_outputs(self.t, self._beam_angle(self.x[0]), self.w[2])
+
+    def do_step(self, current_time, step_size):
+        values = self.R + self.w + [step_size]
+        if not all(math.isfinite(v) for v in values) or step_size <= 0.0:
+            self.log(f"t = {current_time:g} s: non-finite input or bad step {step_size!r}", Fmi2Status.discard)
+            return False
+        theta_b0, omega_b = self._beam_angle(self.x[0]), self.w[2]
+        n = max(1, math.ceil(step_size / self.p["solver.substep"] - 1e-9))
+        h = step_size / n
+        x, t = list(self.x), current_time
+        tb = lambda s: theta_b0 + omega_b * (s - current_time)  # noqa: E731
+        for _ in range(n):
+            k1 = self._rhs(t, x, tb(t), omega_b)
+            x2 = [a + 0.5 * h * b for a, b in zip(x, k1)]
+            k2 = self._rhs(t + 0.5 * h, x2, tb(t + 0.5 * h), omega_b)
+            x3 = [a + 0.5 * h * b for a, b in zip(x, k2)]
+            k3 = self._rhs(t + 0.5 * h, x3, tb(t + 0.5 * h), omega_b)
+            x4 = [a + h * b for a, b in zip(x, k3)]
+            k4 = self._rhs(t + h, x4, tb(t + h), omega_b)
+            x = [a + h / 6.0 * (b + 2.0 * c + 2.0 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)]
+            t += h
+        if not all(math.isfinite(v) for v in x):
+            self.log(f"t = {current_time:g} s: hub state not finite", Fmi2Status.discard)
+            return False
+        self.x, self.t = x, current_time + step_size
+        self._update_outputs(self.t, tb(self.t), omega_b)
+        return True
+
+    # ------------------------------------------------------------------ FMU state (complete)
+    def _get_fmu_state(self):
+        return {"p": dict(self.p), "R": list(self.R), "w": list(self.w), "f": list(self.f), "x": list(self.x),
+                "t": self.t, "out": dict(self.out), "tq": list(self.torque_on_drive)}
+
+    def _set_fmu_state(self, state):
+        self.p, self.R, self.w, self.f = dict(state["p"]), list(state["R"]), list(state["w"]), list(state["f"])
+        self.x, self.t, self.out = list(state["x"]), float(state["t"]), dict(state["out"])
+        self.torque_on_drive = list(state["tq"])
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        return json.dumps(state).encode("utf-8")
+
+    @staticmethod
+    def _fmu_state_from_bytes(state):
+        return json.loads(state.decode("utf-8"))

@@ -1,0 +1,232 @@
+"""Stability boundaries (docs/stability.md): one configuration on each side of every boundary the
+maps found, so that a change that moves a boundary is noticed. The maps themselves (docs/
+stability_*.csv) come from `ffrf-fmu stability`; these tests rerun single points, shortened to the
+time the mechanism needs (each test says why its duration is enough).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ffrf_fmu import stability as st
+from ffrf_fmu.model import load_model
+
+ROOT = Path(__file__).resolve().parent.parent
+HAUG = ROOT / "models" / "haug_beam.toml"
+SPHERICAL = ROOT / "models" / "spherical_beam.toml"
+
+
+# ------------------------------------------------------------------------------------ helpers
+
+def test_csv_round_trip(tmp_path):
+    rows = [{"a": 1.5, "b": "x", "u": True}, {"a": 2.0, "b": "y", "u": False, "c": 3.0}]
+    st.write_csv(tmp_path / "m.csv", rows)
+    back = st.read_csv(tmp_path / "m.csv")
+    assert back[0]["a"] == 1.5 and back[0]["u"] is True and back[1]["u"] is False and back[1]["c"] == 3.0
+    assert st._done(back, a=2.0, b="y") is back[1] and st._done(back, a=3.0) is None
+
+
+def test_split_models_are_the_halves_of_the_beam(tmp_path):
+    a, b = st.split_models(HAUG, tmp_path)
+    ma, mb, m = load_model(a), load_model(b), load_model(HAUG)
+    assert ma.body.length + mb.body.length == pytest.approx(m.body.length)
+    assert ma.body.superelements + mb.body.superelements == m.body.superelements
+    assert mb.body.origin[0] == pytest.approx(m.body.length / 2)
+    assert ma.body.section == m.body.section == mb.body.section
+    assert {(p.name, p.translation) for p in ma.body.ports} == {("hub", "motion"), ("cut", "force")}
+    assert {(p.name, p.translation) for p in mb.body.ports} == {("cut", "motion"), ("tip", "force")}
+
+
+# ------------------------------------------------------------------------------------ the hub drive FMU
+
+@pytest.fixture(scope="module")
+def hub_drive(tmp_path_factory):
+    pytest.importorskip("pythonfmu")
+    from ffrf_fmu.examples import build_hub_drive
+
+    return build_hub_drive(tmp_path_factory.mktemp("drive") / "hub_drive.fmu")
+
+
+def test_hub_drive_is_valid_and_follows_ports_md(hub_drive):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(hub_drive)) == []
+    md = read_model_description(str(hub_drive))
+    caus = {v.name: v.causality for v in md.modelVariables}
+    assert all(caus[f"hub.R[{i},{j}]"] == "input" for i in (1, 2, 3) for j in (1, 2, 3))
+    assert all(caus[f"hub.{f}[{i}]"] == "input" for f in "wf" for i in (1, 2, 3))
+    assert all(caus[f"hub.{f}[{i}]"] == "output" for f in "rvt" for i in (1, 2, 3))
+    assert md.coSimulation.canGetAndSetFMUstate
+
+
+def test_hub_drive_torque_sign_and_rollback(hub_drive):
+    """Beam root held at rest (R = I, w = 0), the motor turns the hub ahead: the shaft twist is
+    positive, the torque on the beam positive, and hub.t (the moment of the beam ON the drive) is
+    minus it. A restored FMU state repeats the steps exactly."""
+    from ffrf_fmu.master import FmuInstance
+
+    inst = FmuInstance("drive", hub_drive, start_values={"profile.T": 0.5})
+    try:
+        f = inst.fmu
+        f.setupExperiment(startTime=0.0)
+        inst.set_start_values()
+        f.enterInitializationMode()
+        f.exitInitializationMode()
+        for k in range(20):
+            f.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
+        state = f.getFMUstate()
+        out = ["drive.angle", "drive.shaft_torque", "hub.t[3]", "drive.speed"]
+        before = inst.get(out)
+        assert before[0] > 0 and before[1] > 0
+        assert before[2] == pytest.approx(-before[1])
+        # the FMU's defaults are the B5 configuration of the maps (stability.DRIVE): undamped shaft
+        from ffrf_fmu.examples.hub_drive_slave import PARAMETERS
+
+        assert all(PARAMETERS[k][0] == v for k, v in st.DRIVE.items()) and st.DRIVE["drive.c"] == 0.0
+        assert before[1] == pytest.approx(st.DRIVE["drive.k"] * before[0], rel=1e-12)
+        for k in range(20, 25):
+            f.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
+        after = inst.get(out)
+        f.setFMUstate(state)
+        assert np.array_equal(inst.get(out), before)
+        for k in range(20, 25):
+            f.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
+        assert np.array_equal(inst.get(out), after)
+        f.freeFMUstate(state)
+    finally:
+        inst.close()
+
+
+# ------------------------------------------------------------------------------------ co-simulation map
+
+@pytest.fixture(scope="module")
+def motor(tmp_path_factory):
+    pytest.importorskip("pythonfmu")
+    pytest.importorskip("fmpy")
+    return st.CosimCase("motor", HAUG, tmp_path_factory.mktemp("motor"), st.CosimSettings())
+
+
+@pytest.fixture(scope="module")
+def split(tmp_path_factory):
+    pytest.importorskip("pythonfmu")
+    pytest.importorskip("fmpy")
+    return st.CosimCase("split", HAUG, tmp_path_factory.mktemp("split"), st.CosimSettings())
+
+
+def test_split_beam_explicit_is_unstable_implicit_is_exact(split):
+    """The beam cut at its middle node: explicit Gauss-Seidel lags the interface force one step
+    behind an interface mass of the same order on both sides (added-mass instability): Newton fails
+    within ~50 ms at H = 2 ms, as at every H of the map. Implicit coupling (FMU rollback, IQN-ILS)
+    solves the node equilibrium at every step end: it equals the one-body FMU (same superelements,
+    internal step = H) to the coupling tolerance. 0.1 s: the explicit run fails at ~0.045 s."""
+    H = 0.002
+    one = split.run(H, one_body=True, duration=0.1)
+    explicit = split.run(H, "gauss-seidel", duration=0.1)
+    assert "Newton" in explicit.stopped_early and explicit.t[-1] < 0.08
+    implicit = split.run(H, "gauss-seidel", iterations=50, duration=0.1)
+    assert implicit.stopped_early == ""
+    scale = np.max(one.deflection)
+    assert scale > 1e-3  # the beam bends (fast spin-up, T = 1 s): the comparison means something
+    assert np.max(np.abs(implicit.deflection - one.deflection)) < 1e-6 * scale
+    assert 1.0 < implicit.sweeps < 10.0
+
+
+# ------------------------------------------------------------------------------------ spin map (B3)
+
+def test_one_superelement_loses_stability_at_constant_spin():
+    """One superelement, spun at a constant rate and kicked: bounded at 7 rad/s, diverging at
+    10 rad/s (the tip passes L within 2.4 s; docs/stability.md: the missing tension-rotation
+    stiffening inside the superelement). 4.5 s at 7 rad/s: the envelope of an unstable mode at
+    9 rad/s already grows x3.8 in 6 s; at 7 rad/s it stays within 2 %."""
+    stable = st.steady_spin(HAUG, "spinup_fast", 7.0, n_se=1, terms="gyroscopic", duration=4.5)
+    assert not stable["unstable"] and stable["growth"] < 1.2, stable
+    unstable = st.steady_spin(HAUG, "spinup_fast", 10.0, n_se=1, terms="gyroscopic", duration=4.5)
+    assert unstable["unstable"] and "> 8 m" in unstable["failure"] and unstable["t_end"] < 3.0, unstable
+
+
+def test_several_superelements_recover_the_stiffening_at_12_rad_s():
+    """The spin-up of the map (Wu-Haug profile to 12 rad/s, T = 7.5 s) over its first 4.5 s (the
+    deflection peaks at ~4 s): 4 superelements (linear term set) stay within 5 % of the nonlinear
+    beam (map: +2.75 % over the whole run); one superelement bends past L at ~4.1 s."""
+    model, sc = st.spin_scene(HAUG, "spinup_fast", 12.0, T=7.5, duration=4.5)
+    t, d_ref = st.reference_deflection(model, sc)
+    four = st.run_beam(*_model_scene(12.0, 4, "linear"), record_every=10)
+    assert not four.unstable
+    assert abs(four.max_deflection - np.max(d_ref)) < 0.05 * np.max(d_ref)
+    one = st.run_beam(*_model_scene(12.0, 1, "linear"), record_every=10)
+    assert one.unstable and "> 8 m" in one.failure
+
+
+def _model_scene(omega, n_se, terms, T=7.5, duration=4.5):
+    return st.spin_scene(HAUG, "spinup_fast", omega, T=T, duration=duration, n_se=n_se, terms=terms)
+
+
+# ------------------------------------------------------------------------------------ integrator map
+
+def test_b1_newton_fails_between_20_and_50_ms():
+    """B1 as in the map (T = 7.5 s, 10 s, rho_inf 0.8): h = 20 ms runs through (max deflection
+    within 0.2 % of the converged run), h = 50 ms loses Newton convergence at t = 4.4 s."""
+    s = st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")]
+    ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
+    assert ok.completed and ok.t[-1] == pytest.approx(10.0)
+    assert ok.max_deflection == pytest.approx(1.1014, rel=2e-3)  # converged (h = 0.5 ms): 1.10140 m
+    bad, _ = st.integrator_run(HAUG, "spinup", 0.05, 0.8, s)
+    assert bad.unstable and "Newton" in bad.failure and 4.0 < bad.t[-1] < 5.0
+
+
+def test_b2_trapezoidal_rule_fails_at_200_ms_where_dissipation_survives():
+    """B2 (20 s): at h = 0.2 s the trapezoidal rule (rho_inf = 1) loses Newton convergence after
+    the tip load (t = 17.2 s) while rho_inf = 0.8 damps the unresolved modes and runs through."""
+    s = st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")]
+    ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 0.8, s)
+    assert ok.completed and ok.t[-1] == pytest.approx(20.0)
+    bad, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 1.0, s)
+    assert bad.unstable and "Newton" in bad.failure and 15.2 < bad.t[-1] < 20.0
+
+
+# ------------------------------------------------------------------------------------ established engine
+
+def test_libcosim_fixed_step_agrees_with_the_master_jacobi(split, motor, tmp_path):
+    """libcosim (libcosimpy, OSP) loads the pythonfmu FMUs from a generated SSD and runs its
+    fixed-step algorithm, a Jacobi scheme with held inputs: the same discrete map as
+    master.CoSimulation(scheme="jacobi"). Split beam: the same trajectory to round-off and the
+    same failing step (added-mass instability, t = 0.044 s at H = 2 ms); motor case: the same
+    trajectory to round-off over 0.3 s."""
+    pytest.importorskip("libcosimpy")
+    lc = st.libcosim_run(split, 0.002, 0.06, tmp_path / "split")
+    ours = split.run(0.002, "jacobi", duration=0.06)
+    assert lc.stopped_early and ours.stopped_early and lc.t[-1] == pytest.approx(ours.t[-1])
+    n = len(lc.t)
+    assert np.allclose(lc.deflection, ours.deflection[1:n + 1], rtol=1e-9, atol=1e-12)
+    lc = st.libcosim_run(motor, 0.004, 0.3, tmp_path / "motor")
+    ours = motor.run(0.004, "jacobi", duration=0.3)
+    assert lc.stopped_early == "" and ours.stopped_early == ""
+    n = len(lc.t)
+    assert n == len(ours.t) - 1
+    assert np.max(np.abs(lc.deflection - ours.deflection[1:])) <= 1e-9 * np.max(ours.deflection)
+    assert np.max(np.abs(lc.torque - ours.torque[1:])) <= 1e-9 * np.max(np.abs(ours.torque))
+
+
+def test_motor_gauss_seidel_with_extrapolation_boundary_between_2_and_10_ms(motor):
+    """Beam FMU + hub drive FMU (undamped shaft k = 300 N m/rad on the beam root): explicit
+    Gauss-Seidel with extrapolated torque is stable at H = 2 ms (map: 3.2e-4 from the monolithic run
+    over 10 s) and diverges at H = 10 ms once the beam spins fast (Newton fails at 5.8 s). 6.5 s:
+    past the failure at 10 ms; the 2 ms run stays bounded over the same time (torque under twice
+    the monolithic peak of 46 N m)."""
+    ok = motor.run(0.002, "gauss-seidel", extrapolation=True, duration=6.5)
+    assert ok.stopped_early == "" and np.max(np.abs(ok.torque)) < 100.0 and np.max(ok.deflection) < 2.0
+    bad = motor.run(0.01, "gauss-seidel", extrapolation=True, duration=6.5)
+    assert "Newton" in bad.stopped_early and 5.0 < bad.t[-1] < 6.5
+
+
+def test_motor_implicit_coupling_is_stable_where_explicit_jacobi_is_not(motor):
+    """At H = 40 ms explicit Jacobi with extrapolation diverges within 2.2 s; implicit
+    Gauss-Seidel (rollback, IQN-ILS) runs through (map: 0.95 % from the monolithic run over 10 s).
+    3 s: past the explicit failure."""
+    bad = motor.run(0.04, "jacobi", extrapolation=True, duration=3.0)
+    assert "Newton" in bad.stopped_early and bad.t[-1] < 3.0
+    ok = motor.run(0.04, "gauss-seidel", iterations=50, duration=3.0)
+    assert ok.stopped_early == "" and np.max(np.abs(ok.torque)) < 100.0
