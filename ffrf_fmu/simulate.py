@@ -27,10 +27,6 @@ def variable_names(port: str) -> list[str]:
     return [name for fld, shape in PORT_FIELDS for name in _field_names(port, fld, shape)]
 
 
-def flatten_port(values: PortValues) -> np.ndarray:
-    return np.concatenate([np.ravel(getattr(values, fld)) for fld, _ in PORT_FIELDS])
-
-
 def _tf(fn, t):
     return drives.evaluate(fn.kind, dict(fn.params), t)
 
