@@ -51,7 +51,7 @@ sys.path.insert(0, str(HERE))
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
-from ffrf_fmu.runtime.system import BodySystem  # noqa: E402
+from ffrf_fmu.runtime.body import BodySystem  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
 

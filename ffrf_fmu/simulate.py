@@ -16,7 +16,7 @@ from .runtime import drives
 from .runtime.data import BodyData
 from .runtime.ports import PortValues, StepFailure
 from .runtime.rotation import expm, logm
-from .runtime.system import BodySystem
+from .runtime.body import BodySystem
 
 PORT_FIELDS = (("r", (3,)), ("R", (3, 3)), ("v", (3,)), ("w", (3,)), ("f", (3,)), ("t", (3,)))
 ENERGIES = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")

@@ -16,7 +16,7 @@ from ffrf_fmu.model import Body, Initial, Port, Section, load_model
 from ffrf_fmu.reduction import build_body
 from ffrf_fmu.runtime.ports import PortValues, StepFailure
 from ffrf_fmu.runtime.rotation import expm
-from ffrf_fmu.runtime.system import BodySystem
+from ffrf_fmu.runtime.body import BodySystem
 
 B1_SECTION = Section(EA=5.03e6, GJ=435.38, EI2=566.0, EI3=566.0, m=0.201, m22=22.7e-6, m33=22.7e-6, GA2=1.94e6, GA3=1.94e6)
 

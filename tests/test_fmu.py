@@ -1,7 +1,7 @@
 """Body FMUs: building, FMI behaviour under fmpy, state rollback, failures, validation, the
 co-simulation master, and the physics acceptance against the standalone runs (B1, B2, B1 cut in two).
 
-Every FMU here is built from a model file with the real body dynamics (runtime/system.py).
+Every FMU here is built from a model file with the real body dynamics (runtime/body.py and its modules).
 Durations are short where the claim allows it; each test says why its numbers are what they are.
 """
 from __future__ import annotations
@@ -143,7 +143,7 @@ def test_fmu_is_a_valid_black_box(small_fmu):
     # reduced data and a private runtime package, no FE mesh and no model file
     assert "resources/body.npz" in files
     assert f"resources/{names['module']}.py" in files
-    assert f"resources/{names['package']}/runtime/system.py" in files
+    assert f"resources/{names['package']}/runtime/body.py" in files
     assert f"resources/{names['package']}/fmu/core.py" in files
     assert not [f for f in files if f.endswith(".toml") or "/fe/" in f or "ffrf_fmu/" in f]
     md = read_model_description(str(small_fmu))

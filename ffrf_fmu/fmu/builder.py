@@ -160,8 +160,8 @@ def build_fmu(
     from pythonfmu import FmuBuilder  # build-time only
 
     runtime_src = _sources(RUNTIME_DIR)
-    if "system.py" not in runtime_src:
-        raise BuildError(f"{RUNTIME_DIR}/system.py is missing: the body dynamics are not there")
+    if "body.py" not in runtime_src:
+        raise BuildError(f"{RUNTIME_DIR}/body.py is missing: the body dynamics are not there")
     fmu_src = _sources(Path(__file__).resolve().parent, SHIPPED_FMU_MODULES)
     check_shipped_imports({**{f"runtime/{k}": v for k, v in runtime_src.items()},
                            **{f"fmu/{k}": v for k, v in fmu_src.items()}})

@@ -27,7 +27,7 @@ import numpy as np
 from ..runtime.data import BodyData
 from ..runtime.ports import PortValues, StepFailure
 from ..runtime.rotation import expm
-from ..runtime.system import BodySystem
+from ..runtime.body import BodySystem
 from .variables import TERM_SETS, Variable, body_variables
 
 ROTATION_TOL = 1e-6  # reject R when max |R^T R - I| exceeds this

@@ -1,0 +1,399 @@
+"""A flexible body: a chain of two-field superelements joined by spatial coordinates
+(formulation.md sections 3-5; geradin eqs. 69, 77-80, 89-91), its state, initial conditions and
+outputs. The equations are in runtime/equations.py (plain, one superelement at a time) and
+runtime/fused.py (all superelements at once, the fast path); the time step in runtime/integrator.py;
+where each unknown lives in runtime/layout.py.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .data import BodyData
+from .fused import FusedResidual
+from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
+from .layout import Layout, Segments, SuperelementStack
+from .ports import PortValues, StepFailure
+from .rotation import cross, is_rotation, vect
+
+TERM_SETS = ("linear", "gyroscopic")
+
+
+def _input(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
+    """One input array of a port, checked: present, the right shape, finite."""
+    val = getattr(values, field)
+    if val is None:
+        raise StepFailure(t, f"port {port!r}: input {field} is missing")
+    val = np.asarray(val, dtype=float)
+    shape = (3, 3) if field == "R" else (3,)
+    if val.shape != shape or not np.isfinite(val).all():
+        raise StepFailure(t, f"port {port!r}: input {field} is not a finite array of shape {shape}: {val!r}")
+    return val
+
+
+def _value(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
+    """An input array as given when it already is a float array of the right shape (its finiteness is
+    checked later, for all inputs at once), else through the full check of `_input`."""
+    val = getattr(values, field)
+    if type(val) is np.ndarray and val.dtype == np.float64 and val.shape == ((3, 3) if field == "R" else (3,)):
+        return val
+    return _input(values, field, port, t)
+
+
+class BodySystem(GeneralizedAlpha):
+    """One flexible body and its integrator state. Instances share nothing (FMU-safe)."""
+
+    def __init__(
+        self,
+        data: BodyData,
+        *,
+        terms: str = "linear",
+        rho_inf: float = 0.8,
+        gravity=(0.0, 0.0, 0.0),
+        tol: float = 1e-9,
+        max_iter: int = 25,
+    ):
+        if terms not in TERM_SETS:
+            raise ValueError(f"unknown term set {terms!r}; choose one of {TERM_SETS}")
+        self.data, self.terms, self.rho_inf = data, terms, float(rho_inf)
+        self.coefficients = alpha_coefficients(self.rho_inf)
+        self.gravity = np.asarray(gravity, dtype=float)
+        self.tol, self.max_iter = tol, max_iter
+        self.layout = L = Layout.of(data)
+        self.stack = S = SuperelementStack.of(data)
+        # the stacked superelement matrices, under the names of the equations
+        self.K, self.M, self.G, self.mass, self.J0, self.X_B = S.K, S.M, S.G, S.mass, S.J0, S.X_B
+        self.se_nodes = S.nodes
+        self.gyro = terms == "gyroscopic"
+        self.fused = FusedResidual(L, S, self.gyro)
+        self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
+        self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
+        self._build_newton()
+        N, E, n, nv, ny = L.n_nodes, L.n_se, L.n, L.nv, L.ny
+        self._zeros_ny = np.zeros(ny)
+        self._minus_mass = -self.mass[:, None]
+        self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
+        self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
+        # energies: [v0, Omega0, r, q] of each SE with blockdiag(m I, J0, M, K), then 1/2 the sums per part
+        self._energy_op = np.zeros((E, nv + n, nv + n))
+        for e in range(E):
+            self._energy_op[e, 0:3, 0:3] = self.mass[e] * np.eye(3)
+            self._energy_op[e, 3:6, 3:6] = self.J0[e]
+            self._energy_op[e, 6:nv, 6:nv] = self.M[e]
+            self._energy_op[e, nv:, nv:] = self.K[e]
+        self._energy_split = np.zeros((nv + n, 3))
+        self._energy_split[0:6, 0], self._energy_split[6:nv, 1], self._energy_split[nv:, 2] = 0.5, 0.5, 0.5
+        # input buffer of `_read_inputs`: [xN (N, 3) | RN (N, 3, 3) | zN (N, 6) | f (N, 3) | t (N, 3)]
+        inp = Segments(xN=(N, 3), RN=(N, 3, 3), zN=(N, 6), f=(N, 3), t=(N, 3))
+        self._input_views = [(inp[k], inp.shapes[k]) for k in ("xN", "RN", "zN", "f", "t")]
+        self._zeros_inputs = np.zeros(inp.size - inp["zN"].start)
+        self._zeros_input_buf = np.zeros(inp.size)
+        self.t = 0.0
+        self.iterations = 0
+        self._reset_reference()
+
+    # ------------------------------------------------------------------ state
+    def _reset_reference(self):
+        L, d = self.layout, self.data
+        self.xN = np.array(d.node_positions, dtype=float)
+        self.RN = np.repeat(np.eye(3)[None], L.n_nodes, axis=0)
+        self.x0 = np.stack([se.x_cm for se in d.superelements]).astype(float)
+        self.R0 = np.repeat(np.eye(3)[None], L.n_se, axis=0)
+        self.eta = np.zeros((L.n_se, L.nm))
+        self.v = np.zeros((L.n_se, L.nv))
+        self.yd = np.zeros(L.ny)
+        self.yd_prev = np.zeros(L.ny)
+        self.a = np.zeros(L.ny)
+        self.fN = np.zeros((L.n_nodes, 3))  # force on each boundary node (load or reaction), world
+        self.tN = np.zeros((L.n_nodes, 3))
+        self.work = 0.0
+        self.power = 0.0
+
+    _STATE_FIELDS = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "a", "fN", "tN")
+
+    def get_state(self) -> np.ndarray:
+        """Flat copy of everything the next step depends on, the Newton iteration matrix included
+        (modified Newton reuses it, so a restored state must continue with the same one to give
+        bit-identical steps)."""
+        parts = [np.ravel(getattr(self, k)) for k in self._STATE_FIELDS]
+        scalars = np.array([self.t, self.work, self.power, self.iterations, self._lu is not None])
+        if self._lu is not None:
+            lu, piv, beta, R_ref = self._lu
+            parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel()]
+        return np.concatenate([scalars] + parts)
+
+    def set_state(self, state: np.ndarray) -> None:
+        state = np.asarray(state, dtype=float)
+        n = self._free_idx.size
+        sizes = [getattr(self, k).size for k in self._STATE_FIELDS]
+        expected = 5 + sum(sizes) + (n * n + n + 10 if state.size > 4 and state[4] else 0)
+        if state.size != expected:
+            raise ValueError(f"state has {state.size} entries, this body needs {expected}")
+        self.t, self.work, self.power = state[0], state[1], state[2]
+        self.iterations, has_lu = int(state[3]), bool(state[4])
+        i = 5
+        for k, size in zip(self._STATE_FIELDS, sizes):
+            setattr(self, k, state[i : i + size].reshape(getattr(self, k).shape).copy())
+            i += size
+        self._lu = None
+        if has_lu:
+            lu = np.asfortranarray(state[i : i + n * n].reshape(n, n))
+            piv = state[i + n * n : i + n * n + n].astype(np.int32)
+            beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 :].reshape(3, 3).copy()
+            self._lu = (lu, piv, beta, R_ref)
+
+    # ------------------------------------------------------------- equations
+    def _split_cfg_rates(self, yd):
+        """Global ydot -> node (N, 6) rates, SE (E, 6 + nm) rates, SE (E, nv) velocity rates."""
+        L = self.layout
+        nN, nS = 6 * L.n_nodes, L.n_se * (6 + L.nm)
+        return yd[:nN].reshape(L.n_nodes, 6), yd[nN : nN + nS].reshape(L.n_se, 6 + L.nm), yd[nN + nS :].reshape(L.n_se, L.nv)
+
+    def _elastic(self, xP, RP, x0, R0T, eta):
+        """q_bar of eq. (89): d_P = R0^T (x_P - x0) - X_P, alpha_P = vect(R0^T R_P), then eta.
+        Matmul forms used throughout: (x @ R) = R^T x and (x @ R^T) = R x for stacks of row vectors."""
+        rho = (xP - x0[:, None]) @ np.swapaxes(R0T, -1, -2)  # X_P + d_P
+        Q = R0T[:, None] @ RP  # R0^T R_P
+        alpha = vect(Q)
+        E = len(x0)
+        q = np.concatenate([np.concatenate([rho - self.X_B, alpha], axis=2).reshape(E, -1), eta], axis=1)
+        return q, rho, Q, alpha
+
+    def _load_source(self, xN, RN, x0, R0, eta, v, yd):
+        """Write an explicit configuration and rates into the source vector; returns the rotation stack."""
+        self.fused.buf.p[self.fused.lin_slots] = np.concatenate([np.ravel(xN), np.ravel(x0), np.ravel(eta), np.ravel(v)])
+        self.fused.buf.yd[:] = yd
+        return np.concatenate([RN, R0])
+
+    def _local(self, xN, RN, x0, R0, eta, v, yd, jacobian: bool):
+        """Assembled residual WITHOUT loads at an explicit configuration and, on request, its derivatives.
+
+        Returns (F, q, qd) or, with jacobian, (F, F_ydot, F_y): F_ydot (E, nrow, nc + nv) w.r.t. local
+        (zdot, vdot); F_y w.r.t. local configuration variations (dx world, dTheta body, deta) and
+        velocities, rows and columns in the local layout of `_rows`, `_cols`.
+        """
+        R = self._load_source(xN, RN, x0, R0, eta, v, yd)
+        self.fused.buf.load[...] = 0.0
+        self.fused.torque = None
+        np.multiply(self._minus_mass, self.gravity, out=self.fused.buf.weight)
+        F, s = self.fused.evaluate(R, jacobian=True)
+        if not jacobian:
+            return F, s["q"].copy(), s["qd"].copy()
+        return F, *self.fused.local_jacobian(s)
+
+
+    def _loads(self, RN, inputs_f, inputs_t):
+        """Node residual rows get -f and -R^T t from force-driven port parts."""
+        L = self.layout
+        out = np.zeros((L.n_nodes, 6))
+        out[:, 0:3] = -inputs_f
+        out[:, 3:6] = -np.einsum("nji,nj->ni", RN, inputs_t)
+        return out
+
+    # -------------------------------------------------------------- stepping
+    def _read_inputs(self, t: float, values: dict[str, PortValues]):
+        """Prescribed node frames/rates and applied loads at time t from the port inputs, checked:
+        present, the right shape, finite, R a rotation. Returns (xN, RN, zN, f, t), views of one fresh
+        buffer; nodes without motion inputs keep the current frame, without loads zero loads."""
+        L = self.layout
+        N = L.n_nodes
+        buf = np.concatenate([self.xN.ravel(), self.RN.ravel(), self._zeros_inputs])
+        xN, RN, zN, f, tq = (buf[sl].reshape(shape) for sl, shape in self._input_views)
+        for p in self.data.ports:
+            pv = values.get(p.name)
+            if pv is None:
+                raise StepFailure(t, f"no input values for port {p.name!r}")
+            k = p.node
+            if p.translation == "motion":
+                xN[k], zN[k, 0:3] = _value(pv, "r", p.name, t), _value(pv, "v", p.name, t)
+            elif pv.f is not None:
+                f[k] = _value(pv, "f", p.name, t)
+            if p.rotation == "motion":
+                R = RN[k] = _value(pv, "R", p.name, t)
+                zN[k, 3:6] = _value(pv, "w", p.name, t) @ R  # body-axes rate R^T w
+            elif pv.t is not None:
+                tq[k] = _value(pv, "t", p.name, t)
+        # finiteness of everything at once; on failure the checks field by field name the culprit
+        if zero_or_nan(buf, self._zeros_input_buf) != 0.0:
+            for p in self.data.ports:
+                pv = values[p.name]
+                for fld, used in (("r", p.translation == "motion"), ("v", p.translation == "motion"),
+                                  ("f", p.translation == "force" and pv.f is not None),
+                                  ("R", p.rotation == "motion"), ("w", p.rotation == "motion"),
+                                  ("t", p.rotation == "force" and pv.t is not None)):
+                    if used:
+                        _input(pv, fld, p.name, t)
+        for k in self._motion_R:
+            if not is_rotation(RN[k]):
+                name = next(p.name for p in self.data.ports if p.node == k and p.rotation == "motion")
+                raise StepFailure(t, f"port {name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
+        return xN, RN, zN, f, tq
+
+
+    def _update_port_loads(self, F, f_in, t_in):
+        """Loads on the nodes: the inputs on force-driven parts, reactions (residual without loads) on
+        motion parts (where no load is read, so the residual there is the contributions alone)."""
+        N = self.layout.n_nodes
+        Fn = F[: 6 * N].reshape(N, 2, 3)  # node rows: x, Theta (body axes)
+        self.fN = f_in + self._motion_parts[:, 0] * Fn[:, 0]
+        self.tN = t_in + self._motion_parts[:, 1] * (Fn[:, 1:2] @ np.swapaxes(self.RN, -1, -2))[:, 0]  # R F_Theta
+
+    def _external_power(self) -> float:
+        """Power of the port loads and gravity: f . v + t . (R W) on the nodes, m g . v0 on the CMs."""
+        N = self.layout.n_nodes
+        zN = self.yd[: 6 * N].reshape(N, 2, 3)
+        Rt_t = (self.tN[:, None, :] @ self.RN)[:, 0]  # R^T t . W = t . R W
+        p_nodes = np.vdot(self.fN, zN[:, 0]) + np.vdot(Rt_t, zN[:, 1])
+        return float(p_nodes + (self.mass @ self.v[:, 0:3]) @ self.gravity)
+
+    # ----------------------------------------------------------- initial state
+    def initialize(
+        self,
+        t0: float,
+        inputs: dict[str, PortValues] | Callable[[float], dict[str, PortValues]],
+        velocity=(0.0, 0.0, 0.0),
+        angular_velocity=(0.0, 0.0, 0.0),
+        port_displacements: dict[str, np.ndarray] | None = None,
+        origin=(0.0, 0.0, 0.0),
+    ) -> None:
+        """Reference configuration moved rigidly onto the motion inputs, rigid velocity field
+        v + w x (x - origin) (or the motion inputs' velocities), optional port offsets (an initial
+        elastic deformation), then consistent rates ydot_0 from a backward-Euler micro-step."""
+        fn = inputs if callable(inputs) else (lambda t, _v=inputs: _v)
+        self._reset_reference()
+        self.t = float(t0)
+        values = fn(t0)
+        xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t0, values)
+        # rigid placement on the first motion-driven rotation (then translation) input
+        R_rig, c_ref, c_new = np.eye(3), np.zeros(3), np.zeros(3)
+        v_lin, w = np.asarray(velocity, float), np.asarray(angular_velocity, float)
+        o = np.asarray(origin, float)
+        for p in self.data.ports:
+            if p.rotation == "motion":
+                R_rig = RN_p[p.node]
+                w = RN_p[p.node] @ zN_p[p.node, 3:6]
+                break
+        for p in self.data.ports:
+            if p.translation == "motion":
+                c_ref = self.data.node_positions[p.node]
+                c_new = xN_p[p.node]
+                v_lin, o = zN_p[p.node, 0:3], c_new
+                break
+        place = lambda X: c_new + (np.asarray(X) - c_ref) @ R_rig.T
+        self.xN = place(self.xN)
+        self.x0 = place(self.x0)
+        self.RN = np.repeat(R_rig[None], len(self.xN), 0)
+        self.R0 = np.repeat(R_rig[None], len(self.x0), 0)
+        for name, u in (port_displacements or {}).items():
+            self.xN[self.data.port(name).node] += np.asarray(u, float)
+        if port_displacements:
+            self._relax(set(port_displacements))
+        vel = lambda x: v_lin + cross(w, x - o)
+        zN, zS, v = self._split_cfg_rates(self.yd)  # views into self.yd
+        zN[:, 0:3] = vel(self.xN)
+        zN[:, 3:6] = w @ self.RN  # R^T w, body-axes rates of the rigid field
+        zS[:, 0:3] = vel(self.x0)
+        zS[:, 3:6] = w @ self.R0
+        self.v[:, 0:3] = zS[:, 0:3]
+        self.v[:, 3:6] = zS[:, 3:6]
+        # r_bar = q_dot_bar of the rigid field (zero unless ports were displaced)
+        _, q, qd = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)
+        self.v[:, 6:] = qd
+        self.fN, self.tN = f_in.copy(), t_in.copy()
+        # consistent ydot_0: a backward-Euler micro-step (am = af = gamma = 1) from the initial state
+        delta = 1e-6
+        saved = self.get_state()
+        yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
+        self.set_state(saved)
+        self.yd = yd0
+        self.yd_prev = yd0.copy()
+        self.a = yd0.copy()
+        F = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[0]
+        F[: 6 * self.layout.n_nodes] += self._loads(self.RN, f_in, t_in).ravel()
+        self._update_port_loads(F, f_in, t_in)
+        self.power = self._external_power()
+        self.work = 0.0
+        self._lu = None
+
+    def _relax(self, displaced: set[str], tol: float = 1e-12, max_iter: int = 30) -> None:
+        """Static equilibrium (no inertia, no loads) with every port's translation held and the rotation
+        of every port that was not displaced: the smooth deformed shape through displaced ports (for a
+        free beam with its far end displaced, the cantilever shape), instead of a kink of the
+        attachment modes at the displaced node."""
+        L = self.layout
+        relax = np.zeros(L.ny, dtype=bool)
+        relax[: 6 * L.n_nodes + L.n_se * (6 + L.nm)] = True
+        for p in self.data.ports:
+            relax[6 * p.node : 6 * p.node + 3] = False
+            if p.name not in displaced or p.rotation == "motion":
+                relax[6 * p.node + 3 : 6 * p.node + 6] = False
+        idx = np.flatnonzero(relax)
+        zero_v, zero_yd = np.zeros_like(self.v), np.zeros(L.ny)
+        gravity, self.gravity = self.gravity, np.zeros(3)
+        try:
+            for _ in range(max_iter):
+                F, _, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, zero_v, zero_yd, True)
+                J = np.bincount(self._flat_idx, Fy.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
+                delta = np.zeros(L.ny)
+                delta[idx] = np.linalg.solve(J[np.ix_(idx, idx)], -F[idx])
+                self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
+                if np.max(np.abs(delta)) < tol:
+                    return
+        finally:
+            self.gravity = gravity
+        raise ValueError("initial port displacements: no static equilibrium of the deformed body found")
+
+    def linearization(self) -> tuple[np.ndarray, np.ndarray]:
+        """(F_ydot, F_y) of the assembled equations at the current state, restricted to the unknowns:
+        small motions obey F_ydot d(ydot) + F_y d(y) = 0, so their frequencies solve
+        det(i w F_ydot + F_y) = 0 (a check of the dynamic equations against the modal analysis)."""
+        L = self.layout
+        _, Fz, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, True)
+        fi = self._free_idx
+        scatter = lambda A: np.bincount(self._flat_idx, A.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)[np.ix_(fi, fi)]
+        return scatter(Fz), scatter(Fy)
+
+    # ----------------------------------------------------------------- outputs
+    OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")  # the columns of `port_array`, 3 or 9 each
+
+    def port_array(self) -> np.ndarray:
+        """(n_ports, 24) port outputs, one row per port in data.ports order: r, R (row-major), v, w, f, t."""
+        k = self._port_nodes
+        zN = self.yd[: 6 * self.layout.n_nodes].reshape(-1, 6)[k]
+        R = self.RN[k]
+        w = (zN[:, None, 3:6] @ np.swapaxes(R, -1, -2))[:, 0]  # R W
+        return np.concatenate([self.xN[k], R.reshape(-1, 9), zN[:, 0:3], w, self.fN[k], self.tN[k]], axis=1)
+
+    def outputs(self) -> dict[str, PortValues]:
+        rows = self.port_array()
+        return {
+            p.name: PortValues(r=row[0:3], R=row[3:12].reshape(3, 3), v=row[12:15], w=row[15:18], f=row[18:21], t=row[21:24])
+            for p, row in zip(self.data.ports, rows)
+        }
+
+    def elastic_coordinates(self) -> np.ndarray:
+        """q_bar of every superelement (E, n) at the current state, eq. (89)."""
+        nodes = self.se_nodes
+        return self._elastic(self.xN[nodes], self.RN[nodes], self.x0, np.swapaxes(self.R0, -1, -2), self.eta)[0]
+
+    def energies(self) -> dict[str, float]:
+        """The split (20): rigid kinetic, elastic kinetic 1/2 r^T M r, strain 1/2 q^T K q, external work.
+
+        The quadratic forms of every SE are one stacked matmul: [v, q] with blockdiag(m I, J0, M, K)."""
+        vq = np.concatenate([self.v, self.elastic_coordinates()], axis=1)  # [v0, Omega0, r, q]
+        halves = (vq * (vq[:, None, :] @ self._energy_op)[:, 0]) @ self._energy_split  # (E, 3)
+        kr, ke, st = halves.sum(0)
+        return {"kinetic_rigid": float(kr), "kinetic_elastic": float(ke), "strain": float(st), "work_external": float(self.work)}
+
+    def momenta(self) -> tuple[np.ndarray, np.ndarray]:
+        """Linear and angular momentum (about the world origin) of the rigid + elastic fields, world axes.
+
+        The elastic velocity field carries no momentum about each CM (69h), so these are sums over CMs."""
+        p = self.mass[:, None] * self.v[:, 0:3]
+        hc = np.einsum("eij,ejk,ek->ei", self.R0, self.J0, self.v[:, 3:6])
+        if self.gyro:
+            q = self.elastic_coordinates()
+            s = np.einsum("ei,ekij,ej->ek", self.v[:, 6:], self.G, q)
+            hc = hc + np.einsum("eij,ej->ei", self.R0, s)
+        return p.sum(0), (np.cross(self.x0, p) + hc).sum(0)

@@ -1,0 +1,282 @@
+"""Time integration of a body: first-order generalized-alpha on the Lie group, Newton on the rates,
+modified Newton with the factorization carried along the rigid rotation (formulation.md section 5;
+docs/equations.md, "Integrator").
+
+Jansen-Whiting-Hulbert generalized-alpha in the linear multistep form of Bruls & Arnold (2008),
+equations enforced at t_{n+1}:
+    am a_{n+1} + (1 - am) a_n = af ydot_{n+1} + (1 - af) ydot_n
+    y_{n+1} = y_n (+) h [(1 - gamma) a_n + gamma a_{n+1}]      (R <- R exp(h Delta) on SO(3))
+    F(ydot_{n+1}, y_{n+1}, t_{n+1}) = 0
+am = (3 - rho)/(2 (1 + rho)), af = 1/(1 + rho), gamma = 1/2 + am - af. Newton on ydot_{n+1} with
+the analytic iteration matrix F_ydot + beta [F_y T, F_v], beta = h gamma af / am, T the SO(3)
+tangent operator; the factorization is kept across iterations and steps while Newton contracts.
+
+Within a step, a_{n+1} and the configuration are affine in ydot_{n+1}: p = beta ydot + P0 for
+positions, eta and v, R = R_n exp(beta W + ...) for rotations (`_prepare_step` computes P0 and R_n
+once), so a Newton iteration is one stage (a multiply-add and the exponentials) and one residual.
+
+`GeneralizedAlpha` is the stepping half of `body.BodySystem` (a mixin: it works on the body's
+state, its `FusedResidual` and its inputs).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.linalg.lapack import dgetrs as getrs
+
+from .ports import PortValues, StepFailure
+from .rotation import expm, skew, tangent
+
+
+def alpha_coefficients(rho_inf: float) -> tuple[float, float, float]:
+    """(am, af, gamma) of the first-order generalized-alpha method (JWH 2000) from rho_inf."""
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"rho_inf must be in [0, 1], got {rho_inf}")
+    am = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf))
+    af = 1.0 / (1.0 + rho_inf)
+    return am, af, 0.5 + am - af
+
+
+
+def zero_or_nan(x: np.ndarray, zeros: np.ndarray) -> float:
+    """0.0 if every entry of x is finite, NaN otherwise (0 * x is 0 for finite x, NaN for inf or NaN;
+    one dot product, cheaper than isfinite().all() on the hot path)."""
+    return float(x @ zeros)
+
+
+class GeneralizedAlpha:
+    """Stepping of a body (see the module docstring); the state lives on the body."""
+
+    def _build_newton(self):
+        """Index maps of the Newton system: the unknowns (free rates), their order in the stored
+        factorization, and where every local Jacobian entry lands in the iteration matrix."""
+        L = self.layout
+        # global (row, col) index pairs of every local Jacobian entry, for one scatter-add
+        rows = np.concatenate([L.vel_map, L.cfg_map], axis=1)
+        cols = np.concatenate([L.cfg_map, L.vel_map], axis=1)
+        self._rows, self._cols = rows, cols
+        self._flat_idx = (rows[:, :, None] * L.ny + cols[:, None, :]).ravel()
+        self._free_idx = np.flatnonzero(L.free)
+        self._fixed_idx = np.flatnonzero(~L.free)  # rates prescribed by motion inputs (node rows only)
+        # world-axes triplets among the unknowns: node positions, CM positions, CM velocities
+        world = np.zeros(L.ny, dtype=bool)
+        world[(6 * np.arange(L.n_nodes)[:, None] + np.arange(3)).ravel()] = True
+        world[L.cfg_map[:, 0:3].ravel()] = True
+        world[L.vel_map[:, 0:3].ravel()] = True
+        pos = np.cumsum(L.free) - 1  # index of each unknown among the free ones
+        trip = pos[np.flatnonzero(world & L.free)].reshape(-1, 3)
+        self._world_free = trip
+        # Newton unknowns ordered world triplets first, so that the frame rotation of `_solve` acts on
+        # one contiguous block; the stored factorization uses this order
+        rest = np.setdiff1d(np.arange(self._free_idx.size), trip.ravel())
+        self._newton_order = np.concatenate([trip.ravel(), rest])
+        self._newton_idx = self._free_idx[self._newton_order]
+        # every local Jacobian entry -> flat position in the Newton-ordered matrix (nf * nf: not an unknown)
+        nf = self._newton_idx.size
+        newton_pos = np.full(L.ny + 1, nf)
+        newton_pos[self._newton_idx] = np.arange(nf)
+        r, c = newton_pos[rows][:, :, None], newton_pos[cols][:, None, :]
+        self._newton_flat = np.where((r < nf) & (c < nf), r * nf + c, nf * nf).ravel()
+        self._newton_pos = newton_pos[: L.ny]
+        node_x = 6 * np.arange(L.n_nodes)[:, None] + np.arange(3)
+        # stage: p = c * ydot + P0 with c = beta except on configuration slots set by motion inputs
+        self._motion_x_slots = node_x[self._motion_x].ravel()
+        self._motion_T_slots = (node_x + 3)[self._motion_R].ravel()
+        self._stage_mask = np.ones(L.ny)
+        self._stage_mask[self._motion_x_slots] = 0.0
+        self._stage_mask[self._motion_T_slots] = 0.0
+        self._stage_beta = None
+        self._lu = None
+        self._torque_rows = [(k, newton_pos[6 * k + 3 : 6 * k + 6]) for k in range(L.n_nodes) if L.free[6 * k + 3]]
+
+    def step(self, h: float, inputs: Callable[[float], dict[str, PortValues]]) -> int:
+        """Advance by one step h; returns the Newton iterations; raises StepFailure."""
+        am, af, gamma = self.coefficients
+        return self._step(h, inputs, am, af, gamma, commit_config=True)
+
+    def newton_system(self, yd, h, values, coefficients=None, jacobian=True):
+        """(F, J) restricted to the unknowns for rates yd at t + h (J = F_ydot + beta [F_y T, F_v])."""
+        am, af, gamma = coefficients or self.coefficients
+        self._prepare_step(self.t + h, h, values, am, af, gamma)
+        fi = self._free_idx
+        if not jacobian:
+            return self._residual_at(yd)[fi]
+        F, J = self._residual_at(yd, jacobian=True, beta=h * gamma * af / am)
+        pos = self._newton_pos[fi]
+        return F[fi], J[np.ix_(pos, pos)]
+
+    def _step(self, h, inputs, am, af, gamma, commit_config):
+        t1 = self.t + h
+        if not (h > 0.0 and np.isfinite(h)):
+            raise StepFailure(self.t, f"step size must be positive and finite, got {h}")
+        zN_p, f_in, t_in = self._prepare_step(t1, h, inputs(t1), am, af, gamma)
+        # predictor: rates extrapolated linearly from the last two steps. Newton iterates on the rates
+        # slot of the source vector, which the evaluation reads
+        yd = self.fused.buf.yd
+        if commit_config:
+            np.subtract(2.0 * self.yd, self.yd_prev, out=yd)
+        else:
+            yd[:] = self.yd
+        fixed = self._fixed_idx
+        yd[fixed] = zN_p.ravel()[fixed]
+        beta = h * gamma * af / am
+        fi, order = self._free_idx, self._newton_idx
+        dx_prev = np.inf
+        for it in range(0, self.max_iter + 1):
+            # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
+            # communication grid repeats its step only up to round-off
+            refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
+            if refresh:
+                F, J = self._residual_at(yd, jacobian=True, beta=beta)
+            else:
+                F = self._residual_at(yd)
+            if zero_or_nan(F, self._zeros_ny) != 0.0:
+                self._lu = None
+                raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
+            if it > 0:  # (the tolerance, scaled by the rates, is needed from the first increment on)
+                tol = self.tol * (1.0 + beta * np.abs(yd[fi]).max())
+                if dx_prev <= tol:
+                    break  # converged: F is the residual at the accepted rates, reused below
+            if it == self.max_iter:
+                self._lu = None
+                raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations (last increment {dx_prev:.3g})")
+            R_now = self._R[self.layout.n_nodes]  # first CM frame
+            if refresh:
+                self._factor(J, beta, t1, R_now)
+            dx = self._solve(F, R_now)
+            yd[order] -= dx
+            err = beta * np.abs(dx).max()
+            if it > 0 and err > 0.25 * dx_prev and err > 10.0 * tol:
+                self._lu = None  # slow contraction (above round-off): refresh the iteration matrix
+            dx_prev = err
+        if not commit_config:
+            return yd.copy()
+        self._commit(yd.copy())
+        self.t, self.iterations = t1, it
+        self._update_port_loads(F, f_in, t_in)
+        p_new = self._external_power()
+        self.work += 0.5 * h * (self.power + p_new)
+        self.power = p_new
+        return it
+
+    def _commit(self, yd):
+        """The configuration of the last residual evaluation and the rates yd become the state."""
+        L, R = self.layout, self._R
+        _, _, _, af_am, A0 = self._stage
+        lin = self.fused.buf.p[self.fused.lin_slots]
+        self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self.fused.lin_views)
+        self.RN, self.R0 = R[: L.n_nodes], R[L.n_nodes :]
+        self.yd_prev = self.yd
+        self.a = af_am * yd + A0
+        self.yd = yd
+
+    def _factor(self, J, beta, t, R_ref):
+        """LU of the iteration matrix (unknowns in the Newton order), with the rotation of the first CM
+        frame it was built at."""
+        try:
+            lu, piv = sla.lu_factor(J, overwrite_a=True, check_finite=True)  # J is not used afterwards
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            self._lu = None
+            raise StepFailure(t, f"iteration matrix cannot be factored: {exc}")
+        self._lu = (lu, piv, beta, R_ref.copy())
+
+    def _solve(self, F, R_now):
+        """J^-1 F on the unknowns in the Newton order (the increment is minus this), with the stored
+        factorization carried along the rigid rotation.
+
+        The equations are frame-indifferent: rotating every world-axes vector (node and CM positions,
+        CM velocities, forces) by a rigid rotation P maps J to P J P^T. So the matrix factored at the
+        orientation R_ref serves at R_now through P = R_now R_ref^T, and modified Newton keeps its
+        contraction while the body spins."""
+        lu, piv, _, R_ref = self._lu
+        P = R_now @ R_ref.T
+        k3 = 3 * len(self._world_free)
+        F = F[self._newton_idx]  # world triplets first
+        Fw = F[:k3].reshape(-1, 3)
+        Fw[...] = Fw @ P  # P^T F on each triplet
+        dx, info = getrs(lu, piv, F, overwrite_b=1)  # LAPACK directly: scipy's lu_solve wrapper costs more than the solve
+        dw = dx[:k3].reshape(-1, 3)
+        dw[...] = dw @ P.T  # P J_ref^-1 P^T F
+        return dx
+
+
+    def _configuration(self, xN_pres, RN_pres, delta_h):
+        """Configuration at t_{n+1} from the increment h*Delta (global ydot layout); prescribed nodes from inputs."""
+        L = self.layout
+        dN, dS, dv = self._split_cfg_rates(delta_h)
+        rot = expm(np.concatenate([dN[:, 3:6], dS[:, 3:6]]))
+        xN = self.xN + dN[:, 0:3]
+        RN = self.RN @ rot[: L.n_nodes]
+        xN[self._motion_x] = xN_pres[self._motion_x]
+        RN[self._motion_R] = RN_pres[self._motion_R]
+        return xN, RN, self.x0 + dS[:, 0:3], self.R0 @ rot[L.n_nodes :], self.eta + dS[:, 6:], self.v + dv
+
+    def _prepare_step(self, t1, h, values, am, af, gamma):
+        """Everything of the step t -> t1 = t + h that does not depend on the rates ydot_{n+1}.
+
+        With a_{n+1} = (af/am) ydot + A0 the increment is h Delta = beta ydot + D0, beta = h gamma af/am,
+        so the linear part of the configuration is p = beta ydot + P0 (P0 = y_n + D0) and the rotations
+        are R = R_n exp(h Delta); configuration slots set by motion inputs get c = 0 and the input.
+        Returns the prescribed node rates and the loads (zN, f, t)."""
+        xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t1, values)
+        b = self.fused.buf
+        beta = h * gamma * af / am
+        # a_{n+1} = (af/am) ydot + A0, A0 = ((1 - af) ydot_n - (1 - am) a_n)/am; h Delta = beta ydot + D0,
+        # D0 = h ((1 - gamma) a_n + gamma A0): both linear in (ydot_n, a_n), one 2 x 2 matmul
+        c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
+        C = np.array([[c1, c2], [h * gamma * c1, h * (1.0 - gamma) + h * gamma * c2]])
+        A0, P0 = C @ np.stack([self.yd, self.a])
+        P0[self.fused.lin_slots] += np.concatenate([self.xN.ravel(), self.x0.ravel(), self.eta.ravel(), self.v.ravel()])
+        P0[self._motion_x_slots] = xN_p[self._motion_x].ravel()
+        P0[self._motion_T_slots] = 0.0
+        Rn = np.concatenate([RN_p, self.R0])  # RN_p: the inputs on motion nodes, the current frames elsewhere
+        if self._stage_beta != beta:
+            self._stage_beta, self._stage_c = beta, beta * self._stage_mask
+        self._stage = (self._stage_c, P0, Rn, af / am, A0)
+        np.negative(f_in, out=b.load[:, 0])  # -f on the node translation rows
+        b.load[:, 1] = 0.0  # -R^T t on the rotation rows: per evaluation, when there is a torque
+        self.fused.torque = -t_in[:, None, :] if t_in.any() else None
+        np.multiply(self._minus_mass, self.gravity, out=b.weight)
+        return zN_p, f_in, t_in
+
+    def _residual_at(self, yd, jacobian: bool = False, beta: float | None = None):
+        """F (ny,) at the rates ydot_{n+1} = yd of the prepared step [and J = F_ydot + beta [F_y T, F_v]].
+        Leaves the configuration in the source vector and `self._R` (for `_commit`)."""
+        c, P0, Rn, _, _ = self._stage
+        b = self.fused.buf
+        if yd is not b.yd:
+            b.yd[:] = yd
+        p = np.multiply(yd, c, out=b.p)
+        p += P0
+        theta = p[self.fused.rot_slots]  # h Delta on every rotation (nodes then SEs)
+        self._R = R = Rn @ expm(theta)
+        F, s = self.fused.evaluate(R, jacobian)
+        if not jacobian:
+            return F
+        Fz, Fy = self.fused.local_jacobian(s)
+        return F, self._iteration_matrix(Fz, Fy, beta, theta, R)
+
+    def _iteration_matrix(self, Fz, Fy, beta, theta, R):
+        """J = F_ydot + beta [F_y T, F_v] on the unknowns, assembled in the Newton order:
+        d(config) = beta T(h Delta) d(zdot) on rotations, d(v) = beta d(vdot)."""
+        L = self.layout
+        N, nf = L.n_nodes, len(self._newton_idx)
+        T = tangent(theta)
+        TN, Tl = T[:N], T[N:]
+        Fy = Fy * beta
+        Fy[:, :, 3:6] = Fy[:, :, 3:6] @ Tl
+        TNl = TN[self.se_nodes]
+        for p in range(L.nb):
+            c = slice(6 + L.nm + 6 * p + 3, 6 + L.nm + 6 * p + 6)
+            Fy[:, :, c] = Fy[:, :, c] @ TNl[:, p]
+        Fy += Fz
+        J = np.bincount(self._newton_flat, Fy.ravel(), minlength=nf * nf + 1)[:-1].reshape(nf, nf)
+        # load term -R^T t on free node rotations: d = -skew(R^T t) dTheta
+        if self.fused.torque is not None:
+            RtT = -(self.fused.torque @ R[:N])[:, 0]
+            for k, pos in self._torque_rows:
+                J[np.ix_(pos, pos)] += -beta * skew(RtT[k]) @ TN[k]
+        return J
+

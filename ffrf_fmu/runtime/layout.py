@@ -1,0 +1,121 @@
+"""Where the unknowns of a body live: the global vector, each superelement's local slots, the
+superelement matrices stacked, and small helpers for named blocks of flat buffers.
+
+Unknowns (formulation.md section 3; geradin section 8.3, spatial coordinates)
+    per boundary node P:   frame w_P = (x_P, R_P) (world position, rotation)
+    per superelement e:    CM frame (x0, R0), modal amplitudes eta                    [configuration]
+                           velocities v0 (world), Omega0 (body), r_bar = [r_B; r_eta] [independent field]
+The global rate vector is ydot = [node zdot (6N) | SE zdot (6 + nm) E | SE vdot (6 + n) E] with
+zdot = (xdot, W), W = R^T Rdot (body axes). The elastic boundary dofs q_B are not unknowns: eq. (89)
+gives them from the frames (runtime/equations.py).
+
+Local layout of one superelement (the rows and columns of its residual and Jacobian blocks):
+    configuration columns (nc = 6 + nm + 6 nb): [x0, Theta0, eta, node p (x_P, Theta_P) ...]
+    velocity columns      (nv = 6 + n):         [v0, Omega0, r_bar]
+    rows (nv + nc): kinematic rows [k_x, k_T, k_q] on the velocity slots, then dynamic rows
+                    [e_x0, e_T0, e_eta, node p (e_xP, e_TP) ...] on the configuration slots.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data import BodyData
+
+
+@dataclass(frozen=True, eq=False)
+class Layout:
+    """Where each unknown lives in the global vector ydot = [node zdot (6N) | SE zdot (6+nm)E | SE v (nv)E]."""
+
+    n_nodes: int
+    n_se: int
+    nb: int
+    nm: int
+    n: int  # reduced dofs per SE: 6 nb + nm
+    nc: int  # local configuration-shaped size: 6 + nm + 6 nb
+    nv: int  # local velocity size: 6 + n
+    ny: int
+    cfg_map: np.ndarray  # (E, nc) local [x0, Theta0, eta, node p (x, Theta)...] -> global
+    vel_map: np.ndarray  # (E, nv)
+    free: np.ndarray  # (ny,) bool: unknown (not prescribed by a motion input)
+    rot_cols: np.ndarray  # (n_rot, 3) global columns of every rotation rate (nodes then SEs)
+
+    @classmethod
+    def of(cls, data: BodyData) -> "Layout":
+        ses = data.superelements
+        E, N = len(ses), len(data.node_positions)
+        nb = len(ses[0].nodes)
+        nm = ses[0].n - 6 * nb
+        if any(se.n != ses[0].n or len(se.nodes) != nb for se in ses):
+            raise ValueError("all superelements of a body must have the same boundary and mode counts")
+        n, nc, nv = 6 * nb + nm, 6 + nm + 6 * nb, 6 + 6 * nb + nm
+        se_cfg0 = 6 * N + np.arange(E) * (6 + nm)
+        vel0 = 6 * N + E * (6 + nm) + np.arange(E) * nv
+        nodes = np.array([se.nodes for se in ses], dtype=int)
+        cfg_map = np.concatenate(
+            [se_cfg0[:, None] + np.arange(6 + nm), (6 * nodes[:, :, None] + np.arange(6)).reshape(E, 6 * nb)], axis=1
+        )
+        vel_map = vel0[:, None] + np.arange(nv)
+        ny = 6 * N + E * (6 + nm) + E * nv
+        free = np.ones(ny, dtype=bool)
+        for p in data.ports:
+            if p.translation == "motion":
+                free[6 * p.node : 6 * p.node + 3] = False
+            if p.rotation == "motion":
+                free[6 * p.node + 3 : 6 * p.node + 6] = False
+        rot_cols = np.concatenate([6 * np.arange(N)[:, None] + 3 + np.arange(3), se_cfg0[:, None] + 3 + np.arange(3)])
+        return cls(N, E, nb, nm, n, nc, nv, ny, cfg_map, vel_map, free, rot_cols)
+
+
+@dataclass(frozen=True, eq=False)
+class SuperelementStack:
+    """The reduced matrices of every superelement, stacked on a leading axis E (geradin section 7):
+    K_bar, M_bar (76), G_k = Y^T M_k Y (53), mass m, inertia J0 about the CM (13), boundary node
+    positions X_B relative to the CM (body axes) and the global indices of the boundary nodes."""
+
+    K: np.ndarray  # (E, n, n)
+    M: np.ndarray  # (E, n, n)
+    G: np.ndarray  # (E, 3, n, n)
+    mass: np.ndarray  # (E,)
+    J0: np.ndarray  # (E, 3, 3)
+    X_B: np.ndarray  # (E, nb, 3)
+    nodes: np.ndarray  # (E, nb) int
+
+    @classmethod
+    def of(cls, data: BodyData) -> "SuperelementStack":
+        ses = data.superelements
+        return cls(
+            K=np.stack([se.K for se in ses]), M=np.stack([se.M for se in ses]), G=np.stack([se.G for se in ses]),
+            mass=np.array([se.mass for se in ses]), J0=np.stack([se.J0 for se in ses]),
+            X_B=np.stack([se.X_B for se in ses]), nodes=np.stack([se.nodes for se in ses]).astype(int),
+        )
+
+
+def view(a: np.ndarray, shape) -> np.ndarray:
+    """a reshaped WITHOUT a copy (writes through the result must reach a); raises if impossible."""
+    v = a.reshape(shape)
+    if not np.may_share_memory(v, a):
+        raise ValueError(f"internal: reshaping {a.shape} to {shape} would copy")
+    return v
+
+
+class Segments:
+    """Named consecutive blocks of a flat vector, e.g. Segments(q=18, rho=(2, 3)): `seg["rho"]` is
+    the slice, `seg.view(a, "rho")` the block of a (..., size) array as a (..., 2, 3) view."""
+
+    def __init__(self, **shapes):
+        self.slices, self.shapes, i = {}, {}, 0
+        for name, shape in shapes.items():
+            shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+            size = int(np.prod(shape))
+            self.slices[name], self.shapes[name] = slice(i, i + size), shape
+            i += size
+        self.size = i
+
+    def __getitem__(self, name: str) -> slice:
+        return self.slices[name]
+
+    def view(self, a: np.ndarray, name: str) -> np.ndarray:
+        return view(a[..., self.slices[name]], a.shape[:-1] + self.shapes[name])
+
