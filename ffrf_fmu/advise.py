@@ -179,7 +179,7 @@ def chain_error(n_se: int, w1: float, K: float, t, rate, acc) -> float:
 
 
 def amplification(wh: float, rho_inf: float) -> complex:
-    """Principal root of the first-order generalized-alpha method (runtime/system.py) on
+    """Principal root of the first-order generalized-alpha method (runtime/integrator.py) on
     y' = i omega y: per step, z ~ exp(i omega h)."""
     am = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf))
     af = 1.0 / (1.0 + rho_inf)

@@ -182,7 +182,6 @@ class BodySystem(GeneralizedAlpha):
             return F, s["q"].copy(), s["qd"].copy()
         return F, *self.fused.local_jacobian(s)
 
-
     def _loads(self, RN, inputs_f, inputs_t):
         """Node residual rows get -f and -R^T t from force-driven port parts."""
         L = self.layout

@@ -30,10 +30,20 @@ class FusedResidual:
     `buf.p` (configuration in the ydot layout, rotation slots holding the increments h Delta),
     `buf.yd` (rates), `buf.load` (-f, -R^T t on node rows), `buf.weight` (-m g on CM rows); `torque`
     is -t on the nodes (N, 1, 3) when a torque input is non-zero, else None.
+
+    Hooks for further terms (the fused twins of runtime/equations.py's `g_terms`, `row_terms`), each a
+    function term(s, D) -> (value, d/d rates, d/d configuration) over all superelements at once: s is
+    the dict of stacked intermediates of `evaluate` (R0, Q, H, rho, alpha, W0, q, qd (q_bar_dot),
+    rb (r_bar), rbd (r_bar_dot), ...), D None when only the value is needed (the derivatives may then
+    be None), else {"Dq": dq_bar/d(configuration) = dq_bar_dot/d(zdot), "Dqdot": dq_bar_dot/d(configuration)},
+    each (E, n, nc). Derivative columns are local [configuration (nc) | velocities (nv)].
+    A `g_terms` value (E, n) adds to the elastic force g (78) before its projection (91) on the CM and
+    node rows; a `row_terms` value (E, nv + nc) adds to the local rows [kinematic | dynamic] directly.
     """
 
-    def __init__(self, layout: Layout, stack: SuperelementStack, gyroscopic: bool):
+    def __init__(self, layout: Layout, stack: SuperelementStack, gyroscopic: bool, g_terms=(), row_terms=()):
         self.layout, self.gyro = layout, gyroscopic
+        self.g_terms, self.row_terms = tuple(g_terms), tuple(row_terms)
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = stack.K, stack.M, stack.G, stack.mass, stack.J0, stack.X_B
         self.se_nodes = stack.nodes
         self.torque = None
@@ -133,7 +143,7 @@ class FusedResidual:
             kx=3, kT=3, kq=n, ex0=3, eT0=3, eeta=nm,
             gd=(nb, 3), mgd=(nb, 3), h_ang=3, rho=(nb, 3), W0=3, ga=(nb, 3),
         )
-        Lop = np.zeros((E, u.size, o.size))
+        L_op = np.zeros((E, u.size, o.size))
         I3 = np.eye(3)
         d_rows = (6 * np.arange(nb)[:, None] + np.arange(3)).ravel()  # rows of q_bar: d of every node
         a_rows = d_rows + 3
@@ -143,8 +153,10 @@ class FusedResidual:
         gsel[d_rows, o["gd"].start + col] = 1.0
         gsel[d_rows, o["mgd"].start + col] = -1.0
         gsel[a_rows, o["ga"].start + col] = 1.0
+        self._g_to_O = gsel
+        self._local_rows = np.concatenate([L.vel_map, L.cfg_map], axis=1).ravel()  # local row -> global row
         for e in range(E):
-            Le = Lop[e]
+            Le = L_op[e]
             Le[u["x0d"], o["kx"]], Le[u["v0"], o["kx"]] = I3, -I3  # (69b)
             Le[u["W0"], o["kT"]], Le[u["Om0"], o["kT"]] = I3, -I3  # (69d)
             Le[u["qd"], o["kq"]], Le[u["rb"], o["kq"]] = self.M[e].T, -self.M[e].T  # (79)
@@ -162,7 +174,7 @@ class FusedResidual:
                 Le[u["s"], o["h_ang"]] = I3
                 Le[u["sdot"], o["eT0"]] = I3
         # SEs with bitwise-equal data share one operator: one 2D matmul instead of a per-SE stack
-        self._linear_op = Lop[0].copy() if all(np.array_equal(Lop[0], Le) for Le in Lop) else Lop
+        self._linear_op = L_op[0].copy() if all(np.array_equal(L_op[0], Le) for Le in L_op) else L_op
 
         # ---- W: everything the residual adds into global rows
         w = Segments(O=(E, o.size), Fd=(E, 2 * nb, 3), Fa=(E, nb, 1, 3), QFa=(E, nb, 1, 3),
@@ -232,7 +244,7 @@ class FusedResidual:
         """Residual of the assembled equations (loads included) at the configuration in the source
         vector (p, ydot; see `_build_evaluation`) and the rotation stack R (nodes then SEs).
 
-        Returns F (ny,) and, on request, the dict of intermediates `local_jacobian` needs.
+        Returns F (ny,) and, on request (else None), the dict of intermediates `local_jacobian` needs.
         Row forms throughout: for stacks of row vectors, x @ R = R^T x and x @ R^T = R x.
         """
         b, N = self.buf, self.layout.n_nodes
@@ -261,6 +273,11 @@ class FusedResidual:
             np.dot(u, self._linear_op, out=b.WO)
         else:
             np.matmul(u[:, None, :], self._linear_op, out=b.WO3)
+        s = None
+        if jacobian or self.g_terms or self.row_terms:
+            s = self._intermediates(R0, W0, u, gy if self.gyro else None)
+        for term in self.g_terms:  # further elastic forces: into g's blocks before the projection (91)
+            b.WO += term(s, None)[0] @ self._g_to_O
         # g_B to the CM and the nodes (91): R0 g_d on node and (minus) CM rows, H^T g_alpha on node rows,
         # -Q H^T g_alpha, -rho x g_d and W0 x h on the CM rotation rows (77)
         np.matmul(b.gd_mgd, np.swapaxes(R0, -1, -2), out=b.Fd)
@@ -271,17 +288,23 @@ class FusedResidual:
         if self.torque is not None:  # -R^T t on the nodes
             np.matmul(self.torque, R[:N], out=b.load_t)
         F = np.bincount(self._W_rows, b.W, minlength=self.layout.ny + 1)[:-1]
-        if not jacobian:
-            return F, None
+        for term in self.row_terms:
+            F += np.bincount(self._local_rows, term(s, None)[0].ravel(), minlength=self.layout.ny)
+        return F, s
+
+    def _intermediates(self, R0, W0, u, gy):
+        """The stacked quantities of eqs. (89), (91) and the evaluation that the Jacobian and the term
+        hooks read (views of the buffers: g_d, g_alpha, h hold their final values once F is done)."""
+        b, us = self.buf, self._u
         s = {
             "R0": R0, "R0T": np.swapaxes(R0, -1, -2), "Q": np.swapaxes(b.QT, -1, -2), "QT": b.QT, "H": b.H,
             "rho": b.rho, "alpha": b.alpha, "W0": W0, "c": b.c, "ru": b.ru, "gd": b.gd, "ga": b.ga,
             "Fa": b.Fa[:, :, 0], "h_ang": b.h_ang, "QTW0": b.QTW0,
-            "q": self._u.view(u, "q"), "qd": self._u.view(u, "qd"), "rb": self._u.view(u, "rb"), "rbd": self._u.view(u, "rbd"),
+            "q": us.view(u, "q"), "qd": us.view(u, "qd"), "rb": us.view(u, "rb"), "rbd": us.view(u, "rbd"),
         }
-        if self.gyro:
+        if gy is not None:
             s.update(gy)
-        return F, s
+        return s
 
     def _gyroscopic(self, u, W0, jacobian):
         """The `gyroscopic` terms, written into u: G(W0) q, G(W0) r, s (55) and sdot (Remark 6 drops them)."""
@@ -366,6 +389,11 @@ class FusedResidual:
             dsd_dqd = -np.swapaxes(Gr, 1, 2)
             Fz[:, oT0 : oT0 + 3, :nc] += dsd_dqd @ Dq
             Fy[:, oT0 : oT0 + 3, :nc] += dsd_dqd @ Dqd
+        D = {"Dq": Dq, "Dqdot": Dqd}
+        for term in self.g_terms:
+            _, dg_z, dg_y = term(s, D)
+            dg[1] += dg_z
+            dg[0] += dg_y
         FF[:, :, oeta : oeta + nm] = dg[:, :, nB:]
         # g_B through (91), every node p at once: rows of node p (x, Theta) and dg_d, dg_alpha of node p
         FFN = view(FF[:, :, onode:], (2, E, nb, 2, 3, ncv))
@@ -392,5 +420,9 @@ class FusedResidual:
         QC = Q @ (C - skew(Fa))
         Fy[:, ix["T0_TP"][0], ix["T0_TP"][1]] -= QC.reshape(E, -1)
         Fy[:, oT0 : oT0 + 3, cT0] += (QC @ QT).sum(1)
+        for term in self.row_terms:
+            _, dF_z, dF_y = term(s, D)
+            Fz += dF_z
+            Fy += dF_y
         return Fz, Fy
 
