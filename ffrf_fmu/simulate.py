@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -155,11 +157,31 @@ def column_names(body: BodyData) -> list[str]:
     return names + [f"energy.{k}" for k in ENERGIES] + ["solver.newton_iterations"]
 
 
+def whole_steps(duration: float, step: float) -> tuple[int, float]:
+    """(n, h): n steps of h = duration / n, the largest h <= step that divides the duration (as the
+    reference solver does); a duration within 1e-9 relative of a whole number of steps keeps the step."""
+    ratio = duration / step
+    n = round(ratio)
+    if n >= 1 and abs(ratio - n) <= 1e-9 * ratio:
+        return int(n), step
+    n = max(1, math.ceil(ratio))
+    return n, duration / n
+
+
 def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool = True) -> SimulationResult:
-    """Step the body through the scene with the scene's constant step; record every step."""
+    """Step the body through the scene with the scene's constant step; record every step.
+
+    A duration that is not a whole number of steps is never rounded: the step is reduced to
+    divide it (whole_steps), with a warning, and the summary gives both steps."""
     start = time.perf_counter()
+    requested = scene.step
+    n_steps, h = whole_steps(scene.duration, scene.step)
+    if h != requested:
+        warnings.warn(f"scene {scene.name!r}: duration {scene.duration:g} s is not a whole number of steps of "
+                      f"{requested:g} s ({scene.duration / requested:.6g}): step reduced to {h:.6g} s "
+                      f"({n_steps} steps)", UserWarning, stacklevel=2)
+        scene = dataclasses.replace(scene, step=h)
     system, inputs = build_system(body, scene, origin)
-    n_steps = int(round(scene.duration / scene.step))
     rows = np.empty((n_steps + 1, len(column_names(body))))
     rows[0] = record(system)
     times = np.empty(n_steps + 1)
@@ -193,6 +215,7 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
         "terms": scene.terms,
         "superelements": len(body.superelements),
         "step": scene.step,
+        "step_requested": requested,
         "rho_inf": scene.rho_inf,
         "completed": failure is None,
         "failure": failure,

@@ -216,3 +216,24 @@ def test_state_roundtrip_is_bit_identical():
     system.set_state(saved)
     system.step(0.01, inputs)
     assert np.array_equal(first, sim.record(system))
+
+
+@pytest.mark.parametrize("duration, steps", [(0.009, 5), (0.011, 6), (0.010, 5)])
+def test_duration_not_a_whole_number_of_steps_is_not_rounded(duration, steps):
+    """Step 2 ms: 0.009 s and 0.011 s are no whole number of steps. The run must end at the
+    duration (not at 0.008 or 0.012 s), with the step reduced to divide it (duration / ceil, as the
+    reference solver does) and a warning that says so; 0.010 s keeps the step, silently."""
+    model = load_model("models/haug_beam.toml", ["superelements=1", "modes=2", f"duration={duration}", "step=0.002"])
+    if steps * 0.002 == pytest.approx(duration):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            r = sim.run_scene(model, "spinup")
+        assert r.summary["step"] == 0.002
+    else:
+        with pytest.warns(UserWarning, match=rf"not a whole number of steps.*reduced to {duration / steps:.6g} s"):
+            r = sim.run_scene(model, "spinup")
+        assert r.summary["step"] == pytest.approx(duration / steps, rel=1e-12) and r.summary["step_requested"] == 0.002
+    assert r.summary["completed"] and r.summary["steps"] == steps == len(r.t) - 1
+    assert r.t[-1] == pytest.approx(duration, rel=1e-12)
