@@ -38,10 +38,12 @@ import hashlib
 import itertools
 import json
 import math
+import multiprocessing
 import os
 import sys
 import time
 import traceback
+import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Sequence
@@ -55,6 +57,7 @@ PRIMARY_METRIC = {"haug": "tip_deflection_max_m", "spherical": "omega_y_mean_aft
 # the keys every row shows (resolved from the model when not swept), in label order
 SHOWN_KEYS = ("superelements", "modes", "terms", "step")
 COSTS = {"wall": "wall_time_s", "cpu": "cpu_time_s"}  # cost measure -> row column
+POOL_START_METHOD = "spawn"  # the worker pool's, explicit (the runs take arguments that pickle: paths and texts)
 ERROR_FLOOR = 1e-6  # errors below this are drawn at the floor of the log axis
 
 
@@ -234,10 +237,14 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
     if path is not None and path.exists():
         z = np.load(path, allow_pickle=False)
         t, cols, wall, cached = z["t"], {n: z[f"col:{n}"] for n in json.loads(str(z["names"]))}, float(z["wall"]), True
+        energy_error = float(z["energy_error"])
     else:
         ref_body = dataclasses.replace(model.body, ports=effective_ports(model, sc))
-        res = simulate_reference(ref_body, sc, n_elements=n_el, step=h)
+        with warnings.catch_warnings():  # the energy warning is returned (below): in a worker it would be lost
+            warnings.filterwarnings("ignore", message="reference: energy error", category=RuntimeWarning)
+            res = simulate_reference(ref_body, sc, n_elements=n_el, step=h)
         t, wall, cached = np.asarray(res.t), float(res.wall_time_s), False
+        energy_error = float(res.info["energy_error"])
         cols = {}
         for p in ports:
             names = iter(variable_names(p))
@@ -248,17 +255,30 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(".tmp.npz")
-            np.savez_compressed(tmp, t=t, wall=wall, names=json.dumps(list(cols)),
+            np.savez_compressed(tmp, t=t, wall=wall, energy_error=energy_error, names=json.dumps(list(cols)),
                                 **{f"col:{n}": v for n, v in cols.items()})
             os.replace(tmp, path)
     result = SimulationResult(t, cols, {}, body)
     return {"t": t, "d": _trajectory(result), "metrics": metrics(result, sc), "wall_time_s": wall,
-            "n_elements": n_el, "step": h, "cached": cached, "path": str(path) if path else None}
+            "n_elements": n_el, "step": h, "cached": cached, "path": str(path) if path else None,
+            "energy_error": energy_error, "warning": reference_warning(energy_error, h)}
+
+
+def reference_warning(energy_error: float | None, step: float) -> str:
+    """The reference solver's energy warning (reference/solver.py), or "" when the run is trusted."""
+    from .reference.solver import ENERGY_ERROR_SUSPECT
+
+    if energy_error is None or energy_error <= ENERGY_ERROR_SUSPECT:
+        return ""
+    return (f"reference suspect: energy error {100 * energy_error:.2g} % of the energy level > "
+            f"{100 * ENERGY_ERROR_SUSPECT:g} % (h = {step:g} s): its step is probably too large, errors against it "
+            "are not trustworthy; halve --reference-step and compare")
 
 
 def _failed_reference(exc, n_elements, step, scene) -> dict:
     return {"metrics": {}, "failure": f"{type(exc).__name__}: {exc}", "wall_time_s": None,
-            "n_elements": n_elements, "step": step or scene.step, "cached": False, "path": None}
+            "n_elements": n_elements, "step": step or scene.step, "cached": False, "path": None,
+            "energy_error": None, "warning": ""}
 
 
 # ------------------------------------------------------------------------------ errors, front
@@ -352,8 +372,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     model = load_model(model_path, overrides)
     scene = model.scene(scene_name)
     groups = ([sweep] if isinstance(sweep, dict) else list(sweep)) if sweep else [{}]
-    # load the run code once, before the workers fork: every run of the chart uses the same code
-    # even if the files change on disk meanwhile (code_version() is recorded before and after)
+    # load the run code now (with one worker every run uses this code); spawned workers import it afresh,
+    # so code_version(), recorded before and after, tells whether the files changed during the chart
     from . import reduction, simulate  # noqa: F401
     from .reference import solver  # noqa: F401
 
@@ -400,7 +420,9 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
             if bar:
                 bar.update(done, note)
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:  # platform default (fork on Linux)
+        # spawn on every platform: fork is unsafe with threads (and no longer Python's default on Linux from
+        # 3.14); each worker imports the code afresh, so code_version() before and after tells a change apart
+        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(POOL_START_METHOD)) as pool:
             fref = pool.submit(run_reference, model_path, scene.name, list(overrides), reference_elements,
                                reference_step, str(out_dir))
             futs = {pool.submit(run_configuration, model_path, scene.name, list(overrides), configs[i], r): (i, r)
@@ -441,7 +463,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                    "real_time_factor": None, "metric_name": metric_name or "", **errors(run, ref, metric_name),
                    "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
                    "completed": bool(run["completed"]), "failure": run["failure"] or "",
-                   "t_end_s": run.get("t_end_s")}
+                   "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning"))}
             if row["wall_time_s"] and row["t_end_s"] is not None:
                 row["real_time_factor"] = row["t_end_s"] / row["wall_time_s"]
             rows.append(row)
@@ -464,7 +486,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         "metric": metric_name, "cost": cost, "workers": workers, "cpu_count": os.cpu_count(),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "chart_wall_time_s": time.perf_counter() - t0,
-        "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "path", "failure")}
+        "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "path", "failure",
+                                              "energy_error", "warning")}
         | {"metrics": ref["metrics"]},
         "code_version": version_start,
         "code_changed_during_chart": code_version() != version_start,
@@ -475,7 +498,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     json_path.write_text(json.dumps(meta, indent=2, default=float) + "\n", encoding="utf-8")
     if plot:
         plot_chart(rows, png_path, title=f"{model.body.name} / {scene.name}: error against {'CPU' if cost == 'cpu' else 'wall'} time "
-                   f"(reference: full-order beam, {ref['n_elements']} elements, h = {_fmt_step(ref['step'])})",
+                   f"(reference: full-order beam, {ref['n_elements']} elements, h = {_fmt_step(ref['step'])})"
+                   + (f"\nREFERENCE SUSPECT: energy error {100 * ref['energy_error']:.2g} %" if ref.get("warning") else ""),
                    metric_name=metric_name, cost=cost)
     return {"rows": rows, "reference": ref, "csv": str(csv_path), "png": str(png_path), "json": str(json_path),
             "meta": meta}
@@ -498,7 +522,7 @@ def code_version() -> dict:
 
 CSV_FIRST = ("label", "runner", *SHOWN_KEYS)
 CSV_LAST = ("wall_time_s", "cpu_time_s", "real_time_factor", "metric_name", "metric", "metric_reference",
-            "metric_error_rel", "rms_error_rel", "completed", "failure", "t_end_s", "pareto")
+            "metric_error_rel", "rms_error_rel", "completed", "failure", "t_end_s", "pareto", "reference_suspect")
 
 
 def write_csv(rows: list[dict], path) -> None:
@@ -534,7 +558,7 @@ def read_csv(path) -> list[dict]:
                     row[k] = int(v)
                 elif k in floats:
                     row[k] = float(v)
-                elif k in ("completed", "pareto"):
+                elif k in ("completed", "pareto", "reference_suspect"):
                     row[k] = v == "True"
                 else:
                     row[k] = v
@@ -713,7 +737,8 @@ def replot(out_dir, cost: str | None = None) -> Path:
     ref = meta["reference"]
     png = out_dir / "chart.png"
     plot_chart(rows, png, title=f"{Path(meta['model']).stem} / {meta['scene']}: error against {'CPU' if cost == 'cpu' else 'wall'} time (reference: "
-               f"full-order beam, {ref['n_elements']} elements, h = {_fmt_step(ref['step'])})",
+               f"full-order beam, {ref['n_elements']} elements, h = {_fmt_step(ref['step'])})"
+               + (f"\nREFERENCE SUSPECT: energy error {100 * ref['energy_error']:.2g} %" if ref.get("warning") else ""),
                metric_name=meta.get("metric"), cost=cost)
     return png
 

@@ -279,6 +279,8 @@ def chart(args) -> int:
         cost = "cached" if ref["cached"] else f"{ref['wall_time_s']:.1f} s wall"
         print(f"reference: full-order beam, {ref['n_elements']} elements, h = {ref['step']:g} s, {cost}: "
               + ", ".join(f"{k} = {v:.6g}" for k, v in ref["metrics"].items() if isinstance(v, float)))
+        if ref.get("warning"):
+            print(f"WARNING: {ref['warning']}")
     print(ch.format_table(out["rows"]))
     print(f"wrote {out['csv']}, {out['png']}, {out['json']}")
     return 0 if all(r["completed"] for r in out["rows"]) else 1

@@ -5,6 +5,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -68,15 +69,21 @@ def test_chart_end_to_end(tmp_path):
     response to the hub's angular acceleration. Both chains then agree with the 8-element
     geometrically exact reference to the spatial discretization of the two models (measured 0.2 %):
     < 1 % for the peak and the trajectory."""
+    start = time.perf_counter()
     out = ch.chart(B1, "spinup", {"superelements": ["1", "2"], "modes": ["2"]}, overrides=["duration=1.5"],
                    reference_elements=8, workers=1, out_dir=tmp_path, progress=False)
+    elapsed = time.perf_counter() - start
     rows = out["rows"]
     assert [r["label"] for r in rows] == ["1SE/2m/lin/2ms", "2SE/2m/lin/2ms"]
     for r in rows:
-        assert r["completed"] and r["failure"] == ""
+        assert r["completed"] and r["failure"] == "" and r["t_end_s"] == pytest.approx(1.5)
         assert r["metric_error_rel"] < 0.01 and r["rms_error_rel"] < 0.01
-        assert r["wall_time_s"] > 0 and r["real_time_factor"] == pytest.approx(1.5 / r["wall_time_s"])
         assert r["metric"] == pytest.approx(out["reference"]["metrics"]["tip_deflection_max_m"], rel=0.01)
+        # the runs happened one after the other inside the chart call, timed here independently
+        assert r["real_time_factor"] >= 1.5 / elapsed
+    assert 0 < sum(r["wall_time_s"] for r in rows) < elapsed
+    # the reference is trusted (its energy error, measured 7e-6, is below the solver's 2 % warning)
+    assert out["reference"]["energy_error"] < 0.02 and not any(r["reference_suspect"] for r in rows)
     assert sum(r["pareto"] for r in rows) >= 1
     # the files: CSV (one row per configuration, the documented columns), PNG, JSON with provenance
     back = ch.read_csv(tmp_path / "chart.csv")
@@ -86,16 +93,30 @@ def test_chart_end_to_end(tmp_path):
     for col in ("superelements", "modes", "terms", "step", "wall_time_s", "real_time_factor", "metric",
                 "metric_error_rel", "rms_error_rel", "completed", "failure"):
         assert col in header
-    assert (tmp_path / "chart.png").stat().st_size > 10_000
-    assert (tmp_path / "chart.json").exists()
+    assert (tmp_path / "chart.png").exists()  # the plot's content is not checked here
+    assert ch.json.loads((tmp_path / "chart.json").read_text())["reference"]["warning"] == ""
     # the reference is cached: a second chart does not run it again
     cached = list(tmp_path.glob("reference_haug_beam_spinup_8el_2ms_*.npz"))
     assert len(cached) == 1 and not out["reference"]["cached"]
     again = ch.run_reference(B1, "spinup", ["duration=1.5"], 8, None, tmp_path)
     assert again["cached"]
     assert again["metrics"]["tip_deflection_max_m"] == out["reference"]["metrics"]["tip_deflection_max_m"]
+    assert again["energy_error"] == out["reference"]["energy_error"]
     # another duration is another reference
     assert ch.reference_key(B1, "spinup", ["duration=1.5"], 8, 0.002) != ch.reference_key(B1, "spinup", [], 8, 0.002)
+
+
+def test_suspect_reference_is_marked(tmp_path):
+    """A reference too coarse to trust: 4 elements at h = 0.25 s over the first 1.5 s of B1. Its energy
+    error (measured 9.7 % of the energy level) is above the reference solver's 2 % warning: the
+    chart must say so in every row, in chart.json and on the command line's table, not silence it."""
+    out = ch.chart(B1, "spinup", {"superelements": ["1"]}, overrides=["duration=1.5", "modes=2"],
+                   reference_elements=4, reference_step=0.25, workers=1, out_dir=tmp_path, progress=False, plot=False)
+    assert out["reference"]["energy_error"] > 0.02
+    assert "reference suspect: energy error" in out["reference"]["warning"]
+    assert all(r["reference_suspect"] for r in out["rows"])
+    assert ch.read_csv(tmp_path / "chart.csv")[0]["reference_suspect"] is True
+    assert "energy error" in ch.json.loads((tmp_path / "chart.json").read_text())["reference"]["warning"]
 
 
 def test_failed_run_is_a_row_and_plotted_apart(tmp_path):
@@ -115,15 +136,42 @@ def test_failed_run_is_a_row_and_plotted_apart(tmp_path):
     assert "2SE/2m/lin/100ms (standalone)" in ch.json.loads((tmp_path / "chart.json").read_text())["failures"]
 
 
+# `python -m ffrf_fmu ARGS` with the process-wide default start method set to forkserver first (the
+# Linux default from Python 3.14)
+FORKSERVER_MAIN = ("import multiprocessing, runpy, sys; multiprocessing.set_start_method('forkserver'); "
+                   "sys.argv[0] = 'ffrf_fmu'; runpy.run_module('ffrf_fmu', run_name='__main__', alter_sys=True)")
+
+
+def test_pool_start_method_is_explicit_and_not_fork(monkeypatch, tmp_path):
+    """The worker pool names its start method (the platform default changes: fork on Linux up to
+    3.13, forkserver from 3.14, spawn on macOS and Windows) and it is one whose workers inherit
+    nothing from the parent's memory, so a chart runs the same everywhere."""
+    seen = {}
+
+    class Recorder(ch.ProcessPoolExecutor):
+        def __init__(self, *args, **kwargs):
+            seen["context"] = kwargs.get("mp_context")
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(ch, "ProcessPoolExecutor", Recorder)
+    out = ch.chart(B1, "spinup", {"superelements": ["1"]}, overrides=["duration=0.1", "modes=2"],
+                   reference_elements=4, workers=2, out_dir=tmp_path, progress=False, plot=False)
+    assert seen["context"] is not None and seen["context"].get_start_method() in ("spawn", "forkserver")
+    assert out["rows"][0]["completed"]
+
+
 def test_cli_chart_with_workers(tmp_path):
-    """The subcommand end to end, two worker processes, a bad sweep exits 2 with a message."""
+    """The subcommand end to end, two worker processes under a forkserver default, a bad sweep exits
+    2 with a message."""
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    cmd = [sys.executable, "-m", "ffrf_fmu", "chart", B1, "--scene", "spinup", "--set", "duration=0.4",
+    cmd = [sys.executable, "-c", FORKSERVER_MAIN, "chart", B1, "--scene", "spinup", "--set", "duration=0.4",
            "--reference-elements", "8", "--workers", "2", "-o", str(tmp_path),
            "--sweep", "superelements=1,2", "modes=2"]
     res = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert "1SE/2m/lin/2ms" in res.stdout and "2SE/2m/lin/2ms" in res.stdout
-    assert len(ch.read_csv(tmp_path / "chart.csv")) == 2
+    rows = ch.read_csv(tmp_path / "chart.csv")
+    assert [r["superelements"] for r in sorted(rows, key=lambda r: r["superelements"])] == [1, 2]
+    assert all(r["completed"] and r["metric_error_rel"] < 0.01 for r in rows)  # as in test_chart_end_to_end
     bad = subprocess.run(cmd[:-2] + ["superelements"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "ffrf-fmu: error: --sweep" in bad.stderr and "Traceback" not in bad.stderr

@@ -58,8 +58,9 @@ def _coefficients(theta: np.ndarray):
     half = np.where(small, 1.0, 0.5 * t)
     b = np.where(small, 0.5 - t2 / 24.0, 0.5 * (np.sin(half) / half) ** 2)
     series = np.zeros_like(t2)
+    t2s = np.minimum(t2, _C_SWITCH**2)  # where the series is not used: no overflow on huge angles
     for coef in _C_SERIES:
-        series = series * t2 + coef
+        series = series * t2s + coef
     tl = np.where(t < _C_SWITCH, _C_SWITCH, t)
     c = np.where(t < _C_SWITCH, series, (tl - np.sin(tl)) / tl**3)
     return a, b, c
