@@ -218,8 +218,9 @@ def test_validate_clean_when_extrapolation_is_exact(small, tmp_path):
     assert set(rep["groups"]) == {"hub.f", "hub.t", "tip.r", "tip.R", "tip.v", "tip.w", "energies"}
     saved = json.loads((tmp_path / "rep" / "report.json").read_text())
     assert saved["passed"] and saved["wall_time_s"]["fmu"] > 0 and saved["tolerances"]["rtol"] == 1e-3
-    for png in ("port_hub.png", "port_tip.png", "energies.png", "tip_deflection.png"):
-        assert (tmp_path / "rep" / png).stat().st_size > 1000
+    # the plots are written (their content is not checked: the numbers above are what they show)
+    assert sorted(saved["plots"]) == ["energies.png", "port_hub.png", "port_tip.png", "tip_deflection.png"]
+    assert all((tmp_path / "rep" / png).exists() for png in saved["plots"])
 
 
 def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
@@ -337,15 +338,36 @@ def test_failure_gives_discard_with_message_and_keeps_the_fmu(small, small_fmu, 
 
 
 def test_nearly_orthonormal_rotation_input_is_accepted(small, small_fmu):
-    """|R^T R - I| below 1e-6 (e.g. a rotation written with 8 digits) is projected, not refused."""
-    inst, inputs, sc = _started(small_fmu, "spinup", small)
+    """|R^T R - I| below 1e-6 (e.g. a rotation written with 8 digits) is projected onto the nearest
+    rotation, not refused: the run equals a clean run given that rotation, computed here as the
+    polar factor R (R^T R)^(-1/2) by scipy.linalg.polar. Both runs differ only by the round-off of
+    the two projections (measured: identical outputs): bound 1e-9 of each output group's scale
+    (using the perturbed R unprojected, or another projection, moves the outputs by ~1e-3 of the
+    small early spin-up forces)."""
+    from scipy.linalg import polar
+
+    clean, inputs, sc = _started(small_fmu, "spinup", small)
+    rough, _, _ = _started(small_fmu, "spinup", small)
+    outs = clean.names("output")
     try:
-        vals = inputs(0.0)
-        vals["hub"].R = np.round(vals["hub"].R + 1e-8 * np.arange(9).reshape(3, 3), 8)
-        _inputs_at(inst, vals)
-        inst.fmu.doStep(0.0, sc.step)
+        for k in range(3):
+            t = k * sc.step
+            vals = inputs(t)
+            vals["hub"].R = np.round(vals["hub"].R + 1e-8 * np.arange(9).reshape(3, 3), 8)
+            assert 1e-9 < np.abs(vals["hub"].R.T @ vals["hub"].R - np.eye(3)).max() < 1e-6
+            _inputs_at(rough, vals)
+            vals["hub"].R = polar(vals["hub"].R)[0]
+            _inputs_at(clean, vals)
+            clean.fmu.doStep(t, sc.step)
+            rough.fmu.doStep(t, sc.step)
+        a, b = clean.get(outs), rough.get(outs)
+        for group in ("hub.f", "hub.t", "tip.r", "tip.R", "tip.v", "tip.w"):
+            idx = [i for i, n in enumerate(outs) if n.startswith(group + "[")]
+            scale = np.abs(a[idx]).max()
+            assert scale > 0 and np.abs(a[idx] - b[idx]).max() <= 1e-9 * scale, group
     finally:
-        inst.close()
+        clean.close()
+        rough.close()
 
 
 def test_simulate_fmu_stopping_early_is_detected(small, small_fmu):
