@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from ffrf_fmu.model import load_model
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -26,10 +28,14 @@ def test_info_json(model, first_hz):
     out = run("info", f"models/{model}", "--json")
     assert out.returncode == 0, out.stderr
     info = json.loads(out.stdout)
-    assert info["superelements"]
+    body = load_model(ROOT / "models" / model).body
+    # one entry per superelement of the model file, each with the file's modes on its own FE mesh
+    assert len(info["superelements"]) == body.superelements >= 1
     for se in info["superelements"]:
         assert se["orthogonality_error"] < 1e-10  # U^T M Y = 0 (eq. 74) to round-off
-        assert se["n_reduced_dofs"] == 12 + se["n_modes"] < se["n_fe_dofs"]
+        assert se["n_modes"] == body.modes
+        assert se["n_fe_dofs"] == 6 * (body.elements_per_superelement + 1)
+        assert se["n_reduced_dofs"] == 12 + body.modes
     assert info["frequencies_hz"][0] == pytest.approx(first_hz, rel=5e-3)
 
 

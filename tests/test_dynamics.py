@@ -90,12 +90,15 @@ PAPER_TABLE_1 = {1: 0.6015, 2: 0.5520, 4: 0.5386}
 
 @pytest.mark.parametrize("n", [1, 2, 4])
 def test_b1_max_tip_deflection_matches_paper_table_1(b1_runs, n):
-    """Term set `linear`, 6 modes, h = 2 ms, rho_inf = 0.8, as in the paper. 2 %: the paper does not
-    give its FE mesh per superelement nor its rotary inertia (we use 22.7e-6, benchmarks.md note 2);
-    both move the peak by well under 1 %."""
+    """Term set `linear`, 6 modes, h = 2 ms, rho_inf = 0.8, as in the paper. Measured gaps to Table 1:
+    -0.07 %, -0.29 %, -0.37 % for 1, 2, 4 SE (docs/benchmarks.md; the paper does not give its FE mesh
+    per superelement nor its rotary inertia, we use 22.7e-6, benchmarks.md note 2). 0.5 %: above
+    those gaps, and a window that tells the chains apart: the neighbouring chain is >= 2.4 % away
+    (2 SE 0.5520 vs 4 SE 0.5386) and the converged nonlinear beam (0.5319, 64 elements) is 1.2 %
+    below the 4-SE value, so a chain that recovered the full stiffening would fail."""
     m = b1_runs[n].summary["metrics"]
     assert b1_runs[n].summary["completed"]
-    assert m["tip_deflection_max_m"] == pytest.approx(PAPER_TABLE_1[n], rel=0.02)
+    assert m["tip_deflection_max_m"] == pytest.approx(PAPER_TABLE_1[n], rel=5e-3)
 
 
 def test_b1_deflection_decreases_with_superelements(b1_runs):
