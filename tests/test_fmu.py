@@ -14,11 +14,10 @@ import sys
 import zipfile
 from pathlib import Path
 
+import fmpy  # core dependencies (fmpy, pythonfmu): a broken install fails, never skips
 import numpy as np
 import pytest
-
-fmpy = pytest.importorskip("fmpy")
-pytest.importorskip("pythonfmu")
+import pythonfmu  # noqa: F401
 
 from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402

@@ -7,8 +7,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import fmpy  # noqa: F401 - core dependencies (the co-simulation tests): a broken install fails, never skips
+import libcosimpy.CosimExecution  # noqa: F401 - loads libcosim's shared library
 import numpy as np
 import pytest
+import pythonfmu  # noqa: F401
 
 from ffrf_fmu import stability as st
 from ffrf_fmu.model import load_model
@@ -43,7 +46,6 @@ def test_split_models_are_the_halves_of_the_beam(tmp_path):
 
 @pytest.fixture(scope="module")
 def hub_drive(tmp_path_factory):
-    pytest.importorskip("pythonfmu")
     from ffrf_fmu.examples import build_hub_drive
 
     return build_hub_drive(tmp_path_factory.mktemp("drive") / "hub_drive.fmu")
@@ -104,15 +106,11 @@ def test_hub_drive_torque_sign_and_rollback(hub_drive):
 
 @pytest.fixture(scope="module")
 def motor(tmp_path_factory):
-    pytest.importorskip("pythonfmu")
-    pytest.importorskip("fmpy")
     return st.CosimCase("motor", HAUG, tmp_path_factory.mktemp("motor"), st.CosimSettings())
 
 
 @pytest.fixture(scope="module")
 def split(tmp_path_factory):
-    pytest.importorskip("pythonfmu")
-    pytest.importorskip("fmpy")
     return st.CosimCase("split", HAUG, tmp_path_factory.mktemp("split"), st.CosimSettings())
 
 
@@ -211,7 +209,6 @@ def test_libcosim_fixed_step_agrees_with_the_master_jacobi(split, motor, tmp_pat
     master.CoSimulation(scheme="jacobi"). Split beam: the same trajectory to round-off and the
     same failing step (added-mass instability, t = 0.044 s at H = 2 ms); motor case: the same
     trajectory to round-off over 0.3 s."""
-    pytest.importorskip("libcosimpy")
     lc = st.libcosim_run(split, 0.002, 0.06, tmp_path / "split")
     ours = split.run(0.002, "jacobi", duration=0.06)
     assert lc.stopped_early and ours.stopped_early and lc.t[-1] == pytest.approx(ours.t[-1])
