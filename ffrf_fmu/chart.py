@@ -464,6 +464,10 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                    "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
                    "completed": bool(run["completed"]), "failure": run["failure"] or "",
                    "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning"))}
+            if not row["completed"]:
+                # the metric of a run that stopped early is not the scene's metric: no error against the
+                # reference's (rms_error_rel stays: it compares the trajectory over the run's own span)
+                row["metric_error_rel"] = None
             if row["wall_time_s"] and row["t_end_s"] is not None:
                 row["real_time_factor"] = row["t_end_s"] / row["wall_time_s"]
             rows.append(row)

@@ -253,10 +253,12 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     # benchmark metrics of both runs (from port signals: the FMU side uses its own port values)
     fmu_result = SimulationResult(t_fmu, {n: fmu_cols[n] for n in fmu_cols}, {}, body)
     metric_rows = {}
-    try:
-        m_fmu, m_ref = metrics(fmu_result, sc), metrics(ref, sc)
-    except Exception as e:  # noqa: BLE001 - metrics are informative, never block the report
-        m_fmu, m_ref = {"error": str(e)}, {}
+    m_fmu, m_ref = {}, {}
+    if reached and ref_ok:  # a metric of a run that stopped early is not the scene's metric: not compared
+        try:
+            m_fmu, m_ref = metrics(fmu_result, sc), metrics(ref, sc)
+        except Exception as e:  # noqa: BLE001 - metrics are informative, never block the report
+            m_fmu, m_ref = {"error": str(e)}, {}
     for k, v in m_ref.items():
         if isinstance(v, float) and isinstance(m_fmu.get(k), float):
             metric_rows[k] = {"fmu": m_fmu[k], "standalone": v,
