@@ -147,14 +147,15 @@ def test_one_superelement_loses_stability_at_constant_spin():
 
 def test_several_superelements_recover_the_stiffening_at_12_rad_s():
     """The spin-up of the map (Wu-Haug profile to 12 rad/s, T = 7.5 s) over its first 4.5 s (the
-    deflection peaks at ~4 s): 4 superelements (linear term set) stay within 5 % of the nonlinear
-    beam (map: +2.75 % over the whole run); one superelement bends past L at ~4.1 s."""
+    deflection peaks at ~4 s): 4 superelements (linear term set) stay within 3.5 % of the nonlinear
+    beam's peak (map and measured here: +2.75 %; the bound leaves room for the reference's own
+    spatial error and separates 4 SE from 2 SE, +16 %); one superelement bends past L at ~4.1 s."""
     model, sc = st.spin_scene(HAUG, "spinup_fast", 12.0, T=7.5, duration=4.5)
     t, d_ref, energy_error = st.reference_deflection(model, sc)
     assert energy_error < st.ENERGY_ERROR_SUSPECT  # the reference is trusted
     four = st.run_beam(*_model_scene(12.0, 4, "linear"), record_every=10)
     assert not four.unstable
-    assert abs(four.max_deflection - np.max(d_ref)) < 0.05 * np.max(d_ref)
+    assert abs(four.max_deflection - np.max(d_ref)) < 0.035 * np.max(d_ref)
     one = st.run_beam(*_model_scene(12.0, 1, "linear"), record_every=10)
     assert one.unstable and "> 8 m" in one.failure
 
