@@ -7,7 +7,15 @@ Layout of resources/ in the FMU (the FMU is a black box: no FE mesh, no model fi
                                     fmu/ (core.py, variables.py); imports numpy, scipy only
     body.npz                        BodyData.save: reduced matrices, node positions, ports
     ffrf_fmu.json                   parameter defaults, body origin, description, build info
+    ffrf_python.json                the building Python: version, libpython, site-packages of numpy/scipy
+    ffrf_libpython.txt              the building Python's libpython (read by the native loader)
     pythonfmu/                      embedded by pythonfmu
+
+binaries/linux64/<id>.so is the native loader (native_loader.c, compiled here with the system C
+compiler): it loads libpython when the host has none and forwards the fmi2 calls to pythonfmu's
+binary, shipped next to it as <id>.pythonfmu.so. Without a C compiler the FMU keeps pythonfmu's
+binary alone (it then runs only in Python hosts, or with libpython in LD_PRELOAD) and the build
+says so.
 
 <hash> is a digest of the reduced data, the configuration and the shipped sources, so two
 different bodies (or two versions of the code) never share a module name in one process.
@@ -18,9 +26,15 @@ import argparse
 import dataclasses
 import hashlib
 import json
+import os
 import re
+import shutil
+import subprocess
 import sys
+import sysconfig
 import tempfile
+import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +48,9 @@ from .variables import TERM_SETS
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
 SHIPPED_FMU_MODULES = ("core.py", "variables.py")
+LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
+PYTHON_FILE = "ffrf_python.json"
+LIBPYTHON_FILE = "ffrf_libpython.txt"
 ALLOWED_IMPORTS = {"numpy", "scipy"}
 
 DESCRIPTION = (
@@ -45,12 +62,76 @@ DESCRIPTION = (
     "land on t_c + H; the run converges to the standalone run as H shrinks. Outputs are the values at "
     "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
     "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
-    "at t_c. FMU state get/set/serialize save the complete integrator state."
+    "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "
+    "references and internal errors return fmi2Error with the cause logged. FMU state get/set/serialize "
+    "save the complete integrator state."
 )
 
 
 class BuildError(RuntimeError):
     """The FMU cannot be built (the message says why)."""
+
+
+class BuildWarning(UserWarning):
+    """The FMU was built but lacks something (e.g. the native loader: no C compiler)."""
+
+
+def python_facts() -> dict:
+    """The building Python, as the FMU's native loader and slave script need it where no Python
+    host is: its version, its shared libpython (None for a statically linked Python) and the
+    site-packages directories that hold numpy and scipy."""
+    import numpy
+    import scipy
+
+    libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
+    libpython = os.path.join(libdir, soname) if libdir and soname and ".so" in soname else None
+    if libpython and not os.path.exists(libpython):
+        libpython = None
+    import site
+
+    dirs = [str(Path(m.__file__).resolve().parent.parent) for m in (numpy, scipy)]
+    dirs += [d for d in site.getsitepackages() if d not in dirs]
+    return {"version": list(sys.version_info[:2]), "executable": sys.executable, "libpython": libpython,
+            "site_dirs": list(dict.fromkeys(dirs))}
+
+
+def compile_loader(out: Path) -> str:
+    """Compile native_loader.c into `out`; '' on success, else why not (no compiler, error)."""
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if not cc:
+        return "no C compiler found (set CC or install gcc)"
+    cmd = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wl,-z,nodelete", "-o", str(out), str(LOADER_SOURCE),
+           "-ldl", "-lpthread"]
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return f"{cc} failed: {e}"
+    return "" if done.returncode == 0 else f"{' '.join(cmd)} failed: {done.stderr.strip()[:2000]}"
+
+
+def install_loader(fmu: Path, model_identifier: str, stage: Path) -> str:
+    """Put the native loader in front of pythonfmu's linux64 binary inside `fmu`; '' or why not."""
+    if not sys.platform.startswith("linux"):
+        return f"the native loader is built on Linux only (this is {sys.platform})"
+    loader = stage / "loader.so"
+    why = compile_loader(loader)
+    if why:
+        return why
+    name = f"binaries/linux64/{model_identifier}.so"
+    rewritten = fmu.with_suffix(".tmp")
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as dst:
+        if name not in src.namelist():
+            rewritten.unlink()
+            return f"{name} is not in the FMU"
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == name:
+                dst.writestr(f"binaries/linux64/{model_identifier}.pythonfmu.so", data)
+                dst.write(loader, name)
+            else:
+                dst.writestr(item, data)
+    os.replace(rewritten, fmu)
+    return ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -151,11 +232,14 @@ def build_fmu(
     *,
     origin=None,
     build_info: dict | None = None,
+    native_loader: bool = True,
 ) -> Path:
     """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
 
     origin: body origin for the initial rigid velocity field (default: node 0 position).
     build_info: free JSON-able facts stored in the resources (model file, scene, overrides).
+    native_loader: put the native loader in front of pythonfmu's binary (Linux, needs a C
+    compiler at build time; without one a BuildWarning says what the FMU then needs).
     """
     from pythonfmu import FmuBuilder  # build-time only
 
@@ -185,6 +269,8 @@ def build_fmu(
 
     dest = Path(dest)
     if dest.suffix != ".fmu":
+        if dest.suffix and not dest.is_dir():
+            raise BuildError(f"{dest}: an FMU file name must end in .fmu (or name a directory)")
         dest = dest / f"{data.name}.fmu"
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ffrf_fmu_build_") as tmp:
@@ -200,6 +286,9 @@ def build_fmu(
             (pkg / "fmu" / fname).write_text(text, encoding="utf-8")
         data.save(stage / DATA_FILE)
         (stage / CONFIG_FILE).write_text(json.dumps(config, indent=1), encoding="utf-8")
+        py = python_facts()
+        (stage / PYTHON_FILE).write_text(json.dumps(py, indent=1), encoding="utf-8")
+        (stage / LIBPYTHON_FILE).write_text((py["libpython"] or "") + "\n", encoding="utf-8")
         script = stage / f"{module}.py"
         script.write_text(TEMPLATE.format(body=data.name, version=__version__, package=package, cls=cls),
                           encoding="utf-8")
@@ -208,7 +297,8 @@ def build_fmu(
             out = FmuBuilder.build_FMU(
                 script,
                 dest=dest,
-                project_files=[pkg, stage / DATA_FILE, stage / CONFIG_FILE],
+                project_files=[pkg, stage / DATA_FILE, stage / CONFIG_FILE, stage / PYTHON_FILE,
+                               stage / LIBPYTHON_FILE],
                 canHandleVariableCommunicationStepSize=True,
                 canGetAndSetFMUstate=True,
                 canSerializeFMUstate=True,
@@ -220,7 +310,16 @@ def build_fmu(
             sys.path[:] = saved_path
             for key in [k for k in sys.modules if k == module or k == package or k.startswith(package + ".")]:
                 del sys.modules[key]
-    return Path(out)
+        out = Path(out)
+        if native_loader:
+            why = install_loader(out, cls, stage)
+            if why:
+                warnings.warn(f"{out.name}: no native loader ({why}); the FMU runs only in a host that has "
+                              "Python loaded (fmpy), or with libpython in LD_PRELOAD", BuildWarning, stacklevel=2)
+            elif py["libpython"] is None:
+                warnings.warn(f"{out.name}: this Python has no shared libpython; a host without Python needs "
+                              "FFRF_FMU_LIBPYTHON set to one", BuildWarning, stacklevel=2)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -40,10 +40,16 @@ DATA_FILE = "body.npz"
 
 @dataclass
 class StepReport:
+    """Outcome of a doStep. status: "ok"; "discard" for a numerical failure the master can recover
+    from (a StepFailure of the body, a non-finite or non-rotation input: the FMU stays at t_c);
+    "error" for everything else (a failed initialization, a call out of sequence, stepping on
+    after a discard, a programming error: fmi2Error, the FMU must be reset or freed)."""
+
     ok: bool
     message: str = ""  # cause of a failure, naming the time
     detail: str = ""  # traceback of an unexpected exception
     iterations: int = 0
+    status: str = "ok"
 
 
 class BodyCoSim:
@@ -64,7 +70,8 @@ class BodyCoSim:
         self.is_integer = np.array([v.type == "Integer" for v in self.variables])
         self.index: dict[tuple[str, str], np.ndarray] = {}
         for i, v in enumerate(self.variables):
-            key = (v.port, v.field) if v.kind == "port" else (v.kind, v.field)
+            # per-port variables (port fields and initial.<port>.d) by port name, the others by kind
+            key = (v.port, v.field) if v.port else (v.kind, v.field)
             self.index.setdefault(key, []).append(i)
         self.index = {k: np.array(ix, dtype=int) for k, ix in self.index.items()}
         self.by_name = {v.name: i for i, v in enumerate(self.variables)}
@@ -73,10 +80,12 @@ class BodyCoSim:
         self.output_ix = np.array([i for i in range(n) if self.causality[i] == "output"], dtype=int)
         self.mode = "instantiated"  # -> "initialization" -> "step"
         self.start_time = 0.0
+        self.stop_time: float | None = None  # fmi2SetupExperiment's stopTime when defined
         self.system: BodySystem | None = None
         self._system_params: tuple | None = None
         self._initialized_with: np.ndarray | None = None  # inputs + parameters used by the last initialize
         self.failure = ""  # set when initialization failed: every doStep then reports it
+        self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -92,13 +101,13 @@ class BodyCoSim:
         return self.values[vr]
 
     def set(self, vr: int, value: float) -> str:
-        """Set one input or parameter; returns a warning text when the call was ignored."""
+        """Set one input or parameter; returns why the call is refused ('' when done)."""
         c = self.causality[vr]
         name = self.variables[vr].name
         if c == "output":
-            return f"{name} is an output: setting it is ignored"
+            return f"{name} is an output: it cannot be set"
         if c == "parameter" and self.mode == "step":
-            return f"{name} is a fixed parameter: it cannot change after initialization (ignored)"
+            return f"{name} is a fixed parameter: it cannot change after initialization"
         self.values[vr] = value
         return ""
 
@@ -124,15 +133,33 @@ class BodyCoSim:
         }
 
     def _check_parameters(self, p: dict) -> str:
+        """Why the parameters cannot start a run ('' when they can): out of range (min/max of the
+        modelDescription), not finite, or implausible (a step longer than the experiment, initial
+        values on a part whose motion is driven, which the motion input would override)."""
         if not (p["step"] > 0.0 and math.isfinite(p["step"])):
             return f"parameter solver.step must be positive and finite, got {p['step']!r}"
+        span = None if self.stop_time is None else self.stop_time - self.start_time
+        if span is not None and span > 0.0 and p["step"] > span:
+            return (f"parameter solver.step = {p['step']:g} s is longer than the experiment "
+                    f"({self.start_time:g} s to {self.stop_time:g} s)")
         if not 0.0 <= p["rho_inf"] <= 1.0:
             return f"parameter solver.rho_inf must be in [0, 1], got {p['rho_inf']!r}"
-        if p["terms"] not in range(len(TERM_SETS)):
-            return f"parameter solver.terms must be 0 (linear) or 1 (gyroscopic), got {p['terms']!r}"
-        for key in ("gravity", "initial_velocity", "initial_angular_velocity"):
+        terms = float(self.values[self.index[("parameter", "terms")][0]])
+        if terms not in range(len(TERM_SETS)):
+            return f"parameter solver.terms must be 0 (linear) or 1 (gyroscopic), got {terms!r}"
+        named = {"gravity": "gravity", "initial_velocity": "initial.v", "initial_angular_velocity": "initial.w"}
+        for key, name in named.items():
             if not np.all(np.isfinite(p[key])):
-                return f"parameter {key} is not finite: {p[key]!r}"
+                return f"parameter {name} is not finite: {p[key].tolist()}"
+        for port, d in p["port_displacements"].items():
+            if not np.all(np.isfinite(d)):
+                return f"parameter initial.{port}.d is not finite: {d.tolist()}"
+        for key, part, field in (("initial_velocity", "translation", "v"), ("initial_angular_velocity", "rotation", "w")):
+            driven = [q.name for q in self.data.ports if getattr(q, part) == "motion"]
+            if driven and np.any(p[key] != 0.0):
+                return (f"parameter {named[key]} = {p[key].tolist()} is set, but the {part} of port {driven[0]} is "
+                        f"motion-driven: its input {driven[0]}.{field} gives the initial rigid "
+                        f"{'velocity' if field == 'v' else 'angular velocity'} (set that input instead)")
         return ""
 
     def _make_system(self) -> BodySystem:
@@ -194,8 +221,9 @@ class BodyCoSim:
         return inputs
 
     # ------------------------------------------------------------------ modes
-    def setup_experiment(self, start_time: float) -> None:
+    def setup_experiment(self, start_time: float, stop_time: float | None = None) -> None:
         self.start_time = float(start_time)
+        self.stop_time = None if stop_time is None else float(stop_time)
 
     def enter_initialization_mode(self) -> None:
         self.mode = "initialization"
@@ -226,7 +254,8 @@ class BodyCoSim:
             self.failure = f"initialization failed at t = {e.time:.6g} s: {e.cause}"
             return self.failure
         except Exception as e:  # noqa: BLE001 - reported to the host, never raised into it
-            self.failure = f"initialization failed at t = {self.start_time:.6g} s: {type(e).__name__}: {e}"
+            self.failure = (f"initialization failed at t = {self.start_time:.6g} s: {type(e).__name__}: {e}\n"
+                            f"{traceback.format_exc()}")
             return self.failure
         self._write_outputs(0)
         self._initialized_with = self.values[np.concatenate([self.input_ix, self.param_ix])].copy()
@@ -242,31 +271,51 @@ class BodyCoSim:
             self._initialize()
 
     def exit_initialization_mode(self) -> str:
+        """'' or the failure text (the slave returns fmi2Error with it logged)."""
         msg = self._initialize() if (self._inputs_changed() or self.failure) else ""
         self.mode = "step"
+        self.discarded = ""
         return msg
 
     # ------------------------------------------------------------------ stepping
     def do_step(self, t_c: float, H: float) -> StepReport:
+        """One communication step; never raises (see StepReport for what is Discard, what Error)."""
+        try:
+            report = self._do_step(t_c, H)
+        except Exception as e:  # noqa: BLE001 - a programming error: fmi2Error with the traceback
+            return StepReport(False, f"t = {t_c:.6g} s: {type(e).__name__}: {e}", traceback.format_exc(), status="error")
+        if report.status == "discard":
+            self.discarded = report.message
+        elif report.ok:
+            self.discarded = ""
+        return report
+
+    def _do_step(self, t_c: float, H: float) -> StepReport:
         if self.failure:
-            return StepReport(False, self.failure)
+            return StepReport(False, f"{self.failure} (doStep needs a successful initialization)", status="error")
         if self.mode != "step" or self.system is None:
-            return StepReport(False, f"t = {t_c:.6g} s: doStep before the end of initialization")
+            return StepReport(False, f"t = {t_c:.6g} s: doStep before the end of initialization", status="error")
         system = self.system
         h = float(self.values[self.index[("parameter", "step")][0]])
         t_end = t_c + H
         tol = 1e-9 * max(1.0, abs(t_c)) + 1e-6 * h
         if not (H > 0.0 and math.isfinite(H)):
-            return StepReport(False, f"t = {t_c:.6g} s: communication step must be positive and finite, got {H!r}")
+            return StepReport(False, f"t = {t_c:.6g} s: communication step must be positive and finite, got {H!r}",
+                              status="error")
         if abs(t_c - system.t) > tol:
+            if self.discarded:  # a master that ignored the discard: stop it instead of freezing silently
+                why = f"the step from t = {system.t:.9g} s was discarded ({self.discarded}) and the FMU stayed there"
+            else:
+                why = f"the FMU is at t = {system.t:.9g} s"
             return StepReport(
                 False,
-                f"t = {t_c:.6g} s: the FMU is at t = {system.t:.9g} s; doStep must start where the last step "
-                "ended (or restore a saved FMU state first)",
+                f"t = {t_c:.6g} s: {why}; doStep must start where the last successful step ended (retry from "
+                f"t = {system.t:.9g} s, or restore a saved FMU state first)",
+                status="error",
             )
         held, msg = self._held_inputs(t_c)
         if msg:
-            return StepReport(False, msg)
+            return StepReport(False, msg, status="discard")
         inputs = self.extrapolation(t_c, held)
         saved = system.get_state()
         worst = 0
@@ -283,10 +332,11 @@ class BodyCoSim:
             self._check_finite(system)
         except StepFailure as e:
             system.set_state(saved)
-            return StepReport(False, f"t = {e.time:.6g} s: {e.cause}")
-        except Exception as e:  # noqa: BLE001
+            return StepReport(False, f"t = {e.time:.6g} s: {e.cause}", status="discard")
+        except Exception as e:  # noqa: BLE001 - a programming error, not a numerical failure: fmi2Error
             system.set_state(saved)
-            return StepReport(False, f"t = {system.t:.6g} s: {type(e).__name__}: {e}", traceback.format_exc())
+            return StepReport(False, f"t = {t_c:.6g} s: {type(e).__name__}: {e}", traceback.format_exc(),
+                              status="error")
         self._write_outputs(worst)
         return StepReport(True, iterations=worst)
 
@@ -336,6 +386,7 @@ class BodyCoSim:
         self.mode = str(state["mode"])
         self.start_time = float(state["start_time"])
         self.failure = str(state["failure"])
+        self.discarded = ""  # a restored state is a fresh start from its time
         iw = state.get("initialized_with")
         self._initialized_with = None if iw is None else np.asarray(iw, dtype=float).copy()
         if state["system"] is None:

@@ -68,6 +68,8 @@ class Variable:
     port: str = ""
     field: str = ""  # port field (r R v w f t), energy key, or parameter key
     index: tuple[int, ...] = ()  # 0-based component
+    min: float | None = None  # declared min/max (FMI: inclusive); checked at initialization
+    max: float | None = None
 
 
 def port_field_causality(translation: str, rotation: str, field: str) -> str:
@@ -126,15 +128,18 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                  None, "solver", field="newton_iterations")
     )
     par = parameters
+    # solver.step declares no min: its bound (> 0) is exclusive, FMI's min is inclusive; it is
+    # checked at initialization (positive, finite, not longer than the experiment)
     out.append(Variable("solver.step", "Real", "parameter", "fixed", "s",
-                        "internal integrator step; the last internal step of a communication step is shortened "
-                        "to land on the communication point", float(par["step"]), "parameter", field="step"))
+                        "internal integrator step, > 0 and not longer than the experiment; a communication step "
+                        "is cut into equal internal steps of at most this length", float(par["step"]),
+                        "parameter", field="step"))
     out.append(Variable("solver.rho_inf", "Real", "parameter", "fixed", None,
                         "spectral radius at infinite frequency of generalized-alpha, in [0, 1]",
-                        float(par["rho_inf"]), "parameter", field="rho_inf"))
+                        float(par["rho_inf"]), "parameter", field="rho_inf", min=0.0, max=1.0))
     out.append(Variable("solver.terms", "Integer", "parameter", "fixed", None,
                         "term set of the body equations (Integer enumeration): 0 = linear, 1 = gyroscopic",
-                        TERM_SETS.index(par["terms"]), "parameter", field="terms"))
+                        TERM_SETS.index(par["terms"]), "parameter", field="terms", min=0, max=len(TERM_SETS) - 1))
     for i in range(3):
         out.append(Variable(f"gravity[{i + 1}]", "Real", "parameter", "fixed", "m/s2",
                             "uniform gravity acceleration, world axes", float(par["gravity"][i]), "parameter",
@@ -173,6 +178,10 @@ def patch_model_description(root: Element, variables: list[Variable]) -> Element
         if var.unit:
             typ.set("unit", var.unit)
             used_units.add(var.unit)
+        for key in ("min", "max"):
+            bound = getattr(var, key)
+            if bound is not None:
+                typ.set(key, repr(float(bound)) if var.type == "Real" else str(int(bound)))
     # UnitDefinitions come right after CoSimulation (FMI 2.0 schema order)
     units = Element("UnitDefinitions")
     for name in sorted(used_units):

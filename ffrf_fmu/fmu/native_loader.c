@@ -1,0 +1,367 @@
+/* Native entry point of a body FMU on Linux: binaries/linux64/<modelIdentifier>.so.
+ *
+ * pythonfmu's binary (shipped next to this one as <modelIdentifier>.pythonfmu.so) leaves every
+ * Py* symbol undefined: it works only in a process that already has libpython in its global
+ * symbol scope (a Python host such as fmpy), and crashes any other host (PythonFMU issue #202).
+ * This loader, compiled when the FMU is built, makes the FMU work in any FMI host:
+ *
+ *  1. On the first fmi2Instantiate, when the process has no Python (dlsym(RTLD_DEFAULT,
+ *     "Py_IsInitialized") finds nothing), it loads libpython with RTLD_GLOBAL: the path in
+ *     $FFRF_FMU_LIBPYTHON, else the one recorded at build time in resources/ffrf_libpython.txt.
+ *     RTLD_GLOBAL matters: numpy's and scipy's extension modules resolve Py* symbols in the
+ *     global scope. A process that already has Python keeps its own (one interpreter only).
+ *  2. It loads pythonfmu's binary (RTLD_NODELETE: numpy cannot be initialized twice in one
+ *     process, so the interpreter stays until the process exits) and forwards every fmi2 call.
+ *  3. pythonfmu returns only OK, Discard or Fatal, and Fatal leaves its instance with released
+ *     Python objects (the next call crashes). The slave never raises (slave_template.py); it logs
+ *     failures at status Error. The loader gives each instance its own logger callback, records
+ *     the worst status logged during a call and returns it when it is worse than the returned
+ *     status: a call that logged an Error returns fmi2Error. After a Fatal the instance accepts
+ *     no call but fmi2FreeInstance (which then leaks it rather than touching freed objects).
+ *  4. Messages of status Warning and worse always reach the host's logger (FMI 2.0: debug
+ *     logging switches only the debug messages); status-OK messages only with debug logging on.
+ *     A NULL category from pythonfmu becomes logStatusXxx.
+ *  5. The heap corruption at process exit (PythonFMU issue #228, "corrupted double-linked list"
+ *     under fmpy, "free(): corrupted unsorted chunks" in a C host) is pythonfmu's: its global
+ *     `std::shared_ptr<PyState> pyState` is destroyed by the exit handlers (__cxa_atexit), and
+ *     afterwards its __attribute__((destructor)) onLibraryUnload() assigns nullptr to the
+ *     destroyed shared_ptr, releasing the freed control block a second time (found with
+ *     valgrind: "Invalid read ... in finalizePythonInterpreter ... block free'd by
+ *     __run_exit_handlers"). An exit handler registered after pythonfmu's binary is loaded runs
+ *     before that static destructor: it calls pythonfmu's own finalizePythonInterpreter(), which
+ *     empties the shared_ptr in order (finalizing the interpreter when pythonfmu started it);
+ *     the later destructor and onLibraryUnload then find an empty pointer. This library is linked
+ *     with -z nodelete so that the handler's code is still there at exit.
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <limits.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* glibc 2.34 moved dl* into libc with a new symbol version; bind the old one so that the loader
+ * needs no newer glibc than pythonfmu's binary does (2.32) */
+#if defined(__x86_64__)
+__asm__(".symver dlopen,dlopen@GLIBC_2.2.5");
+__asm__(".symver dlsym,dlsym@GLIBC_2.2.5");
+__asm__(".symver dlerror,dlerror@GLIBC_2.2.5");
+__asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
+#endif
+
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef char fmi2Char;
+typedef const fmi2Char *fmi2String;
+typedef char fmi2Byte;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+typedef void *(*fmi2CallbackAllocateMemory)(size_t, size_t);
+typedef void (*fmi2CallbackFreeMemory)(void *);
+typedef void (*fmi2StepFinished)(fmi2ComponentEnvironment, fmi2Status);
+typedef struct {
+    fmi2CallbackLogger logger;
+    fmi2CallbackAllocateMemory allocateMemory;
+    fmi2CallbackFreeMemory freeMemory;
+    fmi2StepFinished stepFinished;
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+typedef struct {
+    fmi2Component real;            /* pythonfmu's instance */
+    fmi2CallbackFunctions own;     /* passed to pythonfmu: logger = log_relay, environment = this */
+    fmi2CallbackFunctions host;    /* the host's callbacks */
+    char *name;
+    int debug;                     /* the host's debug logging switch */
+    int dead;                      /* a Fatal happened: only fmi2FreeInstance */
+    fmi2Status worst;              /* worst status logged during the current call */
+} Instance;
+
+/* ------------------------------------------------------------------ the real library */
+#define REAL_FUNCTIONS(X)                                                                           \
+    X(fmi2Component, fmi2Instantiate, (fmi2String, fmi2Type, fmi2String, fmi2String,                \
+                                       const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))    \
+    X(void, fmi2FreeInstance, (fmi2Component))                                                      \
+    X(fmi2Status, fmi2SetDebugLogging, (fmi2Component, fmi2Boolean, size_t, const fmi2String[]))    \
+    X(fmi2Status, fmi2SetupExperiment, (fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real)) \
+    X(fmi2Status, fmi2EnterInitializationMode, (fmi2Component))                                     \
+    X(fmi2Status, fmi2ExitInitializationMode, (fmi2Component))                                      \
+    X(fmi2Status, fmi2Terminate, (fmi2Component))                                                   \
+    X(fmi2Status, fmi2Reset, (fmi2Component))                                                       \
+    X(fmi2Status, fmi2GetReal, (fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]))     \
+    X(fmi2Status, fmi2GetInteger, (fmi2Component, const fmi2ValueReference[], size_t, fmi2Integer[])) \
+    X(fmi2Status, fmi2GetBoolean, (fmi2Component, const fmi2ValueReference[], size_t, fmi2Boolean[])) \
+    X(fmi2Status, fmi2GetString, (fmi2Component, const fmi2ValueReference[], size_t, fmi2String[])) \
+    X(fmi2Status, fmi2SetReal, (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[])) \
+    X(fmi2Status, fmi2SetInteger, (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[])) \
+    X(fmi2Status, fmi2SetBoolean, (fmi2Component, const fmi2ValueReference[], size_t, const fmi2Boolean[])) \
+    X(fmi2Status, fmi2SetString, (fmi2Component, const fmi2ValueReference[], size_t, const fmi2String[])) \
+    X(fmi2Status, fmi2GetFMUstate, (fmi2Component, fmi2FMUstate *))                                 \
+    X(fmi2Status, fmi2SetFMUstate, (fmi2Component, fmi2FMUstate))                                   \
+    X(fmi2Status, fmi2FreeFMUstate, (fmi2Component, fmi2FMUstate *))                                \
+    X(fmi2Status, fmi2SerializedFMUstateSize, (fmi2Component, fmi2FMUstate, size_t *))              \
+    X(fmi2Status, fmi2SerializeFMUstate, (fmi2Component, fmi2FMUstate, fmi2Byte[], size_t))         \
+    X(fmi2Status, fmi2DeSerializeFMUstate, (fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *)) \
+    X(fmi2Status, fmi2GetDirectionalDerivative, (fmi2Component, const fmi2ValueReference[], size_t, \
+                                                 const fmi2ValueReference[], size_t, const fmi2Real[], fmi2Real[])) \
+    X(fmi2Status, fmi2SetRealInputDerivatives, (fmi2Component, const fmi2ValueReference[], size_t,  \
+                                                const fmi2Integer[], const fmi2Real[]))             \
+    X(fmi2Status, fmi2GetRealOutputDerivatives, (fmi2Component, const fmi2ValueReference[], size_t, \
+                                                 const fmi2Integer[], fmi2Real[]))                  \
+    X(fmi2Status, fmi2DoStep, (fmi2Component, fmi2Real, fmi2Real, fmi2Boolean))                     \
+    X(fmi2Status, fmi2CancelStep, (fmi2Component))                                                  \
+    X(fmi2Status, fmi2GetStatus, (fmi2Component, const fmi2StatusKind, fmi2Status *))               \
+    X(fmi2Status, fmi2GetRealStatus, (fmi2Component, const fmi2StatusKind, fmi2Real *))             \
+    X(fmi2Status, fmi2GetIntegerStatus, (fmi2Component, const fmi2StatusKind, fmi2Integer *))       \
+    X(fmi2Status, fmi2GetBooleanStatus, (fmi2Component, const fmi2StatusKind, fmi2Boolean *))       \
+    X(fmi2Status, fmi2GetStringStatus, (fmi2Component, const fmi2StatusKind, fmi2String *))
+
+#define DECLARE(ret, name, args) static ret(*real_##name) args;
+REAL_FUNCTIONS(DECLARE)
+
+static void (*real_finalize)(void);
+static void finalize_in_order(void) { real_finalize(); }
+
+static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static int loaded = 0;
+static char load_error[4 * PATH_MAX];
+
+static const char *status_category(fmi2Status s)
+{
+    static const char *names[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
+                                  "logStatusError", "logStatusFatal", "logStatusPending"};
+    return (s >= fmi2OK && s <= fmi2Pending) ? names[s] : "logAll";
+}
+
+/* directory of this shared object (binaries/linux64), without the trailing slash */
+static int own_directory(char *out, size_t size)
+{
+    Dl_info info;
+    if (!dladdr((void *)&own_directory, &info) || !info.dli_fname) return 0;
+    char resolved[PATH_MAX];
+    if (!realpath(info.dli_fname, resolved)) return 0;
+    char *slash = strrchr(resolved, '/');
+    if (!slash) return 0;
+    *slash = '\0';
+    return snprintf(out, size, "%s", resolved) < (int)size;
+}
+
+static int load_real(void)
+{
+    char dir[PATH_MAX], path[3 * PATH_MAX];
+    if (!own_directory(dir, sizeof dir)) {
+        snprintf(load_error, sizeof load_error, "ffrf-fmu loader: cannot find its own directory");
+        return 0;
+    }
+    if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
+        char libpython[PATH_MAX] = "";
+        const char *env = getenv("FFRF_FMU_LIBPYTHON");
+        if (env && *env) {
+            snprintf(libpython, sizeof libpython, "%s", env);
+        } else {
+            snprintf(path, sizeof path, "%s/../../resources/ffrf_libpython.txt", dir);
+            FILE *f = fopen(path, "r");
+            if (f) {
+                if (fgets(libpython, sizeof libpython, f)) libpython[strcspn(libpython, "\r\n")] = '\0';
+                fclose(f);
+            }
+        }
+        if (!*libpython) {
+            snprintf(load_error, sizeof load_error,
+                     "ffrf-fmu loader: this process has no Python and the FMU records no libpython: set "
+                     "FFRF_FMU_LIBPYTHON to a libpython3.x.so.1.0 with numpy and scipy installed");
+            return 0;
+        }
+        if (!dlopen(libpython, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE)) {
+            snprintf(load_error, sizeof load_error,
+                     "ffrf-fmu loader: cannot load libpython (%s; set FFRF_FMU_LIBPYTHON to override): %s",
+                     libpython, dlerror());
+            return 0;
+        }
+    }
+    const char *self = NULL;
+    {
+        Dl_info info;
+        if (dladdr((void *)&own_directory, &info)) self = strrchr(info.dli_fname, '/');
+    }
+    char stem[PATH_MAX];
+    snprintf(stem, sizeof stem, "%s", self ? self + 1 : "");
+    char *dot = strrchr(stem, '.');
+    if (dot) *dot = '\0';
+    snprintf(path, sizeof path, "%s/%s.pythonfmu.so", dir, stem);
+    void *real = dlopen(path, RTLD_NOW | RTLD_LOCAL | RTLD_NODELETE);
+    if (!real) {
+        snprintf(load_error, sizeof load_error, "ffrf-fmu loader: cannot load pythonfmu's binary: %s", dlerror());
+        return 0;
+    }
+#define RESOLVE(ret, name, args)                                                                    \
+    real_##name = (ret(*) args)dlsym(real, #name);                                                  \
+    if (!real_##name) {                                                                             \
+        snprintf(load_error, sizeof load_error, "ffrf-fmu loader: %s lacks %s", path, #name);       \
+        return 0;                                                                                   \
+    }
+    REAL_FUNCTIONS(RESOLVE)
+    real_finalize = (void (*)(void))dlsym(real, "finalizePythonInterpreter");
+    if (real_finalize) atexit(finalize_in_order);
+    return 1;
+}
+
+/* ------------------------------------------------------------------ logging */
+static void log_relay(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                      fmi2String message, ...)
+{
+    Instance *inst = (Instance *)env;
+    if (!inst) return;
+    if (status > inst->worst && status <= fmi2Fatal) inst->worst = status;
+    if (!inst->host.logger || (status == fmi2OK && !inst->debug)) return;
+    /* the message is passed as an argument, never as a format */
+    inst->host.logger(inst->host.componentEnvironment, name ? name : inst->name, status,
+                      category ? category : status_category(status), "%s", message ? message : "");
+}
+
+static void say(Instance *inst, fmi2Status status, const char *fmt, const char *arg)
+{
+    if (inst && inst->host.logger) {
+        char text[PATH_MAX + 1024];
+        snprintf(text, sizeof text, fmt, arg);
+        inst->host.logger(inst->host.componentEnvironment, inst->name, status, status_category(status), "%s", text);
+    }
+}
+
+/* ------------------------------------------------------------------ forwarding */
+static fmi2Status finish(Instance *inst, fmi2Status s)
+{
+    if (inst->worst > s && inst->worst <= fmi2Fatal) s = inst->worst;
+    if (s == fmi2Fatal) inst->dead = 1;
+    return s;
+}
+
+#define ENTER(c, fname)                                                                              \
+    Instance *inst = (Instance *)(c);                                                               \
+    if (!inst) return fmi2Error;                                                                    \
+    if (inst->dead) {                                                                               \
+        say(inst, fmi2Error, "%s: refused: this instance had a fatal error earlier; only fmi2FreeInstance " \
+            "is allowed", fname);                                                                   \
+        return fmi2Error;                                                                           \
+    }                                                                                               \
+    inst->worst = fmi2OK;
+
+#define FORWARD(name, params, args)                                                                 \
+    EXPORT fmi2Status name params                                                                   \
+    {                                                                                               \
+        ENTER(c, #name)                                                                             \
+        return finish(inst, real_##name args);                                                      \
+    }
+
+EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
+EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                     fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    Instance *inst = calloc(1, sizeof *inst);
+    if (!inst) return NULL;
+    if (functions) inst->host = *functions;
+    inst->name = strdup(instanceName ? instanceName : "");
+    inst->debug = loggingOn ? 1 : 0;
+    pthread_mutex_lock(&load_lock);
+    if (!loaded) loaded = load_real() ? 1 : -1;
+    int ok = loaded == 1;
+    pthread_mutex_unlock(&load_lock);
+    if (!ok) {
+        say(inst, fmi2Fatal, "%s", load_error);
+        free(inst->name);
+        free(inst);
+        return NULL;
+    }
+    inst->own = inst->host;
+    inst->own.logger = log_relay;
+    inst->own.componentEnvironment = inst;
+    /* pythonfmu always logs to the relay, which applies the host's switch */
+    inst->real = real_fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &inst->own, visible,
+                                      1);
+    if (!inst->real) {
+        free(inst->name);
+        free(inst);
+        return NULL;
+    }
+    return inst;
+}
+
+EXPORT void fmi2FreeInstance(fmi2Component c)
+{
+    Instance *inst = (Instance *)c;
+    if (!inst) return;
+    if (!inst->dead) real_fmi2FreeInstance(inst->real);
+    free(inst->name);
+    free(inst);
+}
+
+EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                                      const fmi2String categories[])
+{
+    ENTER(c, "fmi2SetDebugLogging")
+    (void)nCategories;
+    (void)categories;
+    inst->debug = loggingOn ? 1 : 0;
+    return fmi2OK;
+}
+
+FORWARD(fmi2SetupExperiment, (fmi2Component c, fmi2Boolean td, fmi2Real tol, fmi2Real t0, fmi2Boolean sd, fmi2Real t1),
+        (inst->real, td, tol, t0, sd, t1))
+FORWARD(fmi2EnterInitializationMode, (fmi2Component c), (inst->real))
+FORWARD(fmi2ExitInitializationMode, (fmi2Component c), (inst->real))
+FORWARD(fmi2Terminate, (fmi2Component c), (inst->real))
+FORWARD(fmi2Reset, (fmi2Component c), (inst->real))
+FORWARD(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (inst->real, vr, n, v))
+FORWARD(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]),
+        (inst->real, vr, n, v))
+FORWARD(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *s), (inst->real, s))
+FORWARD(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate s), (inst->real, s))
+FORWARD(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *s), (inst->real, s))
+FORWARD(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate s, size_t *n), (inst->real, s, n))
+FORWARD(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n), (inst->real, s, b, n))
+FORWARD(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s),
+        (inst->real, b, n, s))
+FORWARD(fmi2GetDirectionalDerivative,
+        (fmi2Component c, const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[], size_t nz,
+         const fmi2Real dv[], fmi2Real df[]),
+        (inst->real, u, nu, z, nz, dv, df))
+FORWARD(fmi2SetRealInputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real v[]),
+        (inst->real, vr, n, order, v))
+FORWARD(fmi2GetRealOutputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real v[]),
+        (inst->real, vr, n, order, v))
+FORWARD(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean keep), (inst->real, t, h, keep))
+FORWARD(fmi2CancelStep, (fmi2Component c), (inst->real))
+FORWARD(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Status *v), (inst->real, k, v))
+FORWARD(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Real *v), (inst->real, k, v))
+FORWARD(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *v), (inst->real, k, v))
+FORWARD(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v), (inst->real, k, v))
+FORWARD(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind k, fmi2String *v), (inst->real, k, v))

@@ -1,0 +1,133 @@
+/* A minimal FMI 2.0 co-simulation host with no Python in it (tests/test_native_host.py compiles it).
+ *
+ *   fmi2_host run  BINARY RESOURCE_URI GUID STEPS H INSTANCES CYCLES VR_IN VALUE VR_OUT...
+ *       CYCLES times: instantiate INSTANCES instances, set VR_IN = VALUE in initialization mode,
+ *       take STEPS doSteps of H, print "cycle instance value..." of VR_OUT (%.17g), free them all.
+ *       Then dlclose and return 0: a crash at free, unload or exit shows in the exit status.
+ *   fmi2_host faults BINARY RESOURCE_URI GUID VR_REAL VR_INT VR_BAD_PARAM BAD_VALUE
+ *       Each bad call twice on one instance, printing "call status" lines, then free and unload.
+ */
+#include <dlfcn.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef void *fmi2Component;
+typedef unsigned int fmi2ValueReference;
+typedef int fmi2Status;
+typedef void (*Logger)(void *, const char *, fmi2Status, const char *, const char *, ...);
+typedef struct {
+    Logger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void *stepFinished;
+    void *componentEnvironment;
+} Callbacks;
+
+typedef fmi2Component (*Instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int);
+typedef void (*FreeInstance)(fmi2Component);
+typedef fmi2Status (*Setup)(fmi2Component, int, double, double, int, double);
+typedef fmi2Status (*Mode)(fmi2Component);
+typedef fmi2Status (*SetReal)(fmi2Component, const fmi2ValueReference *, size_t, const double *);
+typedef fmi2Status (*GetReal)(fmi2Component, const fmi2ValueReference *, size_t, double *);
+typedef fmi2Status (*SetInteger)(fmi2Component, const fmi2ValueReference *, size_t, const int *);
+typedef fmi2Status (*DoStep)(fmi2Component, double, double, int);
+
+static void logger(void *env, const char *name, fmi2Status status, const char *category, const char *fmt, ...)
+{
+    (void)env;
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "[%s] status %d %s: ", name, status, category ? category : "(null category)");
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, "\n");
+    va_end(ap);
+}
+
+static void *sym(void *lib, const char *name)
+{
+    void *f = dlsym(lib, name);
+    if (!f) {
+        fprintf(stderr, "missing %s\n", name);
+        exit(3);
+    }
+    return f;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 5) return 2;
+    void *lib = dlopen(argv[2], RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        fprintf(stderr, "dlopen: %s\n", dlerror());
+        return 4;
+    }
+    Instantiate instantiate = (Instantiate)sym(lib, "fmi2Instantiate");
+    FreeInstance freeInstance = (FreeInstance)sym(lib, "fmi2FreeInstance");
+    Setup setup = (Setup)sym(lib, "fmi2SetupExperiment");
+    Mode enter = (Mode)sym(lib, "fmi2EnterInitializationMode");
+    Mode leave = (Mode)sym(lib, "fmi2ExitInitializationMode");
+    SetReal setReal = (SetReal)sym(lib, "fmi2SetReal");
+    GetReal getReal = (GetReal)sym(lib, "fmi2GetReal");
+    SetInteger setInteger = (SetInteger)sym(lib, "fmi2SetInteger");
+    DoStep doStep = (DoStep)sym(lib, "fmi2DoStep");
+    Callbacks cb = {logger, calloc, free, NULL, NULL};
+    const char *uri = argv[3], *guid = argv[4];
+
+    if (strcmp(argv[1], "run") == 0) {
+        int steps = atoi(argv[5]), n = atoi(argv[7]), cycles = atoi(argv[8]);
+        double H = atof(argv[6]);
+        fmi2ValueReference vr_in = (fmi2ValueReference)atoi(argv[9]);
+        double value = atof(argv[10]);
+        int n_out = argc - 11;
+        fmi2ValueReference *vr_out = calloc((size_t)n_out, sizeof *vr_out);
+        double *out = calloc((size_t)n_out, sizeof *out);
+        for (int i = 0; i < n_out; i++) vr_out[i] = (fmi2ValueReference)atoi(argv[11 + i]);
+        fmi2Component c[8];
+        for (int cycle = 0; cycle < cycles; cycle++) {
+            for (int k = 0; k < n; k++) {
+                char name[32];
+                snprintf(name, sizeof name, "body%d", k);
+                c[k] = instantiate(name, 1, guid, uri, &cb, 0, 0);
+                if (!c[k]) return 5;
+                if (setup(c[k], 0, 0.0, 0.0, 0, 0.0) || enter(c[k]) || setReal(c[k], &vr_in, 1, &value) || leave(c[k]))
+                    return 6;
+            }
+            for (int s = 0; s < steps; s++)
+                for (int k = 0; k < n; k++)
+                    if (doStep(c[k], s * H, H, 1)) return 7;
+            for (int k = 0; k < n; k++) {
+                if (getReal(c[k], vr_out, (size_t)n_out, out)) return 8;
+                printf("%d %d", cycle, k);
+                for (int i = 0; i < n_out; i++) printf(" %.17g", out[i]);
+                printf("\n");
+            }
+            for (int k = 0; k < n; k++) freeInstance(c[k]);
+        }
+        free(vr_out);
+        free(out);
+    } else if (strcmp(argv[1], "faults") == 0) {
+        fmi2ValueReference vr_real = (fmi2ValueReference)atoi(argv[5]), vr_int = (fmi2ValueReference)atoi(argv[6]);
+        fmi2ValueReference vr_bad = (fmi2ValueReference)atoi(argv[7]);
+        double bad = atof(argv[8]), x = 0.0;
+        fmi2ValueReference unknown = 1000000;
+        int i1 = 1;
+        fmi2Component c = instantiate("faulty", 1, guid, uri, &cb, 0, 0);
+        if (!c) return 5;
+        for (int rep = 0; rep < 2; rep++) {
+            printf("getReal_unknown %d\n", getReal(c, &unknown, 1, &x));
+            printf("setInteger_on_real %d\n", setInteger(c, &vr_real, 1, &i1));
+            printf("getReal_on_integer %d\n", getReal(c, &vr_int, 1, &x));
+            printf("doStep_before_init %d\n", doStep(c, 0.0, 0.01, 1));
+        }
+        setup(c, 0, 0.0, 0.0, 0, 0.0);
+        enter(c);
+        setReal(c, &vr_bad, 1, &bad);
+        for (int rep = 0; rep < 2; rep++) printf("exitInit_bad_parameter %d\n", leave(c));
+        for (int rep = 0; rep < 2; rep++) printf("doStep_after_failed_init %d\n", doStep(c, 0.0, 0.01, 1));
+        freeInstance(c);
+    }
+    if (dlclose(lib)) return 9;
+    return 0;
+}

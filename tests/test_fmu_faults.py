@@ -1,0 +1,212 @@
+"""Body FMU fault paths per FMI 2.0 (issue 12 item 4, issue 14 item 5) and initial port
+displacements inside the FMU (issue 12 item 3), under fmpy in this process.
+
+fmi2Discard is for numerical failures the master can recover from (the FMU stays at t_c);
+fmi2Error for everything else, with the cause in the log; never fmi2Fatal, never a crash: each
+bad call is made twice and the instance is freed afterwards.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
+
+from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.master import FmuInstance
+from ffrf_fmu.validate import validate
+
+DISCARD, ERROR = 2, 3
+
+MODEL = """
+[body]
+name = "fault_beam"
+length = 8.0
+superelements = 2
+elements_per_superelement = 4
+modes = 2
+[body.section]
+EA = 5.03e6
+GA2 = 1.94e6
+GA3 = 1.94e6
+GJ = 435.38
+EI2 = 566.0
+EI3 = 566.0
+m = 0.201
+m22 = 22.7e-6
+m33 = 22.7e-6
+[body.ports.hub]
+node = 0
+translation = "motion"
+rotation = "motion"
+[body.ports.tip]
+node = -1
+
+[scenes.still]
+duration = 0.2
+step = 0.01
+
+[scenes.bent]
+duration = 0.2
+step = 0.01
+[scenes.bent.initial]
+port_displacements.tip = [0.0, 0.01, 0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    path = tmp_path_factory.mktemp("faults") / "fault_beam.toml"
+    path.write_text(MODEL)
+    return path
+
+
+@pytest.fixture(scope="module")
+def fmu(model):
+    return build_from_model(model, model.parent / "still.fmu", scene="still")
+
+
+class Slave:
+    """An FmuInstance (master.py: per-instance log) with value references by name."""
+
+    def __init__(self, path):
+        self.inst = FmuInstance("body", path)
+        self.fmu = self.inst.fmu
+        self.log = self.inst.messages
+        self.vr = {n: v.valueReference for n, v in self.inst.vars.items()}
+
+    def status(self, call, *args) -> int:
+        """The fmi2Status of a call (0 when fmpy did not raise)."""
+        try:
+            call(*args)
+        except FMICallException as e:
+            return e.status
+        return 0
+
+    def start(self, values=None, stop=None):
+        f = self.fmu
+        f.setupExperiment(startTime=0.0, stopTime=stop)
+        f.enterInitializationMode()
+        for name, value in (values or {}).items():
+            (f.setInteger if name == "solver.terms" else f.setReal)([self.vr[name]], [value])
+        return self.status(f.exitInitializationMode)
+
+    def close(self):
+        self.inst.close()
+
+
+@pytest.mark.parametrize("values, stop, cause", [
+    ({"solver.rho_inf": 2.0}, None, "solver.rho_inf must be in [0, 1], got 2.0"),
+    ({"solver.step": 0.0}, None, "solver.step must be positive and finite, got 0.0"),
+    ({"solver.terms": 7}, None, "solver.terms must be 0 (linear) or 1 (gyroscopic), got 7"),
+    ({"solver.step": 1e9}, 0.2, "solver.step = 1e+09 s is longer than the experiment"),
+    ({"initial.v[1]": 0.5}, None, "initial.v = [0.5, 0.0, 0.0] is set, but the translation of port hub is motion-driven"),
+    ({"initial.w[3]": 1.0}, None, "initial.w = [0.0, 0.0, 1.0] is set, but the rotation of port hub is motion-driven"),
+    ({"initial.tip.d[2]": math.nan}, None, "initial.tip.d is not finite"),
+])
+def test_invalid_parameters_make_exit_initialization_an_error(fmu, values, stop, cause):
+    s = Slave(fmu)
+    try:
+        assert s.start(values, stop) == ERROR
+        assert any(st == ERROR and cause in msg for st, _, msg in s.log), s.log
+        for _ in range(2):  # every doStep is then an error naming the cause, not a silent discard
+            s.log.clear()
+            assert s.status(s.fmu.doStep, 0.0, 0.01) == ERROR
+            assert any(st == ERROR and cause in msg for st, _, msg in s.log), s.log
+    finally:
+        s.close()
+
+
+def test_parameters_declare_min_and_max(fmu):
+    md = read_model_description(str(fmu))
+    by = {v.name: v for v in md.modelVariables}
+    assert (float(by["solver.rho_inf"].min), float(by["solver.rho_inf"].max)) == (0.0, 1.0)
+    assert (int(by["solver.terms"].min), int(by["solver.terms"].max)) == (0, 1)
+
+
+def test_bad_calls_are_errors_twice_and_the_instance_survives(fmu):
+    """Unknown value references and calls of the wrong type: fmi2Error (pythonfmu alone gave
+    fmi2Fatal with a NULL log category, and the second call crashed the host)."""
+    s = Slave(fmu)
+    try:
+        real, integer = s.vr["tip.f[3]"], s.vr["solver.terms"]
+        calls = [
+            (s.fmu.getReal, [10**6], "unknown value reference(s) [1000000]"),
+            (s.fmu.setReal, [10**6], [1.0], "unknown value reference(s) [1000000]"),
+            (s.fmu.setInteger, [real], [1], "tip.f[3]: Real) are not Integer"),
+            (s.fmu.getReal, [integer], "solver.terms: Integer) are not Real"),
+            (s.fmu.getInteger, [real], "tip.f[3]: Real) are not Integer"),
+            (s.fmu.setReal, [s.vr["tip.r[1]"]], [1.0], "tip.r[1] is an output: it cannot be set"),
+        ]
+        for call, *args, cause in calls:
+            for _ in range(2):
+                s.log.clear()
+                assert s.status(call, *args) == ERROR
+                assert [(st, cat) for st, cat, _ in s.log] == [(ERROR, "logStatusError")], s.log
+                assert cause in s.log[0][2]
+        assert s.start({"tip.f[3]": 1.0}) == 0  # the instance still works
+        s.fmu.doStep(0.0, 0.01)
+        assert s.fmu.getReal([s.vr["tip.r[3]"]])[0] > 0.0  # pushed up by the tip force
+    finally:
+        s.close()
+
+
+def test_stepping_on_after_a_discard_is_an_error_naming_it(fmu):
+    """A master that ignores fmi2Discard and steps on gets fmi2Error with the earlier failure in the
+    log (ecos kept advancing, and the body stayed frozen without a further word)."""
+    s = Slave(fmu)
+    try:
+        assert s.start() == 0
+        s.fmu.doStep(0.0, 0.01)
+        s.fmu.setReal([s.vr["tip.f[2]"]], [math.nan])
+        assert s.status(s.fmu.doStep, 0.01, 0.01) == DISCARD
+        for _ in range(2):
+            s.log.clear()
+            assert s.status(s.fmu.doStep, 0.02, 0.01) == ERROR
+            (st, _, msg), = s.log
+            assert st == ERROR and "discarded" in msg and "tip.f[2] not finite" in msg and "retry from t = 0.01" in msg
+        s.fmu.setReal([s.vr["tip.f[2]"]], [0.0])  # the recovery the discard allows still works
+        s.fmu.doStep(0.01, 0.01)
+    finally:
+        s.close()
+
+
+def test_programming_error_inside_the_step_is_an_error_with_its_traceback(fmu):
+    """Discard only for numerical failures: an exception that is not a StepFailure (here a
+    TypeError planted in the FMU's own copy of the runtime) is fmi2Error with the traceback."""
+    s = Slave(fmu)
+    try:
+        assert s.start() == 0
+        pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.system"))
+        system_cls = sys.modules[pkg].BodySystem
+
+        def broken(self, *args, **kwargs):
+            raise TypeError("planted bug")
+
+        original = system_cls.step
+        system_cls.step = broken
+        try:
+            s.log.clear()
+            assert s.status(s.fmu.doStep, 0.0, 0.01) == ERROR
+        finally:
+            system_cls.step = original
+        (st, cat, msg), = s.log
+        assert st == ERROR and "TypeError: planted bug" in msg and "Traceback (most recent call last)" in msg
+    finally:
+        s.close()
+
+
+def test_initial_port_displacement_reaches_the_fmu(model, tmp_path):
+    """initial.tip.d was dead inside the FMU (every group BAD, tip.r off by 0.01): the FMU built
+    from a scene with a tip displacement now equals the standalone run. Hub at rest and no loads:
+    the held inputs are exact, so the runs agree to the Newton tolerance (rtol 1e-7)."""
+    rep = validate(model, scene="bent", report_dir=tmp_path / "rep", plots=False)
+    assert rep["passed"] and rep["fmu_reached_stop_time"], rep["groups"]
+    for g, d in rep["groups"].items():
+        assert d["max_rel_diff"] < 1e-7, (g, d)
+    # the displacement is there: the tip starts 0.01 m off its reference y (the run releases it)
+    assert rep["groups"]["tip.r"]["scale"] > 0.0
+    assert np.isfinite(rep["groups"]["tip.r"]["max_abs_diff"])

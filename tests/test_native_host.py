@@ -1,0 +1,119 @@
+"""A body FMU in a host with no Python in it (issue 12 item 1): tests/fmi2_host.c, compiled here
+with the system C compiler, dlopens the FMU's binary without LD_PRELOAD, steps it, frees it,
+dlcloses it and exits. pythonfmu's binary alone has undefined Py* symbols (PythonFMU issue #202)
+and corrupts the heap at exit (PythonFMU issue #228); the FMU's native loader
+(ffrf_fmu/fmu/native_loader.c) handles both. The numbers must be bit-identical to fmpy's run of the
+same FMU with the same calls.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from ffrf_fmu.fmu.builder import build_from_model
+
+ROOT = Path(__file__).resolve().parent.parent
+CC = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+pytestmark = [
+    pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the native loader is built on Linux only"),
+    pytest.mark.skipif(CC is None, reason="no C compiler: the C host cannot be built (the FMU builder also needs one "
+                                          "for the native loader)"),
+]
+OUTPUTS = ["tip.r[1]", "tip.r[2]", "tip.r[3]", "tip.v[3]", "hub.f[3]", "hub.t[2]", "energy.strain"]
+FORCE = 1.0  # N on tip.f[3] from initialization on: the B1 beam bends under it while the hub holds still
+
+
+@pytest.fixture(scope="module")
+def b1(tmp_path_factory):
+    """The B1 FMU (models/haug_beam.toml, spinup: 4 superelements, 6 modes, h = 2 ms), unzipped,
+    and the compiled host."""
+    d = tmp_path_factory.mktemp("native")
+    fmu = build_from_model(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup")
+    unzip = Path(extract(str(fmu), str(d / "B1")))
+    host = d / "fmi2_host"
+    done = subprocess.run([CC, "-O1", "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    md = read_model_description(str(fmu))
+    return fmu, unzip, host, md
+
+
+def _host(b1, *args):
+    fmu, unzip, host, md = b1
+    binary = unzip / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME")}
+    return subprocess.run([str(host), args[0], str(binary), (unzip / "resources").as_uri(), md.guid, *map(str, args[1:])],
+                          capture_output=True, text=True, timeout=600, env=env)
+
+
+def _vr(md, names):
+    by = {v.name: v.valueReference for v in md.modelVariables}
+    return [by[n] for n in names]
+
+
+def _fmpy_run(b1, steps, H):
+    fmu, unzip, host, md = b1
+    s = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip), modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="fmpy")
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.setReal(_vr(md, ["tip.f[3]"]), [FORCE])
+    s.exitInitializationMode()
+    for k in range(steps):
+        s.doStep(k * H, H)
+    out = s.getReal(_vr(md, OUTPUTS))
+    s.terminate()
+    s.freeInstance()
+    return np.array(out)
+
+
+def _parse(stdout):
+    return {(int(c), int(k)): np.array([float(x) for x in rest]) for c, k, *rest in (ln.split() for ln in stdout.splitlines())}
+
+
+def test_b1_runs_1s_in_a_c_host_bit_identical_to_fmpy(b1):
+    fmu, unzip, host, md = b1
+    H, steps = 2e-3, 500  # 1 s at the scene's step
+    done = _host(b1, "run", steps, H, 1, 1, _vr(md, ["tip.f[3]"])[0], FORCE, *_vr(md, OUTPUTS))
+    assert done.returncode == 0, f"exit status {done.returncode}\n{done.stderr[-3000:]}"  # 134 before: heap corruption
+    got = _parse(done.stdout)[(0, 0)]
+    ref = _fmpy_run(b1, steps, H)
+    assert got[2] > 1e-3  # the tip moved under the load: the comparison means something
+    assert np.array_equal(got, ref), (got, ref)
+
+
+def test_two_instances_and_instantiate_free_instantiate_in_a_c_host(b1):
+    """Two instances side by side, freed and instantiated again (3 cycles) in one process: every
+    instance gives fmpy's numbers, and the process exits with status 0 after dlclose."""
+    fmu, unzip, host, md = b1
+    H, steps = 2e-3, 25
+    done = _host(b1, "run", steps, H, 2, 3, _vr(md, ["tip.f[3]"])[0], FORCE, *_vr(md, OUTPUTS))
+    assert done.returncode == 0, f"exit status {done.returncode}\n{done.stderr[-3000:]}"
+    got = _parse(done.stdout)
+    ref = _fmpy_run(b1, steps, H)
+    assert sorted(got) == [(c, k) for c in range(3) for k in range(2)]
+    for key, values in got.items():
+        assert np.array_equal(values, ref), key
+
+
+def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
+    """Each bad call twice, then free and unload: fmi2Error every time (3), logged with a category
+    (pythonfmu alone: fmi2Fatal with a NULL category, then a segfault on the second call)."""
+    fmu, unzip, host, md = b1
+    real, integer, rho = _vr(md, ["tip.f[3]", "solver.terms", "solver.rho_inf"])
+    done = _host(b1, "faults", real, integer, rho, 2.0)
+    assert done.returncode == 0, f"exit status {done.returncode}\n{done.stderr[-3000:]}"
+    lines = [ln.split() for ln in done.stdout.splitlines()]
+    assert len(lines) == 12 and all(status == "3" for _, status in lines), done.stdout
+    assert "(null category)" not in done.stderr
+    assert "solver.rho_inf must be in [0, 1], got 2.0" in done.stderr
+    assert "unknown value reference(s) [1000000]" in done.stderr
