@@ -9,14 +9,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import sys
 
-# The body's matrices are a few hundred rows: BLAS threads cost more than they save (an LU of
-# 174 x 174 took 11 ms with two OpenBLAS threads, 1.6 ms with one). Set before numpy loads; a
-# value the user exported wins.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# BLAS threads: pinned to one when the package is imported (ffrf_fmu/__init__.py)
 from typing import Callable, Sequence
 
 from .model import Model, ModelError, Scene, effective_ports, load_model

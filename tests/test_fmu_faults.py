@@ -1,5 +1,6 @@
 """Body FMU fault paths per FMI 2.0 (issue 12 item 4, issue 14 item 5) and initial port
-displacements inside the FMU (issue 12 item 3), under fmpy in this process.
+displacements inside the FMU (issue 12 item 3) and its BLAS thread limit (item 2), under fmpy in
+this process.
 
 fmi2Discard is for numerical failures the master can recover from (the FMU stays at t_c);
 fmi2Error for everything else, with the cause in the log; never fmi2Fatal, never a crash: each
@@ -174,25 +175,22 @@ def test_stepping_on_after_a_discard_is_an_error_naming_it(fmu):
         s.close()
 
 
-def test_programming_error_inside_the_step_is_an_error_with_its_traceback(fmu):
+def test_programming_error_inside_the_step_is_an_error_with_its_traceback(fmu, monkeypatch):
     """Discard only for numerical failures: an exception that is not a StepFailure (here a
     TypeError planted in the FMU's own copy of the runtime) is fmi2Error with the traceback."""
     s = Slave(fmu)
     try:
         assert s.start() == 0
-        pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.system"))
+        pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.body"))
         system_cls = sys.modules[pkg].BodySystem
 
         def broken(self, *args, **kwargs):
             raise TypeError("planted bug")
 
-        original = system_cls.step
-        system_cls.step = broken
-        try:
-            s.log.clear()
-            assert s.status(s.fmu.doStep, 0.0, 0.01) == ERROR
-        finally:
-            system_cls.step = original
+        monkeypatch.setattr(system_cls, "step", broken)
+        s.log.clear()
+        assert s.status(s.fmu.doStep, 0.0, 0.01) == ERROR
+        monkeypatch.undo()
         (st, cat, msg), = s.log
         assert st == ERROR and "TypeError: planted bug" in msg and "Traceback (most recent call last)" in msg
     finally:
@@ -210,3 +208,39 @@ def test_initial_port_displacement_reaches_the_fmu(model, tmp_path):
     # the displacement is there: the tip starts 0.01 m off its reference y (the run releases it)
     assert rep["groups"]["tip.r"]["scale"] > 0.0
     assert np.isfinite(rep["groups"]["tip.r"]["max_abs_diff"])
+
+
+def test_fmu_limits_blas_to_one_thread_during_its_calls_only(fmu, monkeypatch):
+    """BLAS threads (issue 12 item 2): one thread while the FMU steps (threadpoolctl, scoped), the
+    host's own setting (here 2 threads) before and after the call."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    blas_threads = lambda: {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    s = Slave(fmu)
+    try:
+        assert s.start() == 0
+        pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.body"))
+        system_cls = sys.modules[pkg].BodySystem
+        seen = []
+        original = system_cls.step
+
+        def recording(self, *args, **kwargs):
+            seen.append(blas_threads())
+            return original(self, *args, **kwargs)
+
+        monkeypatch.setattr(system_cls, "step", recording)
+        with threadpool_limits(limits=2, user_api="blas"):
+            assert blas_threads() == {2}
+            s.fmu.doStep(0.0, 0.02)
+            assert blas_threads() == {2}
+        assert seen == [{1}, {1}]  # two internal steps of solver.step = 0.01
+    finally:
+        s.close()
+
+
+def test_shipped_modules_may_import_threadpoolctl_only_when_guarded():
+    from ffrf_fmu.fmu.builder import BuildError, check_shipped_imports
+
+    check_shipped_imports({"a.py": "try:\n    import threadpoolctl\nexcept ImportError:\n    threadpoolctl = None\n"})
+    with pytest.raises(BuildError, match="threadpoolctl"):
+        check_shipped_imports({"a.py": "import threadpoolctl\n"})

@@ -52,6 +52,7 @@ LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
 PYTHON_FILE = "ffrf_python.json"
 LIBPYTHON_FILE = "ffrf_libpython.txt"
 ALLOWED_IMPORTS = {"numpy", "scipy"}
+OPTIONAL_IMPORTS = {"threadpoolctl"}  # allowed inside `try: ... except ImportError:` only
 
 DESCRIPTION = (
     "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
@@ -193,7 +194,14 @@ def check_shipped_imports(sources: dict[str, str]) -> None:
     import ast
 
     for name, text in sources.items():
-        for node in ast.walk(ast.parse(text, filename=name)):
+        tree = ast.parse(text, filename=name)
+        guarded = set()  # imports inside a try whose handlers catch ImportError
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Try) and any(
+                isinstance(h.type, ast.Name) and h.type.id in ("ImportError", "ModuleNotFoundError") for h in node.handlers
+            ):
+                guarded.update(id(n) for stmt in node.body for n in ast.walk(stmt))
+        for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
                 mods = [] if node.level else [node.module or ""]
             elif isinstance(node, ast.Import):
@@ -202,7 +210,7 @@ def check_shipped_imports(sources: dict[str, str]) -> None:
                 continue
             for mod in mods:
                 top = mod.split(".")[0]
-                if top in ALLOWED_IMPORTS or top in _STDLIB:
+                if top in ALLOWED_IMPORTS or top in _STDLIB or (top in OPTIONAL_IMPORTS and id(node) in guarded):
                     continue
                 raise BuildError(
                     f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, the "

@@ -15,6 +15,7 @@ tends to the standalone run (which evaluates the exact signals at every internal
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -29,6 +30,11 @@ from ..runtime.ports import PortValues, StepFailure
 from ..runtime.rotation import expm
 from ..runtime.body import BodySystem
 from .variables import TERM_SETS, Variable, body_variables
+
+try:  # optional: one BLAS thread during the FMU's own calls only (docs/fmu.md, BLAS threads)
+    from threadpoolctl import ThreadpoolController
+except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before numpy loads, when it can
+    ThreadpoolController = None
 
 ROTATION_TOL = 1e-6  # reject R when max |R^T R - I| exceeds this
 ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
@@ -85,7 +91,15 @@ class BodyCoSim:
         self._system_params: tuple | None = None
         self._initialized_with: np.ndarray | None = None  # inputs + parameters used by the last initialize
         self.failure = ""  # set when initialization failed: every doStep then reports it
+        # The body's matrices are a few hundred rows: BLAS threads cost more than they save (B1 FMU
+        # 17-21 s with two OpenBLAS threads, 3.2-3.5 s with one). The limit holds during this
+        # instance's calls only and is undone on return: the host's own setting stays as it is.
+        self._blas = ThreadpoolController() if ThreadpoolController is not None else None
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
+
+    def one_blas_thread(self):
+        """Context: BLAS limited to one thread (a no-op without threadpoolctl)."""
+        return self._blas.limit(limits=1, user_api="blas") if self._blas is not None else contextlib.nullcontext()
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -241,15 +255,15 @@ class BodyCoSim:
             self.failure = f"initialization: {msg}"
             return self.failure
         try:
-            system = self._make_system()
-            system.initialize(
-                self.start_time,
-                self.extrapolation(self.start_time, held),
-                velocity=p["initial_velocity"],
-                angular_velocity=p["initial_angular_velocity"],
-                port_displacements=p["port_displacements"] or None,
-                origin=self.origin,
-            )
+            with self.one_blas_thread():
+                self._make_system().initialize(
+                    self.start_time,
+                    self.extrapolation(self.start_time, held),
+                    velocity=p["initial_velocity"],
+                    angular_velocity=p["initial_angular_velocity"],
+                    port_displacements=p["port_displacements"] or None,
+                    origin=self.origin,
+                )
         except StepFailure as e:
             self.failure = f"initialization failed at t = {e.time:.6g} s: {e.cause}"
             return self.failure
@@ -326,8 +340,9 @@ class BodyCoSim:
         n = max(1, round(ratio)) if abs(ratio - round(ratio)) < 1e-6 * max(1.0, ratio) else math.ceil(ratio)
         hh = H / n
         try:
-            for _ in range(n):
-                worst = max(worst, system.step(hh, inputs))
+            with self.one_blas_thread():
+                for _ in range(n):
+                    worst = max(worst, system.step(hh, inputs))
             system.t = t_end  # the master's clock, not the sum of n rounded steps
             self._check_finite(system)
         except StepFailure as e:

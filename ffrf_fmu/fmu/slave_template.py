@@ -43,6 +43,21 @@ def _add_build_site_dirs():
 
 _add_build_site_dirs()
 
+
+def _blas_threads_default():
+    """Without threadpoolctl the runtime cannot limit BLAS threads per call; when numpy is not
+    loaded yet (a host without Python: the FMU's numpy is the only one) its OpenBLAS reads these
+    variables when it loads. A value the environment already has wins."""
+    try:
+        import threadpoolctl  # noqa: F401 - the runtime uses it (fmu/core.py)
+    except ImportError:
+        if "numpy" not in sys.modules:
+            for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+                os.environ.setdefault(var, "1")
+
+
+_blas_threads_default()
+
 from pythonfmu import Fmi2Slave, Integer, Real  # noqa: E402
 from pythonfmu.default_experiment import DefaultExperiment  # noqa: E402
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability  # noqa: E402
