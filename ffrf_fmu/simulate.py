@@ -92,7 +92,9 @@ class SimulationResult:
     def write_csv(self, path) -> None:
         names = ["time"] + list(self.columns)
         data = np.column_stack([self.t] + [self.columns[k] for k in self.columns])
-        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+        # names like hub.R[1,1] hold the delimiter: quoted (RFC 4180), a CSV reader sees one field each
+        header = ",".join(f'"{n}"' if "," in n else n for n in names)
+        np.savetxt(path, data, delimiter=",", header=header, comments="", fmt="%.10g")
 
     def write_summary(self, path) -> None:
         with open(path, "w") as fh:

@@ -244,3 +244,41 @@ def test_shipped_modules_may_import_threadpoolctl_only_when_guarded():
     check_shipped_imports({"a.py": "try:\n    import threadpoolctl\nexcept ImportError:\n    threadpoolctl = None\n"})
     with pytest.raises(BuildError, match="threadpoolctl"):
         check_shipped_imports({"a.py": "import threadpoolctl\n"})
+
+
+def test_reflection_input_is_refused_naming_the_reflection(fmu):
+    """A reflection is orthonormal: the message says it is a reflection (it read
+    'max |R^T R - I| = 0 > 1e-06 or det = -1 <= 0')."""
+    s = Slave(fmu)
+    try:
+        assert s.start() == 0
+        s.fmu.setReal([s.vr["hub.R[3,3]"]], [-1.0])  # diag(1, 1, -1)
+        assert s.status(s.fmu.doStep, 0.0, 0.01) == DISCARD
+        (st, _, msg), = [m for m in s.log if m[0] == DISCARD]
+        assert "hub.R is not a rotation matrix (a reflection: det = -1, a rotation has det = +1)" in msg
+    finally:
+        s.close()
+
+
+def test_build_output_must_be_an_fmu_or_a_directory(model, tmp_path):
+    """`build -o x.txt` made a directory x.txt/ with the FMU inside: now a clear BuildError."""
+    from ffrf_fmu.fmu.builder import BuildError
+
+    with pytest.raises(BuildError, match=r"x\.txt: an FMU file name must end in \.fmu"):
+        build_from_model(model, tmp_path / "x.txt", scene="still")
+    assert not (tmp_path / "x.txt").exists()
+
+
+def test_simulation_csv_header_has_one_field_per_column(model, tmp_path):
+    """`simulate --out` wrote hub.R[1,1] unquoted: a CSV reader saw 72 header fields for 54 columns."""
+    import csv
+
+    from ffrf_fmu.model import load_model
+    from ffrf_fmu.simulate import run_scene
+
+    res = run_scene(load_model(model, ["scenes.still.duration=0.02"]), "still")
+    res.write_csv(tmp_path / "r.csv")
+    with open(tmp_path / "r.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert len(rows[0]) == len(rows[1]) == 1 + len(res.columns)
+    assert "hub.R[1,1]" in rows[0] and rows[0][0] == "time"

@@ -7,6 +7,7 @@ same FMU with the same calls.
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -117,3 +118,45 @@ def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
     assert "(null category)" not in done.stderr
     assert "solver.rho_inf must be in [0, 1], got 2.0" in done.stderr
     assert "unknown value reference(s) [1000000]" in done.stderr
+
+
+ECOS_RUN = r"""
+import json, sys
+from ecospy import EcosSimulation, EcosSimulationStructure
+fmu, steps, H, names = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4].split(",")
+with EcosSimulationStructure() as ss:
+    ss.add_model("body", f"proxyfmu://localhost?file={fmu}")
+    ss.add_parameter_set("load", {"body::tip.f[3]": float(sys.argv[5])})
+    with EcosSimulation(structure=ss, step_size=H) as sim:
+        sim.init(parameter_set="load")
+        sim.step(steps)
+        out = [sim.get_real(f"body::{n}") for n in names]
+        t = sim.get_time()
+        sim.terminate()
+print(json.dumps({"t": t, "out": out}))
+"""
+
+
+def test_b1_runs_1s_in_ecos_out_of_process_bit_identical_to_fmpy(b1, tmp_path):
+    """ecos's proxyfmu (a C++ process that loads the FMU; it died with SIGSEGV unless libpython
+    was in LD_PRELOAD) runs the B1 FMU 1 s: fmpy's numbers, and the proxy process exits 0."""
+    import ecospy
+
+    fmu, unzip, host, md = b1
+    # ecospy 0.7.2's wheel installs its proxyfmu executable without the execute bit: run a copy
+    proxy = Path(ecospy.__file__).parent / "binaries" / "proxyfmu"
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    shutil.copy(proxy, bindir / "proxyfmu")
+    (bindir / "proxyfmu").chmod(0o755)
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONPATH")}
+    env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
+    (tmp_path / "run.py").write_text(ECOS_RUN)
+    H, steps = 2e-3, 500
+    done = subprocess.run([sys.executable, str(tmp_path / "run.py"), str(fmu), str(steps), str(H), ",".join(OUTPUTS),
+                           str(FORCE)], capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    assert "returned with status 0" in done.stdout + done.stderr  # the proxy process's own exit status
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    assert got["t"] == pytest.approx(1.0, abs=1e-9)
+    assert np.array_equal(np.array(got["out"]), _fmpy_run(b1, steps, H))

@@ -202,11 +202,12 @@ class BodyCoSim:
                 R = self._vec(p.name, "R").reshape(3, 3).copy()
                 dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
                 det = float(np.linalg.det(R))
-                if dev > ROTATION_TOL or det <= 0.0:
-                    return {}, (
-                        f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
-                        f"(max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g} or det = {det:.6g} <= 0)"
-                    )
+                if dev > ROTATION_TOL:
+                    return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
+                                f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
+                if det <= 0.0:
+                    return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix (a reflection: "
+                                f"det = {det:.6g}, a rotation has det = +1)")
                 if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
                     U, _, Vt = np.linalg.svd(R)
                     R = U @ Vt
