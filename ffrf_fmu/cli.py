@@ -157,7 +157,11 @@ def simulate(args) -> int:
         result = sim.run_reference(model, scene)
     else:
         body_data, _ = _body_for_scene(model, scene)
-        result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
+        try:
+            result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
+        except sim.InitializationFailure as e:
+            print(f"{PROG}: error: {e}", file=sys.stderr)
+            return 2
     s = result.summary
     if args.out:
         result.write_csv(args.out)

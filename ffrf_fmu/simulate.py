@@ -129,19 +129,26 @@ class Progress:
             self.stream.flush()
 
 
+class InitializationFailure(RuntimeError):
+    """The scene's initial state cannot be built (e.g. port displacements without a static equilibrium)."""
+
+
 def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0)) -> tuple[BodySystem, Callable]:
     """A BodySystem for the scene, initialized at t = 0; returns it with its input function."""
     system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
     inputs = scene_inputs(body, scene)
     init = scene.initial
-    system.initialize(
-        0.0,
-        inputs,
-        velocity=init.velocity,
-        angular_velocity=init.angular_velocity,
-        port_displacements=dict(init.port_displacements),
-        origin=origin,
-    )
+    try:
+        system.initialize(
+            0.0,
+            inputs,
+            velocity=init.velocity,
+            angular_velocity=init.angular_velocity,
+            port_displacements=dict(init.port_displacements),
+            origin=origin,
+        )
+    except StepFailure as e:
+        raise InitializationFailure(f"scene {scene.name!r} cannot start: {e.cause}") from e
     return system, inputs
 
 

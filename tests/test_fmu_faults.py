@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -282,3 +283,17 @@ def test_simulation_csv_header_has_one_field_per_column(model, tmp_path):
         rows = list(csv.reader(fh))
     assert len(rows[0]) == len(rows[1]) == 1 + len(res.columns)
     assert "hub.R[1,1]" in rows[0] and rows[0][0] == "time"
+
+
+def test_simulate_port_displacements_without_equilibrium_exit_2(capsys):
+    """A free beam with its ends pulled 1 m apart sideways has no relaxed static shape the
+    initialization finds: a clear error and exit status 2 (it was a raw ValueError traceback)."""
+    from ffrf_fmu.cli import main
+
+    root = Path(__file__).resolve().parent.parent
+    status = main(["simulate", str(root / "models" / "free_beam.toml"), "--set", "scenes.tumble.duration=0.01",
+                   "--set", "scenes.tumble.initial.port_displacements.a=[0,0.5,0]",
+                   "--set", "scenes.tumble.initial.port_displacements.b=[0,-0.5,0]"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert "scene 'tumble' cannot start: initial port displacements ['a', 'b']: no static equilibrium" in err

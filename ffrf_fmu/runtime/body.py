@@ -341,7 +341,10 @@ class BodySystem(GeneralizedAlpha):
                     return
         finally:
             self.gravity = gravity
-        raise ValueError("initial port displacements: no static equilibrium of the deformed body found")
+        raise StepFailure(self.t, f"initial port displacements {sorted(displaced)}: no static equilibrium of the "
+                                  f"deformed body found ({max_iter} Newton iterations, last correction "
+                                  f"{np.max(np.abs(delta)):.3g}); smaller displacements, or ports whose displacements "
+                                  "the body can hold")
 
     def linearization(self) -> tuple[np.ndarray, np.ndarray]:
         """(F_ydot, F_y) of the assembled equations at the current state, restricted to the unknowns:
