@@ -1,9 +1,10 @@
 """CI: every package the project declares (dependencies and the test extra of pyproject.toml) must
 import, so that a broken install fails the run instead of skipping the tests that need it.
 
-Each requirement imports as its distribution name (lower case, '-' -> '_'); requirements with an
-environment marker are checked only where the marker holds for the common cases (python_version).
-A package whose module name differs goes in MODULE. Exit 1 naming every package that fails."""
+Each requirement imports as its distribution name (lower case, '-' -> '_') unless MODULE or
+_import says otherwise (tbb ships a library, not a module; ecospy needs it loaded first);
+requirements with a python_version marker are checked where the marker holds, other markers are
+skipped. Exit 1 naming every package that fails."""
 from __future__ import annotations
 
 import importlib
@@ -17,6 +18,21 @@ except ModuleNotFoundError:  # Python 3.10: tomli is a dependency there
     import tomli as tomllib
 
 MODULE = {"libcosimpy": "libcosimpy.CosimExecution"}  # the package imports lazily: load its library
+
+
+def _import(name: str) -> None:
+    """Import the distribution `name` the way the project uses it."""
+    if name == "tbb":  # no Python module: the library it ships must load (ffrf_fmu/engines.py)
+        from ffrf_fmu.engines import TBB_LIBRARY, load_tbb
+
+        if load_tbb() is None:
+            raise ImportError(f"{TBB_LIBRARY} is not among the files of the installed package")
+    elif name == "ecospy":  # needs tbb's library loaded first (ffrf_fmu/engines.py)
+        from ffrf_fmu.engines import import_ecospy
+
+        import_ecospy()
+    else:
+        importlib.import_module(MODULE.get(name, name.replace("-", "_")))
 
 
 def requirements(pyproject: Path) -> list[str]:
@@ -36,11 +52,10 @@ def main() -> int:
     root = Path(__file__).resolve().parent.parent
     failed = []
     for name in requirements(root / "pyproject.toml"):
-        module = MODULE.get(name.lower(), name.lower().replace("-", "_"))
         try:
-            importlib.import_module(module)
+            _import(name.lower())
         except Exception as e:  # noqa: BLE001 - ImportError, or OSError of a missing shared library
-            failed.append(f"{name} (import {module}): {type(e).__name__}: {e}")
+            failed.append(f"{name}: {type(e).__name__}: {e}")
     if failed:
         print("ci: declared packages that do not import:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1

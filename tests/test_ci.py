@@ -24,7 +24,7 @@ def test_declared_packages_are_checked(tmp_path):
     finally:
         sys.path.pop(0)
     names = check_imports.requirements(ROOT / "pyproject.toml")
-    assert {"fmpy", "pythonfmu", "libcosimpy", "ecospy", "numpy", "scipy", "pytest"} <= set(names)
+    assert {"fmpy", "pythonfmu", "libcosimpy", "tbb", "ecospy", "numpy", "scipy", "pytest"} <= set(names)
     ok = _check({})
     assert ok.returncode == 0, ok.stderr
     shadow = tmp_path / "libcosimpy"
@@ -32,3 +32,15 @@ def test_declared_packages_are_checked(tmp_path):
     (shadow / "__init__.py").write_text("raise ImportError('libcosimpy: not installed (shadowed by the test)')\n")
     bad = _check({"PYTHONPATH": str(tmp_path) + os.pathsep + os.environ.get("PYTHONPATH", "")})
     assert bad.returncode == 1 and "libcosimpy" in bad.stderr and "not installed" in bad.stderr
+
+
+def test_ecospy_loads_with_the_tbb_package():
+    """ecospy's library needs libtbb.so.12, which only the PyPI package tbb provides here (no system
+    TBB needed): import_ecospy loads it from that package, in a fresh interpreter, and ecospy's
+    engine library is then mapped next to that very file."""
+    code = ("from ffrf_fmu.engines import import_ecospy, load_tbb; import_ecospy(); "
+            "maps = open('/proc/self/maps').read(); print(load_tbb() in maps, 'libecosc' in maps)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "True"]
