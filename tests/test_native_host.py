@@ -122,7 +122,9 @@ def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
 
 ECOS_RUN = r"""
 import json, sys
-from ecospy import EcosSimulation, EcosSimulationStructure
+from ffrf_fmu.engines import import_ecospy  # loads the tbb package's libtbb.so.12 first
+ecospy = import_ecospy()
+EcosSimulation, EcosSimulationStructure = ecospy.EcosSimulation, ecospy.EcosSimulationStructure
 fmu, steps, H, names = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4].split(",")
 with EcosSimulationStructure() as ss:
     ss.add_model("body", f"proxyfmu://localhost?file={fmu}")
@@ -140,8 +142,9 @@ print(json.dumps({"t": t, "out": out}))
 def test_b1_runs_1s_in_ecos_out_of_process_bit_identical_to_fmpy(b1, tmp_path):
     """ecos's proxyfmu (a C++ process that loads the FMU; it died with SIGSEGV unless libpython
     was in LD_PRELOAD) runs the B1 FMU 1 s: fmpy's numbers, and the proxy process exits 0."""
-    import ecospy
+    from ffrf_fmu.engines import import_ecospy
 
+    ecospy = import_ecospy()
     fmu, unzip, host, md = b1
     # ecospy 0.7.2's wheel installs its proxyfmu executable without the execute bit: run a copy
     proxy = Path(ecospy.__file__).parent / "binaries" / "proxyfmu"
