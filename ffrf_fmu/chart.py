@@ -318,6 +318,52 @@ def pareto_front(cost: Sequence[float], error: Sequence[float]) -> list[int]:
     return front
 
 
+def front_cost_at(cost: Sequence[float], error: Sequence[float], target: float) -> float | None:
+    """Cost at which a Pareto front (points given by cost and error, e.g. those pareto_front picks)
+    reaches the error `target`: linear interpolation in log-log between the two front points around
+    it; the cheapest point's cost when that already meets the target (no extrapolation towards
+    cheaper); None when no point reaches it."""
+    pts = sorted((c, e) for c, e in zip(cost, error) if np.isfinite(c) and np.isfinite(e) and c > 0 and e > 0)
+    for k, (c1, e1) in enumerate(pts):  # on a front the error falls as the cost rises
+        if e1 <= target:
+            if k == 0:
+                return c1
+            c0, e0 = pts[k - 1]
+            s = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(c0) + s * (math.log(c1) - math.log(c0)))
+    return None
+
+
+# ------------------------------------------------------------------------------ peers
+# the peer's default sweep (issue 10: Exudyn's 3D beam over these meshes and steps)
+PEER_SWEEP = {"elements": ["2", "3", "4", "6", "8", "16"], "step": ["0.002", "0.005", "0.01", "0.02", "0.04"]}
+PEER_NAMES = {"exudyn": "Exudyn"}
+
+
+def _peer_configurations(peer: str | None, sweep) -> list[dict[str, str]]:
+    if not peer:
+        return []
+    from .peers import available
+
+    ok, why = available(peer)
+    if not ok:
+        raise ChartError(f"--peer {peer}: {why}")
+    configs = configurations(sweep or PEER_SWEEP)
+    bad = [c for c in configs if set(c) - {"elements", "step"} or "elements" not in c]
+    if bad:
+        raise ChartError(f"--peer-sweep: the peer takes elements=... [step=...] only, got {bad[0]}")
+    return configs
+
+
+def _peer_cost(values: dict, scene) -> float:
+    return int(values["elements"]) / float(values.get("step") or scene.step)
+
+
+def peer_label(peer: str, values: dict, scene) -> str:
+    """e.g. Exudyn 16el/2ms"""
+    return f"{PEER_NAMES.get(peer, peer)} {int(values['elements'])}el/{_fmt_step(float(values.get('step') or scene.step))}"
+
+
 # ------------------------------------------------------------------------------ the chart
 class _Bar:
     """Runs done / total on a terminal (silent otherwise)."""
@@ -357,12 +403,16 @@ def _jobs_order(configs: list[dict], model: Model, scene_name) -> list[int]:
 def chart(model_path, scene_name: str | None = None, sweep=None, *,
           overrides: Sequence[str] = (), fmu: bool = False, reference_elements: int | None = None,
           reference_step: float | None = None, workers: int | None = None, out_dir="chart",
-          progress: bool = True, plot: bool = True, cost: str = "wall") -> dict:
+          progress: bool = True, plot: bool = True, cost: str = "wall", peer: str | None = None,
+          peer_sweep=None) -> dict:
     """Run the sweep and the reference; write DIR/chart.csv, DIR/chart.json and DIR/chart.png.
 
     sweep: {key: [value texts]} or a list of such groups (union of their cartesian products;
     configurations that resolve to the same values run once). cost: "wall" (default) or "cpu":
-    the time that the plot's x axis and the Pareto front use.
+    the time that the plot's x axis and the Pareto front use. peer: also run a peer code
+    (ffrf_fmu.peers: "exudyn") over peer_sweep ({"elements": [...], "step": [...]}, default
+    PEER_SWEEP) on the scene with the model's overrides; its rows (runner = the peer) get their
+    own Pareto front, measured against the same reference.
 
     Returns {"rows": [...], "reference": {...}, "csv", "png", "json"}.
     """
@@ -389,6 +439,19 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     out_dir.mkdir(parents=True, exist_ok=True)
     runners = ["standalone"] + (["fmu"] if fmu else [])
     jobs = [(i, r) for i in _jobs_order(configs, model, scene.name) for r in runners]
+    peer_cfgs = _peer_configurations(peer, peer_sweep)
+    jobs += [(k, peer) for k in sorted(range(len(peer_cfgs)), key=lambda k: -_peer_cost(peer_cfgs[k], scene))]
+
+    def job(i: int, r: str):
+        """(function, arguments) of one run: ours (standalone/FMU) or the peer's."""
+        if r == peer:
+            from .peers import runner as peer_runner
+
+            return peer_runner(peer), (model_path, scene.name, list(overrides), peer_cfgs[i])
+        return run_configuration, (model_path, scene.name, list(overrides), configs[i], r)
+
+    def note_of(i: int, r: str) -> str:
+        return peer_label(peer, peer_cfgs[i], scene) if r == peer else label({**resolved(model, scene.name), **configs[i]})
     workers = max(1, int(workers or os.cpu_count() or 1))
     bar = _Bar(len(jobs) + 1, f"chart {model.body.name}/{scene.name}") if progress else None
     results: dict[tuple[int, str], dict] = {}
@@ -413,8 +476,9 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         if bar:
             bar.update(done, "reference")
         for i, r in jobs:
-            results[(i, r)] = run_configuration(model_path, scene.name, overrides, configs[i], r)
-            note = label({**resolved(model, scene.name), **configs[i]})
+            fn, args = job(i, r)
+            results[(i, r)] = fn(*args)
+            note = note_of(i, r)
             log(f"{note} ({r})", results[(i, r)])
             done += 1
             if bar:
@@ -425,8 +489,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(POOL_START_METHOD)) as pool:
             fref = pool.submit(run_reference, model_path, scene.name, list(overrides), reference_elements,
                                reference_step, str(out_dir))
-            futs = {pool.submit(run_configuration, model_path, scene.name, list(overrides), configs[i], r): (i, r)
-                    for i, r in jobs}
+            futs = {pool.submit(job(i, r)[0], *job(i, r)[1]): (i, r) for i, r in jobs}
             futs[fref] = None
             done = 0
             for f in as_completed(futs):
@@ -443,7 +506,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                     log(note, ref)
                 else:
                     results[key] = f.result()
-                    note = label({**resolved(model, scene.name), **configs[key[0]]})
+                    note = note_of(*key)
                     log(f"{note} ({key[1]})", results[key])
                 if bar:
                     bar.update(done, note)
@@ -452,28 +515,38 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
 
     metric_name = PRIMARY_METRIC.get(scene.metrics)
     extra_keys = list(dict.fromkeys(k for c in configs for k in c if k not in SHOWN_KEYS))
-    rows = []
+    rows, row_keys = [], []
+
+    def measured(run: dict) -> dict:
+        out = {"wall_time_s": run.get("wall_time_s"), "cpu_time_s": run.get("cpu_time_s"),
+               "real_time_factor": None, "metric_name": metric_name or "", **errors(run, ref, metric_name),
+               "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
+               "completed": bool(run["completed"]), "failure": run["failure"] or "",
+               "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning")),
+               "newton_iterations_mean": run.get("newton_iterations_mean")}
+        if not out["completed"]:
+            # the metric of a run that stopped early is not the scene's metric: no error against the
+            # reference's (rms_error_rel stays: it compares the trajectory over the run's own span)
+            out["metric_error_rel"] = None
+        if out["wall_time_s"] and out["t_end_s"] is not None:
+            out["real_time_factor"] = out["t_end_s"] / out["wall_time_s"]
+        return out
+
     for i, c in enumerate(configs):
         for r in runners:
             run = results[(i, r)]
             vals = run.get("resolved") or {**resolved(model, scene.name), **c}
-            row = {"label": label(vals, {k: c[k] for k in extra_keys if k in c}), "runner": r,
-                   **{k: vals[k] for k in SHOWN_KEYS}, **{k: c.get(k) for k in extra_keys},
-                   "wall_time_s": run.get("wall_time_s"), "cpu_time_s": run.get("cpu_time_s"),
-                   "real_time_factor": None, "metric_name": metric_name or "", **errors(run, ref, metric_name),
-                   "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
-                   "completed": bool(run["completed"]), "failure": run["failure"] or "",
-                   "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning"))}
-            if not row["completed"]:
-                # the metric of a run that stopped early is not the scene's metric: no error against the
-                # reference's (rms_error_rel stays: it compares the trajectory over the run's own span)
-                row["metric_error_rel"] = None
-            if row["wall_time_s"] and row["t_end_s"] is not None:
-                row["real_time_factor"] = row["t_end_s"] / row["wall_time_s"]
-            rows.append(row)
+            rows.append({"label": label(vals, {k: c[k] for k in extra_keys if k in c}), "runner": r,
+                         **{k: vals[k] for k in SHOWN_KEYS}, **{k: c.get(k) for k in extra_keys}, **measured(run)})
+            row_keys.append((i, r))
+    for k, c in enumerate(peer_cfgs):  # the peer: no superelements, modes or term set; its mesh instead
+        rows.append({"label": note_of(k, peer), "runner": peer, **{key: None for key in SHOWN_KEYS},
+                     "step": float(c.get("step") or scene.step), "elements": int(c["elements"]),
+                     **measured(results[(k, peer)])})
+        row_keys.append((k, peer))
     # Pareto front per runner, on the primary metric error (the trajectory error without one)
     err_key = "metric_error_rel" if metric_name else "rms_error_rel"
-    for r in runners:
+    for r in runners + ([peer] if peer_cfgs else []):
         sel = [j for j, row in enumerate(rows) if row["runner"] == r and row["completed"]]
         c = [rows[j][COSTS[cost]] or math.nan for j in sel]
         err = [rows[j][err_key] if rows[j][err_key] is not None else math.nan for j in sel]
@@ -487,7 +560,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     write_csv(rows, csv_path)
     meta = {
         "model": model_path, "scene": scene.name, "overrides": list(overrides), "sweep": groups,
-        "metric": metric_name, "cost": cost, "workers": workers, "cpu_count": os.cpu_count(),
+        "metric": metric_name, "cost": cost, "peer": peer, "peer_sweep": peer_sweep, "workers": workers, "cpu_count": os.cpu_count(),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "chart_wall_time_s": time.perf_counter() - t0,
         "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "path", "failure",
@@ -496,8 +569,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         "code_version": version_start,
         "code_changed_during_chart": code_version() != version_start,
         "failures": {f"{rows[j]['label']} ({r})": results[(i, r)].get("traceback") or rows[j]["failure"]
-                     for j, (i, r) in enumerate(itertools.product(range(len(configs)), runners))
-                     if not rows[j]["completed"]},
+                     for j, (i, r) in enumerate(row_keys) if not rows[j]["completed"]},
     }
     json_path.write_text(json.dumps(meta, indent=2, default=float) + "\n", encoding="utf-8")
     if plot:
@@ -530,7 +602,7 @@ CSV_LAST = ("wall_time_s", "cpu_time_s", "real_time_factor", "metric_name", "met
 
 
 def write_csv(rows: list[dict], path) -> None:
-    extra = [k for k in rows[0] if k not in CSV_FIRST + CSV_LAST] if rows else []
+    extra = list(dict.fromkeys(k for row in rows for k in row if k not in CSV_FIRST + CSV_LAST))
     fields = list(CSV_FIRST) + extra + list(CSV_LAST)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
@@ -549,8 +621,9 @@ def _csv_value(v):
 
 def read_csv(path) -> list[dict]:
     """chart.csv rows with numbers and booleans parsed (empty -> None)."""
-    ints, floats = {"superelements", "modes"}, {"step", "wall_time_s", "cpu_time_s", "real_time_factor", "metric",
-                                                "metric_reference", "metric_error_rel", "rms_error_rel", "t_end_s"}
+    ints, floats = {"superelements", "modes", "elements"}, {"step", "wall_time_s", "cpu_time_s", "real_time_factor", "metric",
+                                                "metric_reference", "metric_error_rel", "rms_error_rel", "t_end_s",
+                                                "newton_iterations_mean"}
     rows = []
     with open(path, newline="", encoding="utf-8") as fh:
         for raw in csv.DictReader(fh):
@@ -659,7 +732,8 @@ def plot_chart(rows: list[dict], path, title: str = "", metric_name: str | None 
     times = [r[ck] for r in rows if r[ck]]
     xlim = (min(times) / 1.8, max(times) * 1.8) if times else (0.1, 10)
     front_key = "metric_error_rel" if metric_name else "rms_error_rel"
-    counts = sorted({int(r["superelements"]) for r in rows})
+    counts = sorted({int(r["superelements"]) for r in rows if r["runner"] not in PEER_NAMES})
+    peer_style = dict(marker="D", color="C3")  # a peer's runs: red diamonds, its front dash-dotted
     cmap = plt.get_cmap("viridis")
     colour = {n: cmap(0.9 * k / max(len(counts) - 1, 1)) for k, n in enumerate(counts)}
     shape = {"linear": "o", "gyroscopic": "^"}
@@ -670,16 +744,20 @@ def plot_chart(rows: list[dict], path, title: str = "", metric_name: str | None 
         x = np.array([r[ck] for r in pts])
         y = np.maximum([r[key] for r in pts], ERROR_FLOOR) if pts else np.zeros(0)
         for r, xi, yi in zip(pts, x, y):
+            if r["runner"] in PEER_NAMES:
+                ax.scatter([xi], [yi], s=30, marker=peer_style["marker"], facecolors=peer_style["color"], zorder=3)
+                continue
             c = colour[int(r["superelements"])]
             hollow = r["runner"] == "fmu"
             ax.scatter([xi], [yi], s=34, marker=shape.get(r["terms"], "s"), facecolors="none" if hollow else [c],
                        edgecolors=[c], lw=1.4 if hollow else 0.5, zorder=3)
-        for runner, ls in (("standalone", "-"), ("fmu", "--")):
+        for runner, ls in (("standalone", "-"), ("fmu", "--"), *((p, "-.") for p in PEER_NAMES)):
             on = [(r[ck], max(r[key], ERROR_FLOOR)) for r in pts if r["runner"] == runner and r.get("pareto")]
             if on:
                 fx, fy = zip(*sorted(on))
-                ax.plot(fx, fy, ls, color="k", lw=1.2, alpha=0.8, zorder=2)
-                ax.scatter(fx, fy, s=120, facecolors="none", edgecolors="k", lw=1.0, zorder=4)
+                fc = peer_style["color"] if runner in PEER_NAMES else "k"
+                ax.plot(fx, fy, ls, color=fc, lw=1.2, alpha=0.8, zorder=2)
+                ax.scatter(fx, fy, s=120, facecolors="none", edgecolors=fc, lw=1.0, zorder=4)
         for tol in tolerances:
             ax.axhline(tol, color="0.5", lw=0.8, ls=":", zorder=1)
             ax.text(xlim[1] / 1.05, tol * 1.06, f"{tol:.0%}", color="0.4", fontsize=8, va="bottom", ha="right")
@@ -702,6 +780,9 @@ def plot_chart(rows: list[dict], path, title: str = "", metric_name: str | None 
             handles.append(Line2D([], [], ls="", marker="o", mfc="none", color="0.4", label="through the FMU"))
         handles.append(Line2D([], [], color="k", marker="o", mfc="none", ms=10,
                               label="Pareto front" + (" (of the upper panel)" if key != front_key else "")))
+        handles += [Line2D([], [], ls="-.", color=peer_style["color"], marker=peer_style["marker"],
+                           label=f"{PEER_NAMES[p]} (full-order 3D beam) and its front")
+                    for p in PEER_NAMES if any(r["runner"] == p for r in rows)]
         ax.legend(handles=handles, loc="lower left", fontsize=8, ncol=2)
         _place_labels(ax, list(x), list(y), [r["label"] + (" FMU" if r["runner"] == "fmu" else "") for r in pts])
         # failed runs: a strip above the panel, at the time they took until they failed

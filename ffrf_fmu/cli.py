@@ -252,6 +252,10 @@ def stability(args) -> int:
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
     arg("--plot-only", action="store_true", help="redraw DIR/chart.png from DIR/chart.csv and chart.json, run nothing"),
+    arg("--peer", choices=("exudyn",), help="also run a full-order peer code on the scene and draw its runs and "
+        "Pareto front: exudyn = Exudyn's 3D geometrically exact beam (optional extra `peers`)"),
+    arg("--peer-sweep", nargs="+", metavar="KEY=V1,V2", default=None,
+        help="the peer's meshes and steps (default elements=2,3,4,6,8,16 step=0.002,0.005,0.01,0.02,0.04)"),
 )
 def chart(args) -> int:
     """Accuracy against cost: error of each configuration against the full-order reference over its wall time."""
@@ -267,7 +271,8 @@ def chart(args) -> int:
         groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
         out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu,
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
-                       workers=args.workers, out_dir=args.output, cost=args.cost)
+                       workers=args.workers, out_dir=args.output, cost=args.cost, peer=args.peer,
+                       peer_sweep=ch.parse_sweep(args.peer_sweep) if args.peer_sweep else None)
     except ch.ChartError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2

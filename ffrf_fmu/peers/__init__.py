@@ -20,3 +20,12 @@ def available(name: str) -> tuple[bool, str]:
     except ImportError as e:
         return False, f"exudyn is not installed ({e}); it is the optional extra `peers`: pip install -e \".[peers]\""
     return True, str(getattr(exudyn, "__version__", "?"))
+
+
+def runner(name: str):
+    """The chart worker function of a peer: f(model_path, scene_name, overrides, values) -> run dict."""
+    if name == "exudyn":
+        from .exudyn_beam import run_configuration
+
+        return run_configuration
+    raise ValueError(f"unknown peer {name!r} (known: {', '.join(PEERS)})")
