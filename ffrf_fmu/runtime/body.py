@@ -299,12 +299,20 @@ class BodySystem(GeneralizedAlpha):
         # r_bar = q_dot_bar of the rigid field (zero unless ports were displaced)
         _, q, qd = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)
         self.v[:, 6:] = qd
+        if self.layout.nm:  # modal rates: the last nm entries of r_bar (kinematic rows k_q)
+            zS[:, 6:] = self.v[:, -self.layout.nm :]
+        n_cfg = zN.size + zS.size
+        cfg_rates = self.yd[:n_cfg].copy()  # the rates of the configuration at t0, exact
         self.fN, self.tN = f_in.copy(), t_in.copy()
         # consistent ydot_0: a backward-Euler micro-step (am = af = gamma = 1) from the initial state
         delta = 1e-6
         saved = self.get_state()
         yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
         self.set_state(saved)
+        # the micro-step's configuration rates are the velocities at t0 + delta, off by delta times the
+        # acceleration (a body at rest under an initial tip load seemed to move, 1.76e-4 m/s per N on
+        # B1): keep its velocity rates (accelerations), take the configuration rates at t0
+        yd0[:n_cfg] = cfg_rates
         self.yd = yd0
         self.yd_prev = yd0.copy()
         self.a = yd0.copy()
