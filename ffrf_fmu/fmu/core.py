@@ -9,8 +9,8 @@ Inputs between communication points (stated in the modelDescription and docs/fmu
 values set before doStep(t_c, H) are the values at t_c. Over [t_c, t_c + H] motion inputs are
 extrapolated with their own rates, r(t) = r_c + v_c (t - t_c), v(t) = v_c,
 R(t) = expm((t - t_c) skew(w_c)) R_c, w(t) = w_c (world axes); force inputs are held,
-f(t) = f_c, t(t) = t_c. The body takes internal steps of `solver.step`, the last one shortened
-to land on t_c + H. As H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run
+f(t) = f_c, t(t) = t_c. The body cuts [t_c, t_c + H] into n equal internal steps of at most
+`solver.step` (up to round-off in H / h). As H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run
 tends to the standalone run (which evaluates the exact signals at every internal step).
 """
 from __future__ import annotations
