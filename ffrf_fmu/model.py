@@ -148,6 +148,7 @@ class Scene:
     causality: tuple[tuple[str, str, str], ...] = ()  # (port, translation, rotation) overrides
     metrics: str = ""  # "haug" | "spherical" | "free" | "" : which summary metrics apply
     outputs: tuple[str, ...] = ()  # extra probes, e.g. "tip_from_hub"
+    stiffening: bool = False  # geometric stiffening inside each superelement (docs/equations.md)
 
 
 @dataclass(frozen=True)
@@ -202,6 +203,7 @@ SCENE_KEYS = {
     "step": "a positive time step [s], at most the duration",
     "rho_inf": "a spectral radius in [0, 1] (default 0.8)",
     "terms": f"one of {', '.join(TERM_SETS)} (default linear)",
+    "stiffening": "true or false: geometric stiffening inside each superelement (default false)",
     "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
     "metrics": "one of haug, spherical, free or '' (default '')",
     "outputs": "an array of probe names (default [])",
@@ -236,7 +238,7 @@ OVERRIDE_ALIASES = {
     "length": ("body.length",),
     "rotary_inertia": ("body.section.m22", "body.section.m33"),
     **{k: (f"body.section.{k}",) for k in SECTION_KEYS},
-    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics")},
+    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening")},
 }
 
 _REQUIRED = object()
@@ -321,6 +323,12 @@ class _Reader:
         if is_default:
             return v
         if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            self.expected(_join(path, key), what, v)
+        return v
+
+    def boolean(self, t, path, key, what, default=_REQUIRED) -> bool:
+        v, is_default = self._value(t, path, key, what, default)
+        if not is_default and not isinstance(v, bool):
             self.expected(_join(path, key), what, v)
         return v
 
@@ -604,6 +612,7 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
         causality=tuple(causality),
         metrics=r.string(t, sp, "metrics", SCENE_KEYS["metrics"], "", METRICS),
         outputs=tuple(outputs),
+        stiffening=r.boolean(t, sp, "stiffening", SCENE_KEYS["stiffening"], False),
     )
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .fe import FEModel, node_dofs, rigid_modes
-from .fe.beam import beam_model
+from .fe.beam import beam_model, strain_kernels
 from .model import Body, ModelError, PART_CAUSALITIES
 from .runtime.data import BodyData, PortData, SuperelementData
 
@@ -81,8 +81,81 @@ def attachment_modes(fe: FEModel, U: np.ndarray, boundary: np.ndarray, support: 
     return P.T @ (P.T @ x)
 
 
+CORRECTION_THRESHOLD = 1e-3  # keep a centrifugal correction shape whose part outside span(Y) exceeds this (M-norm)
+
+
+def centrifugal_loads(fe: FEModel, U: np.ndarray) -> np.ndarray:
+    """FE load vectors F_ab (6, n_dof) of the centrifugal field -rho w~ w~ X about the CM, one per
+    product w_a w_b (a <= b; off-diagonal ones counted once, i.e. times 2 in the sum):
+
+        f0(w) = -int N^T w~ w~ X rho = sum_ab w_a w_b F_ab,  F_ab = -(M_b U_ra + M_a U_rb) / 2
+
+    (translational kernel M_k of eq. 53, U_r the rotation columns of the rigid modes about the CM),
+    so that Y^T F_ab = W1[:, a, b] / 2 (Witteveen's constant centrifugal load, docs/inertia-terms.md).
+    """
+    Ur, Mk = U[:, 3:], fe.M_kernel
+    pairs = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+    return np.stack([-0.5 * (Mk[b] @ Ur[:, a] + Mk[a] @ Ur[:, b]) for a, b in pairs])
+
+
+def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """Static correction modes for the centrifugal load about the CM (docs/equations.md).
+
+    The free (inertia-relief) static responses x_ab = G_e F_ab to the six centrifugal load cases,
+    made zero on the boundary dofs with the attachment columns (as the vibration modes of eq. 76
+    are: q_B must stay the boundary displacement of the spatial coordinates), then M-orthogonalized
+    against the modal columns and orthonormalized in M (SVD). Shapes whose remaining M-norm exceeds
+    CORRECTION_THRESHOLD of the largest response are kept (a straight beam: one, the axial stretch
+    under w_perp^2). Without them a superelement's axial force is that of its attachment shapes
+    (linear in the abscissa) where the centrifugal one is parabolic.
+    """
+    n_b = boundary.size
+    P = mass_projector(fe.M, U)
+    free = np.setdiff1d(np.arange(fe.n_dof), boundary[:6])
+    F = P @ centrifugal_loads(fe, U).T
+    x = np.zeros_like(F)
+    x[free] = sla.solve(fe.K[np.ix_(free, free)], F[free], assume_a="sym")
+    x = P.T @ (P.T @ x)  # free, mass-orthogonal to the rigid modes (74), twice as in attachment_modes
+    r = x - Y[:, :n_b] @ x[boundary]
+    Ym = Y[:, n_b:]
+    if Ym.shape[1]:
+        r -= Ym @ np.linalg.solve(Ym.T @ fe.M @ Ym, Ym.T @ (fe.M @ r))
+    scale = np.sqrt(np.einsum("ij,ik,kj->j", x, fe.M, x)).max()
+    if scale == 0.0:
+        return np.zeros((fe.n_dof, 0))
+    Lc = np.linalg.cholesky(fe.M)  # M-orthonormal basis of the residual shapes: SVD of L^T r
+    _, sv, vt = np.linalg.svd(Lc.T @ r, full_matrices=False)
+    keep = sv > CORRECTION_THRESHOLD * scale
+    return r @ vt[keep].T / sv[keep]
+
+
+STRAIN_RANK_TOL = 1e-9  # axial strain shapes below this fraction of the largest singular value are round-off
+
+
+def stiffening_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, strain) -> dict:
+    """Reduced stiffening data of one superelement: W1 (n, 3, 3) and the second-order strain tensors.
+
+    W1_j = C_j + C_j^T, C_j[:, k] = U_r^T M_k Y_j (Witteveen, docs/inertia-terms.md), on the basis Y.
+    Strain (docs/equations.md, "Geometric stiffening"): the axial strain shapes the basis can hold,
+    E (ng, r) with E^T W E = I (W = diag(EA ds)) spanning range(A Y); the membrane strain is taken
+    in that space (assumed strain: the L2 projection of e + s, against membrane locking):
+        eps_k = a_k q + 1/2 q^T B_k q,  a = E^T W A Y (r, n),  B_k = Y^T (C^T W_k C + D^T W_k D) Y,
+        W_k = diag(w E[:, k]).
+    """
+    C = np.einsum("ia,kij,jm->mak", U[:, 3:], fe.M_kernel, Y, optimize=True)
+    w, A, Cs, D = strain
+    sw = np.sqrt(w)
+    u, sv, _ = np.linalg.svd(sw[:, None] * (A @ Y), full_matrices=False)
+    Us = u[:, sv > STRAIN_RANK_TOL * sv.max()]  # = W^1/2 E
+    a = Us.T @ (sw[:, None] * (A @ Y))
+    wE = sw[:, None] * Us  # W E (ng, r)
+    CY, DY = Cs @ Y, D @ Y
+    B = np.einsum("gk,gi,gj->kij", wE, CY, CY, optimize=True) + np.einsum("gk,gi,gj->kij", wE, DY, DY, optimize=True)
+    return {"W1": C + C.transpose(0, 2, 1), "vk_a": a, "vk_B": 0.5 * (B + B.transpose(0, 2, 1))}
+
+
 def reduce_superelement(
-    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int]
+    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int], strain=None
 ) -> Reduction:
     """Reduce `fe` to eq. (76): q = Y [q_B; eta], q_B = 6 dofs per boundary node (node-major,
     order of boundary_nodes), eta = amplitudes of the n_modes free-free modes.
@@ -117,6 +190,8 @@ def reduce_superelement(
     Y[boundary, :n_b] = np.eye(n_b)
     Y[interior, :n_b] = FBinv
     Y[interior, n_b:] = Xi[interior] - FBinv @ Xi[boundary]
+    if strain is not None:  # geometric stiffening: static correction modes appended to eta
+        Y = np.concatenate([Y, correction_modes(fe, U, Y, boundary)], axis=1)
     K_bar = Y.T @ fe.K @ Y
     M_bar = Y.T @ fe.M @ Y
     d = 1.0 / np.sqrt(np.diag(M_bar))
@@ -139,6 +214,7 @@ def reduce_superelement(
         M=0.5 * (M_bar + M_bar.T),
         G=0.5 * (G - G.transpose(0, 2, 1)),  # skew-symmetrized: the symmetric part is round-off
         frequencies_hz=np.sqrt(np.maximum(w2, 0.0)) / (2.0 * np.pi),
+        **(stiffening_data(fe, U, Y, strain) if strain is not None else {}),
     )
     return Reduction(
         data=data,
@@ -167,9 +243,12 @@ def _port_data(body: Body, n_nodes: int, causality: Sequence[tuple[str, str, str
     return tuple(ports)
 
 
-def build_body(body: Body, causality: Sequence[tuple[str, str, str]] = ()) -> tuple[BodyData, tuple[Reduction, ...]]:
+def build_body(
+    body: Body, causality: Sequence[tuple[str, str, str]] = (), stiffening: bool = False
+) -> tuple[BodyData, tuple[Reduction, ...]]:
     """Split the beam into body.superelements equal segments, each its own FE model of
     body.elements_per_superelement elements, reduce each on its two end nodes.
+    stiffening: add the geometric stiffening data (centrifugal correction modes, W1, strain kernels).
 
     Global boundary node i sits at s = i L / n_se; superelement e joins nodes (e, e+1).
     causality: optional (port, translation, rotation) overrides (model.Scene.causality).
@@ -187,8 +266,11 @@ def build_body(body: Body, causality: Sequence[tuple[str, str, str]] = ()) -> tu
     reductions = []
     for e in range(n_se):
         fe = beam_model(body.section, node_positions[e], d, body.length / n_se, n_el)
+        strain = strain_kernels(body.section, d, body.length / n_se, n_el) if stiffening else None
         try:
-            reductions.append(reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1)))
+            reductions.append(
+                reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1), strain=strain)
+            )
         except ValueError as err:
             raise ValueError(f"body {body.name!r} ({body.source}), superelement {e}: {err}") from None
     reductions = tuple(reductions)

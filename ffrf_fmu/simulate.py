@@ -258,7 +258,7 @@ def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequ
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
-    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))
+    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)
     return run(body, scene, origin=model.body.origin, progress=progress)
 
 

@@ -197,3 +197,35 @@ def beam_model(section: Section, origin, direction, length: float, n_elements: i
     n_dof = 6 * (n_elements + 1)
     Mk = np.stack([_assemble(n_dof, idx, Mke[:, k]) for k in range(3)])
     return FEModel(coords=coords, K=_assemble(n_dof, idx, Ke), M=_assemble(n_dof, idx, Me), M_kernel=Mk)
+
+
+def strain_kernels(section: Section, direction, length: float, n_elements: int):
+    """Second-order (von Karman) axial strain of the beam_model mesh at the Gauss points:
+
+        eps = e + s,  e = A q (linear axial strain u1'),  s = 1/2 ((C q)^2 + (D q)^2),
+
+    with C q = u2', D q = u3' the slopes of the centreline in the two bending planes (local axes,
+    centreline displacement derivative: u2' = gamma2 + theta3, u3' = gamma3 - theta2 from the IIE
+    interpolation of `local_interpolation`). The strain energy beyond the linear K is then
+    sum_g w_g (e_g s_g + s_g^2 / 2), w_g = EA ds (Gauss weight times element length).
+
+    Returns w (ng,), A, C, D (ng, n_dof) in model dofs, ng = 4 n_elements (same rule as K and M:
+    e s and s^2 are exact for the degree of these products up to 6).
+    """
+    R = local_frame(direction)
+    L = np.full(n_elements, length / n_elements)
+    _, Nt, B = local_interpolation(section, L)
+    Tq = np.kron(np.eye(4), R.T)  # local dofs = Tq @ model dofs
+    A = B[:, :, 0] @ Tq
+    C = (B[:, :, 1] + Nt[:, :, 2]) @ Tq
+    D = (B[:, :, 2] - Nt[:, :, 1]) @ Tq
+    n_dof = 6 * (n_elements + 1)
+    idx = (6 * np.arange(n_elements)[:, None] + np.arange(12)).reshape(n_elements, 12)
+
+    def scatter(X):  # (n_el, ng, 12) -> (n_el * ng, n_dof)
+        out = np.zeros((n_elements, X.shape[1], n_dof))
+        out[np.arange(n_elements)[:, None, None], np.arange(X.shape[1])[None, :, None], idx[:, None, :]] = X
+        return out.reshape(-1, n_dof)
+
+    w = (section.EA * _W[None, :] * L[:, None]).ravel()
+    return w, scatter(A), scatter(C), scatter(D)

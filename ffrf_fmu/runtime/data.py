@@ -28,6 +28,11 @@ class SuperelementData:
     M: np.ndarray  # (n, n) M_bar = Y^T M Y
     G: np.ndarray  # (3, n, n) G_k = Y^T M_k Y, M_k = int N^T skew(e_k) N rho dV
     frequencies_hz: np.ndarray  # (n_modes,) free-free frequencies of the kept modes
+    # geometric stiffening (docs/equations.md, "Geometric stiffening"); None when built without it.
+    # The last n_correction columns of eta are then static correction modes, not vibration modes.
+    W1: np.ndarray | None = None  # (n, 3, 3) Witteveen W1_j: inertia I0 + sum_j q_j W1_j, load f0_j = w^T W1_j w / 2
+    vk_a: np.ndarray | None = None  # (r, n) membrane strain eps_k = a_k q + 1/2 q^T B_k q, r strain shapes
+    vk_B: np.ndarray | None = None  # (r, n, n)
 
     @property
     def n_boundary(self) -> int:
@@ -36,6 +41,13 @@ class SuperelementData:
     @property
     def n(self) -> int:
         return self.K.shape[0]
+
+    @property
+    def stiffening(self) -> bool:
+        return self.W1 is not None
+
+
+_OPTIONAL = ("W1", "vk_a", "vk_B")  # stiffening data, present only when built with it
 
 
 @dataclass(frozen=True)
@@ -62,8 +74,9 @@ class BodyData:
     def save(self, path) -> None:
         arrays = {"node_positions": self.node_positions}
         for i, se in enumerate(self.superelements):
-            for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz"):
-                arrays[f"se{i}_{key}"] = getattr(se, key)
+            for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz") + _OPTIONAL:
+                if getattr(se, key) is not None:
+                    arrays[f"se{i}_{key}"] = getattr(se, key)
             arrays[f"se{i}_mass"] = np.array(se.mass)
         meta = {
             "name": self.name,
@@ -85,6 +98,7 @@ class BodyData:
                 SuperelementData(
                     mass=float(z[f"se{i}_mass"]),
                     **{k: z[f"se{i}_{k}"] for k in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz")},
+                    **{k: z[f"se{i}_{k}"] for k in _OPTIONAL if f"se{i}_{k}" in z},
                 )
                 for i in range(meta["n_se"])
             )
