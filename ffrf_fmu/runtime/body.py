@@ -11,6 +11,7 @@ from typing import Callable
 import numpy as np
 
 from .data import BodyData
+from . import stiffening
 from .fused import FusedResidual
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
@@ -66,7 +67,16 @@ class BodySystem(GeneralizedAlpha):
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = S.K, S.M, S.G, S.mass, S.J0, S.X_B
         self.se_nodes = S.nodes
         self.gyro = terms == "gyroscopic"
-        self.fused = FusedResidual(L, S, self.gyro)
+        # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it
+        self.stiffening = all(se.stiffening for se in data.superelements)
+        hooks = {}
+        if self.stiffening:
+            self.W1 = np.stack([se.W1 for se in data.superelements])
+            self.vk_a = np.stack([se.vk_a for se in data.superelements])
+            self.vk_B = np.stack([se.vk_B for se in data.superelements])
+            g_term, row_term = stiffening.fused_hooks(self.W1, self.vk_a, self.vk_B, L.nc)
+            hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
+        self.fused = FusedResidual(L, S, self.gyro, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         self._build_newton()
@@ -394,6 +404,10 @@ class BodySystem(GeneralizedAlpha):
         vq = np.concatenate([self.v, self.elastic_coordinates()], axis=1)  # [v0, Omega0, r, q]
         halves = (vq * (vq[:, None, :] @ self._energy_op)[:, 0]) @ self._energy_split  # (E, 3)
         kr, ke, st = halves.sum(0)
+        if self.stiffening:  # V2 of the second-order strain; T1 = 1/2 Omega0^T (W1 q) Omega0 (J0 -> J0 + W1 q)
+            q, Om = vq[:, self.layout.nv :], self.v[:, 3:6]
+            st += float(stiffening.von_karman(q, self.vk_a, self.vk_B, tangent=False)[0].sum())
+            kr += float(stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False)[3].sum())
         return {"kinetic_rigid": float(kr), "kinetic_elastic": float(ke), "strain": float(st), "work_external": float(self.work)}
 
     def momenta(self) -> tuple[np.ndarray, np.ndarray]:
@@ -406,4 +420,7 @@ class BodySystem(GeneralizedAlpha):
             q = self.elastic_coordinates()
             s = np.einsum("ei,ekij,ej->ek", self.v[:, 6:], self.G, q)
             hc = hc + np.einsum("eij,ej->ei", self.R0, s)
+        if self.stiffening:  # (W1 q) Omega0
+            h = np.einsum("ej,ejab,eb->ea", self.elastic_coordinates(), self.W1, self.v[:, 3:6])
+            hc = hc + np.einsum("eij,ej->ei", self.R0, h)
         return p.sum(0), (np.cross(self.x0, p) + hc).sum(0)

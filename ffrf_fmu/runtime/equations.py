@@ -205,11 +205,17 @@ def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0
     yd the global rates; the same quantities as the fused path's `BodySystem._local`."""
     F = np.zeros(layout.ny)
     Fz, Fy = [], []
+    from .stiffening import plain_hooks
+
     for e, sd in enumerate(data.superelements):
         se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
         cfg, vel = layout.cfg_map[e], layout.vel_map[e]
+        hooks = {}
+        if sd.stiffening:  # geometric stiffening (runtime/stiffening.py)
+            g_term, row_term = plain_hooks(sd)
+            hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
         Fe, Fze, Fye = residual_and_jacobian(se, terms, gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
-                                             v[e], yd[cfg], yd[vel])
+                                             v[e], yd[cfg], yd[vel], **hooks)
         np.add.at(F, np.concatenate([vel, cfg]), Fe)
         Fz.append(Fze)
         Fy.append(Fye)

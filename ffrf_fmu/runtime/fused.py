@@ -301,6 +301,7 @@ class FusedResidual:
             "rho": b.rho, "alpha": b.alpha, "W0": W0, "c": b.c, "ru": b.ru, "gd": b.gd, "ga": b.ga,
             "Fa": b.Fa[:, :, 0], "h_ang": b.h_ang, "QTW0": b.QTW0,
             "q": us.view(u, "q"), "qd": us.view(u, "qd"), "rb": us.view(u, "rb"), "rbd": us.view(u, "rbd"),
+            "Om0": us.view(u, "Om0"), "Om0d": us.view(u, "Om0d"),
         }
         if gy is not None:
             s.update(gy)

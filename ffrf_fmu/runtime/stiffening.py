@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .rotation import skew
+
 
 def von_karman(q: np.ndarray, a: np.ndarray, B: np.ndarray, tangent: bool = True):
     """Second-order membrane energy V2, its gradient and (on request) its Hessian.
@@ -80,3 +82,77 @@ def deformed_inertia(q, qd, Om, Omd, W1, jacobian: bool = True):
         "e_Omd": Jq,
     }
     return g, h, e, T1, d
+
+
+def elastic_force(q, Om, W1, a, B, Dq=None):
+    """The stiffening contribution to the elastic force g (78): f_vk(q) - f0(Omega0), stacked on E.
+
+    Returns (g (E, n), dg_z, dg_y) with derivative columns [configuration (nc) | velocities (nv)]
+    (None without Dq): dg_y = Kt Dq on the configuration, -Z(Omega0)^T on the Omega0 columns; no rate
+    dependence (dg_z = 0)."""
+    _, f, Kt = von_karman(q, a, B, tangent=Dq is not None)
+    g, _, _, _, d = deformed_inertia(q, q, Om, Om, W1, jacobian=Dq is not None)
+    if Dq is None:
+        return f + g, None, None
+    E, n, nc = Dq.shape
+    nv = 6 + n
+    dg_y = np.zeros((E, n, nc + nv))
+    dg_y[:, :, :nc] = Kt @ Dq
+    dg_y[:, :, nc + 3 : nc + 6] = d["g_Om"]
+    return f + g, np.zeros_like(dg_y), dg_y
+
+
+def rotation_rows(q, qd, Om, Omd, W0, W1, nc: int, Dq=None, Dqdot=None):
+    """The W1 terms on the CM rotation rows (77): W0 x ((W1 q) Omega0) + (W1 q) Omega0dot + (W1 qdot) Omega0,
+    as local rows [kinematic (nv) | dynamic (nc)], stacked on E.
+
+    Returns (F (E, nv + nc), F_ydot, F_y) with columns [configuration/rates (nc) | velocities (nv)]
+    (None, None without Dq)."""
+    _, h, e, _, d = deformed_inertia(q, qd, Om, Omd, W1, jacobian=Dq is not None)
+    E, n = q.shape
+    nv = 6 + n
+    rows = slice(nv + 3, nv + 6)
+    F = np.zeros((E, nv + nc))
+    F[:, rows] = np.cross(W0, h) + e
+    if Dq is None:
+        return F, None, None
+    Fz, Fy = np.zeros((2, E, nv + nc, nc + nv))
+    W0x = skew(W0)
+    Fz[:, rows, 3:6] = -skew(h)  # d(W0 x h)/dW0
+    Fz[:, rows, :nc] += d["e_qd"] @ Dq
+    Fz[:, rows, nc + 3 : nc + 6] = d["e_Omd"]
+    Fy[:, rows, :nc] = (W0x @ d["h_q"] + d["e_q"]) @ Dq + d["e_qd"] @ Dqdot
+    Fy[:, rows, nc + 3 : nc + 6] = W0x @ d["h_Om"] + d["e_Om"]
+    return F, Fz, Fy
+
+
+def fused_hooks(W1, a, B, nc: int):
+    """(g_term, row_term) for runtime.fused.FusedResidual: the stiffening terms over all superelements
+    from the stacked reduced data W1 (E, n, 3, 3), a (E, r, n), B (E, r, n, n)."""
+
+    def g_term(s, D):
+        return elastic_force(s["q"], s["Om0"], W1, a, B, None if D is None else D["Dq"])
+
+    def row_term(s, D):
+        if D is None:
+            return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc)
+        return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, D["Dq"], D["Dqdot"])
+
+    return g_term, row_term
+
+
+def plain_hooks(sd):
+    """(g_term, row_term) for runtime.equations.residual_and_jacobian: the same terms for ONE
+    superelement (SuperelementData sd), written on its Kinematics (the oracle's hook signature)."""
+    W1, a, B = sd.W1[None], sd.vk_a[None], sd.vk_B[None]
+
+    def g_term(se, kin, v, zdot, vdot):
+        g, dz, dy = elastic_force(kin.q[None], v[None, 3:6], W1, a, B, kin.Dq[None])
+        return g[0], dz[0], dy[0]
+
+    def row_term(se, kin, v, zdot, vdot):
+        F, Fz, Fy = rotation_rows(kin.q[None], kin.qdot[None], v[None, 3:6], vdot[None, 3:6], zdot[None, 3:6], W1,
+                                  kin.Dq.shape[1], kin.Dq[None], kin.Dqdot[None])
+        return F[0], Fz[0], Fy[0]
+
+    return g_term, row_term
