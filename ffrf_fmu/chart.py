@@ -121,7 +121,7 @@ def label(values: dict[str, Any], extra: dict[str, Any] | None = None) -> str:
 def _body_data(model: Model, scene):
     from .reduction import build_body
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))[0]
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)[0]
 
 
 def _trajectory(result) -> np.ndarray:

@@ -53,7 +53,7 @@ def _body_for_scene(model: Model, scene: Scene):
     """The body with the scene's causality, built and reduced: (BodyData, reductions)."""
     from .reduction import build_body  # heavy (scipy); only the commands that need it pay
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)
 
 
 def _hz(values, n: int = 6) -> str:

@@ -37,7 +37,7 @@ from .runtime.ports import StepFailure
 def _body_for(model: Model, scene: Scene):
     from .reduction import build_body
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))[0]
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)[0]
 
 
 def _transverse(d: np.ndarray, axis: np.ndarray) -> np.ndarray:

@@ -265,7 +265,12 @@ def build_fmu(
         "build": build_info or {},
     }
     ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
-    config["description"] = DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text)
+    stiff = all(se.stiffening for se in data.superelements)
+    config["description"] = DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text) + (
+        " Geometric stiffening inside each superelement: " + ("on (centrifugal correction modes, W1 inertia, "
+        "second-order membrane strain; built into the reduced data)." if stiff else "off.")
+    )
+    config["stiffening"] = stiff
     if params.duration is not None:
         config["experiment"] = {"stop_time": float(params.duration), "step_size": float(params.step)}
     digest = body_digest(data, {k: v for k, v in config.items() if k != "build"}, {**runtime_src, **fmu_src})
@@ -341,7 +346,7 @@ def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()
 
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
-    data, _ = build_body(model.body, sc.causality)
+    data, _ = build_body(model.body, sc.causality, stiffening=sc.stiffening)
     info = {
         "model_file": str(Path(model_path).name),
         "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
