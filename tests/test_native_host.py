@@ -47,10 +47,12 @@ def b1(tmp_path_factory):
     return fmu, unzip, host, md
 
 
-def _host(b1, *args):
+def _host(b1, *args, env_extra=None):
     fmu, unzip, host, md = b1
     binary = unzip / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
-    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME")}
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME",
+                                                            "FFRF_FMU_LIBPYTHON")}
+    env.update(env_extra or {})
     return subprocess.run([str(host), args[0], str(binary), (unzip / "resources").as_uri(), md.guid, *map(str, args[1:])],
                           capture_output=True, text=True, timeout=600, env=env)
 
@@ -61,6 +63,10 @@ def _vr(md, names):
 
 
 def _fmpy_run(b1, steps, H):
+    return _fmpy_run_outputs(b1, steps, H, OUTPUTS)
+
+
+def _fmpy_run_outputs(b1, steps, H, outputs):
     fmu, unzip, host, md = b1
     s = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip), modelIdentifier=md.coSimulation.modelIdentifier,
                   instanceName="fmpy")
@@ -71,7 +77,7 @@ def _fmpy_run(b1, steps, H):
     s.exitInitializationMode()
     for k in range(steps):
         s.doStep(k * H, H)
-    out = s.getReal(_vr(md, OUTPUTS))
+    out = s.getReal(_vr(md, outputs))
     s.terminate()
     s.freeInstance()
     return np.array(out)
@@ -118,6 +124,20 @@ def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
     assert "(null category)" not in done.stderr
     assert "solver.rho_inf must be in [0, 1], got 2.0" in done.stderr
     assert "unknown value reference(s) [1000000]" in done.stderr
+
+
+def test_libpython_override_is_used_and_a_bad_one_is_reported(b1):
+    """FFRF_FMU_LIBPYTHON replaces the recorded libpython: a file that is not there makes
+    fmi2Instantiate return NULL with the path and the loader's reason in the log (no crash)."""
+    fmu, unzip, host, md = b1
+    args = ("run", 1, 2e-3, 1, 1, _vr(md, ["tip.f[3]"])[0], FORCE, _vr(md, ["tip.r[3]"])[0])
+    bad = _host(b1, *args, env_extra={"FFRF_FMU_LIBPYTHON": "/nonexistent/libpython3.so"})
+    assert bad.returncode == 5, bad.stderr  # the host's exit code for a NULL instance
+    assert "cannot load libpython (/nonexistent/libpython3.so; set FFRF_FMU_LIBPYTHON to override)" in bad.stderr
+    recorded = (unzip / "resources" / "ffrf_libpython.txt").read_text().strip()
+    good = _host(b1, *args, env_extra={"FFRF_FMU_LIBPYTHON": recorded})
+    assert good.returncode == 0, good.stderr
+    assert np.array_equal(_parse(good.stdout)[(0, 0)], _fmpy_run_outputs(b1, 1, 2e-3, ["tip.r[3]"]))
 
 
 ECOS_RUN = r"""

@@ -21,9 +21,10 @@
  *  4. Messages of status Warning and worse always reach the host's logger (FMI 2.0: debug
  *     logging switches only the debug messages); status-OK messages only with debug logging on.
  *     A NULL category from pythonfmu becomes logStatusXxx.
- *  5. The heap corruption at process exit (PythonFMU issue #228, "corrupted double-linked list"
- *     under fmpy, "free(): corrupted unsorted chunks" in a C host) is pythonfmu's: its global
- *     `std::shared_ptr<PyState> pyState` is destroyed by the exit handlers (__cxa_atexit), and
+ *  5. The heap corruption at process exit (PythonFMU issue #228, "free(): corrupted unsorted
+ *     chunks" after an fmpy run and in a C host) is pythonfmu's: its global
+ *     `std::shared_ptr<PyState> pyState` (PythonFMU PR #213 keeps the interpreter alive until the
+ *     library unloads) is destroyed by the exit handlers (__cxa_atexit), and
  *     afterwards its __attribute__((destructor)) onLibraryUnload() assigns nullptr to the
  *     destroyed shared_ptr, releasing the freed control block a second time (found with
  *     valgrind: "Invalid read ... in finalizePythonInterpreter ... block free'd by
