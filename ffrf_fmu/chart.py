@@ -132,7 +132,7 @@ def _trajectory(result) -> np.ndarray:
 
 
 def run_configuration(model_path: str, scene_name: str | None, base_overrides: Sequence[str],
-                      values: dict[str, str], runner: str = "standalone") -> dict:
+                      values: dict[str, str], runner: str = "standalone", backend: str = "numpy") -> dict:
     """Run one configuration (in a worker process). Returns a picklable dict: shown values,
     times and the elastic tip trajectory, metrics, wall and CPU time, completion."""
     from . import simulate as sim
@@ -145,13 +145,14 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
         body = _body_data(model, sc)
         if runner == "standalone":
             c0 = time.process_time()
-            res = sim.run(body, sc, origin=model.body.origin, progress=False)
+            res = sim.run(body, sc, origin=model.body.origin, progress=False, backend=backend)
             out["cpu_time_s"] = time.process_time() - c0
             s = res.summary
             out |= {"wall_time_s": s["wall_time_s"], "completed": bool(s["completed"]), "failure": s["failure"],
                     "t_end_s": s["t_end"], "newton_iterations_mean": s["newton_iterations_mean"]}
         elif runner == "fmu":
-            res, wall, cpu = _run_fmu(model_path, model, sc, list(base_overrides) + config_overrides(values), body)
+            res, wall, cpu = _run_fmu(model_path, model, sc, list(base_overrides) + config_overrides(values), body,
+                                      backend)
             reached = abs(res.t[-1] - sc.duration) <= 1e-9 * max(1.0, sc.duration)
             out |= {"wall_time_s": wall, "cpu_time_s": cpu, "completed": bool(reached),
                     "failure": None if reached else f"FMU stopped at t = {res.t[-1]:.6g} s (fmi2Discard/Error)",
@@ -167,7 +168,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
     return out
 
 
-def _run_fmu(model_path, model, sc, overrides, body):
+def _run_fmu(model_path, model, sc, overrides, body, backend="numpy"):
     """Build the configuration's FMU (into a temporary directory) and run it under fmpy with
     communication step = internal step; (SimulationResult, wall time, CPU time)."""
     import tempfile
@@ -179,7 +180,8 @@ def _run_fmu(model_path, model, sc, overrides, body):
     from .validate import fmu_input_table, run_fmu
 
     with tempfile.TemporaryDirectory(prefix="ffrf_chart_fmu_") as tmp:
-        fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides)
+        fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
+                               backend=backend)
         md = read_model_description(str(fmu))
         names = [v.name for v in md.modelVariables if v.causality in ("input", "output")]
         inputs = scene_inputs(body, sc)
@@ -404,7 +406,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
           overrides: Sequence[str] = (), fmu: bool = False, reference_elements: int | None = None,
           reference_step: float | None = None, workers: int | None = None, out_dir="chart",
           progress: bool = True, plot: bool = True, cost: str = "wall", peer: str | None = None,
-          peer_sweep=None) -> dict:
+          peer_sweep=None, backend: str = "numpy") -> dict:
     """Run the sweep and the reference; write DIR/chart.csv, DIR/chart.json and DIR/chart.png.
 
     sweep: {key: [value texts]} or a list of such groups (union of their cartesian products;
@@ -448,7 +450,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
             from .peers import runner as peer_runner
 
             return peer_runner(peer), (model_path, scene.name, list(overrides), peer_cfgs[i])
-        return run_configuration, (model_path, scene.name, list(overrides), configs[i], r)
+        return run_configuration, (model_path, scene.name, list(overrides), configs[i], r, backend)
 
     def note_of(i: int, r: str) -> str:
         return peer_label(peer, peer_cfgs[i], scene) if r == peer else label({**resolved(model, scene.name), **configs[i]})
@@ -560,7 +562,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     write_csv(rows, csv_path)
     meta = {
         "model": model_path, "scene": scene.name, "overrides": list(overrides), "sweep": groups,
-        "metric": metric_name, "cost": cost, "peer": peer, "peer_sweep": peer_sweep, "workers": workers, "cpu_count": os.cpu_count(),
+        "metric": metric_name, "cost": cost, "backend": backend, "peer": peer, "peer_sweep": peer_sweep, "workers": workers, "cpu_count": os.cpu_count(),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "chart_wall_time_s": time.perf_counter() - t0,
         "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "path", "failure",

@@ -34,6 +34,12 @@ MODEL_ARGS = (
 )
 
 
+BACKEND_ARG = arg(
+    "--backend", choices=("numba", "numpy"), default="numba",
+    help="numba: the compiled step (default; compiled once, then cached in ~/.cache/ffrf-fmu), numpy: the "
+         "reference implementation; without numba, or for a term set the kernel does not cover, numpy with a note")
+
+
 def command(*arguments):
     """Register the decorated function as a subcommand named after it."""
 
@@ -144,6 +150,7 @@ def info(args) -> int:
     arg("--out", metavar="results.csv", help="write time, every port's frame, velocity and load, and the energies"),
     arg("--summary", metavar="summary.json", help="write wall time, steps, Newton iterations, energy balance, metrics"),
     arg("--plot", metavar="fig.png", help="plot the tip deflection (or port angular velocity) and the energies"),
+    BACKEND_ARG,
     arg("--solver", choices=("superelements", "reference"), default="superelements",
         help="superelements (the product) or reference: the full-order geometrically exact beam on the "
              "unreduced FE mesh (superelements x elements per superelement; change with --set elements=N)"),
@@ -158,10 +165,14 @@ def simulate(args) -> int:
     else:
         body_data, _ = _body_for_scene(model, scene)
         try:
-            result = sim.run(body_data, scene, origin=model.body.origin, progress=True)
+            result = sim.run(body_data, scene, origin=model.body.origin, progress=True, backend=args.backend)
         except sim.InitializationFailure as e:
             print(f"{PROG}: error: {e}", file=sys.stderr)
             return 2
+        if result.summary["backend_note"]:
+            print(f"{PROG}: note: {result.summary['backend_note']}", file=sys.stderr)
+        elif (result.summary["compile_time_s"] or 0.0) > 1.0:
+            print(f"numba kernel compiled in {result.summary['compile_time_s']:.1f} s (cached for later runs)", file=sys.stderr)
     s = result.summary
     if args.out:
         result.write_csv(args.out)
@@ -249,6 +260,7 @@ def stability(args) -> int:
         "runs are measured per process and grow when K exceeds the free cores)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
         "chart.json and the cached reference run (npz)"),
+    BACKEND_ARG,
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
     arg("--plot-only", action="store_true", help="redraw DIR/chart.png from DIR/chart.csv and chart.json, run nothing"),
@@ -269,7 +281,7 @@ def chart(args) -> int:
         return 0
     try:
         groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
-        out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu,
+        out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu, backend=args.backend,
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
                        workers=args.workers, out_dir=args.output, cost=args.cost, peer=args.peer,
                        peer_sweep=ch.parse_sweep(args.peer_sweep) if args.peer_sweep else None)

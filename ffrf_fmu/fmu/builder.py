@@ -51,7 +51,7 @@ SHIPPED_FMU_MODULES = ("core.py", "variables.py")
 LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
 PYTHON_FILE = "ffrf_python.json"
 LIBPYTHON_FILE = "ffrf_libpython.txt"
-ALLOWED_IMPORTS = {"numpy", "scipy"}
+ALLOWED_IMPORTS = {"numpy", "scipy", "numba"}  # numba: runtime/compiled.py falls back to numpy without it
 OPTIONAL_IMPORTS = {"threadpoolctl"}  # allowed inside `try: ... except ImportError:` only
 
 DESCRIPTION = (
@@ -189,7 +189,8 @@ _STDLIB = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
 
 
 def check_shipped_imports(sources: dict[str, str]) -> None:
-    """The shipped modules may import only the standard library, numpy, scipy and each other
+    """The shipped modules may import only the standard library, numpy, scipy, numba (optional: imported
+    only by runtime/compiled.py, which falls back to numpy without it) and each other
     (relative imports): anything else would be missing where the FMU runs."""
     import ast
 
@@ -213,7 +214,7 @@ def check_shipped_imports(sources: dict[str, str]) -> None:
                 if top in ALLOWED_IMPORTS or top in _STDLIB or (top in OPTIONAL_IMPORTS and id(node) in guarded):
                     continue
                 raise BuildError(
-                    f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, the "
+                    f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, numba, the "
                     "standard library and each other (relative imports)"
                 )
 
@@ -241,6 +242,7 @@ def build_fmu(
     origin=None,
     build_info: dict | None = None,
     native_loader: bool = True,
+    backend: str = "numba",
 ) -> Path:
     """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
 
@@ -248,7 +250,11 @@ def build_fmu(
     build_info: free JSON-able facts stored in the resources (model file, scene, overrides).
     native_loader: put the native loader in front of pythonfmu's binary (Linux, needs a C
     compiler at build time; without one a BuildWarning says what the FMU then needs).
+    backend: "numba" (the FMU uses the compiled step when its host has numba, else numpy with a logged
+    message) or "numpy" (always the reference implementation).
     """
+    if backend not in ("numba", "numpy"):
+        raise BuildError(f"backend must be numba or numpy, got {backend!r}")
     from pythonfmu import FmuBuilder  # build-time only
 
     runtime_src = _sources(RUNTIME_DIR)
@@ -263,6 +269,7 @@ def build_fmu(
         "body": data.name,
         "ffrf_fmu_version": __version__,
         "build": build_info or {},
+        "backend": backend,
     }
     ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
     stiff = all(se.stiffening for se in data.superelements)
@@ -339,7 +346,7 @@ def build_fmu(
 # from a model file
 
 
-def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()) -> Path:
+def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numba") -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
     from ..model import load_model
     from ..reduction import build_body
@@ -354,7 +361,8 @@ def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()
         "overrides": list(overrides),
         "scenes": [s.name for s in model.scenes],
     }
-    return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info)
+    return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
+                     backend=backend)
 
 
 def read_fmu_config(fmu_path) -> dict:
@@ -372,6 +380,9 @@ def add_build_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override a model value (repeatable), e.g. --set superelements=2")
     parser.add_argument("-o", "--output", default=None,
                         help="FMU file to write (default: <body name>.fmu in the current directory)")
+    parser.add_argument("--backend", choices=("numba", "numpy"), default="numba",
+                        help="numba (default): the FMU runs the compiled step when its host has numba, else numpy "
+                             "with a logged message; numpy: always the reference implementation")
 
 
 def build_command(args) -> int:
@@ -379,7 +390,8 @@ def build_command(args) -> int:
     from ..model import ModelError
 
     try:
-        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides)
+        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
+                               backend=args.backend)
     except (ModelError, BuildError, OSError) as e:
         print(f"ffrf-fmu build: error: {e}", file=sys.stderr)
         return 2

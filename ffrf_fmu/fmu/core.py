@@ -95,6 +95,7 @@ class BodyCoSim:
         # 17-21 s with two OpenBLAS threads, 3.2-3.5 s with one). The limit holds during this
         # instance's calls only and is undone on return: the host's own setting stays as it is.
         self._blas = ThreadpoolController() if ThreadpoolController is not None else None
+        self.backend_note = None  # why the numba backend is not used, when it was asked for
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
 
     def one_blas_thread(self):
@@ -180,7 +181,9 @@ class BodyCoSim:
         p = self.parameters()
         key = (p["rho_inf"], p["terms"], tuple(p["gravity"]))
         if self.system is None or self._system_params != key:
-            self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"])
+            self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"],
+                                     backend=self.config.get("backend", "numpy"))
+            self.backend_note = self.system.backend_note  # numba wanted but not usable: the slave logs it
             self._system_params = key
         return self.system
 

@@ -204,6 +204,8 @@ class {cls}(Fmi2Slave):
         if message:
             self.log(message + " (fmi2Error; every doStep will return fmi2Error until the parameters are fixed "
                      "and the FMU is reset)", Fmi2Status.error)
+        if self.core.backend_note:
+            self.log(self.core.backend_note, Fmi2Status.warning)
 
     @_guarded(lambda *a: False)
     def do_step(self, current_time, step_size):

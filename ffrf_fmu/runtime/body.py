@@ -6,10 +6,12 @@ where each unknown lives in runtime/layout.py.
 """
 from __future__ import annotations
 
+import logging
 from typing import Callable
 
 import numpy as np
 
+from .compiled import CompiledStep, load_kernel
 from .data import BodyData
 from . import stiffening
 from .fused import FusedResidual
@@ -19,6 +21,7 @@ from .ports import PortValues, StepFailure
 from .rotation import cross, is_rotation, vect
 
 TERM_SETS = ("linear", "gyroscopic")
+BACKENDS = ("numpy", "numba")
 
 
 def _input(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
@@ -54,9 +57,15 @@ class BodySystem(GeneralizedAlpha):
         gravity=(0.0, 0.0, 0.0),
         tol: float = 1e-9,
         max_iter: int = 25,
+        backend: str = "numpy",
     ):
+        """backend: "numpy" (the reference) or "numba" (the compiled step, runtime/kernel.py); when numba
+        is missing or does not cover the term set, the body runs on numpy, says why in `backend_note`
+        and logs it (logger "ffrf_fmu"). `backend` is the one in use."""
         if terms not in TERM_SETS:
             raise ValueError(f"unknown term set {terms!r}; choose one of {TERM_SETS}")
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
         self.data, self.terms, self.rho_inf = data, terms, float(rho_inf)
         self.coefficients = alpha_coefficients(self.rho_inf)
         self.gravity = np.asarray(gravity, dtype=float)
@@ -102,6 +111,14 @@ class BodySystem(GeneralizedAlpha):
         self.t = 0.0
         self.iterations = 0
         self._reset_reference()
+        self._compiled, self.backend, self.backend_note = None, "numpy", None
+        if backend == "numba":
+            module, why = load_kernel(terms)
+            if module is None:
+                self.backend_note = f"numba backend not available ({why}): running on numpy"
+                logging.getLogger("ffrf_fmu").warning(self.backend_note)
+            else:
+                self._compiled, self.backend = CompiledStep(self, module), "numba"
 
     # ------------------------------------------------------------------ state
     def _reset_reference(self):

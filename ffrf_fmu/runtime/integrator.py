@@ -94,6 +94,8 @@ class GeneralizedAlpha:
     def step(self, h: float, inputs: Callable[[float], dict[str, PortValues]]) -> int:
         """Advance by one step h; returns the Newton iterations; raises StepFailure."""
         am, af, gamma = self.coefficients
+        if self._compiled is not None:
+            return self._compiled.step(self, h, inputs, am, af, gamma)
         return self._step(h, inputs, am, af, gamma, commit_config=True)
 
     def newton_system(self, yd, h, values, coefficients=None, jacobian=True):
@@ -122,6 +124,20 @@ class GeneralizedAlpha:
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
         beta = h * gamma * af / am
+        F, it = self._newton(yd, beta, t1)
+        if not commit_config:
+            return yd.copy()
+        self._commit(yd.copy())
+        self.t, self.iterations = t1, it
+        self._update_port_loads(F, f_in, t_in)
+        p_new = self._external_power()
+        self.work += 0.5 * h * (self.power + p_new)
+        self.power = p_new
+        return it
+
+    def _newton(self, yd, beta, t1):
+        """Newton on the rates yd (updated in place) of the prepared step; returns the residual at the
+        accepted rates and the iterations. runtime/kernel.py `newton_step` is its compiled twin."""
         fi, order = self._free_idx, self._newton_idx
         dx_prev = np.inf
         for it in range(0, self.max_iter + 1):
@@ -151,15 +167,7 @@ class GeneralizedAlpha:
             if it > 0 and err > 0.25 * dx_prev and err > 10.0 * tol:
                 self._lu = None  # slow contraction (above round-off): refresh the iteration matrix
             dx_prev = err
-        if not commit_config:
-            return yd.copy()
-        self._commit(yd.copy())
-        self.t, self.iterations = t1, it
-        self._update_port_loads(F, f_in, t_in)
-        p_new = self._external_power()
-        self.work += 0.5 * h * (self.power + p_new)
-        self.power = p_new
-        return it
+        return F, it
 
     def _commit(self, yd):
         """The configuration of the last residual evaluation and the rates yd become the state."""

@@ -1,0 +1,183 @@
+"""The `numba` backend: loading the compiled step (runtime/kernel.py) and calling it for a body.
+
+numba is optional where the runtime runs (an FMU's host may not have it): `load_kernel` returns None
+with the reason when numba is missing or the term set is not covered by the kernel, and the body
+falls back to the numpy backend, saying so (`BodySystem.backend_note`).
+
+Compiled code is cached on disk in a user cache directory keyed by the kernel's content:
+kernel.py is copied to <cache>/kernels/<sha256 prefix>/ and imported from there, with numba's
+cache=True next to it. A second process or FMU instantiation (an FMU's resources are unpacked to a
+fresh directory each time, so a cache keyed by the file's path would miss) loads the machine code
+instead of compiling. <cache> is $FFRF_FMU_CACHE_DIR, else $XDG_CACHE_HOME/ffrf-fmu, else
+~/.cache/ffrf-fmu; if it cannot be written, a temporary directory (compiled once per process).
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import logging
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .ports import StepFailure
+
+KERNEL_TERM_SETS = ("linear", "gyroscopic")  # term sets runtime/kernel.py computes
+
+
+def _read_kernel_source() -> bytes | None:
+    try:
+        return (Path(__file__).resolve().parent / "kernel.py").read_bytes()
+    except OSError:
+        return None
+
+
+# read at import: an FMU's unpacked resources may be deleted while its package stays imported
+# (a second instance of the same FMU then reuses the module)
+_KERNEL_SOURCE = _read_kernel_source()
+_LOADED: dict[str, object] = {}  # kernel modules by content hash: compiled code, no body state
+
+
+def cache_root() -> Path:
+    env = os.environ.get("FFRF_FMU_CACHE_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "ffrf-fmu"
+
+
+def _kernel_file(src: bytes, digest: str) -> Path:
+    """kernel.py at its content-keyed place, written atomically if absent."""
+    for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
+        d = root / "kernels" / digest
+        f = d / f"ffrf_kernel_{digest}.py"
+        try:
+            if not f.exists() or f.read_bytes() != src:
+                d.mkdir(parents=True, exist_ok=True)
+                tmp = d / f".{f.name}.{os.getpid()}.tmp"
+                tmp.write_bytes(src)
+                os.replace(tmp, f)
+            return f
+        except OSError:
+            continue
+    raise OSError("no writable cache directory for the compiled kernel")
+
+
+def load_kernel(terms: str):
+    """(module, None) or (None, reason): the compiled kernel module, compiled or loaded from the cache."""
+    if terms not in KERNEL_TERM_SETS:
+        return None, f"the numba kernel does not cover term set {terms!r} (it covers {', '.join(KERNEL_TERM_SETS)})"
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return None, "numba is not installed"
+    src = _KERNEL_SOURCE
+    if src is None:
+        return None, f"{Path(__file__).resolve().parent / 'kernel.py'} could not be read"
+    digest = hashlib.sha256(src).hexdigest()[:16]
+    if digest in _LOADED:
+        return _LOADED[digest], None
+    try:
+        path = _kernel_file(src, digest)
+        name = f"ffrf_kernel_{digest}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # numba's cache locator looks the module up by name
+        spec.loader.exec_module(module)
+    except Exception as exc:  # a broken numba install must not take the body down: numpy still works
+        return None, f"the numba kernel could not be loaded ({type(exc).__name__}: {exc})"
+    _LOADED[digest] = module
+    return module, None
+
+
+class CompiledStep:
+    """The compiled step of one body: its constant arrays in the kernel's argument order, the state
+    buffers the kernel updates in place (the body's state attributes are these buffers), the LU
+    buffers kept across steps."""
+
+    STATE = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "a", "fN", "tN")
+
+    def __init__(self, system, module):
+        self.module = module
+        L = system.layout
+        i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+        f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+        G = system.G if system.gyro else np.zeros((L.n_se, 3, 1, 1))  # not read by the linear set
+        nf = len(system._newton_idx)
+        self.const = (
+            1 if system.gyro else 0, f64(system.K), f64(system.M), f64(G), f64(system.mass), f64(system.J0),
+            f64(system.X_B), i64(system.se_nodes), i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
+            i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
+            i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
+            i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
+        )
+        self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
+        self.energy = np.zeros(2)  # work, power
+        self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
+        self.luT = np.zeros((nf, nf))
+        self.lu = self.luT.T  # Fortran-ordered view: the array scipy's lu_factor would return
+        self.piv = np.zeros(nf, dtype=np.int32)
+        self.lu_meta = np.zeros(11)
+        self.info = np.zeros(2, dtype=np.int64)
+        self.F = np.zeros(L.ny)
+        self.R = np.zeros((L.n_nodes + L.n_se, 3, 3))
+        self.fn = None  # the compiled entry point, once known (calling it skips numba's type dispatch)
+        self.compile_seconds = None  # seconds of the first call in this process (compilation or cache load)
+
+    def _adopt(self, system):
+        """The body's state in the kernel's buffers (after set_state, initialize or a numpy step)."""
+        for k, buf in self.state.items():
+            arr = getattr(system, k)
+            if arr is not buf:
+                buf[...] = arr
+                setattr(system, k, buf)
+        lu = system._lu
+        if lu is None:
+            self.lu_meta[0] = 0.0
+        elif lu[0] is not self.lu:  # a factorization from set_state or the numpy path: adopt it
+            self.lu[...] = lu[0]
+            self.piv[:] = lu[1]
+            self.lu_meta[0], self.lu_meta[1], self.lu_meta[2:] = 1.0, lu[2], np.ravel(lu[3])
+
+    def step(self, system, h, inputs, am, af, gamma) -> int:
+        """BodySystem.step on the compiled kernel; raises StepFailure with the numpy path's messages."""
+        t1 = system.t + h
+        if not (h > 0.0 and np.isfinite(h)):
+            raise StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        xN_p, RN_p, zN_p, f_in, t_in = system._read_inputs(t1, inputs(t1))
+        self._adopt(system)
+        s = self.state
+        self.energy[0], self.energy[1] = system.work, system.power
+        args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["a"],
+                s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, float(h), float(am), float(af),
+                float(gamma), float(system.tol), int(system.max_iter), self.ydw, self.p, self.R, self.F, self.luT,
+                self.piv, self.lu_meta, self.info)
+        if self.fn is None:
+            t0 = time.perf_counter()
+            try:
+                self.module.step(*args)
+            except Exception as exc:  # compilation failed (a broken numba install): numpy from here on
+                system._compiled, system.backend = None, "numpy"
+                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
+                logging.getLogger("ffrf_fmu").warning(system.backend_note)
+                return system._step(h, inputs, am, af, gamma, commit_config=True)
+            self.compile_seconds = time.perf_counter() - t0
+            self.fn = self.module.step.overloads[self.module.step.signatures[0]].entry_point
+        else:
+            self.fn(*args)
+        status, it = int(self.info[0]), int(self.info[1])
+        m = self.lu_meta
+        system._lu = (self.lu, self.piv, m[1], m[2:].reshape(3, 3).copy()) if m[0] else None
+        if status == self.module.NOT_FINITE:
+            raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
+        if status == self.module.NOT_CONVERGED:
+            raise StepFailure(t1, f"Newton did not converge in {system.max_iter} iterations (last increment {m[1]:.3g})")
+        if status == self.module.NOT_FACTORED:
+            raise StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
+        system.t, system.iterations = t1, it
+        system.work, system.power = float(self.energy[0]), float(self.energy[1])
+        return it

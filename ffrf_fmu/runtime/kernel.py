@@ -1,0 +1,724 @@
+"""The Newton loop of one generalized-alpha step as ONE compiled numba function (backend `numba`).
+
+Self-contained on purpose (imports numpy and numba only): `runtime/compiled.py` copies this file
+into a user cache directory named by its content hash and imports it from there, so numba's
+on-disk cache (cache=True) serves every later process and FMU instantiation with the same code.
+
+It computes what the numpy backend computes (runtime/fused.py, runtime/integrator.py), in the same
+order of decisions, written as plain loops after runtime/equations.py (the oracle; equation numbers
+there): per superelement the boundary coordinates (89), their rates (91), the residual rows (69),
+(77)-(79) [+ the gyroscopic terms (53), (55)] and, when the iteration matrix is refreshed, the local
+Jacobian blocks; the iteration matrix F_ydot + beta [F_y T, F_v] on the unknowns in the Newton
+order; its LU (LAPACK getrf, the routine scipy's lu_factor calls, so the factors are identical);
+modified Newton with the factorization carried along the rotation of the first CM frame.
+
+Term sets covered: `linear`, `gyroscopic` (gyro = 1). Anything else is refused by compiled.py.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numba
+import numpy as np
+from numba.np.linalg import _LAPACK, ensure_lapack
+
+ensure_lapack()
+_getrf = _LAPACK().numba_xxgetrf(numba.float64)  # numba's binding of LAPACK dgetrf (scipy's cython_lapack)
+_KIND = ord("d")
+_EPS = 1e-5  # runtime/rotation.py: below this angle the series of the tangent are exact to round-off
+
+# status codes of `newton_step`
+OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED = 0, 1, 2, 3
+
+jit = numba.njit(cache=True, nogil=True)
+
+_Work = namedtuple("_Work", "q qd g rho Q H alpha x0 W0 x0dot v vdot u c v3 v3b GW h torque Gq Gqd Gr Grd dsdq fa "
+                            "Dq Dqd dgz dgy S S2 B W0x C QC T1")
+
+
+@jit
+def _work(n, nb, nc, nv):
+    """Work arrays of `_superelement` and `_jacobian`, allocated once per step."""
+    ncv = nc + nv
+    z3 = np.zeros
+    return _Work(z3(n), z3(n), z3(n), z3((nb, 3)), z3((nb, 3, 3)), z3((nb, 3, 3)), z3((nb, 3)), z3(3), z3(3), z3(3),
+                 z3(nv), z3(nv), z3((nb, 3)), z3((nb, 3)), z3(3), z3(3), z3((n, n)), z3(3), z3(3), z3((3, n)),
+                 z3((3, n)), z3((3, n)), z3((3, n)), z3((3, n)), z3((nb, 3)), z3((n, nc)), z3((n, nc)), z3((n, ncv)),
+                 z3((n, ncv)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, nc)))
+
+
+@jit
+def _expm(th, out):
+    """exp(skew(th)) through the unit quaternion (cos(t/2), sin(t/2)/t th), as rotation.expm."""
+    t2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2]
+    half = np.sqrt(0.25 * t2)
+    w = np.cos(half)
+    s = np.sin(half) / half if half > 0.0 else 0.0
+    x, y, z = 0.5 * s * th[0], 0.5 * s * th[1], 0.5 * s * th[2]
+    d = w * w - x * x - y * y - z * z
+    out[0, 0], out[1, 1], out[2, 2] = d + 2 * x * x, d + 2 * y * y, d + 2 * z * z
+    out[0, 1], out[1, 0] = 2 * (x * y - w * z), 2 * (x * y + w * z)
+    out[0, 2], out[2, 0] = 2 * (x * z + w * y), 2 * (x * z - w * y)
+    out[1, 2], out[2, 1] = 2 * (y * z - w * x), 2 * (y * z + w * x)
+
+
+@jit
+def _tangent(th, out):
+    """T(th) = I - b skew(th) + c skew(th)^2 (rotation.tangent)."""
+    t2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2]
+    t = np.sqrt(t2)
+    if t < _EPS:
+        b, c = 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0
+    else:
+        b, c = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
+    S = np.zeros((3, 3))
+    _skew(th, S)
+    for i in range(3):
+        for j in range(3):
+            ss = 0.0
+            for k in range(3):
+                ss += S[i, k] * S[k, j]
+            out[i, j] = (1.0 if i == j else 0.0) - b * S[i, j] + c * ss
+
+
+@jit
+def _skew(a, out):
+    out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
+    out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
+    out[2, 0], out[2, 1], out[2, 2] = -a[1], a[0], 0.0
+
+
+@jit
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@jit
+def _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, F, Fz, Fy, w):
+    """Local residual rows F (nv + nc) of superelement e and, if jac, F_ydot (Fz) and F_y (Fy)
+    (runtime/equations.py residual_and_jacobian, the same rows and columns). w: work arrays."""
+    n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
+    nm = n - 6 * nb
+    ncv = nc + nv
+    q, qd, g = w.q, w.qd, w.g
+    rho, Q, H, alpha = w.rho, w.Q, w.H, w.alpha
+    R0 = R[N + e]
+    x0, W0, x0dot = w.x0, w.W0, w.x0dot
+    for i in range(3):
+        x0[i] = p[cfg[e, i]]
+        x0dot[i] = yd[cfg[e, i]]
+        W0[i] = yd[cfg[e, 3 + i]]
+    v = w.v
+    vdot = w.vdot
+    for i in range(nv):
+        v[i] = p[vel[e, i]]
+        vdot[i] = yd[vel[e, i]]
+    # ---- boundary coordinates (89) and their rates (91), node by node
+    for k in range(nb):
+        P = nodes[e, k]
+        base = 6 + nm + 6 * k
+        for i in range(3):
+            s1 = 0.0
+            s2 = 0.0
+            for j in range(3):
+                s1 += R0[j, i] * (p[cfg[e, base + j]] - x0[j])
+                s2 += R0[j, i] * (yd[cfg[e, base + j]] - x0dot[j])
+            rho[k, i] = s1
+            w.u[k, i] = s2
+            for j in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += R0[m, i] * R[P, m, j]
+                Q[k, i, j] = s
+        alpha[k, 0] = 0.5 * (Q[k, 2, 1] - Q[k, 1, 2])
+        alpha[k, 1] = 0.5 * (Q[k, 0, 2] - Q[k, 2, 0])
+        alpha[k, 2] = 0.5 * (Q[k, 1, 0] - Q[k, 0, 1])
+        tr = Q[k, 0, 0] + Q[k, 1, 1] + Q[k, 2, 2]
+        for i in range(3):
+            for j in range(3):
+                H[k, i, j] = 0.5 * ((tr if i == j else 0.0) - Q[k, j, i])
+        c = w.c[k]
+        for i in range(3):
+            s = 0.0
+            for j in range(3):
+                s += Q[k, j, i] * W0[j]
+            c[i] = yd[cfg[e, base + 3 + i]] - s
+        rxW = w.v3
+        _cross(rho[k], W0, rxW)
+        for i in range(3):
+            q[6 * k + i] = rho[k, i] - X_B[e, k, i]
+            q[6 * k + 3 + i] = alpha[k, i]
+            qd[6 * k + i] = w.u[k, i] + rxW[i]
+            s = 0.0
+            for j in range(3):
+                s += H[k, i, j] * c[j]
+            qd[6 * k + 3 + i] = s
+    for i in range(nm):
+        q[6 * nb + i] = p[cfg[e, 6 + i]]
+        qd[6 * nb + i] = yd[cfg[e, 6 + i]]
+    r = v[6:]
+    rdot = vdot[6:]
+    Ke, Me, Je = K[e], M[e], J0[e]
+    # ---- residual rows
+    for i in range(3):
+        F[i] = x0dot[i] - v[i]  # (69b)
+        F[3 + i] = W0[i] - v[3 + i]  # (69d)
+    GW = w.GW
+    if gyro:
+        for i in range(n):
+            for j in range(n):
+                GW[i, j] = W0[0] * G[e, 0, i, j] + W0[1] * G[e, 1, i, j] + W0[2] * G[e, 2, i, j]
+    for i in range(n):  # (79) and (78)
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(n):
+            s1 += Me[i, j] * (qd[j] - r[j])
+            s2 += Ke[i, j] * q[j] + Me[i, j] * rdot[j]
+            if gyro:
+                s1 += GW[i, j] * q[j]
+                s2 += GW[i, j] * r[j]
+        F[6 + i] = s1
+        g[i] = s2
+    h, torque = w.h, w.torque
+    for i in range(3):
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(3):
+            s1 += Je[i, j] * v[3 + j]
+            s2 += Je[i, j] * vdot[3 + j]
+        h[i] = s1
+        torque[i] = s2
+    if gyro:  # s_k = r^T G_k q (55), sdot_k = rdot^T G_k q + r^T G_k qdot
+        for kk in range(3):
+            for i in range(n):
+                s1 = 0.0
+                s2 = 0.0
+                for j in range(n):
+                    s1 += G[e, kk, i, j] * q[j]
+                    s2 += G[e, kk, i, j] * qd[j]
+                w.Gq[kk, i] = s1
+                w.Gqd[kk, i] = s2
+            s = 0.0
+            sd = 0.0
+            for i in range(n):
+                s += r[i] * w.Gq[kk, i]
+                sd += rdot[i] * w.Gq[kk, i] + r[i] * w.Gqd[kk, i]
+            h[kk] += s
+            torque[kk] += sd
+    ex0, eT0, eeta = nv, nv + 3, nv + 6
+    _cross(W0, h, w.v3)
+    for i in range(3):
+        F[eT0 + i] = torque[i] + w.v3[i]  # (77)
+        F[ex0 + i] = mass[e] * vdot[i] - mass[e] * gravity[i]  # (69a)
+    for i in range(nm):
+        F[eeta + i] = g[6 * nb + i]
+    for k in range(nb):  # g_B through (91)
+        exP, eTP = nv + 6 + nm + 6 * k, nv + 9 + nm + 6 * k
+        for i in range(3):
+            s1 = 0.0
+            s2 = 0.0
+            for j in range(3):
+                s1 += R0[i, j] * g[6 * k + j]
+                s2 += H[k, j, i] * g[6 * k + 3 + j]
+            F[exP + i] = s1
+            F[ex0 + i] -= s1
+            F[eTP + i] = s2
+            w.fa[k, i] = s2
+        _cross(rho[k], g[6 * k : 6 * k + 3], w.v3)
+        for i in range(3):
+            s = 0.0
+            for j in range(3):
+                s += Q[k, i, j] * w.fa[k, j]
+            F[eT0 + i] -= w.v3[i] + s
+    if jac:
+        _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy)
+
+
+@jit
+def _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy):
+    """The local Jacobian blocks of `_superelement` (runtime/equations.py, same algebra)."""
+    rho, Q, H, alpha = w.rho, w.Q, w.H, w.alpha
+    Dq, Dqd, dgz, dgy = w.Dq, w.Dqd, w.dgz, w.dgy
+    S, S2, B = w.S, w.S2, w.B
+    Fz[:, :] = 0.0
+    Fy[:, :] = 0.0
+    Dq[:, :] = 0.0
+    Dqd[:, :] = 0.0
+    dgz[:, :] = 0.0
+    dgy[:, :] = 0.0
+    W0x = w.W0x
+    _skew(W0, W0x)
+    for k in range(nb):
+        XP, TP = 6 + nm + 6 * k, 9 + nm + 6 * k
+        d, a = 6 * k, 6 * k + 3
+        _skew(rho[k], S)
+        for i in range(3):
+            for j in range(3):
+                Dq[d + i, j] = -R0[j, i]  # d d_P = -R0^T dx0 + skew(rho) dTheta0 + R0^T dx_P
+                Dq[d + i, 3 + j] = S[i, j]
+                Dq[d + i, XP + j] = R0[j, i]
+                Dq[a + i, TP + j] = H[k, i, j]  # d alpha_P = H (dTheta_P - Q^T dTheta0)
+                s = 0.0
+                for m in range(3):
+                    s += H[k, i, m] * Q[k, j, m]
+                Dq[a + i, 3 + j] = -s
+        # d(d_Pdot) = skew(u) dTheta0 - skew(W0) d(d_P)
+        _skew(w.u[k], S)
+        for i in range(3):
+            for j in range(nc):
+                s = 0.0
+                for m in range(3):
+                    s -= W0x[i, m] * Dq[d + m, j]
+                Dqd[d + i, j] = s
+            for j in range(3):
+                Dqd[d + i, 3 + j] += S[i, j]
+        # d(H c) = B eps, B = -c alpha^T - skew(Q^T c)/2 - H skew(Q^T W0)
+        c = w.c[k]
+        QTc, QTW = w.v3, w.v3b
+        for i in range(3):
+            s1 = 0.0
+            s2 = 0.0
+            for j in range(3):
+                s1 += Q[k, j, i] * c[j]
+                s2 += Q[k, j, i] * W0[j]
+            QTc[i] = s1
+            QTW[i] = s2
+        _skew(QTc, S)
+        _skew(QTW, S2)
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += H[k, i, m] * S2[m, j]
+                B[i, j] = -c[i] * alpha[k, j] - 0.5 * S[i, j] - s
+        for i in range(3):
+            for j in range(3):
+                Dqd[a + i, TP + j] = B[i, j]
+                s = 0.0
+                for m in range(3):
+                    s += B[i, m] * Q[k, j, m]
+                Dqd[a + i, 3 + j] = -s
+    for i in range(nm):
+        Dq[6 * nb + i, 6 + i] = 1.0
+    cv0, cO0, cr = nc, nc + 3, nc + 6
+    kq, ex0, eT0, eeta = 6, nv, nv + 3, nv + 6
+    for i in range(3):
+        Fz[i, i] = 1.0  # x0dot - v0
+        Fy[i, cv0 + i] = -1.0
+        Fz[3 + i, 3 + i] = 1.0  # W0 - Omega0
+        Fy[3 + i, cO0 + i] = -1.0
+        Fz[ex0 + i, cv0 + i] = mass[e]
+    for i in range(n):  # k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r]
+        for j in range(nc):
+            s1 = 0.0
+            s2 = 0.0
+            s3 = 0.0
+            for m in range(n):
+                s1 += Me[i, m] * Dq[m, j]
+                s2 += Me[i, m] * Dqd[m, j]
+                s3 += Ke[i, m] * Dq[m, j]
+            Fz[kq + i, j] = s1
+            Fy[kq + i, j] = s2
+            dgy[i, j] = s3
+        for j in range(n):
+            Fy[kq + i, cr + j] = -Me[i, j]
+            dgz[i, cr + j] = Me[i, j]
+    # angular momentum rows: J0 Omega0dot + W0 x h
+    for i in range(3):
+        for j in range(3):
+            Fz[eT0 + i, cO0 + j] = Je[i, j]
+            s = 0.0
+            for m in range(3):
+                s += W0x[i, m] * Je[m, j]
+            Fy[eT0 + i, cO0 + j] = s
+    _skew(h, S)  # h includes s for the gyroscopic set
+    for i in range(3):
+        for j in range(3):
+            Fz[eT0 + i, 3 + j] -= S[i, j]
+    if gyro:
+        GW, Gq, Gqd, Gr, Grd = w.GW, w.Gq, w.Gqd, w.Gr, w.Grd
+        for kk in range(3):
+            for i in range(n):
+                s1 = 0.0
+                s2 = 0.0
+                s3 = 0.0
+                s4 = 0.0
+                for j in range(n):
+                    s1 += G[e, kk, i, j] * r[j]
+                    s2 += r[j] * G[e, kk, j, i]  # (r^T G_k)_i
+                    s3 += rdot[j] * G[e, kk, j, i]  # (rdot^T G_k)_i
+                Gr[kk, i] = s1
+                w.dsdq[kk, i] = s2
+                Grd[kk, i] = s3
+        for i in range(n):
+            for kk in range(3):
+                Fz[kq + i, 3 + kk] += Gq[kk, i]  # d(G(W0) q)/dW0
+                dgz[i, 3 + kk] += Gr[kk, i]
+            for j in range(nc):
+                s = 0.0
+                for m in range(n):
+                    s += GW[i, m] * Dq[m, j]
+                Fy[kq + i, j] += s
+            for j in range(n):
+                dgy[i, cr + j] += GW[i, j]
+        # s and sdot: rows of ds/dq, ds/dr, dsdot/d...
+        T1 = w.T1  # (3, nc): ds_dq Dq ; T2 = rdot^T G_k Dq ; T3 = ds_dq Dqd
+        for kk in range(3):
+            for j in range(nc):
+                s1 = 0.0
+                s2 = 0.0
+                s3 = 0.0
+                for m in range(n):
+                    s1 += w.dsdq[kk, m] * Dq[m, j]
+                    s2 += Grd[kk, m] * Dq[m, j]
+                    s3 += w.dsdq[kk, m] * Dqd[m, j]
+                T1[kk, j] = s1
+                Fy[eT0 + kk, j] += s2 + s3
+                Fz[eT0 + kk, j] += s1
+            for j in range(n):
+                Fz[eT0 + kk, cr + j] += Gq[kk, j]
+                Fy[eT0 + kk, cr + j] += Gqd[kk, j]
+        for i in range(3):
+            for j in range(nc):
+                s = 0.0
+                for m in range(3):
+                    s += W0x[i, m] * T1[m, j]
+                Fy[eT0 + i, j] += s
+            for j in range(n):
+                s = 0.0
+                for m in range(3):
+                    s += W0x[i, m] * Gq[m, j]
+                Fy[eT0 + i, cr + j] += s
+    for i in range(nm):
+        for j in range(ncv):
+            Fz[eeta + i, j] = dgz[6 * nb + i, j]
+            Fy[eeta + i, j] = dgy[6 * nb + i, j]
+    # g_B through (91): equations.project_boundary_force
+    C, QC = w.C, w.QC
+    for k in range(nb):
+        exP, eTP = nv + 6 + nm + 6 * k, nv + 9 + nm + 6 * k
+        TP = 9 + nm + 6 * k
+        d, a = 6 * k, 6 * k + 3
+        gd, ga = g[d : d + 3], g[a : a + 3]
+        ya = w.v3
+        for D, dg in ((Fz, dgz), (Fy, dgy)):
+            for j in range(ncv):
+                for i in range(3):
+                    s1 = 0.0
+                    s2 = 0.0
+                    for m in range(3):
+                        s1 += R0[i, m] * dg[d + m, j]
+                        s2 += H[k, m, i] * dg[a + m, j]
+                    D[exP + i, j] += s1  # R0 dg_d
+                    D[ex0 + i, j] -= s1
+                    D[eTP + i, j] += s2  # H^T dg_a
+                    ya[i] = s2
+                for i in range(3):  # -(rho x dg_d + Q H^T dg_a)
+                    s = rho[k, (i + 1) % 3] * dg[d + (i + 2) % 3, j] - rho[k, (i + 2) % 3] * dg[d + (i + 1) % 3, j]
+                    for m in range(3):
+                        s += Q[k, i, m] * ya[m]
+                    D[eT0 + i, j] -= s
+        _skew(gd, S)
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += R0[i, m] * S[m, j]
+                Fy[exP + i, 3 + j] -= s  # d(R0 g_d) = -R0 skew(g_d) dTheta0 + ...
+                Fy[ex0 + i, 3 + j] += s
+        # C = -g_a alpha^T + Q skew(g_a)/2 on the node rotation rows
+        _skew(ga, S2)
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += Q[k, i, m] * S2[m, j]
+                C[i, j] = -ga[i] * alpha[k, j] + 0.5 * s
+        for i in range(3):
+            for j in range(3):
+                Fy[eTP + i, TP + j] += C[i, j]
+                s = 0.0
+                for m in range(3):
+                    s += C[i, m] * Q[k, j, m]
+                Fy[eTP + i, 3 + j] -= s
+        # CM rotation rows: + skew(g_d) Dq_d, and -Q (C - skew(f_a)) eps
+        for i in range(3):
+            for j in range(nc):
+                s = 0.0
+                for m in range(3):
+                    s += S[i, m] * Dq[d + m, j]
+                Fy[eT0 + i, j] += s
+        _skew(w.fa[k], S2)
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += Q[k, i, m] * (C[m, j] - S2[m, j])
+                QC[i, j] = s
+        for i in range(3):
+            for j in range(3):
+                Fy[eT0 + i, TP + j] -= QC[i, j]
+                s = 0.0
+                for m in range(3):
+                    s += QC[i, m] * Q[k, j, m]
+                Fy[eT0 + i, 3 + j] += s
+
+
+@jit
+def _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+              jac, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T):
+    """Assembled residual F (ny) with the loads and, if jac, the iteration matrix
+    J = F_ydot + beta [F_y T, F_v] on the unknowns in the Newton order, stored transposed (JT[col, row],
+    i.e. J in Fortran order, as LAPACK wants it). runtime/integrator.py `_iteration_matrix`."""
+    E, nc, nv = K.shape[0], cfg.shape[1], vel.shape[1]
+    nb, nf = X_B.shape[1], JT.shape[0]
+    nm = K.shape[1] - 6 * nb
+    F[:] = 0.0
+    if jac:
+        JT[:, :] = 0.0
+        for r in range(theta.shape[0]):
+            _tangent(theta[r], T[r])
+    tmp = w.v3b
+    for e in range(E):
+        _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, Fl, Fz, Fy, w)
+        for i in range(nv):
+            F[vel[e, i]] += Fl[i]
+        for i in range(nc):
+            F[cfg[e, i]] += Fl[nv + i]
+        if not jac:
+            continue
+        # d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T
+        for i in range(nv + nc):
+            for blk in range(nb + 1):
+                col = 3 if blk == 0 else 9 + nm + 6 * (blk - 1)
+                Tr = T[N + e] if blk == 0 else T[nodes[e, blk - 1]]
+                for j in range(3):
+                    s = 0.0
+                    for m in range(3):
+                        s += Fy[i, col + m] * Tr[m, j]
+                    tmp[j] = s
+                for j in range(3):
+                    Fy[i, col + j] = tmp[j]
+        for i in range(nv + nc):
+            gr = newton_pos[vel[e, i]] if i < nv else newton_pos[cfg[e, i - nv]]
+            if gr >= nf:
+                continue
+            for j in range(nc + nv):
+                gc = newton_pos[cfg[e, j]] if j < nc else newton_pos[vel[e, j - nc]]
+                if gc < nf:
+                    JT[gc, gr] += beta * Fy[i, j] + Fz[i, j]
+    # loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta
+    S = w.S
+    for k in range(N):
+        for i in range(3):
+            F[6 * k + i] -= f_load[k, i]
+            s = 0.0
+            for j in range(3):
+                s += R[k, j, i] * t_load[k, j]
+            tmp[i] = s
+            F[6 * k + 3 + i] -= s
+        if jac and newton_pos[6 * k + 3] < nf:
+            _skew(tmp, S)
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for m in range(3):
+                        s += S[i, m] * T[k, m, j]
+                    JT[newton_pos[6 * k + 3 + j], newton_pos[6 * k + 3 + i]] -= beta * s
+
+
+@jit
+def newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+                c, P0, Rn, f_load, t_load, beta, tol, max_iter, yd, p, R, F, luT, piv, lu_meta, info):
+    """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
+
+    In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
+    predictor. Out: yd the accepted rates, p, R, F the configuration and residual there. luT, piv,
+    lu_meta = [valid, beta, R_ref (9)] hold the LU of the iteration matrix across steps (transposed:
+    luT.T is scipy's lu_factor LU; piv 0-based). info = [status, iterations]; lu_meta[0] = 0 and
+    a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED."""
+    NR, E = Rn.shape[0], K.shape[0]
+    N = NR - E
+    n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
+    ny, nf = yd.shape[0], newton_idx.shape[0]
+    w = _work(n, nb, nc, nv)
+    Fl, Fz, Fy = np.zeros(nv + nc), np.zeros((nv + nc, nc + nv)), np.zeros((nv + nc, nc + nv))
+    theta, T, Rexp = np.zeros((NR, 3)), np.zeros((NR, 3, 3)), np.zeros((3, 3))
+    JT = np.zeros((nf, nf))
+    b, P = np.zeros(nf), np.zeros((3, 3))
+    dx_prev = np.inf
+    tolk = tol
+    it = 0
+    for it in range(max_iter + 1):
+        refresh = lu_meta[0] == 0.0 or abs(lu_meta[1] - beta) > 1e-6 * beta
+        for i in range(ny):
+            p[i] = yd[i] * c[i] + P0[i]
+        for r in range(NR):
+            for i in range(3):
+                theta[r, i] = p[rot_slots[r, i]]
+            _expm(theta[r], Rexp)
+            for i in range(3):
+                for j in range(3):
+                    R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
+        _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+                  refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
+        s = 0.0
+        for i in range(ny):
+            s += F[i] * 0.0
+        if s != 0.0 or s != s:  # NaN: some entry of F is not finite
+            lu_meta[0] = 0.0
+            info[0], info[1] = NOT_FINITE, it
+            return
+        if it > 0:
+            ymax = 0.0
+            for i in range(nf):
+                ymax = max(ymax, abs(yd[newton_idx[i]]))
+            tolk = tol * (1.0 + beta * ymax)
+            if dx_prev <= tolk:
+                break
+        if it == max_iter:
+            lu_meta[0], lu_meta[1] = 0.0, dx_prev
+            info[0], info[1] = NOT_CONVERGED, it
+            return
+        if refresh:
+            ok = True
+            for i in range(nf):
+                for j in range(nf):
+                    v = JT[i, j]
+                    luT[i, j] = v
+                    if not (v - v == 0.0):
+                        ok = False
+            status = _getrf(_KIND, nf, nf, luT.ctypes, nf, piv.ctypes) if ok else -1
+            if status != 0:
+                lu_meta[0] = 0.0
+                info[0], info[1] = NOT_FACTORED, it
+                return
+            for i in range(nf):
+                piv[i] -= 1
+            lu_meta[0], lu_meta[1] = 1.0, beta
+            for i in range(3):
+                for j in range(3):
+                    lu_meta[2 + 3 * i + j] = R[N, i, j]
+        # P = R_now R_ref^T carries the factorization along the rigid rotation (integrator `_solve`)
+        for i in range(3):
+            for j in range(3):
+                P[i, j] = (R[N, i, 0] * lu_meta[2 + 3 * j] + R[N, i, 1] * lu_meta[3 + 3 * j]
+                           + R[N, i, 2] * lu_meta[4 + 3 * j])
+        for i in range(nf):
+            b[i] = F[newton_idx[i]]
+        for t3 in range(0, k3, 3):  # P^T F on each world triplet
+            x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
+            for i in range(3):
+                b[t3 + i] = P[0, i] * x + P[1, i] * y + P[2, i] * z
+        _lu_solve(luT, piv, b)
+        for t3 in range(0, k3, 3):  # P J_ref^-1 P^T F
+            x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
+            for i in range(3):
+                b[t3 + i] = P[i, 0] * x + P[i, 1] * y + P[i, 2] * z
+        err = 0.0
+        for i in range(nf):
+            yd[newton_idx[i]] -= b[i]
+            err = max(err, abs(b[i]))
+        err *= beta
+        if it > 0 and err > 0.25 * dx_prev and err > 10.0 * tolk:
+            lu_meta[0] = 0.0  # slow contraction (above round-off): refresh the iteration matrix
+        dx_prev = err
+    info[0], info[1] = OK, it
+
+
+@jit
+def _lu_solve(luT, piv, b):
+    """Solve J x = b in place from LAPACK's LU of J (luT = the factors, transposed; piv 0-based)."""
+    n = b.shape[0]
+    for i in range(n):
+        k = piv[i]
+        if k != i:
+            b[i], b[k] = b[k], b[i]
+    for j in range(n):  # unit lower triangle, column by column: L[i, j] = luT[j, i]
+        bj = b[j]
+        row = luT[j]
+        for i in range(j + 1, n):
+            b[i] -= row[i] * bj
+    for j in range(n - 1, -1, -1):  # upper triangle
+        b[j] /= luT[j, j]
+        bj = b[j]
+        row = luT[j]
+        for i in range(j):
+            b[i] -= row[i] * bj
+
+
+@jit
+def step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+         lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask, motion_parts,
+         xN, RN, x0, R0, eta, v, yd, yd_prev, a, fN, tN, energy,
+         xN_p, RN_p, zN_p, f_in, t_in, h, am, af, gamma, tol, max_iter,
+         ydw, p, R, F, luT, piv, lu_meta, info):
+    """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
+    body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
+    are updated in place, and only if Newton succeeded (info[0] == OK). xN_p ... t_in: the inputs
+    read by `BodySystem._read_inputs` (current frames where no motion input)."""
+    N, E, ny = xN.shape[0], x0.shape[0], yd.shape[0]
+    beta = h * gamma * af / am
+    # stage (integrator `_prepare_step`): a_{n+1} = (af/am) ydot + A0, p = beta ydot + P0
+    c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
+    d1, d2 = h * gamma * c1, h * (1.0 - gamma) + h * gamma * c2
+    A0, P0, c = np.empty(ny), np.empty(ny), np.empty(ny)
+    for i in range(ny):
+        A0[i] = c1 * yd[i] + c2 * a[i]
+        P0[i] = d1 * yd[i] + d2 * a[i]
+        c[i] = beta * stage_mask[i]
+        ydw[i] = 2.0 * yd[i] - yd_prev[i]  # predictor: linear extrapolation of the rates
+    k = 0
+    for arr in (xN.ravel(), x0.ravel(), eta.ravel(), v.ravel()):
+        for i in range(arr.shape[0]):
+            P0[lin_slots[k]] += arr[i]
+            k += 1
+    for j in range(motion_x.shape[0]):
+        for i in range(3):
+            P0[motion_x_slots[3 * j + i]] = xN_p[motion_x[j], i]
+    for i in range(motion_T_slots.shape[0]):
+        P0[motion_T_slots[i]] = 0.0
+    zflat = zN_p.ravel()
+    for i in fixed_idx:
+        ydw[i] = zflat[i]
+    Rn = np.empty((N + E, 3, 3))
+    Rn[:N] = RN_p
+    Rn[N:] = R0
+    newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+                c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
+    if info[0] != OK:
+        return
+    # commit (integrator `_commit`)
+    k = 0
+    for arr in (xN.ravel(), x0.ravel(), eta.ravel(), v.ravel()):  # ravel of a C-contiguous array is a view
+        for i in range(arr.shape[0]):
+            arr[i] = p[lin_slots[k]]
+            k += 1
+    RN[:] = R[:N]
+    R0[:] = R[N:]
+    af_am = af / am
+    for i in range(ny):
+        yd_prev[i] = yd[i]
+        yd[i] = ydw[i]
+        a[i] = af_am * ydw[i] + A0[i]
+    # port loads (body `_update_port_loads`) and the power of loads and gravity (`_external_power`)
+    power = 0.0
+    for n in range(N):
+        for i in range(3):
+            fN[n, i] = f_in[n, i] + motion_parts[n, 0, i] * F[6 * n + i]
+            s = 0.0
+            for j in range(3):
+                s += RN[n, i, j] * F[6 * n + 3 + j]
+            tN[n, i] = t_in[n, i] + motion_parts[n, 1, i] * s
+        for i in range(3):
+            s = 0.0
+            for j in range(3):
+                s += RN[n, j, i] * tN[n, j]
+            power += fN[n, i] * yd[6 * n + i] + s * yd[6 * n + 3 + i]
+    for e in range(E):
+        for i in range(3):
+            power += mass[e] * v[e, i] * gravity[i]
+    energy[0] += 0.5 * h * (energy[1] + power)
+    energy[1] = power
