@@ -1,7 +1,13 @@
-"""Cost of one integrator step of the body (B1, Haug's rotating beam, 1, 2 and 4 superelements).
+"""Cost of one integrator step of the body (B1, Haug's rotating beam), numpy and numba backends.
 
     python benchmarks/step_profile.py [--phases 0.5,5,15] [--steps 40] [--repeats 10]
-                                      [--blas-threads 1|default] [--no-profile]
+                                      [--configs 1x2,4x2,4x6] [--blas-threads 1|default]
+                                      [--no-profile] [--no-compile-time]
+
+Configurations are superelements x modes per superelement (h = 2 ms, the scene's term set). Both
+backends run in the same process on the same states; the numpy backend is the baseline of the
+ratios (numpy time / numba time). --no-compile-time skips the first-compile measurement (two fresh
+processes: one with an empty kernel cache, which compiles, one with the cache it left, which loads).
 
 The spin-up changes character over its 20 s (about 2 Newton iterations per step early on, the
 iteration matrix rebuilt at nearly every step around t = 4 s, 4 iterations per step after the
@@ -21,8 +27,8 @@ BLAS runs on one thread unless --blas-threads default: the target is one core, a
 OpenBLAS makes the LU of the iteration matrix (n ~ 170) hundreds of times slower when the other
 core is busy.
 
-If benchmarks/_baseline_system.py exists (a frozen copy of an earlier runtime/system.py, kept only
-while optimizing), the same figures are measured for it in the same run and reported as ratios.
+If benchmarks/_baseline_system.py exists (a frozen copy of an earlier runtime, kept only while
+optimizing), the same figures are measured for it in the same run.
 """
 from __future__ import annotations
 
@@ -57,12 +63,45 @@ MODEL = HERE.parent / "models" / "haug_beam.toml"
 
 
 def implementations():
-    """(label, BodySystem class, record function) of the current code and, if present, the baseline."""
-    out = [("current", BodySystem, sim.record)]
+    """(label, system factory, record function): both backends and, if present, a frozen baseline."""
+    make = lambda backend: lambda body, sc: BodySystem(  # noqa: E731
+        body, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity, backend=backend)
+    out = [("numpy", make("numpy"), sim.record), ("numba", make("numba"), sim.record)]
     if (HERE / "_baseline_system.py").exists():
         base = importlib.import_module("_baseline_system")
-        out.append(("baseline", base.BodySystem, base.record))
+        out.append(("baseline", lambda body, sc: base.BodySystem(
+            body, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity), base.record))
     return out
+
+
+COMPILE_SNIPPET = """
+import sys, time
+sys.path.insert(0, {root!r})
+from ffrf_fmu import simulate as sim
+from ffrf_fmu.model import load_model
+from ffrf_fmu.reduction import build_body
+model = load_model({model!r}, ["superelements=1", "modes=2"])
+sc = model.scene("spinup")
+body, _ = build_body(model.body)
+t0 = time.perf_counter()
+system, inputs = sim.build_system(body, sc, backend="numba")
+system.step(sc.step, inputs)
+print(system._compiled.compile_seconds, time.perf_counter() - t0)
+"""
+
+
+def compile_times() -> tuple[float, float]:
+    """Seconds of the first numba step in a fresh process with an empty kernel cache (compilation) and
+    in a second fresh process with the cache the first one left (load from disk)."""
+    import subprocess
+    import tempfile
+
+    code = COMPILE_SNIPPET.format(root=str(HERE.parent), model=str(MODEL))
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "FFRF_FMU_CACHE_DIR": cache}
+        runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+                for _ in range(2)]
+    return tuple(float(r.stdout.split()[0]) for r in runs)
 
 
 def phase_states(body, scene, phases):
@@ -111,8 +150,8 @@ def residual_call(system, h, inputs):
     return lambda: system._residual(yd, system._stage(yd, h, am, af, gamma, prescribed)[0], loads)[0]
 
 
-def measure(cls, record, body, scene, states, args):
-    system = cls(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
+def measure(make, record, body, scene, states, args):
+    system = make(body, scene)
     inputs = sim.scene_inputs(body, scene)
     h = scene.step
     out = {"step": [], "step+record": [], "iterations": []}
@@ -122,7 +161,7 @@ def measure(cls, record, body, scene, states, args):
         system.step(h, inputs)  # a first step builds the iteration matrix; the window starts after it
         state = system.get_state()
         restore()
-        if i == 0:
+        if i == 0 and getattr(system, "backend", "numpy") == "numpy":  # the numba residual is inside its kernel
             out["residual"] = best_per_call(residual_call(system, h, inputs), 5, 20 * args.repeats)
             restore()
         iterations = []
@@ -140,38 +179,44 @@ def main(argv=None) -> int:
     ap.add_argument("--phases", default="0.5,5,15", help="window start times [s] in the 20 s spin-up")
     ap.add_argument("--steps", type=int, default=40, help="steps per window")
     ap.add_argument("--repeats", type=int, default=10)
+    ap.add_argument("--configs", default="1x2,4x2,4x6", help="superelements x modes, comma separated")
     ap.add_argument("--blas-threads", default="1", help="BLAS threads, or 'default' to leave them alone")
     ap.add_argument("--no-profile", action="store_true")
+    ap.add_argument("--no-compile-time", action="store_true")
     args = ap.parse_args(argv)
     phases = [float(x) for x in args.phases.split(",")]
+    configs = [tuple(int(v) for v in c.split("x")) for c in args.configs.split(",")]
     impls = implementations()
+    if not args.no_compile_time:
+        first, cached = compile_times()
+        print(f"numba kernel: first compile {first:.1f} s (empty cache), {cached:.2f} s from the disk cache")
     print(f"B1 spin-up, h = 2 ms, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS', 'default')}; windows of "
           f"{args.steps} steps at t = {', '.join(f'{p:g}' for p in phases)} s; best of {args.repeats} per step")
     head = " ".join(f"{f't={p:g}':>7}" for p in phases)
-    print(f"{'SE':>3} {'code':>9} {'us/resid':>8}  us/step: {head} {'mean':>7} {'+record':>8} {'ms/sim s':>8} "
-          f"{'Newton/step':>11}  baseline/current: residual, step, step+record")
+    print(f"{'SE x modes':>10} {'backend':>8} {'us/resid':>8}  us/step: {head} {'mean':>7} {'+record':>8} "
+          f"{'ms/sim s':>8} {'Newton/step':>14}  numpy/this: step, step+record")
     mid = None
-    for n in (1, 2, 4):
-        model = load_model(MODEL, [f"superelements={n}"])
+    for n, modes in configs:
+        model = load_model(MODEL, [f"superelements={n}", f"modes={modes}"])
         scene = model.scene("spinup")
         body, _ = build_body(model.body)
         states = phase_states(body, scene, phases)
-        if n == 4:
-            mid = (body, scene, states[len(states) // 2])
-        rows = {label: measure(cls, rec, body, scene, states, args) for label, cls, rec in impls}
+        if mid is None or (n, modes) == max(configs):
+            mid = (body, scene, states[len(states) // 2], f"{n} SE x {modes} modes")
+        rows = {label: measure(make, rec, body, scene, states, args) for label, make, rec in impls}
+        base = rows["numpy"]
         for label, r in rows.items():
             step, rec = np.mean(r["step"]), np.mean(r["step+record"])
-            ratio = ""
-            if label == "current" and "baseline" in rows:
-                b = rows["baseline"]
-                ratio = (f"  {b['residual'] / r['residual']:.1f}x, {np.mean(b['step']) / step:.1f}x, "
-                         f"{np.mean(b['step+record']) / rec:.1f}x")
+            ratio = f"  {np.mean(base['step']) / step:.1f}x, {np.mean(base['step+record']) / rec:.1f}x"
             steps = " ".join(f"{1e6 * x:7.0f}" for x in r["step"])
-            print(f"{n:>3} {label:>9} {1e6 * r['residual']:8.1f}           {steps} {1e6 * step:7.0f} {1e6 * rec:8.0f} "
-                  f"{1e3 * rec / scene.step:8.0f} {' '.join(f'{x:.2f}' for x in r['iterations']):>11}{ratio}")
+            resid = f"{1e6 * r['residual']:8.1f}" if "residual" in r else f"{'-':>8}"
+            print(f"{f'{n} x {modes}':>10} {label:>8} {resid}           {steps} {1e6 * step:7.0f} {1e6 * rec:8.0f} "
+                  f"{1e3 * rec / scene.step:8.0f} {' '.join(f'{x:.2f}' for x in r['iterations']):>14}{ratio}")
     if not args.no_profile:
-        body, scene, state = mid
-        system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity)
+        body, scene, state, label = mid
+        system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend="numba")
+        system.set_state(state)
+        system.step(scene.step, sim.scene_inputs(body, scene))  # the kernel loaded before profiling
         inputs = sim.scene_inputs(body, scene)
         system.set_state(state)
         prof = cProfile.Profile()
@@ -183,7 +228,7 @@ def main(argv=None) -> int:
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("tottime").print_stats(15)
         t_mid = phases[len(phases) // 2]
-        print(f"\ncProfile, current code, 4 SE, {5 * args.steps} steps with recording from t = {t_mid:g} s (tottime):")
+        print(f"\ncProfile, numba backend, {label}, {5 * args.steps} steps with recording from t = {t_mid:g} s (tottime):")
         print(out.getvalue())
     return 0
 
