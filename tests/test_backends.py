@@ -78,7 +78,11 @@ def test_state_round_trips_between_backends():
 def test_uncovered_term_set_or_missing_numba_falls_back_with_a_note(monkeypatch, caplog):
     module, why = compiled.load_kernel("full")
     assert module is None and "does not cover term set 'full'" in why
-    monkeypatch.setattr(compiled, "load_kernel", lambda terms: (None, "numba is not installed"))
+    assert "geometric stiffening" in compiled.load_kernel("linear", stiffening=True)[1]
+    model = load_model("models/haug_beam.toml", ["superelements=1", "stiffening=true"])
+    stiff = BodySystem(build_body(model.body, stiffening=True)[0], backend="numba")
+    assert stiff.stiffening and stiff.backend == "numpy" and "geometric stiffening" in stiff.backend_note
+    monkeypatch.setattr(compiled, "load_kernel", lambda terms, stiffening=False: (None, "numba is not installed"))
     import ffrf_fmu.runtime.body as body_module
 
     monkeypatch.setattr(body_module, "load_kernel", compiled.load_kernel)

@@ -113,7 +113,7 @@ class BodySystem(GeneralizedAlpha):
         self._reset_reference()
         self._compiled, self.backend, self.backend_note = None, "numpy", None
         if backend == "numba":
-            module, why = load_kernel(terms)
+            module, why = load_kernel(terms, self.stiffening)
             if module is None:
                 self.backend_note = f"numba backend not available ({why}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(self.backend_note)

@@ -67,10 +67,12 @@ def _kernel_file(src: bytes, digest: str) -> Path:
     raise OSError("no writable cache directory for the compiled kernel")
 
 
-def load_kernel(terms: str):
+def load_kernel(terms: str, stiffening: bool = False):
     """(module, None) or (None, reason): the compiled kernel module, compiled or loaded from the cache."""
     if terms not in KERNEL_TERM_SETS:
         return None, f"the numba kernel does not cover term set {terms!r} (it covers {', '.join(KERNEL_TERM_SETS)})"
+    if stiffening:
+        return None, "the numba kernel does not cover geometric stiffening (runtime/stiffening.py) yet"
     try:
         import numba  # noqa: F401
     except ImportError:
