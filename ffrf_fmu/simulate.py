@@ -46,18 +46,18 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
             if p.translation == "motion":
                 r0 = body.node_positions[p.node]
                 if d is not None and d.translation is not None:
-                    u, du, _ = _tf(d.translation.displacement, t)
+                    u, du, ddu = _tf(d.translation.displacement, t)
                     e = np.asarray(d.translation.direction, float)
-                    pv.r, pv.v = r0 + u * e, du * e
+                    pv.r, pv.v, pv.a = r0 + u * e, du * e, ddu * e
                 else:
-                    pv.r, pv.v = r0.copy(), np.zeros(3)
+                    pv.r, pv.v, pv.a = r0.copy(), np.zeros(3), np.zeros(3)
             if p.rotation == "motion":
                 if d is not None and d.rotation is not None:
-                    phi, dphi, _ = _tf(d.rotation.angle, t)
+                    phi, dphi, ddphi = _tf(d.rotation.angle, t)
                     axis = np.asarray(d.rotation.axis, float)
-                    pv.R, pv.w = expm(phi * axis), dphi * axis
+                    pv.R, pv.w, pv.dw = expm(phi * axis), dphi * axis, ddphi * axis
                 else:
-                    pv.R, pv.w = np.eye(3), np.zeros(3)
+                    pv.R, pv.w, pv.dw = np.eye(3), np.zeros(3), np.zeros(3)
             f, m = np.zeros(3), np.zeros(3)
             for ld in loads:
                 if ld.port == p.name and ld.t_start <= t < ld.t_end:

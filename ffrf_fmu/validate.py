@@ -51,7 +51,7 @@ def fmu_input_table(fmu_path, inputs, times) -> np.ndarray:
         values = inputs(float(t))
         for n in names:
             port, _, rest = n.partition(".")
-            field, idx = rest[0], rest[2:-1]
+            field, _, idx = rest[:-1].partition("[")
             arr = getattr(values[port], field)
             table[n][k] = arr[tuple(int(i) - 1 for i in idx.split(","))]
     return table

@@ -43,7 +43,7 @@ from .. import __version__
 from ..runtime.data import BodyData
 from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
-from .variables import TERM_SETS
+from .variables import INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, TERM_SETS
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
@@ -56,11 +56,8 @@ OPTIONAL_IMPORTS = {"threadpoolctl"}  # allowed inside `try: ... except ImportEr
 
 DESCRIPTION = (
     "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
-    "All vectors in world axes, SI units. Inputs between communication points: the values set before "
-    "doStep(t_c, H) are the values at t_c; motion inputs are extrapolated with their own rates, "
-    "r(t) = r_c + v_c (t - t_c), R(t) = expm((t - t_c) skew(w_c)) R_c, with v and w held; force and "
-    "moment inputs are held. The body cuts each communication step into equal internal steps of at "
-    "most solver.step; the run converges to the standalone run as H shrinks. Outputs are the values at "
+    "All vectors in world axes, SI units. " + INPUTS_BETWEEN_COMMUNICATION_POINTS + " " + INTERNAL_STEPS + " "
+    "The run converges to the standalone run as H shrinks. Outputs are the values at "
     "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
     "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
     "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "

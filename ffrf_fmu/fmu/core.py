@@ -5,13 +5,10 @@ here makes it testable in-process and the same code runs inside every FMU (the b
 this module next to a copy of ffrf_fmu/runtime). Imports: numpy, the standard library and the
 runtime package (relative), nothing else.
 
-Inputs between communication points (stated in the modelDescription and docs/fmu.md): the
-values set before doStep(t_c, H) are the values at t_c. Over [t_c, t_c + H] motion inputs are
-extrapolated with their own rates, r(t) = r_c + v_c (t - t_c), v(t) = v_c,
-R(t) = expm((t - t_c) skew(w_c)) R_c, w(t) = w_c (world axes); force inputs are held,
-f(t) = f_c, t(t) = t_c. The body cuts [t_c, t_c + H] into n equal internal steps of at most
-`solver.step` (up to round-off in H / h). As H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run
-tends to the standalone run (which evaluates the exact signals at every internal step).
+Inputs between communication points and internal steps: variables.INPUTS_BETWEEN_COMMUNICATION_POINTS
+and variables.INTERNAL_STEPS (the one source of the modelDescription text and docs/fmu.md). As
+H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run tends to the standalone
+run (which evaluates the exact signals at every internal step).
 """
 from __future__ import annotations
 
@@ -199,6 +196,7 @@ class BodyCoSim:
             pv = PortValues()
             if p.translation == "motion":
                 pv.r, pv.v = self._vec(p.name, "r").copy(), self._vec(p.name, "v").copy()
+                pv.a = self._vec(p.name, "a").copy()
             else:
                 pv.f = self._vec(p.name, "f").copy()
             if p.rotation == "motion":
@@ -214,7 +212,7 @@ class BodyCoSim:
                 if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
                     U, _, Vt = np.linalg.svd(R)
                     R = U @ Vt
-                pv.R, pv.w = R, self._vec(p.name, "w").copy()
+                pv.R, pv.w, pv.dw = R, self._vec(p.name, "w").copy(), self._vec(p.name, "dw").copy()
             else:
                 pv.t = self._vec(p.name, "t").copy()
             held[p.name] = pv
@@ -222,17 +220,21 @@ class BodyCoSim:
 
     @staticmethod
     def extrapolation(t_c: float, held: dict):
-        """inputs(t) over the communication step from the values held at t_c (see module doc)."""
+        """inputs(t) over the communication step from the values held at t_c, second order in
+        s = t - t_c (variables.INPUTS_BETWEEN_COMMUNICATION_POINTS). The rotation expm(skew(w s +
+        dw s^2/2)) R_c is exact for a fixed axis; otherwise it misses (w x dw) s^3/12: third order."""
 
         def inputs(t: float) -> dict:
             dt = t - t_c
             out = {}
             for name, pv in held.items():
-                q = PortValues(f=pv.f, t=pv.t, v=pv.v, w=pv.w)
+                q = PortValues(f=pv.f, t=pv.t)
                 if pv.r is not None:
-                    q.r = pv.r + pv.v * dt
+                    q.r = pv.r + pv.v * dt + (0.5 * dt * dt) * pv.a
+                    q.v = pv.v + dt * pv.a
                 if pv.R is not None:
-                    q.R = expm(pv.w * dt) @ pv.R
+                    q.R = expm(pv.w * dt + (0.5 * dt * dt) * pv.dw) @ pv.R
+                    q.w = pv.w + dt * pv.dw
                 out[name] = q
             return out
 

@@ -18,6 +18,7 @@ UNITS: dict[str, dict[str, int]] = {
     "m/s": {"m": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2},
     "rad/s": {"rad": 1, "s": -1},
+    "rad/s2": {"rad": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2},
     "N.m": {"kg": 1, "m": 2, "s": -2},
     "J": {"kg": 1, "m": 2, "s": -2},
@@ -34,8 +35,12 @@ FIELDS = {
     "w": ((3,), "rad/s", "angular velocity of the nodal frame, world axes"),
     "f": ((3,), "N", "force the environment applies ON the body at the node, world axes"),
     "t": ((3,), "N.m", "moment the environment applies ON the body at the node, world axes"),
+    "a": ((3,), "m/s2", "acceleration of the node, world axes"),
+    "dw": ((3,), "rad/s2", "angular acceleration of the nodal frame, world axes"),
 }
-PART_FIELDS = {"translation": ("r", "v", "f"), "rotation": ("R", "w", "t")}
+PART_FIELDS = {"translation": ("r", "v", "f", "a"), "rotation": ("R", "w", "t", "dw")}
+PORT_FIELD_ORDER = ("r", "R", "v", "w", "f", "t", "a", "dw")
+MOTION_ONLY = ("a", "dw")  # inputs of motion-driven parts; a force-driven part has no such variable
 
 ENERGIES = {
     "kinetic_rigid": "kinetic energy of the rigid (CM frame) motion of all superelements",
@@ -44,12 +49,29 @@ ENERGIES = {
     "work_external": "work done on the body by the port loads and gravity since initialization",
 }
 
+# The rules below are the one source of what the FMU does between communication points: the
+# variable descriptions, the modelDescription text (builder.DESCRIPTION) and docs/fmu.md quote them
+# (tests/test_fmu.py checks that the docs carry them verbatim).
+INPUTS_BETWEEN_COMMUNICATION_POINTS = (
+    "The values set before doStep(t_c, H) are the values at t_c. Over [t_c, t_c + H] motion inputs are "
+    "extrapolated to second order with their rates and accelerations (world axes): "
+    "r(t) = r_c + v_c s + a_c s^2/2, v(t) = v_c + a_c s, R(t) = expm(skew(w_c s + dw_c s^2/2)) R_c, "
+    "w(t) = w_c + dw_c s, with s = t - t_c (the accelerations default to 0: first order); force and "
+    "moment inputs are held."
+)
+INTERNAL_STEPS = (
+    "The body takes n equal internal steps H/n, n = ceil(H/solver.step) (n = H/solver.step when that "
+    "is a whole number up to 1e-6 relative): no step is shortened, so the body keeps its Newton "
+    "iteration matrix."
+)
 INPUT_RULE = {
-    "r": "held from the communication point t_c and extrapolated with {p}.v: r(t) = r_c + v_c (t - t_c)",
-    "v": "held constant over the communication step (the slope of the extrapolation of {p}.r)",
-    "R": "extrapolated with {p}.w: R(t) = expm((t - t_c) skew(w_c)) R_c; must be a rotation "
+    "r": "extrapolated from t_c with {p}.v and {p}.a: r(t) = r_c + v_c s + a_c s^2/2, s = t - t_c",
+    "v": "extrapolated from t_c with {p}.a: v(t) = v_c + a_c s (the slope of the extrapolation of {p}.r)",
+    "a": "held constant over the communication step (0 by default: first-order extrapolation of {p}.r, {p}.v)",
+    "R": "extrapolated with {p}.w and {p}.dw: R(t) = expm(skew(w_c s + dw_c s^2/2)) R_c; must be a rotation "
     "(|R^T R - I| <= 1e-6, det > 0, re-orthonormalized when not exact)",
-    "w": "held constant over the communication step (the rate of the extrapolation of {p}.R)",
+    "w": "extrapolated from t_c with {p}.dw: w(t) = w_c + dw_c s (the rate of the extrapolation of {p}.R)",
+    "dw": "held constant over the communication step (0 by default: first-order extrapolation of {p}.R, {p}.w)",
     "f": "held constant over the communication step",
     "t": "held constant over the communication step",
 }
@@ -97,10 +119,12 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
     out: list[Variable] = []
     for p in ports:
         r_ref = [float(x) for x in node_positions[p.node]]
-        for field in ("r", "R", "v", "w", "f", "t"):
+        for field in PORT_FIELD_ORDER:
             shape, unit, meaning = FIELDS[field]
             causality = port_field_causality(p.translation, p.rotation, field)
             part = "translation" if field in PART_FIELDS["translation"] else "rotation"
+            if field in MOTION_ONLY and causality != "input":
+                continue
             how = f"{part} {getattr(p, part)}-driven"
             if causality == "input":
                 desc = f"{meaning} [input, {how}; {INPUT_RULE[field].format(p=p.name)}]"
@@ -131,9 +155,8 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
     # solver.step declares no min: its bound (> 0) is exclusive, FMI's min is inclusive; it is
     # checked at initialization (positive, finite, not longer than the experiment)
     out.append(Variable("solver.step", "Real", "parameter", "fixed", "s",
-                        "internal integrator step, > 0 and not longer than the experiment; a communication step "
-                        "is cut into equal internal steps of at most this length", float(par["step"]),
-                        "parameter", field="step"))
+                        "internal integrator step, > 0 and not longer than the experiment. " + INTERNAL_STEPS,
+                        float(par["step"]), "parameter", field="step"))
     out.append(Variable("solver.rho_inf", "Real", "parameter", "fixed", None,
                         "spectral radius at infinite frequency of generalized-alpha, in [0, 1]",
                         float(par["rho_inf"]), "parameter", field="rho_inf", min=0.0, max=1.0))

@@ -18,6 +18,8 @@ class PortValues:
     w: np.ndarray | None = None  # (3,) angular velocity, world axes [rad/s]
     f: np.ndarray | None = None  # (3,) force ON the body [N]
     t: np.ndarray | None = None  # (3,) moment ON the body [N m]
+    a: np.ndarray | None = None  # (3,) acceleration of the node [m/s^2] (motion input only)
+    dw: np.ndarray | None = None  # (3,) angular acceleration, world axes [rad/s^2] (motion input only)
 
 
 class StepFailure(RuntimeError):
