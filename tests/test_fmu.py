@@ -613,7 +613,7 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path):
             out = {}
             for n in names:
                 idx = tuple(int(i) - 1 for i in n.split("[")[1][:-1].split(","))
-                out[f"{prefix}.{n}"] = float(getattr(pv, n.split(".")[1][0])[idx])
+                out[f"{prefix}.{n}"] = float(getattr(pv, n.split(".")[1].split("[")[0])[idx])
             return out
         return f
 
