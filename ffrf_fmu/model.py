@@ -22,7 +22,7 @@ else:  # pragma: no cover - Python 3.10
 
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 
-PART_CAUSALITIES = ("motion", "force")
+PART_CAUSALITIES = ("motion", "force", "compliant")
 TERM_SETS = ("linear", "gyroscopic")
 METRICS = ("haug", "spherical", "free", "")
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
@@ -54,8 +54,9 @@ class Port:
 
     name: str
     node: int  # boundary node index 0..superelements (negative counts from the end), normalized >= 0
-    translation: str  # "motion" | "force"
-    rotation: str  # "motion" | "force"
+    translation: str  # "motion" | "force" | "compliant"
+    rotation: str  # "motion" | "force" | "compliant"
+    coupling: tuple = ()  # compliant parts: (key, value) pairs of the port's `coupling` table
 
 
 @dataclass(frozen=True)
@@ -195,8 +196,16 @@ SECTION_KEYS = {
 }
 PORT_KEYS = {
     "node": "a boundary node index 0..superelements (negative counts from the end)",
-    "translation": "'motion' or 'force' (default 'force')",
-    "rotation": "'motion' or 'force' (default 'force')",
+    "translation": "'motion', 'force' or 'compliant' (default 'force')",
+    "rotation": "'motion', 'force' or 'compliant' (default 'force')",
+    "coupling": "a table {step, stiffness, damping, rotational_stiffness, rotational_damping} for compliant parts",
+}
+COUPLING_KEYS = {
+    "step": "a positive communication step [s]: stiffness and damping by the rule of docs/cosim.md",
+    "stiffness": "3 numbers >= 0 [N/m], world axes",
+    "damping": "3 numbers >= 0 [N s/m], world axes",
+    "rotational_stiffness": "3 numbers >= 0 [N m/rad], nodal axes",
+    "rotational_damping": "3 numbers >= 0 [N m s/rad], nodal axes",
 }
 SCENE_KEYS = {
     "duration": "a positive time [s]",
@@ -478,7 +487,24 @@ def _parse_body(r: _Reader, t: Any, default_name: str, file: str) -> Body:
                 r.fail(_join(pp, "node"), f"expected a node without a port, but port {other.name!r} is on node {node}")
         tr = r.string(p, pp, "translation", PORT_KEYS["translation"], "force", PART_CAUSALITIES)
         rot = r.string(p, pp, "rotation", PORT_KEYS["rotation"], "force", PART_CAUSALITIES)
-        ports.append(Port(pname, node, tr, rot))
+        coupling = ()
+        if "coupling" in p:
+            cp = _join(pp, "coupling")
+            c = r.table(p["coupling"], cp, COUPLING_KEYS)
+            cvals = {}
+            if "step" in c:
+                cvals["step"] = r.real(c, cp, "step", COUPLING_KEYS["step"], ok=_positive)
+            for key in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
+                if key in c:
+                    v = r.vec3(c, cp, key, COUPLING_KEYS[key])
+                    if min(v) < 0.0:
+                        r.fail(_join(cp, key), f"expected {COUPLING_KEYS[key]}, got {list(v)}")
+                    cvals[key] = v
+            coupling = tuple(cvals.items())
+        if "compliant" in (tr, rot) and not coupling:
+            r.fail(pp, "a compliant part needs a coupling table: {step = H} (the rule of docs/cosim.md) or explicit "
+                   "stiffness/damping values")
+        ports.append(Port(pname, node, tr, rot, coupling))
 
     return Body(
         name=name,
@@ -536,7 +562,7 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
 
     def require_part(path: str, pname: str, part: str, want: str, why: str):
         have = effective[pname][PART_INDEX[part]]
-        if have != want:
+        if have != want and not (want == "motion" and have == "compliant"):  # a drive moves the spring's end
             r.fail(path, f"expected a {want}-driven {part}: port {pname!r} {part} is {have}-driven in this scene "
                    f"({why})")
 

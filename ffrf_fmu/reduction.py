@@ -7,6 +7,8 @@ is not admissible here (its constraint modes are not orthogonal to the rigid mod
 """
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -280,4 +282,30 @@ def build_body(
         node_positions=node_positions,
         ports=_port_data(body, n_se + 1, causality),
     )
+    if any("compliant" in (p.translation, p.rotation) for p in data.ports):
+        data = dataclasses.replace(data, ports=tuple(_compliance(data, body, p) for p in data.ports))
     return data, reductions
+
+
+def _compliance(data: BodyData, body: Body, p: PortData) -> PortData:
+    """Stiffness and damping of a compliant port (runtime/coupling.py): the rule of
+    `coupling.compliance_rule` for the port's `coupling.step`, explicit values where given."""
+    from .runtime.coupling import compliance_rule
+
+    if "compliant" not in (p.translation, p.rotation):
+        return p
+    c = dict(next(q for q in body.ports if q.name == p.name).coupling)
+    if "step" in c:
+        KC = compliance_rule(data, p.node, c["step"])
+    elif (p.translation == "compliant" and "stiffness" not in c) or (p.rotation == "compliant" and "rotational_stiffness" not in c):
+        raise ModelError(f"{body.source}: compliant port {p.name!r} needs coupling.step or explicit stiffness values")
+    else:
+        KC = np.zeros((4, 3))
+    for i, key in enumerate(("stiffness", "damping", "rotational_stiffness", "rotational_damping")):
+        if key in c:
+            KC[i] = c[key]
+    if p.translation != "compliant":
+        KC[0:2] = 0.0
+    if p.rotation != "compliant":
+        KC[2:4] = 0.0
+    return dataclasses.replace(p, compliance=tuple(float(x) for x in KC.ravel()))

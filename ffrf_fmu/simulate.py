@@ -43,7 +43,7 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
         for p in body.ports:
             pv = PortValues()
             d = drive_of.get(p.name)
-            if p.translation == "motion":
+            if p.translation in ("motion", "compliant"):  # compliant: the far end of the spring
                 r0 = body.node_positions[p.node]
                 if d is not None and d.translation is not None:
                     u, du, ddu = _tf(d.translation.displacement, t)
@@ -51,7 +51,7 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
                     pv.r, pv.v, pv.a = r0 + u * e, du * e, ddu * e
                 else:
                     pv.r, pv.v, pv.a = r0.copy(), np.zeros(3), np.zeros(3)
-            if p.rotation == "motion":
+            if p.rotation in ("motion", "compliant"):
                 if d is not None and d.rotation is not None:
                     phi, dphi, ddphi = _tf(d.rotation.angle, t)
                     axis = np.asarray(d.rotation.axis, float)

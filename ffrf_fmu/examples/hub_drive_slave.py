@@ -24,6 +24,13 @@ tau = t/T, then omega_f. Inputs between communication points (same rule as the b
 docs/fmu.md): the values set before doStep(t_c, H) are the values at t_c; the beam angle is
 extrapolated with its rate, theta_b(t) = theta_b(t_c) + omega_b(t_c) (t - t_c), omega_b held.
 Integration: classical Runge-Kutta with n = ceil(H / solver.substep) equal substeps.
+
+For compliant coupling (docs/cosim.md) the shaft lives in the beam FMU instead (its hub rotation
+`compliant`, rotational stiffness = the shaft's) and the drive's own shaft is off (drive.k = 0):
+the drive then gives its hub frame `hub_frame.R`, `hub_frame.w`, `hub_frame.dw` (world axes; the
+beam's motion inputs, dw for their second-order extrapolation) and takes the moment of the shaft
+on the hub `hub_frame.t` (world axes, held over the step; only the Z component acts):
+    J domega/dt = tau_m - tau_s + hub_frame.t[3].
 Outputs are the values at the end of the step (no direct feedthrough).
 """
 import json
@@ -83,6 +90,8 @@ class HubDrive(Fmi2Slave):
         self.t = 0.0
         self.out = {k: 0.0 for k in OUTPUTS}
         self.torque_on_drive = [0.0, 0.0, 0.0]
+        self.t_ext = [0.0, 0.0, 0.0]  # hub_frame.t: external moment on the hub (compliant coupling)
+        self.dw = 0.0  # hub angular acceleration at the step end
         reg = self.register_variable
         for name, (default, unit, desc) in PARAMETERS.items():
             reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
@@ -117,12 +126,37 @@ class HubDrive(Fmi2Slave):
                      initial=Fmi2Initial.exact, start=0.0,
                      description="moment of the beam ON the hub = -(shaft torque on the beam), world axes [N.m]",
                      getter=lambda k=i: self.torque_on_drive[k]), nested=False)
+        for i in range(3):
+            for j in range(3):
+                reg(Real(f"hub_frame.R[{i + 1},{j + 1}]", causality=Fmi2Causality.output,
+                         variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
+                         start=1.0 if i == j else 0.0,
+                         description="hub frame (rotation about Z by the hub angle): world component i of axis j",
+                         getter=lambda a=i, b=j: self._hub_R()[3 * a + b]), nested=False)
+        for i in range(3):
+            reg(Real(f"hub_frame.w[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0, description="hub angular velocity, world axes [rad/s]",
+                     getter=lambda k=i: self.x[1] if k == 2 else 0.0), nested=False)
+        for i in range(3):
+            reg(Real(f"hub_frame.dw[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=0.0, description="hub angular acceleration, world axes [rad/s2]",
+                     getter=lambda k=i: self.dw if k == 2 else 0.0), nested=False)
+        for i in range(3):
+            reg(Real(f"hub_frame.t[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                     start=0.0, description="external moment on the hub, world axes (compliant coupling: minus the "
+                     "beam's hub.t; only Z acts) [N.m]",
+                     getter=lambda k=i: self.t_ext[k], setter=lambda v, k=i: self.t_ext.__setitem__(k, float(v))),
+                nested=False)
         for name, (unit, desc) in OUTPUTS.items():
             reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
                      initial=Fmi2Initial.exact, start=0.0, description=f"{desc} [{unit}]",
                      getter=lambda n=name: self.out[n]), nested=False)
 
     # ------------------------------------------------------------------ dynamics
+    def _hub_R(self):
+        c, s = math.cos(self.x[0]), math.sin(self.x[0])
+        return [c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0]
+
     def _beam_angle(self, theta_hub):
         raw = math.atan2(self.R[3], self.R[0])  # R[2,1], R[1,1]
         return theta_hub + math.remainder(raw - theta_hub, 2.0 * math.pi)
@@ -133,7 +167,7 @@ class HubDrive(Fmi2Slave):
         ref = speed_reference(t, p["profile.omega"], p["profile.T"])
         tau_s = p["drive.k"] * (theta - theta_b) + p["drive.c"] * (omega - omega_b)
         tau_m = p["drive.Kp"] * (ref - omega) + p["drive.Ki"] * z
-        return [omega, (tau_m - tau_s) / p["drive.J"], ref - omega]
+        return [omega, (tau_m - tau_s + self.t_ext[2]) / p["drive.J"], ref - omega]
 
     def _update_outputs(self, t, theta_b, omega_b):
         p = self.p
@@ -144,6 +178,7 @@ class HubDrive(Fmi2Slave):
                          "drive.motor_torque": p["drive.Kp"] * (ref - omega) + p["drive.Ki"] * z,
                          "drive.shaft_torque": tau_s, "drive.integral": z})
         self.torque_on_drive = [0.0, 0.0, -tau_s]
+        self.dw = self._rhs(t, self.x, theta_b, omega_b)[1]
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         self.t = float(start_time)
@@ -152,7 +187,7 @@ class HubDrive(Fmi2Slave):
         self._update_outputs(self.t, self._beam_angle(self.x[0]), self.w[2])
 
     def do_step(self, current_time, step_size):
-        values = self.R + self.w + [step_size]
+        values = self.R + self.w + self.t_ext + [step_size]
         if not all(math.isfinite(v) for v in values) or step_size <= 0.0:
             self.log(f"t = {current_time:g} s: non-finite input or bad step {step_size!r}", Fmi2Status.discard)
             return False
@@ -181,12 +216,14 @@ class HubDrive(Fmi2Slave):
     # ------------------------------------------------------------------ FMU state (complete)
     def _get_fmu_state(self):
         return {"p": dict(self.p), "R": list(self.R), "w": list(self.w), "f": list(self.f), "x": list(self.x),
-                "t": self.t, "out": dict(self.out), "tq": list(self.torque_on_drive)}
+                "t": self.t, "out": dict(self.out), "tq": list(self.torque_on_drive), "te": list(self.t_ext),
+                "dw": self.dw}
 
     def _set_fmu_state(self, state):
         self.p, self.R, self.w, self.f = dict(state["p"]), list(state["R"]), list(state["w"]), list(state["f"])
         self.x, self.t, self.out = list(state["x"]), float(state["t"]), dict(state["out"])
         self.torque_on_drive = list(state["tq"])
+        self.t_ext, self.dw = list(state["te"]), float(state["dw"])
 
     @staticmethod
     def _fmu_state_to_bytes(state):

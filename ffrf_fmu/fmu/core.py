@@ -73,7 +73,7 @@ class BodyCoSim:
         self.is_integer = np.array([v.type == "Integer" for v in self.variables])
         self.index: dict[tuple[str, str], np.ndarray] = {}
         for i, v in enumerate(self.variables):
-            # per-port variables (port fields and initial.<port>.d) by port name, the others by kind
+            # per-port variables (port fields, initial.<port>.d, <port>.coupling.*) by port name, the others by kind
             key = (v.port, v.field) if v.port else (v.kind, v.field)
             self.index.setdefault(key, []).append(i)
         self.index = {k: np.array(ix, dtype=int) for k, ix in self.index.items()}
@@ -142,6 +142,10 @@ class BodyCoSim:
             "initial_velocity": v[self.index[("parameter", "initial_velocity")]].copy(),
             "initial_angular_velocity": v[self.index[("parameter", "initial_angular_velocity")]].copy(),
             "port_displacements": disp,
+            "compliance": {p.name: np.concatenate([v[self.index[(p.name, "coupling." + k)]]
+                                                   if (p.name, "coupling." + k) in self.index else np.zeros(3)
+                                                   for k in ("k", "c", "k_rot", "c_rot")]).reshape(4, 3)
+                           for p in self.data.ports if "compliant" in (p.translation, p.rotation)},
         }
 
     def _check_parameters(self, p: dict) -> str:
@@ -172,6 +176,9 @@ class BodyCoSim:
                 return (f"parameter {named[key]} = {p[key].tolist()} is set, but the {part} of port {driven[0]} is "
                         f"motion-driven: its input {driven[0]}.{field} gives the initial rigid "
                         f"{'velocity' if field == 'v' else 'angular velocity'} (set that input instead)")
+        for port, KC in p["compliance"].items():
+            if not (np.all(np.isfinite(KC)) and np.all(KC >= 0.0)):
+                return f"parameters {port}.coupling.* must be finite and >= 0, got {KC.ravel().tolist()}"
         return ""
 
     def _make_system(self) -> BodySystem:
@@ -182,6 +189,8 @@ class BodyCoSim:
                                      backend=self.config.get("backend", "numpy"))
             self.backend_note = self.system.backend_note  # numba wanted but not usable: the slave logs it
             self._system_params = key
+        for port, KC in p["compliance"].items():  # compliant ports: the coupling parameters
+            self.system.compliance[port][...] = KC
         return self.system
 
     # ------------------------------------------------------------------ inputs
@@ -194,12 +203,12 @@ class BodyCoSim:
         held = {}
         for p in self.data.ports:
             pv = PortValues()
-            if p.translation == "motion":
+            if p.translation in ("motion", "compliant"):
                 pv.r, pv.v = self._vec(p.name, "r").copy(), self._vec(p.name, "v").copy()
                 pv.a = self._vec(p.name, "a").copy()
             else:
                 pv.f = self._vec(p.name, "f").copy()
-            if p.rotation == "motion":
+            if p.rotation in ("motion", "compliant"):
                 R = self._vec(p.name, "R").reshape(3, 3).copy()
                 dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
                 det = float(np.linalg.det(R))
@@ -374,6 +383,10 @@ class BodyCoSim:
             for field in ("r", "R", "v", "w", "f", "t"):
                 ix = self.index[(p.name, field)]
                 if self.causality[ix[0]] == "output":
+                    v[ix] = np.ravel(getattr(pv, field))
+            for field in ("r", "R", "v", "w"):  # the body's own node frame at a compliant part
+                ix = self.index.get((p.name, "node." + field))
+                if ix is not None:
                     v[ix] = np.ravel(getattr(pv, field))
         for key, value in self.system.energies().items():
             ix = self.index.get(("energy", key))

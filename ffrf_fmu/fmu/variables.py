@@ -21,6 +21,10 @@ UNITS: dict[str, dict[str, int]] = {
     "rad/s2": {"rad": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2},
     "N.m": {"kg": 1, "m": 2, "s": -2},
+    "N/m": {"kg": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1},
+    "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
+    "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
     "J": {"kg": 1, "m": 2, "s": -2},
     "s": {"s": 1},
 }
@@ -97,7 +101,7 @@ class Variable:
 def port_field_causality(translation: str, rotation: str, field: str) -> str:
     """'input' or 'output' for one field of a port with the given part causalities (ports.md)."""
     part = "translation" if field in PART_FIELDS["translation"] else "rotation"
-    motion = (translation if part == "translation" else rotation) == "motion"
+    motion = (translation if part == "translation" else rotation) in ("motion", "compliant")  # compliant: motion in
     is_load = field in ("f", "t")
     return "output" if motion == is_load else "input"
 
@@ -127,7 +131,10 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                 continue
             how = f"{part} {getattr(p, part)}-driven"
             if causality == "input":
-                desc = f"{meaning} [input, {how}; {INPUT_RULE[field].format(p=p.name)}]"
+                rule = INPUT_RULE[field].format(p=p.name)
+                if getattr(p, part) == "compliant":
+                    rule = f"{COMPLIANT_INPUT}; {rule}"
+                desc = f"{meaning} [input, {how}; {rule}]"
             else:
                 desc = f"{meaning} [output at the communication point, {how}]"
             for idx, suffix in _components(shape):
@@ -144,6 +151,7 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                     Variable(f"{p.name}.{field}{suffix}", "Real", causality, "continuous", unit, desc, start,
                              "port", p.name, field, idx)
                 )
+        out.extend(_compliant_variables(p))
     for key, meaning in ENERGIES.items():
         out.append(Variable(f"energy.{key}", "Real", "output", "continuous", "J", meaning, None, "energy", field=key))
     out.append(
@@ -185,6 +193,39 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
             out.append(Variable(f"initial.{p.name}.d[{i + 1}]", "Real", "parameter", "fixed", "m",
                                 f"initial elastic displacement of port {p.name} from its reference position",
                                 float(d[i]), "parameter", port=p.name, field="port_displacement", index=(i,)))
+    return out
+
+
+COMPLIANT_INPUT = ("the far end of the port's coupling spring-damper (compliant part, docs/cosim.md): "
+                   "the motion of the partner, extrapolated like a motion input")
+# compliant part -> (node frame outputs, coupling parameters: (suffix, unit, meaning, index in PortData.compliance))
+COMPLIANT = {
+    "translation": (("r", "v"), (("k", "N/m", "stiffness, world axes", 0), ("c", "N.s/m", "damping, world axes", 1))),
+    "rotation": (("R", "w"), (("k_rot", "N.m/rad", "rotational stiffness, nodal axes", 2),
+                              ("c_rot", "N.m.s/rad", "rotational damping, nodal axes", 3))),
+}
+
+
+def _compliant_variables(p) -> list[Variable]:
+    """A compliant part (runtime/coupling.py) has motion inputs (the spring's far end) and the spring
+    load as output; the body's own nodal frame is then an output under P.node.*, and the spring-damper
+    coefficients are parameters P.coupling.* (defaults from the model file's coupling table)."""
+    out = []
+    comp = list(getattr(p, "compliance", ()) or [0.0] * 12)
+    for part, (fields, params) in COMPLIANT.items():
+        if getattr(p, part) != "compliant":
+            continue
+        for field in fields:
+            shape, unit, meaning = FIELDS[field]
+            for idx, suffix in _components(shape):
+                out.append(Variable(f"{p.name}.node.{field}{suffix}", "Real", "output", "continuous", unit,
+                                    f"{meaning} of the body's own node at compliant port {p.name} "
+                                    "[output at the communication point]", None, "port", p.name, "node." + field, idx))
+        for suffix, unit, meaning, row in params:
+            for i in range(3):
+                out.append(Variable(f"{p.name}.coupling.{suffix}[{i + 1}]", "Real", "parameter", "fixed", unit,
+                                    f"coupling spring-damper of compliant port {p.name}: {meaning}",
+                                    float(comp[3 * row + i]), "parameter", p.name, "coupling." + suffix, (i,)))
     return out
 
 

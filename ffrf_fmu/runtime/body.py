@@ -17,6 +17,7 @@ from . import stiffening
 from .fused import FusedResidual
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
+from .coupling import add_springs
 from .ports import PortValues, StepFailure
 from .rotation import cross, is_rotation, vect
 
@@ -88,6 +89,13 @@ class BodySystem(GeneralizedAlpha):
         self.fused = FusedResidual(L, S, self.gyro, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
+        # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
+        self.compliant = {p.name: (p.node, p.translation == "compliant", p.rotation == "compliant")
+                          for p in data.ports if "compliant" in (p.translation, p.rotation)}
+        self.compliance = {name: np.asarray(data.port(name).compliance, dtype=float).reshape(4, 3)
+                           for name in self.compliant}  # K_t, C_t, K_r, C_r per port (settable)
+        self._springs: list = []  # per step: the compliant parts with their inputs at t_{n+1}
+        self._spring_loads = np.zeros((data.node_positions.shape[0], 2, 3))  # force, moment (world)
         self._build_newton()
         N, E, n, nv, ny = L.n_nodes, L.n_se, L.n, L.nv, L.ny
         self._zeros_ny = np.zeros(ny)
@@ -226,11 +234,19 @@ class BodySystem(GeneralizedAlpha):
         N = L.n_nodes
         buf = np.concatenate([self.xN.ravel(), self.RN.ravel(), self._zeros_inputs])
         xN, RN, zN, f, tq = (buf[sl].reshape(shape) for sl, shape in self._input_views)
+        springs = []
         for p in self.data.ports:
             pv = values.get(p.name)
             if pv is None:
                 raise StepFailure(t, f"no input values for port {p.name!r}")
             k = p.node
+            if p.name in self.compliant:
+                _, ct, cr = self.compliant[p.name]
+                ends = (_input(pv, "r", p.name, t) if ct else None, _input(pv, "v", p.name, t) if ct else None,
+                        _input(pv, "R", p.name, t) if cr else None, _input(pv, "w", p.name, t) if cr else None)
+                if cr and not is_rotation(ends[2]):
+                    raise StepFailure(t, f"port {p.name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
+                springs.append((k, ct, cr, self.compliance[p.name], ends))
             if p.translation == "motion":
                 xN[k], zN[k, 0:3] = _value(pv, "r", p.name, t), _value(pv, "v", p.name, t)
             elif pv.f is not None:
@@ -254,6 +270,7 @@ class BodySystem(GeneralizedAlpha):
             if not is_rotation(RN[k]):
                 name = next(p.name for p in self.data.ports if p.node == k and p.rotation == "motion")
                 raise StepFailure(t, f"port {name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
+        self._springs = springs
         return xN, RN, zN, f, tq
 
 
@@ -262,8 +279,9 @@ class BodySystem(GeneralizedAlpha):
         motion parts (where no load is read, so the residual there is the contributions alone)."""
         N = self.layout.n_nodes
         Fn = F[: 6 * N].reshape(N, 2, 3)  # node rows: x, Theta (body axes)
-        self.fN = f_in + self._motion_parts[:, 0] * Fn[:, 0]
-        self.tN = t_in + self._motion_parts[:, 1] * (Fn[:, 1:2] @ np.swapaxes(self.RN, -1, -2))[:, 0]  # R F_Theta
+        self.fN = f_in + self._motion_parts[:, 0] * Fn[:, 0] + self._spring_loads[:, 0]
+        self.tN = (t_in + self._motion_parts[:, 1] * (Fn[:, 1:2] @ np.swapaxes(self.RN, -1, -2))[:, 0]  # R F_Theta
+                   + self._spring_loads[:, 1])
 
     def _external_power(self) -> float:
         """Power of the port loads and gravity: f . v + t . (R W) on the nodes, m g . v0 on the CMs."""
@@ -345,6 +363,12 @@ class BodySystem(GeneralizedAlpha):
         self.a = yd0.copy()
         F = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[0]
         F[: 6 * self.layout.n_nodes] += self._loads(self.RN, f_in, t_in).ravel()
+        if self._springs:
+            self._read_inputs(t0, values)
+            self._spring_loads[...] = 0.0
+            p = np.zeros(self.layout.ny)
+            p[: 6 * self.layout.n_nodes] = np.concatenate([self.xN, np.zeros_like(self.xN)], axis=1).ravel()
+            add_springs(self._springs, p, self.yd, self.RN, F, None, 0.0, None, self._spring_loads)
         self._update_port_loads(F, f_in, t_in)
         self.power = self._external_power()
         self.work = 0.0

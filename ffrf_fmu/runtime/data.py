@@ -54,8 +54,9 @@ _OPTIONAL = ("W1", "vk_a", "vk_B")  # stiffening data, present only when built w
 class PortData:
     name: str
     node: int
-    translation: str  # "motion" | "force"
+    translation: str  # "motion" | "force" | "compliant" (runtime/coupling.py)
     rotation: str
+    compliance: tuple = ()  # compliant parts: 12 floats K_t, C_t, K_r, C_r (3 each), else ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +82,7 @@ class BodyData:
         meta = {
             "name": self.name,
             "n_se": len(self.superelements),
-            "ports": [[p.name, p.node, p.translation, p.rotation] for p in self.ports],
+            "ports": [[p.name, p.node, p.translation, p.rotation, list(p.compliance)] for p in self.ports],
         }
         import json
 
@@ -106,5 +107,6 @@ class BodyData:
                 name=meta["name"],
                 superelements=ses,
                 node_positions=z["node_positions"],
-                ports=tuple(PortData(n, int(k), t, r) for n, k, t, r in meta["ports"]),
+                ports=tuple(PortData(n, int(k), t, r, tuple(float(x) for x in (c[0] if c else ())))
+                            for n, k, t, r, *c in meta["ports"]),
             )

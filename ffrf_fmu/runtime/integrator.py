@@ -26,6 +26,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.lapack import dgetrs as getrs
 
+from .coupling import add_springs
 from .ports import PortValues, StepFailure
 from .rotation import expm, skew, tangent
 
@@ -262,9 +263,14 @@ class GeneralizedAlpha:
         self._R = R = Rn @ expm(theta)
         F, s = self.fused.evaluate(R, jacobian)
         if not jacobian:
+            if self._springs:
+                add_springs(self._springs, p, yd, R, F, None, 0.0, None, self._spring_loads)
             return F
         Fz, Fy = self.fused.local_jacobian(s)
-        return F, self._iteration_matrix(Fz, Fy, beta, theta, R)
+        J = self._iteration_matrix(Fz, Fy, beta, theta, R)
+        if self._springs:  # compliant ports: spring-damper loads on free nodes (runtime/coupling.py)
+            add_springs(self._springs, p, yd, R, F, J, beta, self._newton_pos, self._spring_loads)
+        return F, J
 
     def _iteration_matrix(self, Fz, Fy, beta, theta, R):
         """J = F_ydot + beta [F_y T, F_v] on the unknowns, assembled in the Newton order:

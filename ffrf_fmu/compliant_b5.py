@@ -1,0 +1,178 @@
+"""B5 (beam + hub inertia + PI drive) with compliant coupling, run by our master, libcosim and ecos.
+
+The torsional shaft (k = 300 N m/rad, c = 0) moves from the drive FMU into the beam FMU: the beam's
+hub rotation is `compliant` (runtime/coupling.py) with rotational stiffness [0, 0, k] in nodal axes
+(the shaft, about the spin axis; the other two axes free as in the force-driven B5), its
+translation motion-driven (r = v = 0). The drive's own shaft is off (drive.k = 0): it gives its hub
+frame and rates (hub_frame.R, w, dw) and takes the moment of the shaft on the hub
+(hub_frame.t = -beam.hub.t). Every connection is a plain signal with a gain (no frame arithmetic),
+so every engine runs the same discrete map: Jacobi with held inputs (values at t_c), the beam
+extrapolating its motion inputs to second order with hub_frame.dw.
+
+Same physical system as the map's B5 (shaft in the drive, docs/stability.md), so its implicit run
+is the reference.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .stability import CosimRun, CosimSettings, _ssd, _tip_deflection, _vec
+
+SHAFT_K = 300.0
+
+
+def beam_overrides(settings: CosimSettings, k: float = SHAFT_K, c: float = 0.0) -> list[str]:
+    return [*settings.overrides, "scenes.hub_free.causality.hub.rotation=\"compliant\"",
+            f"body.ports.hub.coupling={{ rotational_stiffness = [0.0, 0.0, {k!r}], rotational_damping = [0.0, 0.0, {c!r}] }}",
+            f"scenes.hub_free.duration={settings.duration!r}"]
+
+
+def build(model_path, fmu_dir, settings: CosimSettings) -> dict[str, Path]:
+    from .examples import build_hub_drive
+    from .fmu.builder import build_from_model
+
+    fmu_dir = Path(fmu_dir)
+    fmu_dir.mkdir(parents=True, exist_ok=True)
+    return {"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene="hub_free",
+                                     overrides=beam_overrides(settings)),
+            "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")}
+
+
+def connections(acceleration: bool = True) -> list[tuple[str, str, float]]:
+    """(source, sink, gain): the drive's hub frame to the beam's compliant hub inputs, minus the
+    beam's spring moment to the drive hub, the bearing's (zero) position and velocity."""
+    c = [(f"drive.hub_frame.R[{i},{j}]", f"beam.hub.R[{i},{j}]", 1.0) for i in (1, 2, 3) for j in (1, 2, 3)]
+    c += [(f"drive.hub_frame.w[{i}]", f"beam.hub.w[{i}]", 1.0) for i in (1, 2, 3)]
+    if acceleration:
+        c += [(f"drive.hub_frame.dw[{i}]", f"beam.hub.dw[{i}]", 1.0) for i in (1, 2, 3)]
+    c += [(f"drive.hub.{f}[{i}]", f"beam.hub.{f}[{i}]", 1.0) for f in ("r", "v") for i in (1, 2, 3)]
+    c += [("beam.hub.t[3]", "drive.hub_frame.t[3]", -1.0)]
+    return c
+
+
+def start_values(settings: CosimSettings, H: float, beam_step: float | None = None) -> dict:
+    sv = {f"drive.{k}": v for k, v in settings.drive.items()}
+    sv["drive.drive.k"] = 0.0  # the shaft is in the beam
+    sv["drive.profile.T"] = settings.T
+    sv["beam.solver.step"] = min(H, settings.beam_step) if beam_step is None else beam_step
+    return sv
+
+
+NODE_R = [f"beam.hub.node.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
+RECORD = [*NODE_R, *_vec("beam", "tip", "r"), "beam.hub.node.w[3]", "beam.hub.t[3]"]
+
+
+def _result(t, get, stopped, wall) -> CosimRun:
+    """CosimRun from recorded columns: deflection against the beam root (the node frame), hub speed
+    of the beam root, shaft torque on the beam."""
+    R = np.stack([get(n) for n in NODE_R], -1).reshape(-1, 3, 3)
+    r_tip = np.stack([get(n) for n in _vec("beam", "tip", "r")], -1)
+    X_tip = np.array([8.0, 0.0, 0.0])
+    d = _tip_deflection(R, np.zeros_like(r_tip), r_tip, X_tip) if len(t) else np.zeros(0)
+    return CosimRun(np.asarray(t), d, get("beam.hub.node.w[3]"), get("beam.hub.t[3]"), stopped, wall)
+
+
+def run_master(fmus, settings: CosimSettings, H: float, duration: float, scheme: str = "jacobi",
+               acceleration: bool = True) -> CosimRun:
+    from .master import CoSimulation
+
+    t0 = time.perf_counter()
+    with CoSimulation(fmus, step=H, scheme=scheme, order=["beam", "drive"],
+                      start_values=start_values(settings, H)) as sim:
+        for src, dst, g in connections(acceleration):
+            sim.connect(src, dst, g)
+        res = sim.run(duration, record=RECORD)
+    return _result(res.t, lambda n: res.columns[n], res.stopped_early, time.perf_counter() - t0)
+
+
+def run_libcosim(fmus, settings: CosimSettings, H: float, duration: float, work_dir,
+                 acceleration: bool = True, overrides: dict | None = None) -> CosimRun:
+    """libcosim's fixed-step algorithm (Jacobi, held inputs) from a generated SSD."""
+    import shutil
+
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.ERROR)
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    comps = {}
+    for name, fmu in fmus.items():
+        shutil.copy(fmu, work / Path(fmu).name)
+        comps[name] = Path(fmu).name
+    ssd = _ssd(work / "SystemStructure.ssd", comps, connections(acceleration))
+    ex = CosimExecution.from_ssp_file(str(ssd), step_size=int(round(H * 1e9)))
+    index = {info.name.decode(): info.index for info in ex.slave_infos()}
+    refs = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
+    for full, value in {**start_values(settings, H), **(overrides or {})}.items():
+        inst, var = full.split(".", 1)
+        ex.real_initial_value(index[inst], refs[inst][var], float(value))
+    observer = CosimObserver.create_last_value()
+    ex.add_observer(observer)
+    names = [n.split(".", 1)[1] for n in RECORD]
+    t0 = time.perf_counter()
+    rows, times, stopped = [], [], ""
+    for k in range(int(round(duration / H))):
+        if not ex.step(1):
+            stopped = f"libcosim: step at t = {k * H:.6g} s failed"
+            break
+        rows.append(observer.last_real_values(index["beam"], [refs["beam"][n] for n in names]))
+        times.append((k + 1) * H)
+    wall = time.perf_counter() - t0
+    cols = {full: np.array([r[i] for r in rows]) for i, full in enumerate(RECORD)}
+    del ex
+    return _result(times, lambda n: cols[n], stopped, wall)
+
+
+def _load_tbb() -> None:
+    """ecospy's library needs libtbb.so.12: from the PyPI package tbb when installed (loaded globally)."""
+    try:
+        from .engines import load_tbb  # the project's helper, when present
+    except ImportError:
+        import ctypes
+        import importlib.metadata
+
+        for f in importlib.metadata.files("tbb") or []:
+            if f.name == "libtbb.so.12":
+                ctypes.CDLL(str(f.locate()), mode=ctypes.RTLD_GLOBAL)
+                return
+        return
+    load_tbb()
+
+
+def run_ecos(fmus, settings: CosimSettings, H: float, duration: float, acceleration: bool = True,
+             overrides: dict | None = None) -> CosimRun:
+    """ecos (ecospy) with its fixed-step Jacobi algorithm, the FMUs loaded in this process."""
+    _load_tbb()
+    from ecospy import EcosSimulation, EcosSimulationStructure
+
+    t0 = time.perf_counter()
+    rows, times, stopped = [], [], ""
+    with EcosSimulationStructure() as ss:
+        for name, fmu in fmus.items():
+            ss.add_model(name, str(fmu))
+        for src, dst, g in connections(acceleration):
+            s, d = src.replace(".", "::", 1), dst.replace(".", "::", 1)
+            if g == 1.0:
+                ss.make_real_connection(s, d)
+            else:
+                ss.make_real_connection(s, d, modifier=lambda v, g=g: g * v)
+        ss.add_parameter_set("start", {k.replace(".", "::", 1): float(v)
+                                       for k, v in {**start_values(settings, H), **(overrides or {})}.items()})
+        with EcosSimulation(structure=ss, step_size=H) as sim:
+            sim.init(parameter_set="start")
+            for k in range(int(round(duration / H))):
+                try:
+                    sim.step(1)
+                except Exception as e:  # noqa: BLE001 - the engine's report, kept as the run's failure
+                    stopped = f"ecos: step at t = {k * H:.6g} s failed: {e}"
+                    break
+                rows.append([sim.get_real(n.replace(".", "::", 1)) for n in RECORD])
+                times.append((k + 1) * H)
+            sim.terminate()
+    cols = {full: np.array([r[i] for r in rows]) for i, full in enumerate(RECORD)}
+    return _result(times, lambda n: cols[n], stopped, time.perf_counter() - t0)
