@@ -128,27 +128,13 @@ def run_libcosim(fmus, settings: CosimSettings, H: float, duration: float, work_
     return _result(times, lambda n: cols[n], stopped, wall)
 
 
-def _load_tbb() -> None:
-    """ecospy's library needs libtbb.so.12: from the PyPI package tbb when installed (loaded globally)."""
-    try:
-        from .engines import load_tbb  # the project's helper, when present
-    except ImportError:
-        import ctypes
-        import importlib.metadata
-
-        for f in importlib.metadata.files("tbb") or []:
-            if f.name == "libtbb.so.12":
-                ctypes.CDLL(str(f.locate()), mode=ctypes.RTLD_GLOBAL)
-                return
-        return
-    load_tbb()
-
-
 def run_ecos(fmus, settings: CosimSettings, H: float, duration: float, acceleration: bool = True,
              overrides: dict | None = None) -> CosimRun:
     """ecos (ecospy) with its fixed-step Jacobi algorithm, the FMUs loaded in this process."""
-    _load_tbb()
-    from ecospy import EcosSimulation, EcosSimulationStructure
+    from .engines import import_ecospy
+
+    ecospy = import_ecospy()
+    EcosSimulation, EcosSimulationStructure = ecospy.EcosSimulation, ecospy.EcosSimulationStructure
 
     t0 = time.perf_counter()
     rows, times, stopped = [], [], ""
