@@ -215,7 +215,7 @@ SCENE_KEYS = {
     "stiffening": "true or false: geometric stiffening inside each superelement (default false)",
     "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
     "metrics": "one of haug, spherical, free or '' (default '')",
-    "outputs": "an array of probe names (default [])",
+    "outputs": "an array of probe names '<port>_from_<port>' (eq. 92; FMU outputs probe.NAME[i]) (default [])",
     "drives": "a table of drives [scenes.NAME.drives.PORT]",
     "loads": "an array of tables [[scenes.NAME.loads]]",
     "initial": "a table [scenes.NAME.initial]",
@@ -625,6 +625,11 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
     outputs = t.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
         r.expected(_join(sp, "outputs"), SCENE_KEYS["outputs"], outputs)
+    for o in outputs:  # probes (eq. 92): "<port>_from_<port>", the first port seen from the second's frame
+        seen, sep, frame = o.partition("_from_")
+        if not sep or seen not in ports or frame not in ports or seen == frame:
+            r.fail(_join(sp, "outputs"), f"expected probe names '<port>_from_<port>' of two ports of the body "
+                   f"({', '.join(ports)}), got {o!r}")
     return Scene(
         name=name,
         duration=duration,

@@ -728,3 +728,24 @@ def test_input_rule_has_one_source_for_model_description_and_docs(small_fmu):
     assert INTERNAL_STEPS in step.description
     everything = md.description + " ".join(v.description or "" for v in md.modelVariables)
     assert "last one shortened" not in everything and "last internal step" not in everything
+
+
+def test_probe_outputs_are_eq_92_of_the_port_outputs(small, tmp_path):
+    """A scene's `outputs = ["tip_from_hub"]` becomes FMU outputs probe.tip_from_hub[1..3]: the tip's
+    elastic displacement in the hub frame, eq. (92). Checked against eq. (92) evaluated by
+    simulate.elastic_tip from the FMU's own port outputs at every communication point (same numbers
+    up to round-off, 1e-12 m), on the spin scene whose tip load bends the beam (so the probe is
+    not zero: > 1e-4 m); a probe naming an unknown port is refused with the names the model has."""
+    from ffrf_fmu.model import ModelError
+
+    fmu = build_from_model(small, tmp_path / "probe.fmu", scene="spin", overrides=['scenes.spin.outputs=["tip_from_hub"]'])
+    model = load_model(small)
+    sc = model.scene("spin")
+    ref = run_scene(model, "spin")
+    fr = _fmu_result(fmu, sc, ref.body, sc.step)
+    probe = np.stack([fr.columns[f"probe.tip_from_hub[{i}]"] for i in (1, 2, 3)], -1)
+    d = elastic_tip(fr, "hub", "tip")
+    assert np.abs(probe - d).max() < 1e-12
+    assert np.abs(probe).max() > 1e-4
+    with pytest.raises(ModelError, match="tip_from_hup"):
+        load_model(small, ['scenes.spin.outputs=["tip_from_hup"]'])

@@ -144,6 +144,7 @@ class SceneParameters:
     initial_angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     duration: float | None = None  # DefaultExperiment stopTime when given
+    probes: tuple[str, ...] = ()  # "<port>_from_<port>" outputs (eq. 92)
 
     @classmethod
     def of_scene(cls, scene) -> "SceneParameters":
@@ -156,6 +157,7 @@ class SceneParameters:
             initial_angular_velocity=tuple(scene.initial.angular_velocity),
             port_displacements=tuple(scene.initial.port_displacements),
             duration=scene.duration,
+            probes=tuple(scene.outputs),
         )
 
     def as_config(self) -> dict:
@@ -169,6 +171,7 @@ class SceneParameters:
             "initial_velocity": [float(x) for x in self.initial_velocity],
             "initial_angular_velocity": [float(x) for x in self.initial_angular_velocity],
             "port_displacements": {k: [float(x) for x in v] for k, v in self.port_displacements},
+            "probes": list(self.probes),
         }
 
 

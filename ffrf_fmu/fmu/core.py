@@ -388,6 +388,11 @@ class BodyCoSim:
                 ix = self.index.get((p.name, "node." + field))
                 if ix is not None:
                     v[ix] = np.ravel(getattr(pv, field))
+        X = self.data.node_positions
+        for name in self.config["parameters"].get("probes", ()):  # eq. (92)
+            seen, _, frame = name.partition("_from_")
+            ps, pf = outs[seen], outs[frame]
+            v[self.index[("probe", name)]] = pf.R.T @ (ps.r - pf.r) - (X[self.data.port(seen).node] - X[self.data.port(frame).node])
         for key, value in self.system.energies().items():
             ix = self.index.get(("energy", key))
             if ix is not None:

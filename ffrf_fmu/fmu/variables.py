@@ -152,6 +152,13 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                              "port", p.name, field, idx)
                 )
         out.extend(_compliant_variables(p))
+    for name in parameters.get("probes", ()):
+        seen, _, frame = name.partition("_from_")
+        for i in range(3):
+            out.append(Variable(f"probe.{name}[{i + 1}]", "Real", "output", "continuous", "m",
+                                f"elastic displacement of port {seen} seen from the frame of port {frame} (geradin eq. 92): "
+                                f"R_{frame}^T (r_{seen} - r_{frame}) - (X_{seen} - X_{frame}), axis {i + 1} of the {frame} frame "
+                                "[output at the communication point]", None, "probe", field=name, index=(i,)))
     for key, meaning in ENERGIES.items():
         out.append(Variable(f"energy.{key}", "Real", "output", "continuous", "J", meaning, None, "energy", field=key))
     out.append(
