@@ -505,6 +505,8 @@ terms = "{model.scene("spinup").terms}"
 
 
 IMPLICIT = ("gauss-seidel implicit", "gauss-seidel", False, "fwd")
+#: motor case with the shaft in the beam's compliant hub (ffrf_fmu/compliant_b5.py, docs/cosim.md)
+COMPLIANT = ("compliant jacobi", "jacobi", False, "fwd")
 
 
 def _compare(run: CosimRun, ref: CosimRun, length: float, ref_torque_peak: float) -> dict:
@@ -582,7 +584,8 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
             refs[H] = load(key)
             return refs[H]
 
-        schemes = list(settings.schemes) + [IMPLICIT]
+        schemes = list(settings.schemes) + [IMPLICIT] + ([COMPLIANT] if kind == "motor" else [])
+        compliant_fmus = None
         for H in (settings.steps if kind == "motor" else settings.split_steps):
             ref = reference(H)
             peak = float(np.max(np.abs(ref.torque)))
@@ -592,7 +595,13 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
                     continue
                 if _done(rows, case=kind, scheme=label, H=float(H)) is not None:
                     continue
-                run = case.run(H, scheme, extrap, order, iterations=settings.implicit_iterations if implicit else 1)
+                if label == COMPLIANT[0]:  # the shaft moves into the beam FMU (docs/cosim.md)
+                    from . import compliant_b5
+
+                    compliant_fmus = compliant_fmus or compliant_b5.build(model_path, out_dir / "fmus", settings)
+                    run = compliant_b5.run_master(compliant_fmus, settings, H, case.duration)
+                else:
+                    run = case.run(H, scheme, extrap, order, iterations=settings.implicit_iterations if implicit else 1)
                 row = {"case": kind, "scheme": label, "H": float(H), **_compare(run, ref, case.length, peak)}
                 save(row, run, f"{kind}_{label}_H{H:g}")
                 log(f"{kind} H = {H:g} s {label}: error {row['rel_error']:.3g}"
@@ -795,7 +804,7 @@ def plot_cosim(rows: list[dict], path) -> None:
               "split": "B1 beam split in two body FMUs at its middle node: error of the tip deflection"}
     for ax, case in zip(axes[:, 0], cases):
         rs = [r for r in rows if r["case"] == case and r["scheme"] != "monolithic reference"]
-        schemes = [s[0] for s in COSIM_SCHEMES + (IMPLICIT,) if any(r["scheme"] == s[0] for r in rs)]
+        schemes = [s[0] for s in COSIM_SCHEMES + (IMPLICIT, COMPLIANT) if any(r["scheme"] == s[0] for r in rs)]
         steps = sorted({r["H"] for r in rs})
         grid = np.full((len(schemes), len(steps)), np.nan)
         label = {}
