@@ -38,26 +38,26 @@ import hashlib
 import itertools
 import json
 import math
-import multiprocessing
 import os
-import sys
 import time
 import traceback
 import warnings
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from .model import Model, effective_ports, load_model
+from .studies.progress import Bar
+from .studies.sweep import Scheduler, connect, parse_scheduler, run_sweep
+from .studies.store import ResultStore
+from .studies.task import code_version, make_task
 
 # scene.metrics -> the metric whose relative error the chart reports
 PRIMARY_METRIC = {"haug": "tip_deflection_max_m", "spherical": "omega_y_mean_after_load"}
 # the keys every row shows (resolved from the model when not swept), in label order
 SHOWN_KEYS = ("superelements", "modes", "terms", "step")
 COSTS = {"wall": "wall_time_s", "cpu": "cpu_time_s"}  # cost measure -> row column
-POOL_START_METHOD = "spawn"  # the worker pool's, explicit (the runs take arguments that pickle: paths and texts)
 ERROR_FLOOR = 1e-6  # errors below this are drawn at the floor of the log axis
 
 
@@ -66,17 +66,18 @@ class ChartError(ValueError):
 
 
 # ------------------------------------------------------------------------------ configurations
-def parse_sweep(items: Sequence[str]) -> dict[str, list[str]]:
-    """["superelements=1,2,4", "terms=linear,gyroscopic"] -> {key: [value texts]} (order kept)."""
+def parse_sweep(items: Sequence[str], option: str = "--sweep") -> dict[str, list[str]]:
+    """["superelements=1,2,4", "terms=linear,gyroscopic"] -> {key: [value texts]} (order kept);
+    errors name `option` (the command line option the items came from)."""
     sweep: dict[str, list[str]] = {}
     for item in items:
         key, sep, values = item.partition("=")
         key = key.strip()
         vals = [v.strip() for v in values.split(",") if v.strip()]
         if not sep or not key or not vals:
-            raise ChartError(f"--sweep {item!r}: expected key=v1,v2,... e.g. superelements=1,2,4")
+            raise ChartError(f"{option} {item!r}: expected key=v1,v2,... e.g. superelements=1,2,4")
         if key in sweep:
-            raise ChartError(f"--sweep {item!r}: key {key!r} given twice")
+            raise ChartError(f"{option} {item!r}: key {key!r} given twice")
         sweep[key] = vals
     return sweep
 
@@ -277,8 +278,8 @@ def reference_warning(energy_error: float | None, step: float) -> str:
             "are not trustworthy; halve --reference-step and compare")
 
 
-def _failed_reference(exc, n_elements, step, scene) -> dict:
-    return {"metrics": {}, "failure": f"{type(exc).__name__}: {exc}", "wall_time_s": None,
+def _failed_reference(failure: str, n_elements, step, scene) -> dict:
+    return {"metrics": {}, "failure": failure, "wall_time_s": None,
             "n_elements": n_elements, "step": step or scene.step, "cached": False, "path": None,
             "energy_error": None, "warning": ""}
 
@@ -367,27 +368,6 @@ def peer_label(peer: str, values: dict, scene) -> str:
 
 
 # ------------------------------------------------------------------------------ the chart
-class _Bar:
-    """Runs done / total on a terminal (silent otherwise)."""
-
-    def __init__(self, total: int, label: str, stream=None):
-        self.total, self.label, self.stream = total, label, stream or sys.stderr
-        self.enabled = self.stream.isatty()
-        self.start = time.perf_counter()
-
-    def update(self, done: int, note: str = "") -> None:
-        if self.enabled:
-            n = int(25 * done / max(self.total, 1))
-            self.stream.write(f"\r{self.label} [{'#' * n}{'.' * (25 - n)}] {done}/{self.total} runs "
-                              f"wall={time.perf_counter() - self.start:.0f}s {note[:40]:<40}")
-            self.stream.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            self.stream.write("\n")
-            self.stream.flush()
-
-
 def _jobs_order(configs: list[dict], model: Model, scene_name) -> list[int]:
     """Longest first (cost ~ superelements x (12 + modes) / step) for a better load balance."""
     base = resolved(model, scene_name)
@@ -406,7 +386,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
           overrides: Sequence[str] = (), fmu: bool = False, reference_elements: int | None = None,
           reference_step: float | None = None, workers: int | None = None, out_dir="chart",
           progress: bool = True, plot: bool = True, cost: str = "wall", peer: str | None = None,
-          peer_sweep=None, backend: str = "numpy") -> dict:
+          peer_sweep=None, backend: str = "numpy", scheduler=None, fresh: bool = False) -> dict:
     """Run the sweep and the reference; write DIR/chart.csv, DIR/chart.json and DIR/chart.png.
 
     sweep: {key: [value texts]} or a list of such groups (union of their cartesian products;
@@ -414,7 +394,10 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     the time that the plot's x axis and the Pareto front use. peer: also run a peer code
     (ffrf_fmu.peers: "exudyn") over peer_sweep ({"elements": [...], "step": [...]}, default
     PEER_SWEEP) on the scene with the model's overrides; its rows (runner = the peer) get their
-    own Pareto front, measured against the same reference.
+    own Pareto front, measured against the same reference. scheduler: where the runs go
+    (studies/sweep.py: None = a local pool of `workers` processes, "local:N", a dask scheduler
+    address); the results are stored in DIR/runs.jsonl and a rerun skips the finished ones
+    (fresh: discard them first).
 
     Returns {"rows": [...], "reference": {...}, "csv", "png", "json"}.
     """
@@ -424,12 +407,6 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     model = load_model(model_path, overrides)
     scene = model.scene(scene_name)
     groups = ([sweep] if isinstance(sweep, dict) else list(sweep)) if sweep else [{}]
-    # load the run code now (with one worker every run uses this code); spawned workers import it afresh,
-    # so code_version(), recorded before and after, tells whether the files changed during the chart
-    from . import reduction, simulate  # noqa: F401
-    from .reference import solver  # noqa: F401
-
-    version_start = code_version()
     configs, seen = [], set()
     for c in configurations(groups):  # every configuration must load (ModelError on a bad value); no repeats
         m = load_model(model_path, list(overrides) + config_overrides(c))
@@ -438,82 +415,51 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
             seen.add(key)
             configs.append(c)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     runners = ["standalone"] + (["fmu"] if fmu else [])
     jobs = [(i, r) for i in _jobs_order(configs, model, scene.name) for r in runners]
     peer_cfgs = _peer_configurations(peer, peer_sweep)
     jobs += [(k, peer) for k in sorted(range(len(peer_cfgs)), key=lambda k: -_peer_cost(peer_cfgs[k], scene))]
 
-    def job(i: int, r: str):
-        """(function, arguments) of one run: ours (standalone/FMU) or the peer's."""
+    def task(i: int, r: str):
+        """The run as data (studies/task.py): ours (standalone/FMU) or the peer's."""
         if r == peer:
-            from .peers import runner as peer_runner
-
-            return peer_runner(peer), (model_path, scene.name, list(overrides), peer_cfgs[i])
-        return run_configuration, (model_path, scene.name, list(overrides), configs[i], r, backend)
+            return make_task(model_path, overrides, scene.name, f"peer:{peer}", **peer_cfgs[i])
+        return make_task(model_path, list(overrides) + config_overrides(configs[i]), scene.name, r, backend)
 
     def note_of(i: int, r: str) -> str:
         return peer_label(peer, peer_cfgs[i], scene) if r == peer else label({**resolved(model, scene.name), **configs[i]})
-    workers = max(1, int(workers or os.cpu_count() or 1))
-    bar = _Bar(len(jobs) + 1, f"chart {model.body.name}/{scene.name}") if progress else None
-    results: dict[tuple[int, str], dict] = {}
-    ref = None
+    sched = scheduler if isinstance(scheduler, Scheduler) else parse_scheduler(scheduler, workers)
+    tasks = {job: task(*job) for job in jobs}
+    ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements,
+                         step=reference_step, cache_dir=str(out_dir.resolve()) if sched.kind == "pool" else None)
+    notes = {ref_task.key: "reference", **{t.key: f"{note_of(*job)} ({job[1]})" for job, t in tasks.items()}}
+    bar = Bar(len(notes), f"chart {model.body.name}/{scene.name}") if progress else None
     t0 = time.perf_counter()
-    log_path = out_dir / "runs.jsonl"  # one line per finished run, as they finish (to follow a long chart)
-    log_path.write_text("", encoding="utf-8")
+    done, stored = 0, set()
 
-    def log(note: str, run: dict) -> None:
-        keep = {k: v for k, v in run.items() if k not in ("t", "d", "traceback") and not isinstance(v, np.ndarray)}
-        with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps({"run": note, **keep}, default=float) + "\n")
-    if workers == 1:
-        try:
-            ref = run_reference(model_path, scene.name, overrides, reference_elements, reference_step, out_dir)
-        except ChartError:
-            raise
-        except Exception as e:  # noqa: BLE001 - the runs are still worth their cost columns
-            ref = _failed_reference(e, reference_elements, reference_step, scene)
-        log("reference", ref)
-        done = 1
+    def on_result(t, result, from_store) -> None:
+        nonlocal done
+        done += 1
+        if from_store:
+            stored.add(t.key)
         if bar:
-            bar.update(done, "reference")
-        for i, r in jobs:
-            fn, args = job(i, r)
-            results[(i, r)] = fn(*args)
-            note = note_of(i, r)
-            log(f"{note} ({r})", results[(i, r)])
-            done += 1
-            if bar:
-                bar.update(done, note)
-    else:
-        # spawn on every platform: fork is unsafe with threads (and no longer Python's default on Linux from
-        # 3.14); each worker imports the code afresh, so code_version() before and after tells a change apart
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(POOL_START_METHOD)) as pool:
-            fref = pool.submit(run_reference, model_path, scene.name, list(overrides), reference_elements,
-                               reference_step, str(out_dir))
-            futs = {pool.submit(job(i, r)[0], *job(i, r)[1]): (i, r) for i, r in jobs}
-            futs[fref] = None
-            done = 0
-            for f in as_completed(futs):
-                key = futs[f]
-                done += 1
-                if key is None:
-                    try:
-                        ref = f.result()
-                    except ChartError:
-                        raise
-                    except Exception as e:  # noqa: BLE001
-                        ref = _failed_reference(e, reference_elements, reference_step, scene)
-                    note = "reference"
-                    log(note, ref)
-                else:
-                    results[key] = f.result()
-                    note = note_of(*key)
-                    log(f"{note} ({key[1]})", results[key])
-                if bar:
-                    bar.update(done, note)
+            bar.update(done, notes[t.key] + (" (stored)" if from_store else ""))
+    with connect(sched) as runner:  # an unreachable scheduler fails here, before DIR is written
+        out_dir.mkdir(parents=True, exist_ok=True)
+        store = ResultStore(out_dir)  # DIR/runs.jsonl: a line per finished run; a rerun skips them
+        if fresh:
+            store.discard()
+        outcome = run_sweep([ref_task, *tasks.values()], runner, store=store, on_result=on_result)
     if bar:
         bar.close()
+    ref = outcome.results[ref_task.key]
+    if not ref["completed"]:
+        if ref.get("error_type") == "ChartError":  # a set-up error (mesh incompatible with the model)
+            raise ChartError(ref["failure"].partition(": ")[2])
+        ref = _failed_reference(ref["failure"], reference_elements, reference_step, scene)  # runs keep their costs
+    elif ref_task.key in stored:
+        ref["cached"] = True
+    results = {job: outcome.results[t.key] for job, t in tasks.items()}
 
     metric_name = PRIMARY_METRIC.get(scene.metrics)
     extra_keys = list(dict.fromkeys(k for c in configs for k in c if k not in SHOWN_KEYS))
@@ -562,14 +508,14 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     write_csv(rows, csv_path)
     meta = {
         "model": model_path, "scene": scene.name, "overrides": list(overrides), "sweep": groups,
-        "metric": metric_name, "cost": cost, "backend": backend, "peer": peer, "peer_sweep": peer_sweep, "workers": workers, "cpu_count": os.cpu_count(),
+        "metric": metric_name, "cost": cost, "backend": backend, "peer": peer, "peer_sweep": peer_sweep, "workers": sched.workers, "cpu_count": os.cpu_count(),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "chart_wall_time_s": time.perf_counter() - t0,
         "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "path", "failure",
                                               "energy_error", "warning")}
         | {"metrics": ref["metrics"]},
-        "code_version": version_start,
-        "code_changed_during_chart": code_version() != version_start,
+        "code_version": code_version(), "scheduler": runner.description,
+        "runs_stored": outcome.stored, "runs_ran": outcome.ran, "runs_retried": outcome.retried,
         "failures": {f"{rows[j]['label']} ({r})": results[(i, r)].get("traceback") or rows[j]["failure"]
                      for j, (i, r) in enumerate(row_keys) if not rows[j]["completed"]},
     }
@@ -581,21 +527,6 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                    metric_name=metric_name, cost=cost)
     return {"rows": rows, "reference": ref, "csv": str(csv_path), "png": str(png_path), "json": str(json_path),
             "meta": meta}
-
-
-def code_version() -> dict:
-    """git HEAD and whether the runtime has uncommitted changes (the chart's provenance)."""
-    import subprocess
-
-    root = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
-                              timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--short", "ffrf_fmu/runtime", "ffrf_fmu/simulate.py"], cwd=root,
-                               capture_output=True, text=True, timeout=10).stdout.strip().splitlines()
-    except (OSError, subprocess.SubprocessError):
-        return {}
-    return {"git_head": head, "runtime_status": dirty}
 
 
 CSV_FIRST = ("label", "runner", *SHOWN_KEYS)

@@ -150,12 +150,14 @@ def test_pool_start_method_is_explicit_and_not_fork(monkeypatch, tmp_path):
     nothing from the parent's memory, so a chart runs the same everywhere."""
     seen = {}
 
-    class Recorder(ch.ProcessPoolExecutor):
+    from ffrf_fmu.studies import sweep
+
+    class Recorder(sweep.ProcessPoolExecutor):
         def __init__(self, *args, **kwargs):
             seen["context"] = kwargs.get("mp_context")
             super().__init__(*args, **kwargs)
 
-    monkeypatch.setattr(ch, "ProcessPoolExecutor", Recorder)
+    monkeypatch.setattr(sweep, "ProcessPoolExecutor", Recorder)
     out = ch.chart(B1, "spinup", {"superelements": ["1"]}, overrides=["duration=0.1", "modes=2"],
                    reference_elements=4, workers=2, out_dir=tmp_path, progress=False, plot=False)
     assert seen["context"] is not None and seen["context"].get_start_method() in ("spawn", "forkserver")
