@@ -1,7 +1,8 @@
 """CI: every package the project declares (dependencies and the test extra of pyproject.toml) must
 import, so that a broken install fails the run instead of skipping the tests that need it.
 
-Each requirement imports as its distribution name (lower case, '-' -> '_') unless MODULE or
+Each requirement imports as its distribution name (lower case, '-' -> '_') unless MODULE (which
+also names the module of a requirement with extras, e.g. dask[distributed] -> distributed) or
 _import says otherwise (tbb ships a library, not a module; ecospy needs it loaded first);
 requirements with a python_version marker are checked where the marker holds, other markers are
 skipped. Exit 1 naming every package that fails."""
@@ -17,7 +18,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10: tomli is a dependency there
     import tomli as tomllib
 
-MODULE = {"libcosimpy": "libcosimpy.CosimExecution"}  # the package imports lazily: load its library
+MODULE = {"libcosimpy": "libcosimpy.CosimExecution",  # the package imports lazily: load its library
+          "dask[distributed]": "distributed"}  # the extra is what the project uses
 
 
 def _import(name: str) -> None:
@@ -44,7 +46,7 @@ def requirements(pyproject: Path) -> list[str]:
         m = re.fullmatch(r"\s*python_version\s*<\s*['\"](\d+)\.(\d+)['\"]\s*", marker) if marker else None
         if marker and not (m and sys.version_info[:2] < (int(m[1]), int(m[2]))):
             continue
-        names.append(re.match(r"[A-Za-z0-9_.-]+", spec.strip())[0])
+        names.append(re.match(r"[A-Za-z0-9_.-]+(\[[A-Za-z0-9_,.-]+\])?", spec.strip())[0])  # with its extras
     return names
 
 

@@ -40,6 +40,26 @@ BACKEND_ARG = arg(
          "reference implementation; without numba, or for a term set the kernel does not cover, numpy with a note")
 
 
+# Where a sweep's runs go (ffrf_fmu/studies/sweep.py, docs/scale.md); chart and study share them.
+SWEEP_ARGS = (
+    arg("--workers", type=int, metavar="K", help="local worker processes (default: cpu count; 1 runs in this "
+        "process; wall times of concurrent runs are measured per process and grow when K exceeds the free cores)"),
+    arg("--scheduler", metavar="ADDRESS", help="run on dask.distributed instead of the local pool: local:N starts a "
+        "LocalCluster of N workers, anything else is the address of a running scheduler, e.g. tcp://host:8786 "
+        "(optional extra `cluster`; docs/scale.md)"),
+    arg("--start-method", choices=("spawn", "forkserver"), default="spawn", help="how the local pool starts its "
+        "workers (default spawn; both import ffrf_fmu afresh)"),
+    arg("--fresh", action="store_true", help="discard the results stored in the output directory and run every "
+        "run again (needed after the code changed: a sweep does not mix code versions)"),
+)
+
+
+def _scheduler(args):
+    from .studies.sweep import parse_scheduler
+
+    return parse_scheduler(args.scheduler, args.workers, args.start_method)
+
+
 def command(*arguments):
     """Register the decorated function as a subcommand named after it."""
 
@@ -256,10 +276,9 @@ def stability(args) -> int:
     arg("--reference-elements", type=int, metavar="N", help="elements of the full-order reference beam "
         "(default max(16, 4 x superelements of the model))"),
     arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's)"),
-    arg("--workers", type=int, metavar="K", help="local processes (default: cpu count; wall times of concurrent "
-        "runs are measured per process and grow when K exceeds the free cores)"),
+    *SWEEP_ARGS,
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
-        "chart.json and the cached reference run (npz)"),
+        "chart.json, the cached reference run (npz) and the result store (runs.jsonl: a rerun skips finished runs)"),
     BACKEND_ARG,
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
@@ -274,6 +293,8 @@ def chart(args) -> int:
     from pathlib import Path
 
     from . import chart as ch
+    from .studies.store import StoreVersionError
+    from .studies.sweep import SweepError
 
     if args.plot_only:
         out = ch.replot(Path(args.output), cost=args.cost)
@@ -283,9 +304,10 @@ def chart(args) -> int:
         groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
         out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu, backend=args.backend,
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
-                       workers=args.workers, out_dir=args.output, cost=args.cost, peer=args.peer,
-                       peer_sweep=ch.parse_sweep(args.peer_sweep) if args.peer_sweep else None)
-    except ch.ChartError as e:
+                       out_dir=args.output, cost=args.cost, peer=args.peer,
+                       peer_sweep=ch.parse_sweep(args.peer_sweep, "--peer-sweep") if args.peer_sweep else None,
+                       scheduler=_scheduler(args), fresh=args.fresh)
+    except (ch.ChartError, SweepError, StoreVersionError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2
     ref = out["reference"]
@@ -300,6 +322,51 @@ def chart(args) -> int:
     print(ch.format_table(out["rows"]))
     print(f"wrote {out['csv']}, {out['png']}, {out['json']}")
     return 0 if all(r["completed"] for r in out["rows"]) else 1
+
+
+@command(
+    *MODEL_ARGS,
+    arg("--vary", nargs="+", action="append", metavar="KEY=V1,V2", default=None, required=True,
+        help="varied values, e.g. --vary length=6,8,10 EI2=400,566 or --vary "
+             "scenes.spinup.drives.hub.rotation.angle.omega=2,4,8 (every combination runs; repeatable)"),
+    *SWEEP_ARGS,
+    BACKEND_ARG,
+    arg("-o", "--output", default="study", metavar="DIR", help="output directory: study.csv, study.png, "
+        "study.json and the result store (runs.jsonl: a rerun skips finished runs)"),
+)
+def study(args) -> int:
+    """Parameter study: the scene's metrics against each varied key of the body and scene (plot and table)."""
+    from .chart import ChartError, parse_sweep
+    from .studies.store import StoreVersionError
+    from .studies.study import StudyError, read_table
+    from .studies.study import study as run_study
+    from .studies.sweep import SweepError
+
+    try:
+        vary = {}
+        for group in args.vary:
+            for k, v in parse_sweep(group, "--vary").items():
+                if k in vary:
+                    raise StudyError(f"--vary: key {k!r} given twice")
+                vary[k] = v
+        out = run_study(args.model, args.scene, vary, overrides=args.overrides, scheduler=_scheduler(args),
+                        out_dir=args.output, fresh=args.fresh, backend=args.backend)
+    except (ChartError, StudyError, SweepError, StoreVersionError) as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        return 2
+    meta, rows = out["meta"], read_table(out["csv"])
+    print(f"{meta['runs']} runs on {meta['scheduler']}: {meta['runs_ran']} ran, {meta['runs_stored']} from the store, "
+          f"{meta['runs_retried']} retried, {meta['runs_failed']} failed")
+    cols = list(rows[0]) if rows else []
+    shown = [c for c in cols if c not in ("failure", "code_version", "attempts", "cpu_time_s")]
+    width = {c: max(11, len(c.rsplit(".", 1)[-1])) for c in shown}
+    print("  ".join(f"{c.rsplit('.', 1)[-1]:>{width[c]}}" for c in shown))
+    for r in rows:
+        print("  ".join(f"{r[c]:>{width[c]}.6g}" if isinstance(r[c], float) else f"{str(r[c]):>{width[c]}}"
+                        for c in shown)
+              + ("" if r["completed"] else f"  FAILED: {r['failure']}"))
+    print(f"wrote {out['csv']}, {out['png']}, {out['json']}")
+    return 0 if all(r["completed"] for r in rows) else 1
 
 
 def _fraction(text: str) -> float:

@@ -24,14 +24,18 @@ def test_declared_packages_are_checked(tmp_path):
     finally:
         sys.path.pop(0)
     names = check_imports.requirements(ROOT / "pyproject.toml")
-    assert {"fmpy", "pythonfmu", "libcosimpy", "tbb", "ecospy", "numpy", "scipy", "pytest"} <= set(names)
+    assert {"fmpy", "pythonfmu", "libcosimpy", "tbb", "ecospy", "numpy", "scipy", "pytest",
+            "dask[distributed]"} <= set(names)
     ok = _check({})
     assert ok.returncode == 0, ok.stderr
-    shadow = tmp_path / "libcosimpy"
-    shadow.mkdir()
-    (shadow / "__init__.py").write_text("raise ImportError('libcosimpy: not installed (shadowed by the test)')\n")
+    # dask[distributed] is checked by importing distributed (dask alone would import without it)
+    for name in ("libcosimpy", "distributed"):
+        shadow = tmp_path / name
+        shadow.mkdir()
+        (shadow / "__init__.py").write_text(f"raise ImportError('{name}: not installed (shadowed by the test)')\n")
     bad = _check({"PYTHONPATH": str(tmp_path) + os.pathsep + os.environ.get("PYTHONPATH", "")})
-    assert bad.returncode == 1 and "libcosimpy" in bad.stderr and "not installed" in bad.stderr
+    assert bad.returncode == 1 and "not installed" in bad.stderr
+    assert "libcosimpy: " in bad.stderr and "dask[distributed]: " in bad.stderr
 
 
 def test_ecospy_loads_with_the_tbb_package():
