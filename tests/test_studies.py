@@ -89,7 +89,7 @@ def test_killed_sweep_resumes_with_the_missing_runs_only(tmp_path):
     command again runs only the missing runs (on a forkserver pool), takes the others from the
     store unchanged, and its table holds every run."""
     args = ["study", B1, "--scene", "spinup", *(a for s in LEAN for a in ("--set", s)), "--set", "duration=0.4",
-            "--vary", f"{OMEGA}=1,2,3,4", "--workers", "1", "-o", str(tmp_path)]
+            "--backend", "numpy", "--vary", f"{OMEGA}=1,2,3,4", "--workers", "1", "-o", str(tmp_path)]
     proc = subprocess.Popen([sys.executable, "-m", "ffrf_fmu", *args], cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
     runs = tmp_path / st.RUNS
@@ -147,7 +147,7 @@ def test_study_spin_rate_row_equals_the_chart(tmp_path):
     acceleration, proportional to the final rate: ratio 2 within 1e-3 (the measured nonlinearity
     is below 1e-6)."""
     res = _cli("study", B1, "--scene", "spinup", "--set", "duration=0.5", *(a for s in LEAN for a in ("--set", s)),
-               "--vary", f"{OMEGA}=2,4", "--workers", "1", "-o", str(tmp_path / "study"))
+               "--backend", "numpy", "--vary", f"{OMEGA}=2,4", "--workers", "1", "-o", str(tmp_path / "study"))
     assert res.returncode == 0, res.stderr
     rows = {r[OMEGA]: r for r in read_table(tmp_path / "study" / "study.csv")}
     assert (tmp_path / "study" / "study.png").stat().st_size > 10_000
