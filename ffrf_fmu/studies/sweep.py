@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import logging
 import multiprocessing
 import os
 from collections import deque
@@ -176,8 +177,10 @@ def connect(scheduler: Scheduler, timeout: float = CONNECT_TIMEOUT_S):
         raise SweepError(f"--scheduler needs dask.distributed, which is not installed ({e}): "
                          "pip install -e \".[cluster]\"") from None
     if scheduler.kind == "local":
-        with LocalCluster(n_workers=scheduler.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+        # silence_logs: the workers' heartbeat errors while the cluster closes are noise (a run's own
+        # failure travels in its result)
+        with LocalCluster(n_workers=scheduler.workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
             yield Dask(client, scheduler.describe())
         return
     try:
