@@ -156,3 +156,25 @@ def test_study_spin_rate_row_equals_the_chart(tmp_path):
     chart_value = out["rows"][0]["metric"]
     assert rows[4.0]["tip_deflection_max_m"] == float(f"{chart_value:.10g}")  # the table's 10 digits
     assert rows[4.0]["tip_deflection_max_m"] / rows[2.0]["tip_deflection_max_m"] == pytest.approx(2.0, rel=1e-3)
+
+
+def test_killed_dask_worker_is_retried(tmp_path):
+    """The same on a dask LocalCluster of two workers: the worker busy with the long run is killed
+    when the short one returns; its nanny restarts it, the scheduler reschedules the run and the
+    sweep completes with the same tip deflection as in this process."""
+    tasks = [make_task(B1, [*LEAN, f"duration={d}"], "spinup") for d in (0.1, 1.2)]
+    killed = []
+    with sw.connect(sw.parse_scheduler("local:2")) as runner:
+        pids = set(runner.client.run(os.getpid).values())
+
+        def on_result(task, result, from_store):
+            if not killed:
+                busy = sorted(pids - {result["pid"]})
+                os.kill(busy[0], signal.SIGKILL)
+                killed.append(busy[0])
+
+        out = sw.run_sweep(tasks, runner, store=st.ResultStore(tmp_path), on_result=on_result)
+    assert killed and out.lost == 0 and all(r["completed"] for r in out.results.values())
+    assert out.results[tasks[1].key]["pid"] != killed[0]
+    here = sw.InProcess().run([tasks[1]], 0).__next__()[1]
+    assert out.results[tasks[1].key]["metrics"]["tip_deflection_max_m"] == here["metrics"]["tip_deflection_max_m"]
