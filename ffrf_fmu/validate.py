@@ -47,13 +47,25 @@ def fmu_input_table(fmu_path, inputs, times) -> np.ndarray:
     names = [v.name for v in md.modelVariables if v.causality == "input"]
     table = np.zeros(len(times), dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
     table["time"] = times
+    # each name's (port, field) and flat index into that field (R[i,j] row-major): one gather per time
+    where = []
+    for n in names:
+        port, _, rest = n.partition(".")
+        field, _, idx = rest[:-1].partition("[")
+        ij = [int(i) - 1 for i in idx.split(",")]
+        where.append((port, field, ij[0] * 3 + ij[1] if len(ij) == 2 else ij[0]))
+    keys = list(dict.fromkeys((port, field) for port, field, _ in where))
+    rows = np.empty((len(times), len(names)))
+    flat = None
     for k, t in enumerate(times):
         values = inputs(float(t))
-        for n in names:
-            port, _, rest = n.partition(".")
-            field, _, idx = rest[:-1].partition("[")
-            arr = getattr(values[port], field)
-            table[n][k] = arr[tuple(int(i) - 1 for i in idx.split(","))]
+        parts = [np.ravel(getattr(values[port], field)) for port, field in keys]
+        if flat is None:
+            offset = dict(zip(keys, np.cumsum([0] + [part.size for part in parts])))
+            flat = np.array([offset[(port, field)] + i for port, field, i in where], dtype=int)
+        rows[k] = np.concatenate(parts)[flat]
+    for j, n in enumerate(names):
+        table[n] = rows[:, j]
     return table
 
 

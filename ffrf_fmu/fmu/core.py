@@ -35,6 +35,7 @@ except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before 
 
 ROTATION_TOL = 1e-6  # reject R when max |R^T R - I| exceeds this
 ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
+_I3 = np.eye(3)
 STATE_VERSION = 1
 
 CONFIG_FILE = "ffrf_fmu.json"
@@ -81,6 +82,8 @@ class BodyCoSim:
         self.input_ix = np.array([i for i in range(n) if self.causality[i] == "input"], dtype=int)
         self.param_ix = np.array([i for i in range(n) if self.causality[i] == "parameter"], dtype=int)
         self.output_ix = np.array([i for i in range(n) if self.causality[i] == "output"], dtype=int)
+        self._is_output = np.array([c == "output" for c in self.causality])
+        self._is_parameter = np.array([c == "parameter" for c in self.causality])
         self.mode = "instantiated"  # -> "initialization" -> "step"
         self.start_time = 0.0
         self.stop_time: float | None = None  # fmi2SetupExperiment's stopTime when defined
@@ -93,11 +96,17 @@ class BodyCoSim:
         # instance's calls only and is undone on return: the host's own setting stays as it is.
         self._blas = ThreadpoolController() if ThreadpoolController is not None else None
         self.backend_note = None  # why the numba backend is not used, when it was asked for
+        self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
+        self._output_map: tuple[np.ndarray, np.ndarray] | None = None  # see _output_values
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
 
     def one_blas_thread(self):
-        """Context: BLAS limited to one thread (a no-op without threadpoolctl)."""
-        return self._blas.limit(limits=1, user_api="blas") if self._blas is not None else contextlib.nullcontext()
+        """Context: BLAS limited to one thread (a no-op without threadpoolctl, or when every BLAS
+        already runs one thread: reading that costs ~4 us, setting and undoing the limit ~16 us per
+        call, 1-2 % of a B1 doStep)."""
+        if self._blas is None or all(c.num_threads == 1 for c in self._blas_libs):
+            return contextlib.nullcontext()
+        return self._blas.limit(limits=1, user_api="blas")
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -111,6 +120,26 @@ class BodyCoSim:
         if self.mode == "initialization" and self.causality[vr] == "output":
             self.refresh_initial_outputs()
         return self.values[vr]
+
+    def get_many(self, vrs) -> list[float]:
+        """get() of several value references at once (one gather: the FMI getters' path)."""
+        ix = np.asarray(vrs, dtype=int)
+        if self.mode == "initialization" and self._is_output[ix].any():
+            self.refresh_initial_outputs()
+        return self.values[ix].tolist()
+
+    def set_many(self, vrs, values) -> str:
+        """set() of several value references: one scatter when every one may be set now; otherwise
+        one by one in order up to the first refused (the same outcome as set() in a loop)."""
+        ix = np.asarray(vrs, dtype=int)
+        if not (self._is_output[ix].any() or (self.mode == "step" and self._is_parameter[ix].any())):
+            self.values[ix] = np.asarray(values, dtype=float)
+            return ""
+        for vr, value in zip(vrs, values):
+            problem = self.set(vr, float(value))
+            if problem:
+                return problem
+        return ""
 
     def set(self, vr: int, value: float) -> str:
         """Set one input or parameter; returns why the call is refused ('' when done)."""
@@ -196,8 +225,8 @@ class BodyCoSim:
     # ------------------------------------------------------------------ inputs
     def _held_inputs(self, t_c: float) -> tuple[dict, str]:
         """The input values set for t_c, checked: ({port: PortValues at t_c}, failure text)."""
-        bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(self.values[i])]
-        if bad:
+        if not np.isfinite(self.values[self.input_ix]).all():  # one vectorized test; names only on failure
+            bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(self.values[i])]
             shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
             return {}, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
         held = {}
@@ -210,8 +239,9 @@ class BodyCoSim:
                 pv.f = self._vec(p.name, "f").copy()
             if p.rotation in ("motion", "compliant"):
                 R = self._vec(p.name, "R").reshape(3, 3).copy()
-                dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
-                det = float(np.linalg.det(R))
+                dev = float(np.abs(R.T @ R - _I3).max())
+                (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+                det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)  # np.linalg.det: 10x slower
                 if dev > ROTATION_TOL:
                     return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
                                 f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
@@ -358,8 +388,9 @@ class BodyCoSim:
             with self.one_blas_thread():
                 for _ in range(n):
                     worst = max(worst, system.step(hh, inputs))
-            system.t = t_end  # the master's clock, not the sum of n rounded steps
-            self._check_finite(system)
+                system.t = t_end  # the master's clock, not the sum of n rounded steps
+                dst, out = self._output_values(worst)
+            self._check_finite(system, out)
         except StepFailure as e:
             system.set_state(saved)
             return StepReport(False, f"t = {e.time:.6g} s: {e.cause}", status="discard")
@@ -367,37 +398,58 @@ class BodyCoSim:
             system.set_state(saved)
             return StepReport(False, f"t = {t_c:.6g} s: {type(e).__name__}: {e}", traceback.format_exc(),
                               status="error")
-        self._write_outputs(worst)
+        self.values[dst] = out
         return StepReport(True, iterations=worst)
 
     @staticmethod
-    def _check_finite(system: BodySystem) -> None:
-        if not np.all(np.isfinite(system.get_state())):
+    def _check_finite(system: BodySystem, outputs: np.ndarray) -> None:
+        """The step's outputs (port motions and forces, energies: they read every configuration
+        field and the velocities) and all rates yd are finite. Not the Newton iteration matrix of
+        get_state: checking that copy cost 60 us a step (B1), half the FMU's own overhead."""
+        if not (np.isfinite(outputs).all() and np.isfinite(system.yd).all()):
             raise StepFailure(system.t, "the state is not finite (NaN or overflow)")
 
-    def _write_outputs(self, iterations: int) -> None:
-        outs = self.system.outputs()
-        v = self.values
-        for p in self.data.ports:
-            pv = outs[p.name]
-            for field in ("r", "R", "v", "w", "f", "t"):
-                ix = self.index[(p.name, field)]
-                if self.causality[ix[0]] == "output":
-                    v[ix] = np.ravel(getattr(pv, field))
-            for field in ("r", "R", "v", "w"):  # the body's own node frame at a compliant part
-                ix = self.index.get((p.name, "node." + field))
-                if ix is not None:
-                    v[ix] = np.ravel(getattr(pv, field))
+    def _output_values(self, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+        """(value references, values) of every output at the current state, not yet written.
+
+        Port fields come from the body's port_array (one row per port, columns OUTPUT_FIELDS, 3 or
+        9 each, R row-major as the variables): one gather with a map built on first use."""
+        if self._output_map is None:
+            dst, src = [], []
+            width = sum(self.index[(self.data.ports[0].name, f)].size for f in BodySystem.OUTPUT_FIELDS)
+            for j, p in enumerate(self.data.ports):
+                col = 0
+                for field in BodySystem.OUTPUT_FIELDS:
+                    ix = self.index[(p.name, field)]
+                    cols = j * width + col + np.arange(ix.size)
+                    if self.causality[ix[0]] == "output":
+                        dst.append(ix)
+                        src.append(cols)
+                    node = self.index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
+                    if node is not None:
+                        dst.append(node)
+                        src.append(cols)
+                    col += ix.size
+            self._output_map = (np.concatenate(dst), np.concatenate(src))
+        pdst, psrc = self._output_map
+        rows = self.system.port_array()
+        energies = self.system.energies()
+        keys = [k for k in energies if ("energy", k) in self.index]
+        dst = [pdst, *(self.index[("energy", k)] for k in keys), self.index[("solver", "newton_iterations")]]
+        out = [rows.ravel()[psrc], [energies[k] for k in keys], [iterations]]
         X = self.data.node_positions
-        for name in self.config["parameters"].get("probes", ()):  # eq. (92)
+        row_of = {p.name: j for j, p in enumerate(self.data.ports)}
+        for name in self.config["parameters"].get("probes", ()):  # eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f)
             seen, _, frame = name.partition("_from_")
-            ps, pf = outs[seen], outs[frame]
-            v[self.index[("probe", name)]] = pf.R.T @ (ps.r - pf.r) - (X[self.data.port(seen).node] - X[self.data.port(frame).node])
-        for key, value in self.system.energies().items():
-            ix = self.index.get(("energy", key))
-            if ix is not None:
-                v[ix] = value
-        v[self.index[("solver", "newton_iterations")]] = iterations
+            rs, rf = rows[row_of[seen]], rows[row_of[frame]]
+            dst.append(self.index[("probe", name)])
+            out.append(rf[3:12].reshape(3, 3).T @ (rs[0:3] - rf[0:3])
+                       - (X[self.data.port(seen).node] - X[self.data.port(frame).node]))
+        return np.concatenate(dst), np.concatenate(out)
+
+    def _write_outputs(self, iterations: int) -> None:
+        dst, out = self._output_values(iterations)
+        self.values[dst] = out
 
     # ------------------------------------------------------------------ FMU state
     def get_state(self) -> dict:

@@ -121,6 +121,7 @@ class {cls}(Fmi2Slave):
             self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=exp["stop_time"],
                                                         step_size=exp["step_size"])
         self._types = [var.type for var in core.variables]
+        self._valid = set()  # (type, value references) of calls checked already (see _check)
         for vr, var in enumerate(core.variables):
             make = Real if var.type == "Real" else Integer
             getter = (lambda i=vr: core.get(i)) if var.type == "Real" else (lambda i=vr: int(core.get(i)))
@@ -132,7 +133,11 @@ class {cls}(Fmi2Slave):
             )
 
     def _check(self, vrs, kind):
-        \"\"\"Every value reference exists and is of the type of the call (else a ValueError).\"\"\"
+        \"\"\"Every value reference exists and is of the type of the call (else a ValueError). A host
+        repeats the same lists every step: a list found valid is remembered (up to 256 lists).\"\"\"
+        key = (kind, tuple(vrs))
+        if key in self._valid:
+            return
         n = len(self._types)
         bad = [vr for vr in vrs if not 0 <= vr < n]
         if bad:
@@ -141,6 +146,9 @@ class {cls}(Fmi2Slave):
         if wrong:
             shown = ", ".join(f"{{vr}} ({{self.core.variables[vr].name}}: {{self._types[vr]}})" for vr in wrong[:6])
             raise CallError(f"value reference(s) {{shown}} are not {{kind}}")
+        if len(self._valid) >= 256:
+            self._valid.clear()
+        self._valid.add(key)
 
     def _set(self, vr, value):
         problem = self.core.set(vr, value)
@@ -150,8 +158,7 @@ class {cls}(Fmi2Slave):
     @_guarded(_zeros)
     def get_real(self, vrs):
         self._check(vrs, "Real")
-        core = self.core
-        return [float(core.get(vr)) for vr in vrs]
+        return self.core.get_many(vrs)
 
     @_guarded(_zeros)
     def get_integer(self, vrs):
@@ -170,8 +177,9 @@ class {cls}(Fmi2Slave):
     @_guarded(_zeros)
     def set_real(self, vrs, values):
         self._check(vrs, "Real")
-        for vr, value in zip(vrs, values):
-            self._set(vr, float(value))
+        problem = self.core.set_many(vrs, values)
+        if problem:
+            raise CallError(problem)
 
     @_guarded(_zeros)
     def set_integer(self, vrs, values):
