@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
 """Benchmark: our superelement chains against Exudyn's full-order 3D beam on B1, in ONE run.
 
-    python benchmarks/peers.py [--quick] [-o DIR] [--set KEY=V ...] [--sweep KEY=V1,V2 ...] [--peer-sweep ...]
+    python benchmarks/peers.py [--quick] [--backend numba|numpy] [-o DIR] [--set KEY=V ...] [--sweep KEY=V1,V2 ...]
+                               [--peer-sweep ...]
 
 B1 (models/haug_beam.toml, scene spinup: Haug's rotating beam, 20 s, rho_inf 0.8). Runs, one
 after another in this process (one core; BLAS and Exudyn pinned to one thread):
-- ours over superelements x modes x steps (`--sweep` groups; `--set` applies to ours, e.g.
-  a backend or term set that main offers);
+- ours over superelements x modes x steps (OURS, or `--sweep` groups): the linear chain and the
+  chain with geometric stiffening (`stiffening=true`), with `--backend` (default numba; it falls
+  back to numpy, with a note, for what its kernel lacks; the table says which ran). `--set` applies
+  to every run;
 - Exudyn's ObjectBeamGeometricallyExact (ffrf_fmu/peers/exudyn_beam.py: the same section, the
   same spin-up prescribed at the hub, generalized-alpha with the same rho_inf) over elements
   {2, 3, 4, 6, 8, 16} x steps {2, 5, 10, 20, 40} ms;
@@ -45,14 +48,25 @@ sys.path.insert(0, str(ROOT))
 from ffrf_fmu import chart as ch  # noqa: E402
 from ffrf_fmu.peers import available  # noqa: E402
 
-OURS = [  # superelements x modes x steps; 12 SE for the low-error end (its chain error is ~0.1 %)
-    {"superelements": ["1", "2", "3", "4", "6", "8"], "modes": ["2", "6"],
-     "step": ["0.002", "0.005", "0.01", "0.02", "0.04"]},
-    {"superelements": ["12"], "modes": ["2"], "step": ["0.002", "0.005", "0.01", "0.02", "0.04"]},
+STEPS = ["0.002", "0.005", "0.01", "0.02", "0.04"]
+OURS = [  # superelements x modes x steps: the linear chain (its chain error falls as 1/N^2, 12 SE ~0.1 %) ...
+    {"superelements": ["1", "2", "3", "4", "6", "8"], "modes": ["2", "6"], "step": STEPS},
+    {"superelements": ["12"], "modes": ["2"], "step": STEPS},
+    # ... and with geometric stiffening inside each superelement (docs/equations.md; few SE suffice)
+    {"superelements": ["1", "2", "4"], "modes": ["2"], "step": ["0.005", "0.01", "0.02", "0.04"], "stiffening": ["true"]},
 ]
 QUICK_OURS = [{"superelements": ["2", "4"], "modes": ["2"], "step": ["0.04"]}]
 QUICK_PEER = {"elements": ["4", "8"], "step": ["0.04"]}
 LEVELS = (0.002, 0.005, 0.01, 0.02, 0.05)  # error levels of the front ratio (issue 10: 0.2 % to 5 %)
+
+
+def warm_up(model_path, scene, overrides, backend) -> None:
+    """A short run of each code first (not timed): the numba kernel is compiled or loaded from its disk
+    cache, Exudyn and the modules imported, so no configuration pays that in its time."""
+    from ffrf_fmu.peers.exudyn_beam import run_configuration
+
+    ch.run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {}, "standalone", backend)
+    run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {"elements": 2, "step": 0.02})
 
 
 def front(rows, runner, cost_key):
@@ -114,14 +128,15 @@ def _f(v, fmt, none="–"):
 
 
 def markdown(rows, ratios, check, meta) -> str:
-    lines = ["| code | configuration | wall [s] | CPU [s] | Newton it./step | max deflection [m] | error | front |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| code | configuration | wall [s] | CPU [s] | Newton it./step | max deflection [m] | error | front | backend |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["runner"] != "exudyn", r["label"])):
         who = "Exudyn" if r["runner"] == "exudyn" else "ours"
         status = "" if r["completed"] else f" (failed at t = {_f(r['t_end_s'], '.3g')} s)"
         lines.append(f"| {who} | {r['label']}{status} | {_f(r['wall_time_s'], '.2f')} | {_f(r['cpu_time_s'], '.2f')} | "
                      f"{_f(r.get('newton_iterations_mean'), '.2f')} | {_f(r['metric'], '.5f')} | "
-                     f"{_f(r['metric_error_rel'], '.3%')} | {'*' if r.get('pareto') else ''} |")
+                     f"{_f(r['metric_error_rel'], '.3%')} | {'*' if r.get('pareto') else ''} | "
+                     f"{r.get('backend') or ('C++' if r['runner'] == 'exudyn' else '')} |")
     lines += ["", "| error | ours: wall / CPU [s] | Exudyn: wall / CPU [s] | Exudyn / ours (wall) | Exudyn / ours (CPU) |",
               "|---|---|---|---|---|"]
     for q in ratios:
@@ -150,6 +165,8 @@ def main(argv=None) -> int:
     ap.add_argument("--peer-sweep", nargs="+", metavar="KEY=V1,V2", help="Exudyn's (default chart.PEER_SWEEP)")
     ap.add_argument("--reference-elements", type=int, default=64)
     ap.add_argument("--check-elements", default="16,32", help="Exudyn meshes at 2 ms for the convergence check")
+    ap.add_argument("--backend", choices=("numba", "numpy"), default="numba",
+                    help="our runtime backend (numba falls back to numpy, with a note, for what its kernel lacks)")
     ap.add_argument("--quick", action="store_true", help="a small subset (smoke test): 2 of ours, 2 of Exudyn's, "
                     "16-element reference, no convergence check")
     ap.add_argument("-o", "--output", default="bench_peers", metavar="DIR")
@@ -162,9 +179,11 @@ def main(argv=None) -> int:
     ours = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else (QUICK_OURS if args.quick else OURS)
     peer_sweep = ch.parse_sweep(args.peer_sweep) if args.peer_sweep else (QUICK_PEER if args.quick else ch.PEER_SWEEP)
     n_ref = 16 if args.quick else args.reference_elements
+    warm_up(args.model, args.scene, args.overrides, args.backend)
     t0 = time.perf_counter()
     out = ch.chart(args.model, args.scene, ours, overrides=args.overrides, reference_elements=n_ref,
-                   workers=1, out_dir=args.output, peer="exudyn", peer_sweep=peer_sweep)
+                   workers=1, out_dir=args.output, peer="exudyn", peer_sweep=peer_sweep, backend=args.backend,
+                   progress=False)
     rows, ref = out["rows"], out["reference"]
     if ref.get("failure"):
         print(f"peers: the reference failed ({ref['failure']}): no errors")

@@ -150,7 +150,8 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
             out["cpu_time_s"] = time.process_time() - c0
             s = res.summary
             out |= {"wall_time_s": s["wall_time_s"], "completed": bool(s["completed"]), "failure": s["failure"],
-                    "t_end_s": s["t_end"], "newton_iterations_mean": s["newton_iterations_mean"]}
+                    "t_end_s": s["t_end"], "newton_iterations_mean": s["newton_iterations_mean"],
+                    "backend": s.get("backend")}  # the one that ran (numba falls back to numpy with a note)
         elif runner == "fmu":
             res, wall, cpu = _run_fmu(model_path, model, sc, list(base_overrides) + config_overrides(values), body,
                                       backend)
@@ -471,7 +472,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
                "completed": bool(run["completed"]), "failure": run["failure"] or "",
                "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning")),
-               "newton_iterations_mean": run.get("newton_iterations_mean")}
+               "newton_iterations_mean": run.get("newton_iterations_mean"), "backend": run.get("backend")}
         if not out["completed"]:
             # the metric of a run that stopped early is not the scene's metric: no error against the
             # reference's (rms_error_rel stays: it compares the trajectory over the run's own span)
