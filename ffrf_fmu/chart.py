@@ -120,9 +120,9 @@ def label(values: dict[str, Any], extra: dict[str, Any] | None = None) -> str:
 
 # ------------------------------------------------------------------------------ runs
 def _body_data(model: Model, scene):
-    from .reduction import build_body
+    from .reduction import build_body, reduction_options
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)[0]
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))[0]
 
 
 def _trajectory(result) -> np.ndarray:

@@ -77,9 +77,9 @@ def _load(args) -> tuple[Model, Scene]:
 
 def _body_for_scene(model: Model, scene: Scene):
     """The body with the scene's causality, built and reduced: (BodyData, reductions)."""
-    from .reduction import build_body  # heavy (scipy); only the commands that need it pay
+    from .reduction import build_body, reduction_options  # heavy (scipy); only the commands that need it pay
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))
 
 
 def _hz(values, n: int = 6) -> str:

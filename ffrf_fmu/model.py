@@ -23,7 +23,8 @@ else:  # pragma: no cover - Python 3.10
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 
 PART_CAUSALITIES = ("motion", "force", "compliant")
-TERM_SETS = ("linear", "gyroscopic")
+TERM_SETS = ("linear", "gyroscopic", "full")
+FULL_TERMS = ("inertia_W1", "inertia_W2", "coupling_coriolis")  # runtime.body.FULL_TERMS
 METRICS = ("haug", "spherical", "free", "")
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
 
@@ -150,6 +151,7 @@ class Scene:
     metrics: str = ""  # "haug" | "spherical" | "free" | "" : which summary metrics apply
     outputs: tuple[str, ...] = ()  # extra probes, e.g. "tip_from_hub"
     stiffening: bool = False  # geometric stiffening inside each superelement (docs/equations.md)
+    full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in the term set `full`
 
 
 @dataclass(frozen=True)
@@ -213,6 +215,7 @@ SCENE_KEYS = {
     "rho_inf": "a spectral radius in [0, 1] (default 0.8)",
     "terms": f"one of {', '.join(TERM_SETS)} (default linear)",
     "stiffening": "true or false: geometric stiffening inside each superelement (default false)",
+    "full_terms": f"an array of Witteveen's terms for terms = 'full', from {', '.join(FULL_TERMS)} (default all)",
     "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
     "metrics": "one of haug, spherical, free or '' (default '')",
     "outputs": "an array of probe names '<port>_from_<port>' (eq. 92; FMU outputs probe.NAME[i]) (default [])",
@@ -247,7 +250,7 @@ OVERRIDE_ALIASES = {
     "length": ("body.length",),
     "rotary_inertia": ("body.section.m22", "body.section.m33"),
     **{k: (f"body.section.{k}",) for k in SECTION_KEYS},
-    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening")},
+    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening", "full_terms")},
 }
 
 _REQUIRED = object()
@@ -644,7 +647,15 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
         metrics=r.string(t, sp, "metrics", SCENE_KEYS["metrics"], "", METRICS),
         outputs=tuple(outputs),
         stiffening=r.boolean(t, sp, "stiffening", SCENE_KEYS["stiffening"], False),
+        full_terms=_full_terms(r, t, sp),
     )
+
+
+def _full_terms(r: _Reader, t: dict, sp: str) -> tuple[str, ...]:
+    v = t.get("full_terms", list(FULL_TERMS))
+    if not isinstance(v, list) or not all(isinstance(x, str) and x in FULL_TERMS for x in v) or len(set(v)) != len(v):
+        r.expected(_join(sp, "full_terms"), SCENE_KEYS["full_terms"], v)
+    return tuple(v)
 
 
 def effective_ports(model: Model, scene: Scene) -> tuple[Port, ...]:

@@ -17,6 +17,7 @@ import scipy.linalg as sla
 
 from .fe import FEModel, node_dofs, rigid_modes
 from .fe.beam import beam_model, strain_kernels
+from .invariants import tensor_kernel
 from .model import Body, ModelError, PART_CAUSALITIES
 from .runtime.data import BodyData, PortData, SuperelementData
 
@@ -156,8 +157,18 @@ def stiffening_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, strain) -> dict:
     return {"W1": C + C.transpose(0, 2, 1), "vk_a": a, "vk_B": 0.5 * (B + B.transpose(0, 2, 1))}
 
 
+def inertia_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, T: np.ndarray) -> dict:
+    """Witteveen's W1 (n, 3, 3) and W2 (n, n, 3, 3) on the basis Y (docs/inertia-terms.md), for the
+    term set `full`: W1_j = C_j + C_j^T, C_j[:, k] = U_r^T M_k Y_j; W2_jl = tr(P_jl) I - P_jl^T,
+    P_jl[a, b] = Y_j^T T_ab Y_l with T the full tensor kernel (invariants.tensor_kernel)."""
+    C = np.einsum("ia,kij,jm->mak", U[:, 3:], fe.M_kernel, Y, optimize=True)
+    P = np.einsum("ij,abik,kl->jlab", Y, T, Y, optimize=True)
+    W2 = np.einsum("jlaa->jl", P)[:, :, None, None] * np.eye(3) - P.transpose(0, 1, 3, 2)
+    return {"W1": C + C.transpose(0, 2, 1), "W2": 0.5 * (W2 + W2.transpose(1, 0, 3, 2))}
+
+
 def reduce_superelement(
-    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int], strain=None
+    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int], strain=None, tensor=None
 ) -> Reduction:
     """Reduce `fe` to eq. (76): q = Y [q_B; eta], q_B = 6 dofs per boundary node (node-major,
     order of boundary_nodes), eta = amplitudes of the n_modes free-free modes.
@@ -216,7 +227,8 @@ def reduce_superelement(
         M=0.5 * (M_bar + M_bar.T),
         G=0.5 * (G - G.transpose(0, 2, 1)),  # skew-symmetrized: the symmetric part is round-off
         frequencies_hz=np.sqrt(np.maximum(w2, 0.0)) / (2.0 * np.pi),
-        **(stiffening_data(fe, U, Y, strain) if strain is not None else {}),
+        **{**(stiffening_data(fe, U, Y, strain) if strain is not None else {}),
+           **(inertia_data(fe, U, Y, tensor) if tensor is not None else {})},
     )
     return Reduction(
         data=data,
@@ -245,12 +257,18 @@ def _port_data(body: Body, n_nodes: int, causality: Sequence[tuple[str, str, str
     return tuple(ports)
 
 
+def reduction_options(scene) -> dict:
+    """build_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
+    return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
+
+
 def build_body(
-    body: Body, causality: Sequence[tuple[str, str, str]] = (), stiffening: bool = False
+    body: Body, causality: Sequence[tuple[str, str, str]] = (), stiffening: bool = False, inertia: bool = False
 ) -> tuple[BodyData, tuple[Reduction, ...]]:
     """Split the beam into body.superelements equal segments, each its own FE model of
     body.elements_per_superelement elements, reduce each on its two end nodes.
     stiffening: add the geometric stiffening data (centrifugal correction modes, W1, strain kernels).
+    inertia: add Witteveen's W1, W2 (the term set `full`).
 
     Global boundary node i sits at s = i L / n_se; superelement e joins nodes (e, e+1).
     causality: optional (port, translation, rotation) overrides (model.Scene.causality).
@@ -269,9 +287,11 @@ def build_body(
     for e in range(n_se):
         fe = beam_model(body.section, node_positions[e], d, body.length / n_se, n_el)
         strain = strain_kernels(body.section, d, body.length / n_se, n_el) if stiffening else None
+        tensor = tensor_kernel(body.section, d, body.length / n_se, n_el) if inertia else None
         try:
             reductions.append(
-                reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1), strain=strain)
+                reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1), strain=strain,
+                                   tensor=tensor)
             )
         except ValueError as err:
             raise ValueError(f"body {body.name!r} ({body.source}), superelement {e}: {err}") from None

@@ -136,7 +136,7 @@ class InitializationFailure(RuntimeError):
 def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: str = "numpy") -> tuple[BodySystem, Callable]:
     """A BodySystem for the scene, initialized at t = 0; returns it with its input function.
     backend: "numpy" (reference) or "numba" (compiled step; falls back to numpy with a logged note)."""
-    system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend)
+    system = BodySystem(body, terms=scene.terms, full_terms=scene.full_terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend)
 
     inputs = scene_inputs(body, scene)
     init = scene.initial
@@ -262,12 +262,12 @@ def energy_balance(columns: dict[str, np.ndarray]) -> float:
 def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False,
               backend: str = "numpy"):
     """Load (if a path), build and reduce the body for the scene, run it standalone."""
-    from .reduction import build_body
+    from .reduction import build_body, reduction_options
 
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
-    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)
+    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))
     return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
 
 

@@ -35,9 +35,9 @@ from .runtime.ports import StepFailure
 
 
 def _body_for(model: Model, scene: Scene):
-    from .reduction import build_body
+    from .reduction import build_body, reduction_options
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), stiffening=scene.stiffening)[0]
+    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))[0]
 
 
 def _transverse(d: np.ndarray, axis: np.ndarray) -> np.ndarray:

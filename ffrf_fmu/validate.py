@@ -224,9 +224,9 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
         import dataclasses
 
         from .model import effective_ports
-        from .reduction import build_body
+        from .reduction import build_body, reduction_options
 
-        scene_body, _ = build_body(dataclasses.replace(mdl.body, ports=effective_ports(mdl, sc)), stiffening=sc.stiffening)
+        scene_body, _ = build_body(dataclasses.replace(mdl.body, ports=effective_ports(mdl, sc)), **reduction_options(sc))
         if ports(fmu_body) != ports(scene_body):
             raise ValidationError(
                 f"{fmu_path}: the FMU's ports {ports(fmu_body)} differ from those of scene {sc.name!r} of "

@@ -349,11 +349,11 @@ def build_fmu(
 def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numba") -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
     from ..model import load_model
-    from ..reduction import build_body
+    from ..reduction import build_body, reduction_options
 
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
-    data, _ = build_body(model.body, sc.causality, stiffening=sc.stiffening)
+    data, _ = build_body(model.body, sc.causality, **reduction_options(sc))
     info = {
         "model_file": str(Path(model_path).name),
         "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),

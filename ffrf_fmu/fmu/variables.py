@@ -29,7 +29,7 @@ UNITS: dict[str, dict[str, int]] = {
     "s": {"s": 1},
 }
 
-TERM_SETS = ("linear", "gyroscopic")  # solver.terms: Integer enumeration, index into this tuple
+TERM_SETS = ("linear", "gyroscopic", "full")  # solver.terms: Integer enumeration, index into this tuple
 
 # (shape, unit, meaning) of the six fields of a port
 FIELDS = {
@@ -176,7 +176,8 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                         "spectral radius at infinite frequency of generalized-alpha, in [0, 1]",
                         float(par["rho_inf"]), "parameter", field="rho_inf", min=0.0, max=1.0))
     out.append(Variable("solver.terms", "Integer", "parameter", "fixed", None,
-                        "term set of the body equations (Integer enumeration): 0 = linear, 1 = gyroscopic",
+                        "term set of the body equations (Integer enumeration): 0 = linear, 1 = gyroscopic, 2 = full (needs the "
+                        "inertia data, built when the scene's term set is full)",
                         TERM_SETS.index(par["terms"]), "parameter", field="terms", min=0, max=len(TERM_SETS) - 1))
     for i in range(3):
         out.append(Variable(f"gravity[{i + 1}]", "Real", "parameter", "fixed", "m/s2",

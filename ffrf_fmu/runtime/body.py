@@ -21,7 +21,10 @@ from .coupling import add_springs
 from .ports import PortValues, StepFailure
 from .rotation import cross, is_rotation, vect
 
-TERM_SETS = ("linear", "gyroscopic")
+TERM_SETS = ("linear", "gyroscopic", "full")
+# Witteveen's terms, switchable within `full`: the inertia tensor's change W1 q and q W2 q (the latter with
+# the elastic centrifugal force), and the inertia coupling S(q) with the elastic Coriolis force G(W0)
+FULL_TERMS = ("inertia_W1", "inertia_W2", "coupling_coriolis")
 BACKENDS = ("numpy", "numba")
 
 
@@ -54,6 +57,7 @@ class BodySystem(GeneralizedAlpha):
         data: BodyData,
         *,
         terms: str = "linear",
+        full_terms=FULL_TERMS,
         rho_inf: float = 0.8,
         gravity=(0.0, 0.0, 0.0),
         tol: float = 1e-9,
@@ -76,15 +80,34 @@ class BodySystem(GeneralizedAlpha):
         # the stacked superelement matrices, under the names of the equations
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = S.K, S.M, S.G, S.mass, S.J0, S.X_B
         self.se_nodes = S.nodes
-        self.gyro = terms == "gyroscopic"
-        # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it
-        self.stiffening = all(se.stiffening for se in data.superelements)
-        hooks = {}
+        unknown = set(full_terms) - set(FULL_TERMS)
+        if unknown:
+            raise ValueError(f"unknown full_terms {sorted(unknown)}; choose from {FULL_TERMS}")
+        self.full_terms = tuple(full_terms)
+        # the gyroscopic set's terms: S(q) coupling (55) and G(W0) Coriolis (53) in (77)-(79)
+        self.gyro = terms == "gyroscopic" or (terms == "full" and "coupling_coriolis" in self.full_terms)
+        # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it; the
+        # deformation-dependent inertia (Witteveen's I0 + W1 q + q W2 q) with the `full` term set
+        ses = data.superelements
+        self.stiffening = all(se.stiffening for se in ses)
+        use_W1 = self.stiffening or (terms == "full" and "inertia_W1" in self.full_terms)
+        use_W2 = terms == "full" and "inertia_W2" in self.full_terms
+        self.W1 = self.W2 = self.vk_a = self.vk_B = None
+        if (use_W1 or use_W2) and any(se.W1 is None or (use_W2 and se.W2 is None) for se in ses):
+            raise ValueError("term set 'full' needs the inertia data W1, W2 in the reduced body "
+                             "(reduction.build_body(..., inertia=True))")
+        if use_W1 or use_W2:
+            self.W1 = np.stack([se.W1 for se in ses]) * (1.0 if use_W1 else 0.0)
+        if use_W2:
+            self.W2 = np.stack([se.W2 for se in ses])
+            if self.gyro:
+                self.W2 = self.W2 - stiffening.gyroscopic_part_of_W2(self.G, self.M)
         if self.stiffening:
-            self.W1 = np.stack([se.W1 for se in data.superelements])
-            self.vk_a = np.stack([se.vk_a for se in data.superelements])
-            self.vk_B = np.stack([se.vk_B for se in data.superelements])
-            g_term, row_term = stiffening.fused_hooks(self.W1, self.vk_a, self.vk_B, L.nc)
+            self.vk_a = np.stack([se.vk_a for se in ses])
+            self.vk_B = np.stack([se.vk_B for se in ses])
+        hooks = {}
+        if self.W1 is not None:
+            g_term, row_term = stiffening.fused_hooks(self.W1, L.nc, self.vk_a, self.vk_B, self.W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
         self.fused = FusedResidual(L, S, self.gyro, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
@@ -447,10 +470,11 @@ class BodySystem(GeneralizedAlpha):
         vq = np.concatenate([self.v, self.elastic_coordinates()], axis=1)  # [v0, Omega0, r, q]
         halves = (vq * (vq[:, None, :] @ self._energy_op)[:, 0]) @ self._energy_split  # (E, 3)
         kr, ke, st = halves.sum(0)
-        if self.stiffening:  # V2 of the second-order strain; T1 = 1/2 Omega0^T (W1 q) Omega0 (J0 -> J0 + W1 q)
-            q, Om = vq[:, self.layout.nv :], self.v[:, 3:6]
+        q, Om = vq[:, self.layout.nv :], self.v[:, 3:6]
+        if self.stiffening:  # V2 of the second-order membrane strain
             st += float(stiffening.von_karman(q, self.vk_a, self.vk_B, tangent=False)[0].sum())
-            kr += float(stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False)[3].sum())
+        if self.W1 is not None:  # 1/2 Omega0^T (W1 q [+ q W2 q]) Omega0: J0 -> J(q)
+            kr += float(stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False, W2=self.W2)[3].sum())
         return {"kinetic_rigid": float(kr), "kinetic_elastic": float(ke), "strain": float(st), "work_external": float(self.work)}
 
     def momenta(self) -> tuple[np.ndarray, np.ndarray]:
@@ -463,7 +487,8 @@ class BodySystem(GeneralizedAlpha):
             q = self.elastic_coordinates()
             s = np.einsum("ei,ekij,ej->ek", self.v[:, 6:], self.G, q)
             hc = hc + np.einsum("eij,ej->ei", self.R0, s)
-        if self.stiffening:  # (W1 q) Omega0
-            h = np.einsum("ej,ejab,eb->ea", self.elastic_coordinates(), self.W1, self.v[:, 3:6])
+        if self.W1 is not None:  # (W1 q [+ q W2 q]) Omega0
+            q, Om = self.elastic_coordinates(), self.v[:, 3:6]
+            h = stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False, W2=self.W2)[1]
             hc = hc + np.einsum("eij,ej->ei", self.R0, h)
         return p.sum(0), (np.cross(self.x0, p) + hc).sum(0)

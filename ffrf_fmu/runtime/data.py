@@ -33,6 +33,7 @@ class SuperelementData:
     W1: np.ndarray | None = None  # (n, 3, 3) Witteveen W1_j: inertia I0 + sum_j q_j W1_j, load f0_j = w^T W1_j w / 2
     vk_a: np.ndarray | None = None  # (r, n) membrane strain eps_k = a_k q + 1/2 q^T B_k q, r strain shapes
     vk_B: np.ndarray | None = None  # (r, n, n)
+    W2: np.ndarray | None = None  # (n, n, 3, 3) Witteveen W2_jl (term set `full`): inertia + q^T W2 q
 
     @property
     def n_boundary(self) -> int:
@@ -44,10 +45,10 @@ class SuperelementData:
 
     @property
     def stiffening(self) -> bool:
-        return self.W1 is not None
+        return self.vk_a is not None
 
 
-_OPTIONAL = ("W1", "vk_a", "vk_B")  # stiffening data, present only when built with it
+_OPTIONAL = ("W1", "vk_a", "vk_B", "W2")  # stiffening data, present only when built with it
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ integrator (runtime/integrator.py) is built from both.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -198,7 +199,8 @@ def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP
     return F, Fz, Fy
 
 
-def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0, eta, v, yd):
+def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0, eta, v, yd,
+                               full_terms=("inertia_W1", "inertia_W2", "coupling_coriolis")):
     """Every superelement of a body through `residual_and_jacobian`, one at a time: the assembled
     residual without loads F (ny,) (rows summed Boolean-wise at the shared nodes) and the local blocks
     F_ydot, F_y (E, nv + nc, nc + nv). `data` is a BodyData, `layout` its runtime.layout.Layout,
@@ -211,10 +213,15 @@ def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0
         se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
         cfg, vel = layout.cfg_map[e], layout.vel_map[e]
         hooks = {}
-        if sd.stiffening:  # geometric stiffening (runtime/stiffening.py)
-            g_term, row_term = plain_hooks(sd)
+        full = terms == "full"
+        use_W1 = sd.stiffening or (full and "inertia_W1" in full_terms)
+        use_W2 = full and "inertia_W2" in full_terms
+        if use_W1 or use_W2:  # geometric stiffening, deformation-dependent inertia (runtime/stiffening.py)
+            sd_h = sd if use_W1 else dataclasses.replace(sd, W1=0.0 * sd.W1)
+            g_term, row_term = plain_hooks(sd_h, membrane=sd.stiffening, W2=use_W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        Fe, Fze, Fye = residual_and_jacobian(se, terms, gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
+        base = "gyroscopic" if terms == "gyroscopic" or (full and "coupling_coriolis" in full_terms) else "linear"
+        Fe, Fze, Fye = residual_and_jacobian(se, base, gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
                                              v[e], yd[cfg], yd[vel], **hooks)
         np.add.at(F, np.concatenate([vel, cfg]), Fe)
         Fz.append(Fze)

@@ -51,64 +51,102 @@ def von_karman(q: np.ndarray, a: np.ndarray, B: np.ndarray, tangent: bool = True
     return V2, f, Kt
 
 
-def deformed_inertia(q, qd, Om, Omd, W1, jacobian: bool = True):
-    """The W1 terms of T1 = 1/2 Om^T (W1 q) Om in the two-field equations of one superelement.
+def deformed_inertia(q, qd, Om, Omd, W1, jacobian: bool = True, W2=None):
+    """Witteveen's deformation-dependent inertia J(q) = J0 + W1 q [+ q W2 q] in the two-field
+    equations: the terms of T = 1/2 Om^T (W1 q [+ q W2 q]) Om beyond 1/2 Om^T J0 Om.
 
-    q, qd (E, n) = q_bar, q_bar_dot; Om, Omd (E, 3) = Omega0, Omega0_dot; W1 (E, n, 3, 3).
-    Returns (g, h, e, T1, d):
-        g = -f0 = -1/2 Z(Om)^T Om       added to g (78)          Z(w)[:, j] = W1_j w  (3, n)
-        h = (W1 q) Om = Z(Om) q          added to the angular momentum J0 Om (77): W0 x h
-        e = (W1 q) Omd + (W1 qd) Om      added to the CM rotation row (77): d/dt of h without W0 x
-        T1 (E,) kinetic energy of the term
-        d: derivatives {"g_Om", "h_q", "h_Om", "e_q", "e_qd", "e_Om", "e_Omd"} (E, rows, cols)
+    q, qd (E, n) = q_bar, q_bar_dot; Om, Omd (E, 3) = Omega0, Omega0_dot; W1 (E, n, 3, 3);
+    W2 (E, n, n, 3, 3) or None, W2[l, j] = W2[j, l]^T (docs/inertia-terms.md).
+    With Z(w)[:, j] = W1_j w (3, n), Jq = W1 q [+ q W2 q] (3 x 3, symmetric), V_j = sum_l q_l (W2_jl + W2_lj):
+        g = -dT/dq = -1/2 Z(Om)^T Om [- Kc(Om) q]     added to g (78); Kc_jl = Om^T W2_jl Om: the
+                                                      elastic centrifugal force (softening)
+        h = Jq Om                                     added to the angular momentum of (77): W0 x h
+        e = Jq Omd + (dJq/dt) Om                      added to the CM rotation row (77),
+                                                      dJq/dt = W1 qd [+ sum_j qd_j V_j]
+        T (E,) the kinetic energy of these terms
+    Returns (g, h, e, T, d), d the derivatives {"g_q", "g_Om", "h_q", "h_Om", "e_q", "e_qd", "e_Om",
+    "e_Omd"} (E, rows, cols) or None.
     """
     Z = np.einsum("ejab,eb->eaj", W1, Om)  # (E, 3, n)
-    Jq = np.einsum("ej,ejab->eab", q, W1)  # W1 q (E, 3, 3), symmetric
+    Jq = np.einsum("ej,ejab->eab", q, W1)  # (E, 3, 3), symmetric
     Jqd = np.einsum("ej,ejab->eab", qd, W1)
-    h = np.einsum("eaj,ej->ea", Z, q)
     g = -0.5 * np.einsum("eaj,ea->ej", Z, Om)
-    e = np.einsum("eab,eb->ea", Jq, Omd) + np.einsum("eaj,ej->ea", Z, qd)
-    T1 = 0.5 * np.einsum("ea,ea->e", h, Om)
+    if W2 is not None:
+        W2q = np.einsum("ejlab,el->ejab", W2, q)  # sum_l q_l W2_jl
+        V = W2q + np.einsum("eljab,el->ejab", W2, q)  # sum_l q_l (W2_jl + W2_lj), symmetric 3 x 3
+        Jq = Jq + np.einsum("ej,ejab->eab", q, W2q)
+        Jqd = Jqd + np.einsum("ej,ejab->eab", qd, V)
+        Kc = np.einsum("ea,ejlab,eb->ejl", Om, W2, Om)
+        g = g - np.einsum("ejl,el->ej", Kc, q)
+    h = np.einsum("eab,eb->ea", Jq, Om)
+    e = np.einsum("eab,eb->ea", Jq, Omd) + np.einsum("eab,eb->ea", Jqd, Om)
+    T = 0.5 * np.einsum("ea,ea->e", h, Om)
     if not jacobian:
-        return g, h, e, T1, None
+        return g, h, e, T, None
     ZT = np.swapaxes(Z, 1, 2)
+    n = q.shape[1]
     d = {
+        "g_q": np.zeros((q.shape[0], n, n)),
         "g_Om": -ZT,  # W1_j symmetric: d(1/2 Om^T W1_j Om)/dOm = (W1_j Om)^T
-        "h_q": Z,
+        "h_q": Z.copy(),
         "h_Om": Jq,
         "e_q": np.einsum("ejab,eb->eaj", W1, Omd),
-        "e_qd": Z,
+        "e_qd": Z.copy(),
         "e_Om": Jqd,
         "e_Omd": Jq,
     }
-    return g, h, e, T1, d
+    if W2 is not None:
+        VOm = np.einsum("ejab,eb->eaj", V, Om)  # column j = V_j Om
+        S = W2 + np.swapaxes(W2, 1, 2)  # S_ij = W2_ij + W2_ji = dV_i/dq_j
+        d["g_q"] = -Kc
+        d["g_Om"] = d["g_Om"] - np.einsum("ejab,eb->eja", V, Om)  # -(V_j Om)^T
+        d["h_q"] += VOm
+        d["e_q"] += np.einsum("ejab,eb->eaj", V, Omd) + np.einsum("ei,eijab,eb->eaj", qd, S, Om)
+        d["e_qd"] += VOm
+    return g, h, e, T, d
 
 
-def elastic_force(q, Om, W1, a, B, Dq=None):
-    """The stiffening contribution to the elastic force g (78): f_vk(q) - f0(Omega0), stacked on E.
+def gyroscopic_part_of_W2(G, M):
+    """C_jl[a, b] = (G_a^T M^-1 G_b)[j, l] (E, n, n, 3, 3): the part of W2 that the gyroscopic terms
+    already hold. With the independent velocity field, (79) makes r = qdot + M^-1 G(W0) q, so the
+    elastic kinetic energy 1/2 r^T M r contains 1/2 q^T G^T M^-1 G q = 1/2 Omega^T (q C q) Omega: the
+    centrifugal softening of the part of w x u that the basis spans (docs/inertia-terms.md, Bessel).
+    The term set `full` adds only W2 - C on top of them (else the softening counts twice)."""
+    MiG = np.linalg.solve(M[:, None], G)  # (E, 3, n, n): M^-1 G_b
+    return np.einsum("eaij,ebik->ejkab", G, MiG)
+
+
+def elastic_force(q, Om, W1, a=None, B=None, Dq=None, W2=None):
+    """The contribution to the elastic force g (78), stacked on E: the membrane force f_vk(q) (when a,
+    B are given: geometric stiffening) and -dT/dq of the deformation-dependent inertia (W1, W2).
 
     Returns (g (E, n), dg_z, dg_y) with derivative columns [configuration (nc) | velocities (nv)]
-    (None without Dq): dg_y = Kt Dq on the configuration, -Z(Omega0)^T on the Omega0 columns; no rate
-    dependence (dg_z = 0)."""
-    _, f, Kt = von_karman(q, a, B, tangent=Dq is not None)
-    g, _, _, _, d = deformed_inertia(q, q, Om, Om, W1, jacobian=Dq is not None)
-    if Dq is None:
-        return f + g, None, None
+    (None without Dq): dg_y = (Kt - Kc) Dq on the configuration, dg/dOmega0 on the Omega0 columns;
+    no rate dependence (dg_z = 0)."""
+    jac = Dq is not None
+    g, _, _, _, d = deformed_inertia(q, q, Om, Om, W1, jacobian=jac, W2=W2)
+    Kt = None
+    if a is not None:
+        _, f, Kt = von_karman(q, a, B, tangent=jac)
+        g = g + f
+    if not jac:
+        return g, None, None
     E, n, nc = Dq.shape
     nv = 6 + n
+    Kq = d["g_q"] if Kt is None else d["g_q"] + Kt
     dg_y = np.zeros((E, n, nc + nv))
-    dg_y[:, :, :nc] = Kt @ Dq
+    dg_y[:, :, :nc] = Kq @ Dq
     dg_y[:, :, nc + 3 : nc + 6] = d["g_Om"]
-    return f + g, np.zeros_like(dg_y), dg_y
+    return g, np.zeros_like(dg_y), dg_y
 
 
-def rotation_rows(q, qd, Om, Omd, W0, W1, nc: int, Dq=None, Dqdot=None):
-    """The W1 terms on the CM rotation rows (77): W0 x ((W1 q) Omega0) + (W1 q) Omega0dot + (W1 qdot) Omega0,
-    as local rows [kinematic (nv) | dynamic (nc)], stacked on E.
+def rotation_rows(q, qd, Om, Omd, W0, W1, nc: int, Dq=None, Dqdot=None, W2=None):
+    """The deformation-dependent inertia on the CM rotation rows (77): W0 x (Jq Omega0) + Jq Omega0dot
+    + (dJq/dt) Omega0, Jq = W1 q [+ q W2 q], as local rows [kinematic (nv) | dynamic (nc)], stacked on E.
 
     Returns (F (E, nv + nc), F_ydot, F_y) with columns [configuration/rates (nc) | velocities (nv)]
     (None, None without Dq)."""
-    _, h, e, _, d = deformed_inertia(q, qd, Om, Omd, W1, jacobian=Dq is not None)
+    _, h, e, _, d = deformed_inertia(q, qd, Om, Omd, W1, jacobian=Dq is not None, W2=W2)
     E, n = q.shape
     nv = 6 + n
     rows = slice(nv + 3, nv + 6)
@@ -126,33 +164,35 @@ def rotation_rows(q, qd, Om, Omd, W0, W1, nc: int, Dq=None, Dqdot=None):
     return F, Fz, Fy
 
 
-def fused_hooks(W1, a, B, nc: int):
-    """(g_term, row_term) for runtime.fused.FusedResidual: the stiffening terms over all superelements
-    from the stacked reduced data W1 (E, n, 3, 3), a (E, r, n), B (E, r, n, n)."""
+def fused_hooks(W1, nc: int, a=None, B=None, W2=None):
+    """(g_term, row_term) for runtime.fused.FusedResidual over all superelements, from the stacked
+    reduced data W1 (E, n, 3, 3), [a (E, r, n), B (E, r, n, n): membrane], [W2 (E, n, n, 3, 3)]."""
 
     def g_term(s, D):
-        return elastic_force(s["q"], s["Om0"], W1, a, B, None if D is None else D["Dq"])
+        return elastic_force(s["q"], s["Om0"], W1, a, B, None if D is None else D["Dq"], W2)
 
     def row_term(s, D):
         if D is None:
-            return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc)
-        return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, D["Dq"], D["Dqdot"])
+            return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, W2=W2)
+        return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, D["Dq"], D["Dqdot"], W2)
 
     return g_term, row_term
 
 
-def plain_hooks(sd):
+def plain_hooks(sd, membrane: bool = True, W2: bool = False):
     """(g_term, row_term) for runtime.equations.residual_and_jacobian: the same terms for ONE
     superelement (SuperelementData sd), written on its Kinematics (the oracle's hook signature)."""
-    W1, a, B = sd.W1[None], sd.vk_a[None], sd.vk_B[None]
+    W1 = sd.W1[None]
+    a, B = (sd.vk_a[None], sd.vk_B[None]) if membrane else (None, None)
+    W2 = sd.W2[None] if W2 else None
 
     def g_term(se, kin, v, zdot, vdot):
-        g, dz, dy = elastic_force(kin.q[None], v[None, 3:6], W1, a, B, kin.Dq[None])
+        g, dz, dy = elastic_force(kin.q[None], v[None, 3:6], W1, a, B, kin.Dq[None], W2)
         return g[0], dz[0], dy[0]
 
     def row_term(se, kin, v, zdot, vdot):
         F, Fz, Fy = rotation_rows(kin.q[None], kin.qdot[None], v[None, 3:6], vdot[None, 3:6], zdot[None, 3:6], W1,
-                                  kin.Dq.shape[1], kin.Dq[None], kin.Dqdot[None])
+                                  kin.Dq.shape[1], kin.Dq[None], kin.Dqdot[None], W2)
         return F[0], Fz[0], Fy[0]
 
     return g_term, row_term
