@@ -126,7 +126,7 @@ def test_parameters_declare_min_and_max(fmu):
     md = read_model_description(str(fmu))
     by = {v.name: v for v in md.modelVariables}
     assert (float(by["solver.rho_inf"].min), float(by["solver.rho_inf"].max)) == (0.0, 1.0)
-    assert (int(by["solver.terms"].min), int(by["solver.terms"].max)) == (0, 1)
+    assert (int(by["solver.terms"].min), int(by["solver.terms"].max)) == (0, 2)  # linear, gyroscopic, full
 
 
 def test_bad_calls_are_errors_twice_and_the_instance_survives(fmu):
