@@ -1,5 +1,8 @@
-"""`ffrf-fmu advise`: the physics behind each rule, the choices on B1, and the B1 acceptance against
-the committed chart (docs/chart_b1.csv)."""
+"""`ffrf-fmu advise`: the physics behind each rule, and its promise checked out of sample.
+
+The only calibration data of the advisor's superelement rule is one B1 run (STIFFENED_ERROR, 1 SE at
+4 rad/s). The checks below run scenes and bodies that set no constant: B3 at other spins, and
+generated bodies of other length, stiffness and spin profile, each against the full-order beam."""
 import json
 import math
 import os
@@ -25,13 +28,6 @@ def test_southwell_coefficient():
     assert ad.southwell_coefficient() == pytest.approx(1.1933, abs=2e-4)
 
 
-def test_polygon_deficit_falls_like_one_over_n_squared():
-    # one chord from root to tip: S_N = 4/3 and M_N = 4/3 of the smooth mode's, net deficit S1 - 1
-    assert ad.polygon_deficit(1) == pytest.approx(ad.southwell_coefficient() - 1.0, abs=1e-3)
-    d = np.array([ad.polygon_deficit(n) * n * n for n in (4, 8, 16)])
-    assert np.all(np.abs(d / d[-1] - 1) < 0.02) and 0.35 < d[-1] < 0.40
-
-
 def test_period_error_of_the_integrator():
     # generalized-alpha is second-order accurate: the relative period error ~ c (omega h)^2; for
     # rho_inf = 0.8, c = 0.086 (about the trapezoidal rule's 1/12)
@@ -44,96 +40,68 @@ def test_period_error_of_the_integrator():
     assert abs(ad.period_error(4.0 * h, 0.8)) == pytest.approx(1e-3, rel=1e-6)
 
 
-def test_modal_model_without_spin_is_the_quasi_static_response():
-    # a slow acceleration pulse on a 1 rad/s mode: peak |q| = max acc / omega^2 (quasi-static)
-    t = np.linspace(0.0, 200.0, 20001)
-    acc = 1e-3 * (1 - np.cos(2 * np.pi * t / 200.0))
-    assert ad.modal_peak(1.0, 0.0, t, 0 * t, acc) == pytest.approx(2e-3, rel=0.01)
-    # a chain with more stiffening deficit than the beam's stiffening diverges at a high enough spin
-    assert ad.modal_peak(1.0, -0.5, t, np.full_like(t, 2.0), acc) == math.inf
-
-
-def test_chain_error_on_b1_falls_with_the_chain_and_matches_the_calibration():
-    model = load_model(B1)
-    hist = ad.spin_history(model.scene("spinup"))
-    t, rate, acc, axis, _ = hist
-    w1 = 2 * np.pi * ad.first_frequency(model.body)
-    K = ad.southwell_coefficient() - 1
-    e = [ad.chain_error(n, w1, K, t, rate, acc) for n in (2, 4, 8)]
-    assert e[0] > e[1] > e[2] > 0
-    # calibration point (docs/accuracy.md): 4 SE measured 0.94 % against the 16-element reference
-    assert e[1] == pytest.approx(0.0094, rel=0.05)
-    assert e[1] / e[2] == pytest.approx(4.0, rel=0.15)  # ~ 1/N^2
-
-
 def test_no_spin_one_superelement_linear_terms():
     # B1's beam with the hub free (co-simulation scene): nothing spins, nothing to stiffen
     a = ad.advise(B1, "hub_free", 0.01)
-    assert a.superelements == 1 and a.terms == "linear" and a.modes == 2
+    assert a.superelements == 1 and a.terms == "linear" and a.modes == 2 and not a.stiffening
     assert a.predicted["chain"] == 0.0
 
 
-def test_b1_advice_structure():
-    lo, hi = ad.advise(B1, "spinup", 0.01), ad.advise(B1, "spinup", 0.05)
-    assert lo.superelements > hi.superelements >= 2  # a tighter tolerance needs a longer chain
-    for a in (lo, hi):
-        assert a.modes == 2  # free-free modes of any superelement lie far above 3 x 0.64 Hz
-        assert a.terms == "linear"  # Coriolis at the excitation band << tolerance
-        assert a.step <= 15.0 / ad.STEPS_PER_DRIVE_TIME  # Newton robustness on the spin-up
-        assert abs(20.0 / a.step - round(20.0 / a.step)) < 1e-9  # whole steps
-        assert a.predicted["total_estimate"] <= ad.RESERVE * a.tolerance
-        assert set(a.reasons) == {"superelements", "modes", "terms", "step"}
-    assert lo.step <= hi.step
+def test_stiffened_rule_structure():
+    """B1: the spin (sigma = 1.88) turns stiffening on; the predicted error of a stiffened chain falls as
+    (Omega/omega_se)^2 ~ N^-4 (omega_se of a free-free superelement of length L/N ~ N^2); a tolerance
+    tighter than one superelement's prediction takes more of them."""
+    a = ad.advise(B1, "spinup", 0.01)
+    assert a.stiffening and a.superelements == 1 and a.terms == "linear"
+    assert set(a.reasons) == {"stiffening", "superelements", "modes", "terms", "step"}
+    assert "stiffening=true" in a.overrides
+    e1 = a.predicted["chain"]
+    assert e1 == pytest.approx(ad.STIFFENED_ERROR * (4.0 / 18.55) ** 2, rel=0.01)  # 18.55 rad/s: 1 SE free-free
+    b = ad.advise(B1, "spinup", 0.002)
+    assert b.superelements == 2 and b.predicted["chain"] == pytest.approx(e1 / 16, rel=0.02)
+    assert a.predicted["total_estimate"] <= ad.RESERVE * a.tolerance
 
 
-def test_gyroscopic_terms_refused_past_the_clamped_superelement_frequency():
-    # the superelement at the driven hub, clamped there, is a cantilever of length L/N: its first
-    # bending frequency is the beam's 0.464 Hz x N^2 (benchmarks.md closed form for N = 1)
-    body = load_model(B1).body
-    f1, how = ad.attached_superelement_frequency(body, 1)
-    f2, _ = ad.attached_superelement_frequency(body, 2)
-    assert how == "clamped" and f1 == pytest.approx(0.4640, rel=5e-3) and f2 / f1 == pytest.approx(4.0, rel=0.02)
-    # a loose tolerance leaves one superelement; B1 spins to 4 rad/s > 2 pi 0.464 = 2.92 rad/s: the
-    # gyroscopic terms would bring softening without stiffening, refused whatever the indicators
-    a = ad.advise(B1, "spinup", 0.2)
-    assert a.superelements == 1
-    assert not a.indicators["gyroscopic_stable"] and a.terms == "linear"
-    # two superelements: 11.7 rad/s clamped, the terms would be allowed (and are not needed)
-    b = ad.advise(B1, "spinup", 0.05)
-    assert b.superelements == 2 and b.indicators["gyroscopic_stable"]
-    assert b.indicators["coriolis_at_excitation"] < 0.05 < b.indicators["coriolis"]
+# Out of sample: (model overrides, scene) none of which set a constant of the advisor.
+OUT_OF_SAMPLE = {
+    "B3 12 rad/s": (["scenes.spinup_fast.drives.hub.rotation.angle.omega=12"], "spinup_fast"),
+    "4 m soft beam, 6 rad/s": (["length=4", "EI2=100", "EI3=100", "scenes.spinup_fast.drives.hub.rotation.angle.omega=6",
+                                "scenes.spinup_fast.drives.hub.rotation.angle.T=8", "duration=12"], "spinup_fast"),
+    "12 m stiff beam, 5 rad/s": (["length=12", "EI2=3000", "EI3=3000", "scenes.spinup.drives.hub.rotation.angle.omega=5",
+                            "scenes.spinup.drives.hub.rotation.angle.T=10", "duration=14"], "spinup"),
+}
 
 
-@pytest.mark.skipif(not CHART_B1.exists(), reason="docs/chart_b1.csv not generated")
-@pytest.mark.parametrize("tolerance", [0.01, 0.05])
-def test_b1_acceptance_against_the_committed_chart(tolerance):
-    """The advised configuration is in the committed chart; there its error is within the tolerance
-    and its cost within 1.5 x the cheapest configuration of the chart that meets the tolerance
-    (wall time, as measured when the chart was generated; CPU time as the load-independent check)."""
-    a = ad.advise(B1, "spinup", tolerance)
-    rows = [r for r in ch.read_csv(CHART_B1) if r["runner"] == "standalone"]
-    mine = [r for r in rows if r["label"] == a.label]
-    assert mine, f"{a.label} is not in {CHART_B1}: regenerate the chart (docs/accuracy.md)"
-    mine = mine[0]
-    assert mine["completed"] and mine["metric_error_rel"] <= tolerance
-    ok = [r for r in rows if r["completed"] and r["metric_error_rel"] <= tolerance]
-    assert mine["wall_time_s"] <= 1.5 * min(r["wall_time_s"] for r in ok)
-    assert mine["cpu_time_s"] <= 1.5 * min(r["cpu_time_s"] for r in ok)
+@pytest.mark.parametrize("case", [
+    "B3 12 rad/s",
+    "4 m soft beam, 6 rad/s",
+    pytest.param("12 m stiff beam, 5 rad/s", marks=pytest.mark.xfail(strict=True, reason=(
+        "the advisor's law under-predicts here: measured 1.21 % (1 SE, 25 ms) against 0.28 % + step. The error "
+        "follows the deflection, not the spin: 1 SE +1.04 %, 2 SE +0.46 %, 8 linear SE +0.34 % at a peak "
+        "deflection of 12 % of the length (B3: 0.36 (delta/L)^2 fits 8, 12, 14 rad/s); not modelled yet"))),
+])
+def test_advice_holds_out_of_sample(case):
+    """The advised configuration (tolerance 1 %) run against the full-order beam (16 elements, 10 ms):
+    its peak-deflection error is within the tolerance and below the advisor's own estimate (the rule is
+    an upper bound: measured 1.7-2.2 x below on B3), and the estimate is not vacuous (within 4 x of
+    the achieved error or below 0.25 %)."""
+    from ffrf_fmu import simulate as sim
+    from ffrf_fmu.reference import simulate_reference, tip_from_hub
 
-
-def test_b1_advise_check_at_5_percent(tmp_path):
-    """advise --check end to end (about 20 s of CPU: the 16-element reference and a 625-step run):
-    the advised configuration for 5 % reaches the tolerance against the reference. The 16-element
-    reference reads 0.034 %-points below the converged one (docs/accuracy.md, section 3), which
-    the check allows for: the chart measured 3.81 % against 32 elements, 3.84 % against 16."""
-    a = ad.advise(B1, "spinup", 0.05)
-    res = ad.check(B1, "spinup", a, reference_elements=16, cache_dir=tmp_path,
-                   chart_csv=CHART_B1 if CHART_B1.exists() else None)
-    assert res["completed"] and res["within_tolerance"]
-    assert res["metric_error_rel"] == pytest.approx(a.predicted["total_estimate"], abs=0.01)
-    if CHART_B1.exists():
-        assert res["chart_same_configuration"]["metric_error_rel"] == pytest.approx(
-            res["metric_error_rel"], abs=5e-4)
+    overrides, scene = OUT_OF_SAMPLE[case]
+    a = ad.advise(B1, scene, 0.01, overrides=overrides)
+    model = load_model(B1, overrides)
+    ref = simulate_reference(model.body, model.scene(scene), n_elements=16, step=0.01)
+    run = sim.run_scene(B1, scene, overrides + a.overrides)
+    assert run.summary["completed"]
+    hub, tip = sim.end_ports(run.body)
+    peak = np.abs(sim.elastic_tip(run, hub, tip)[:, 1]).max()
+    peak_ref = np.abs(tip_from_hub(ref)[:, 1]).max()
+    err = abs(peak / peak_ref - 1.0)
+    est = a.predicted["total_estimate"]
+    assert err <= a.tolerance
+    assert err <= est
+    assert est <= max(4.0 * err, 0.0025)
 
 
 def test_cli_advise_json():
@@ -142,7 +110,8 @@ def test_cli_advise_json():
                           "--json"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
-    assert out["tolerance"] == 0.05 and out["configuration"]["superelements"] == 2
+    assert out["tolerance"] == 0.05 and out["configuration"]["superelements"] == 1
+    assert out["configuration"]["stiffening"] is True
     bad = subprocess.run([sys.executable, "-m", "ffrf_fmu", "advise", B1, "--tolerance", "abc"], cwd=ROOT, env=env,
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "percentage" in bad.stderr
