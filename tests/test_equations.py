@@ -56,7 +56,9 @@ def _both(s: BodySystem):
 def test_fused_equations_match_the_plain_oracle(name, terms):
     s = _state(name, terms)
     (F, Fz, Fy), (F0, Fz0, Fy0) = _both(s)
-    assert np.abs(F - F0).max() <= 1e-12 * np.abs(F0).max()
+    # the residual sums terms far larger than itself (K_bar q_bar against inertia): round-off is relative to them
+    terms = max(np.abs(F0).max(), np.abs(s.K).max() * np.abs(s.elastic_coordinates()).max())
+    assert np.abs(F - F0).max() <= 1e-12 * terms
     assert _row_relative(Fz, Fz0) <= 1e-12
     assert _row_relative(Fy, Fy0) <= 1e-12
     assert np.abs(Fy0).max() > 0 and np.abs(F0).max() > 0  # a real state, not the rest state

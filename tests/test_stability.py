@@ -181,20 +181,26 @@ def test_spin_map_marks_rows_whose_reference_is_suspect(tmp_path, monkeypatch):
 
 # ------------------------------------------------------------------------------------ integrator map
 
-def test_b1_newton_fails_between_20_and_50_ms():
+def test_b1_newton_fails_between_50_and_100_ms():
     """B1 as in the map (T = 7.5 s, 10 s, rho_inf 0.8): h = 20 ms runs through (max deflection
-    within 0.2 % of the converged run), h = 50 ms loses Newton convergence at t = 4.4 s."""
+    within 0.2 % of the converged run, measured 0.15 %); h = 50 ms runs through since issue 10's
+    Newton (per-field convergence, refresh when 3 more iterations would not do; before, Newton
+    failed at t = 4.4 s), max deflection 0.96 % above the converged run (bound 1.5 %: the error is
+    the step's, second order); h = 100 ms loses Newton convergence at t = 6.7 s."""
     s = st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")]
     ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(10.0)
     assert ok.max_deflection == pytest.approx(1.1014, rel=2e-3)  # converged (h = 0.5 ms): 1.10140 m
-    bad, _ = st.integrator_run(HAUG, "spinup", 0.05, 0.8, s)
-    assert bad.unstable and "Newton" in bad.failure and 4.0 < bad.t[-1] < 5.0
+    coarse, _ = st.integrator_run(HAUG, "spinup", 0.05, 0.8, s)
+    assert coarse.completed and coarse.max_deflection == pytest.approx(1.1014, rel=1.5e-2)
+    bad, _ = st.integrator_run(HAUG, "spinup", 0.1, 0.8, s)
+    assert bad.unstable and "Newton" in bad.failure and 5.0 < bad.t[-1] < 8.0
 
 
 def test_b2_trapezoidal_rule_fails_at_200_ms_where_dissipation_survives():
     """B2 (20 s): at h = 0.2 s the trapezoidal rule (rho_inf = 1) loses Newton convergence after
-    the tip load (t = 17.2 s) while rho_inf = 0.8 damps the unresolved modes and runs through."""
+    the tip load (t = 17.2 s before issue 10's Newton changes, 19.4 s after) while rho_inf = 0.8 damps
+    the unresolved modes and runs through."""
     s = st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")]
     ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(20.0)
@@ -245,7 +251,8 @@ def _deflection_error(run, ref) -> float:
 def test_motor_gauss_seidel_with_extrapolation_boundary_between_2_and_10_ms(motor, motor_monolithic):
     """Beam FMU + hub drive FMU (undamped shaft k = 300 N m/rad on the beam root): explicit
     Gauss-Seidel with extrapolated torque is stable at H = 2 ms and diverges at H = 10 ms once the
-    beam spins fast (Newton fails at 5.8 s). 6.5 s: past the failure at 10 ms. The 2 ms run agrees
+    beam spins fast (the body refuses a step at 4.9 s: Newton, or since issue 10 the guard against a
+    rotation increment beyond pi; before issue 10's Newton changes at 5.8 s). 6.5 s: past the failure at 10 ms. The 2 ms run agrees
     with the monolithic run: map 3.2e-4 of the peak deflection over 10 s, measured 2.66e-4 over
     the first 3 s; bound 4e-4 (the map's figure with a margin; a coupling error of first order in H
     that grows would exceed it)."""
@@ -254,7 +261,7 @@ def test_motor_gauss_seidel_with_extrapolation_boundary_between_2_and_10_ms(moto
     assert np.max(motor_monolithic.deflection) > 1.0  # the beam bends (1.15 m by 3 s): the error means something
     assert _deflection_error(ok, motor_monolithic) < 4e-4
     bad = motor.run(0.01, "gauss-seidel", extrapolation=True, duration=6.5)
-    assert "Newton" in bad.stopped_early and 5.0 < bad.t[-1] < 6.5
+    assert ("Newton" in bad.stopped_early or "rotation increment" in bad.stopped_early) and 4.5 < bad.t[-1] < 6.5
 
 
 def test_motor_implicit_coupling_is_stable_where_explicit_jacobi_is_not(motor, motor_monolithic):

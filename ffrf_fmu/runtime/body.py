@@ -144,7 +144,7 @@ class BodySystem(GeneralizedAlpha):
         self._reset_reference()
         self._compiled, self.backend, self.backend_note = None, "numpy", None
         if backend == "numba":
-            module, why = load_kernel(terms, self.stiffening)
+            module, why = load_kernel(terms)
             if self.compliant:  # the spring-damper of compliant ports (runtime/coupling.py) is not in the kernel
                 module, why = None, "the numba kernel does not cover compliant ports (runtime/coupling.py) yet"
             if module is None:
@@ -164,13 +164,14 @@ class BodySystem(GeneralizedAlpha):
         self.v = np.zeros((L.n_se, L.nv))
         self.yd = np.zeros(L.ny)
         self.yd_prev = np.zeros(L.ny)
+        self.yd_prev2 = np.zeros(L.ny)
         self.a = np.zeros(L.ny)
         self.fN = np.zeros((L.n_nodes, 3))  # force on each boundary node (load or reaction), world
         self.tN = np.zeros((L.n_nodes, 3))
         self.work = 0.0
         self.power = 0.0
 
-    _STATE_FIELDS = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "a", "fN", "tN")
+    _STATE_FIELDS = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "yd_prev2", "a", "fN", "tN")
 
     def get_state(self) -> np.ndarray:
         """Flat copy of everything the next step depends on, the Newton iteration matrix included
@@ -385,6 +386,7 @@ class BodySystem(GeneralizedAlpha):
         yd0[:n_cfg] = cfg_rates
         self.yd = yd0
         self.yd_prev = yd0.copy()
+        self.yd_prev2 = yd0.copy()
         self.a = yd0.copy()
         F = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[0]
         F[: 6 * self.layout.n_nodes] += self._loads(self.RN, f_in, t_in).ravel()

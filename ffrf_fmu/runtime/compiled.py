@@ -26,7 +26,7 @@ import numpy as np
 
 from .ports import StepFailure
 
-KERNEL_TERM_SETS = ("linear", "gyroscopic")  # term sets runtime/kernel.py computes
+KERNEL_TERM_SETS = ("linear", "gyroscopic")  # term sets runtime/kernel.py computes, each with or without stiffening
 
 
 def _read_kernel_source() -> bytes | None:
@@ -67,12 +67,10 @@ def _kernel_file(src: bytes, digest: str) -> Path:
     raise OSError("no writable cache directory for the compiled kernel")
 
 
-def load_kernel(terms: str, stiffening: bool = False):
+def load_kernel(terms: str):
     """(module, None) or (None, reason): the compiled kernel module, compiled or loaded from the cache."""
     if terms not in KERNEL_TERM_SETS:
         return None, f"the numba kernel does not cover term set {terms!r} (it covers {', '.join(KERNEL_TERM_SETS)})"
-    if stiffening:
-        return None, "the numba kernel does not cover geometric stiffening (runtime/stiffening.py) yet"
     try:
         import numba  # noqa: F401
     except ImportError:
@@ -101,7 +99,7 @@ class CompiledStep:
     buffers the kernel updates in place (the body's state attributes are these buffers), the LU
     buffers kept across steps."""
 
-    STATE = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "a", "fN", "tN")
+    STATE = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "yd_prev2", "a", "fN", "tN")
 
     def __init__(self, system, module):
         self.module = module
@@ -111,9 +109,13 @@ class CompiledStep:
         G = system.G if system.gyro else np.zeros((L.n_se, 3, 1, 1))  # not read by the linear set
         nf = len(system._newton_idx)
         self.const = (
-            1 if system.gyro else 0, f64(system.K), f64(system.M), f64(G), f64(system.mass), f64(system.J0),
+            1 if system.gyro else 0, f64(system.K), f64(system.M), f64(G),
+            *((1, f64(system.W1), f64(system.vk_a), f64(system.vk_B)) if system.stiffening else
+              (0, np.zeros((L.n_se, 0, 3, 3)), np.zeros((L.n_se, 0, 1)), np.zeros((L.n_se, 0, 1, 1)))),
+            f64(system.mass), f64(system.J0),
             f64(system.X_B), i64(system.se_nodes), i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
+            i64(system._field_of), float(system.THETA_REFRESH),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
             i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
         )
@@ -154,7 +156,7 @@ class CompiledStep:
         self._adopt(system)
         s = self.state
         self.energy[0], self.energy[1] = system.work, system.power
-        args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["a"],
+        args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["yd_prev2"], s["a"],
                 s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, float(h), float(am), float(af),
                 float(gamma), float(system.tol), int(system.max_iter), self.ydw, self.p, self.R, self.F, self.luT,
                 self.piv, self.lu_meta, self.info)
@@ -177,7 +179,11 @@ class CompiledStep:
         if status == self.module.NOT_FINITE:
             raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
         if status == self.module.NOT_CONVERGED:
-            raise StepFailure(t1, f"Newton did not converge in {system.max_iter} iterations (last increment {m[1]:.3g})")
+            raise StepFailure(t1, f"Newton did not converge in {system.max_iter} iterations "
+                                  f"(last increment {m[1]:.3g} of the tolerance)")
+        if status == self.module.ROTATION_ALIAS:
+            raise StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
+                                  "or an absurd input)")
         if status == self.module.NOT_FACTORED:
             raise StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
         system.t, system.iterations = t1, it

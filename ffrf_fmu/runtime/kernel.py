@@ -12,7 +12,8 @@ Jacobian blocks; the iteration matrix F_ydot + beta [F_y T, F_v] on the unknowns
 order; its LU (LAPACK getrf, the routine scipy's lu_factor calls, so the factors are identical);
 modified Newton with the factorization carried along the rotation of the first CM frame.
 
-Term sets covered: `linear`, `gyroscopic` (gyro = 1). Anything else is refused by compiled.py.
+Term sets covered: `linear`, `gyroscopic` (gyro = 1), each with or without the geometric stiffening
+of runtime/stiffening.py (stiff = 1). Anything else is refused by compiled.py.
 """
 from __future__ import annotations
 
@@ -28,23 +29,24 @@ _KIND = ord("d")
 _EPS = 1e-5  # runtime/rotation.py: below this angle the series of the tangent are exact to round-off
 
 # status codes of `newton_step`
-OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED = 0, 1, 2, 3
+OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS = 0, 1, 2, 3, 4
 
 jit = numba.njit(cache=True, nogil=True)
 
 _Work = namedtuple("_Work", "q qd g rho Q H alpha x0 W0 x0dot v vdot u c v3 v3b GW h torque Gq Gqd Gr Grd dsdq fa "
-                            "Dq Dqd dgz dgy S S2 B W0x C QC T1")
+                            "Dq Dqd dgz dgy S S2 B W0x C QC T1 Bq Nk Z Jq Jqd hs Kt eq")
 
 
 @jit
-def _work(n, nb, nc, nv):
+def _work(n, nb, nc, nv, r):
     """Work arrays of `_superelement` and `_jacobian`, allocated once per step."""
     ncv = nc + nv
     z3 = np.zeros
     return _Work(z3(n), z3(n), z3(n), z3((nb, 3)), z3((nb, 3, 3)), z3((nb, 3, 3)), z3((nb, 3)), z3(3), z3(3), z3(3),
                  z3(nv), z3(nv), z3((nb, 3)), z3((nb, 3)), z3(3), z3(3), z3((n, n)), z3(3), z3(3), z3((3, n)),
                  z3((3, n)), z3((3, n)), z3((3, n)), z3((3, n)), z3((nb, 3)), z3((n, nc)), z3((n, nc)), z3((n, ncv)),
-                 z3((n, ncv)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, nc)))
+                 z3((n, ncv)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, nc)),
+                 z3((r, n)), z3(r), z3((3, n)), z3((3, 3)), z3((3, 3)), z3(3), z3((n, n)), z3((3, n)))
 
 
 @jit
@@ -96,7 +98,7 @@ def _cross(a, b, out):
 
 
 @jit
-def _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, F, Fz, Fy, w):
+def _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, F, Fz, Fy, w):
     """Local residual rows F (nv + nc) of superelement e and, if jac, F_ydot (Fz) and F_y (Fy)
     (runtime/equations.py residual_and_jacobian, the same rows and columns). w: work arrays."""
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
@@ -208,6 +210,8 @@ def _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, 
             h[kk] += s
             torque[kk] += sd
     ex0, eT0, eeta = nv, nv + 3, nv + 6
+    if stiff:  # geometric stiffening (runtime/stiffening.py elastic_force): g += f_vk(q) - f0(Omega0)
+        _stiff_force(e, W1, vk_a, vk_B, q, v[3:6], g, w)
     _cross(W0, h, w.v3)
     for i in range(3):
         F[eT0 + i] = torque[i] + w.v3[i]  # (77)
@@ -232,12 +236,80 @@ def _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, 
             for j in range(3):
                 s += Q[k, i, j] * w.fa[k, j]
             F[eT0 + i] -= w.v3[i] + s
+    if stiff:  # stiffening.rotation_rows: W0 x ((W1 q) Omega0) + (W1 q) Omega0dot + (W1 qdot) Omega0
+        Om, Omd = v[3:6], vdot[3:6]
+        for a in range(3):
+            for b in range(3):
+                s1 = 0.0
+                s2 = 0.0
+                for j in range(n):
+                    s1 += q[j] * W1[e, j, a, b]
+                    s2 += qd[j] * W1[e, j, a, b]
+                w.Jq[a, b] = s1
+                w.Jqd[a, b] = s2
+        for a in range(3):
+            s = 0.0
+            for j in range(n):
+                s += w.Z[a, j] * q[j]
+            w.hs[a] = s
+        _cross(W0, w.hs, w.v3)
+        for a in range(3):
+            s = w.v3[a]
+            for b in range(3):
+                s += w.Jq[a, b] * Omd[b]
+            for j in range(n):
+                s += w.Z[a, j] * qd[j]
+            F[eT0 + a] += s
     if jac:
-        _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy)
+        _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy)
 
 
 @jit
-def _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy):
+def _stiff_force(e, W1, vk_a, vk_B, q, Om, g, w):
+    """g += f_vk(q) - f0(Omega0) (stiffening.von_karman, deformed_inertia); keeps Bq, N = a q + sigma
+    and Z(Omega0) (Z[:, j] = W1_j Omega0) in w for the Jacobian and the rotation rows."""
+    r, n = vk_a.shape[1], q.shape[0]
+    Bq, Nk, Z = w.Bq, w.Nk, w.Z
+    for k in range(r):
+        ek = 0.0
+        sk = 0.0
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += vk_B[e, k, i, j] * q[j]
+            Bq[k, i] = s
+            ek += vk_a[e, k, i] * q[i]
+        for i in range(n):
+            sk += 0.5 * Bq[k, i] * q[i]
+        Nk[k] = ek + sk
+        for i in range(n):  # a^T sigma + Bq^T N
+            g[i] += vk_a[e, k, i] * sk + Bq[k, i] * Nk[k]
+    for j in range(n):
+        s = 0.0
+        for a in range(3):
+            za = 0.0
+            for b in range(3):
+                za += W1[e, j, a, b] * Om[b]
+            Z[a, j] = za
+            s += za * Om[a]
+        g[j] -= 0.5 * s
+
+
+@jit
+def _stiff_tangent(e, vk_a, vk_B, n, w):
+    """Kt = a^T Bq + Bq^T a + Bq^T Bq + sum_k N_k B_k (stiffening.von_karman) into w.Kt."""
+    r = vk_a.shape[1]
+    Bq, Nk, Kt = w.Bq, w.Nk, w.Kt
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(r):
+                s += vk_a[e, k, i] * Bq[k, j] + Bq[k, i] * (vk_a[e, k, j] + Bq[k, j]) + Nk[k] * vk_B[e, k, i, j]
+            Kt[i, j] = s
+
+
+@jit
+def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy):
     """The local Jacobian blocks of `_superelement` (runtime/equations.py, same algebra)."""
     rho, Q, H, alpha = w.rho, w.Q, w.H, w.alpha
     Dq, Dqd, dgz, dgy = w.Dq, w.Dqd, w.dgz, w.dgy
@@ -391,6 +463,17 @@ def _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rd
                 for m in range(3):
                     s += W0x[i, m] * Gq[m, j]
                 Fy[eT0 + i, cr + j] += s
+    if stiff:  # d(f_vk - f0): Kt Dq on the configuration, -Z^T on the Omega0 columns
+        Kt = w.Kt
+        _stiff_tangent(e, vk_a, vk_B, n, w)
+        for i in range(n):
+            for j in range(nc):
+                s = 0.0
+                for m in range(n):
+                    s += Kt[i, m] * Dq[m, j]
+                dgy[i, j] += s
+            for b in range(3):
+                dgy[i, cO0 + b] -= w.Z[b, i]
     for i in range(nm):
         for j in range(ncv):
             Fz[eeta + i, j] = dgz[6 * nb + i, j]
@@ -464,10 +547,39 @@ def _jacobian(e, gyro, Ke, Me, G, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rd
                 for m in range(3):
                     s += QC[i, m] * Q[k, j, m]
                 Fy[eT0 + i, 3 + j] += s
+    if stiff:  # stiffening.rotation_rows derivatives
+        Z, Jq, Jqd, eq = w.Z, w.Jq, w.Jqd, w.eq
+        Omd = w.vdot[3:6]
+        for a in range(3):
+            for j in range(n):
+                s = 0.0
+                for b in range(3):
+                    s += W1[e, j, a, b] * Omd[b]
+                eq[a, j] = s  # d((W1 q) Omd)/dq
+        _skew(w.hs, S)
+        for i in range(3):
+            for j in range(3):
+                Fz[eT0 + i, 3 + j] -= S[i, j]  # d(W0 x h)/dW0
+                Fz[eT0 + i, cO0 + j] += Jq[i, j]  # d/dOmega0dot
+                s = Jqd[i, j]
+                for m in range(3):
+                    s += W0x[i, m] * Jq[m, j]
+                Fy[eT0 + i, cO0 + j] += s  # W0 x (W1 q) + W1 qdot on Omega0
+            for j in range(nc):
+                s1 = 0.0
+                s2 = 0.0
+                for m in range(n):
+                    zw = eq[i, m]
+                    for b in range(3):
+                        zw += W0x[i, b] * Z[b, m]
+                    s1 += Z[i, m] * Dq[m, j]
+                    s2 += zw * Dq[m, j] + Z[i, m] * Dqd[m, j]
+                Fz[eT0 + i, j] += s1
+                Fy[eT0 + i, j] += s2
 
 
 @jit
-def _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+def _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
               jac, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T):
     """Assembled residual F (ny) with the loads and, if jac, the iteration matrix
     J = F_ydot + beta [F_y T, F_v] on the unknowns in the Newton order, stored transposed (JT[col, row],
@@ -482,7 +594,7 @@ def _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load,
             _tangent(theta[r], T[r])
     tmp = w.v3b
     for e in range(E):
-        _superelement(e, N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, Fl, Fz, Fy, w)
+        _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, Fl, Fz, Fy, w)
         for i in range(nv):
             F[vel[e, i]] += Fl[i]
         for i in range(nc):
@@ -530,29 +642,38 @@ def _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load,
 
 
 @jit
-def newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                c, P0, Rn, f_load, t_load, beta, tol, max_iter, yd, p, R, F, luT, piv, lu_meta, info):
+def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+                field_of, theta_refresh, c, P0, Rn, f_load, t_load, beta, tol, max_iter, yd, p, R, F, luT, piv,
+                lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
 
     In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
     predictor. Out: yd the accepted rates, p, R, F the configuration and residual there. luT, piv,
     lu_meta = [valid, beta, R_ref (9)] hold the LU of the iteration matrix across steps (transposed:
     luT.T is scipy's lu_factor LU; piv 0-based). info = [status, iterations]; lu_meta[0] = 0 and
-    a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED."""
+    a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED.
+    Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted
+    on the contraction estimate theta/(1 - theta) |dx|."""
     NR, E = Rn.shape[0], K.shape[0]
     N = NR - E
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
     ny, nf = yd.shape[0], newton_idx.shape[0]
-    w = _work(n, nb, nc, nv)
+    w = _work(n, nb, nc, nv, vk_a.shape[1])
     Fl, Fz, Fy = np.zeros(nv + nc), np.zeros((nv + nc, nc + nv)), np.zeros((nv + nc, nc + nv))
     theta, T, Rexp = np.zeros((NR, 3)), np.zeros((NR, 3, 3)), np.zeros((3, 3))
-    JT = np.zeros((nf, nf))
+    JT = np.zeros((0, 0))  # the iteration matrix, allocated on the first refresh of the step
     b, P = np.zeros(nf), np.zeros((3, 3))
-    dx_prev = np.inf
-    tolk = tol
+    n_fields = 0
+    for i in range(nf):
+        n_fields = max(n_fields, field_of[i] + 1)
+    S = np.zeros(n_fields)
+    nrm_prev = np.inf
+    converged = False
     it = 0
     for it in range(max_iter + 1):
         refresh = lu_meta[0] == 0.0 or abs(lu_meta[1] - beta) > 1e-6 * beta
+        if refresh and JT.shape[0] != nf:
+            JT = np.zeros((nf, nf))
         for i in range(ny):
             p[i] = yd[i] * c[i] + P0[i]
         for r in range(NR):
@@ -562,7 +683,7 @@ def newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slot
             for i in range(3):
                 for j in range(3):
                     R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
-        _evaluate(N, gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+        _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
                   refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
         s = 0.0
         for i in range(ny):
@@ -571,15 +692,10 @@ def newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slot
             lu_meta[0] = 0.0
             info[0], info[1] = NOT_FINITE, it
             return
-        if it > 0:
-            ymax = 0.0
-            for i in range(nf):
-                ymax = max(ymax, abs(yd[newton_idx[i]]))
-            tolk = tol * (1.0 + beta * ymax)
-            if dx_prev <= tolk:
-                break
+        if converged:
+            break
         if it == max_iter:
-            lu_meta[0], lu_meta[1] = 0.0, dx_prev
+            lu_meta[0], lu_meta[1] = 0.0, nrm_prev
             info[0], info[1] = NOT_CONVERGED, it
             return
         if refresh:
@@ -617,14 +733,28 @@ def newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slot
             x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
             for i in range(3):
                 b[t3 + i] = P[i, 0] * x + P[i, 1] * y + P[i, 2] * z
-        err = 0.0
         for i in range(nf):
             yd[newton_idx[i]] -= b[i]
-            err = max(err, abs(b[i]))
-        err *= beta
-        if it > 0 and err > 0.25 * dx_prev and err > 10.0 * tolk:
-            lu_meta[0] = 0.0  # slow contraction (above round-off): refresh the iteration matrix
-        dx_prev = err
+        S[:] = 0.0  # the largest rate of each field, at the new iterate
+        for i in range(nf):
+            S[field_of[i]] = max(S[field_of[i]], abs(yd[newton_idx[i]]))
+        nrm = 0.0
+        for i in range(nf):
+            nrm = max(nrm, abs(b[i]) / (tol / beta + tol * S[field_of[i]]))
+        if it == 0:
+            converged = nrm <= 1.0
+        else:
+            rate = nrm / nrm_prev  # the contraction theta of integrator `_newton`
+            converged = nrm <= 0.1 or (rate < 1.0 and rate / (1.0 - rate) * nrm <= 1.0)
+            # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
+            if not converged and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0):
+                lu_meta[0] = 0.0
+        nrm_prev = nrm
+    for r in range(NR):  # integrator `_check_rotation_increments`
+        if theta[r, 0] ** 2 + theta[r, 1] ** 2 + theta[r, 2] ** 2 > np.pi**2:
+            lu_meta[0] = 0.0
+            info[0], info[1] = ROTATION_ALIAS, it
+            return
     info[0], info[1] = OK, it
 
 
@@ -650,9 +780,9 @@ def _lu_solve(luT, piv, b):
 
 
 @jit
-def step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-         lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask, motion_parts,
-         xN, RN, x0, R0, eta, v, yd, yd_prev, a, fN, tN, energy,
+def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+         field_of, theta_refresh, lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask,
+         motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
          xN_p, RN_p, zN_p, f_in, t_in, h, am, af, gamma, tol, max_iter,
          ydw, p, R, F, luT, piv, lu_meta, info):
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
@@ -669,7 +799,7 @@ def step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newt
         A0[i] = c1 * yd[i] + c2 * a[i]
         P0[i] = d1 * yd[i] + d2 * a[i]
         c[i] = beta * stage_mask[i]
-        ydw[i] = 2.0 * yd[i] - yd_prev[i]  # predictor: linear extrapolation of the rates
+        ydw[i] = (yd[i] - yd_prev[i]) * 3.0 + yd_prev2[i]  # predictor: quadratic extrapolation of the rates
     k = 0
     for arr in (xN.ravel(), x0.ravel(), eta.ravel(), v.ravel()):
         for i in range(arr.shape[0]):
@@ -686,8 +816,20 @@ def step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newt
     Rn = np.empty((N + E, 3, 3))
     Rn[:N] = RN_p
     Rn[N:] = R0
-    newton_step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
+    newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+                field_of, theta_refresh, c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F, luT, piv,
+                lu_meta, info)
+    if info[0] != OK and info[0] != ROTATION_ALIAS:
+        # one retry from the last step's rates with a fresh matrix (integrator `_step`)
+        for i in range(ny):
+            ydw[i] = yd[i]
+        for i in fixed_idx:
+            ydw[i] = zflat[i]
+        lu_meta[0] = 0.0
+        newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
+                    newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F,
+                    luT, piv, lu_meta, info)
+        info[1] += max_iter  # the failed attempt's solves count
     if info[0] != OK:
         return
     # commit (integrator `_commit`)
@@ -700,6 +842,7 @@ def step(gyro, K, M, G, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newt
     R0[:] = R[N:]
     af_am = af / am
     for i in range(ny):
+        yd_prev2[i] = yd_prev[i]
         yd_prev[i] = yd[i]
         yd[i] = ydw[i]
         a[i] = af_am * ydw[i] + A0[i]

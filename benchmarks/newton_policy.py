@@ -1,0 +1,86 @@
+"""Newton on B1 (Haug's rotating beam spin-up): iterations and factorizations per step against the
+step size and the Jacobian-reuse threshold (runtime/integrator.py THETA_REFRESH).
+
+    python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
+                                       [--duration 20]
+
+Each run is the whole scene on the numpy backend (the numba backend makes the same decisions):
+Newton iterations (solves) per step, factorizations of the iteration matrix per step, and the
+failure if Newton gave up. The threshold is the contraction theta of successive increments beyond
+which the stored factorization is dropped (modified Newton keeps it otherwise; theta = 0 would be
+full Newton). Iteration counts, not times: they do not depend on the machine.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from ffrf_fmu import simulate as sim  # noqa: E402
+from ffrf_fmu.model import load_model  # noqa: E402
+from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
+
+MODEL = HERE.parent / "models" / "haug_beam.toml"
+
+
+def run(h: float, n_se: int, modes: int, theta: float, duration: float):
+    model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
+    scene = model.scene("spinup")
+    body, _ = build_body(model.body)
+    system, inputs = sim.build_system(body, scene)
+    system.THETA_REFRESH = theta  # an instance attribute: this body only
+    factorizations = [0]
+    factor = system._factor
+
+    def counting(*args):
+        factorizations[0] += 1
+        return factor(*args)
+
+    system._factor = counting
+    iterations, failure = [], None
+    n = round(duration / h)
+    try:
+        for _ in range(n):
+            iterations.append(system.step(h, inputs))
+    except StepFailure as e:
+        failure = str(e)
+    k = max(len(iterations), 1)
+    return np.mean(iterations) if iterations else float("nan"), factorizations[0] / k, failure
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", default="0.002,0.02,0.05")
+    ap.add_argument("--configs", default="1x2,4x2", help="superelements x modes")
+    ap.add_argument("--thetas", default="0.1,0.25,0.5,0.9")
+    ap.add_argument("--duration", type=float, default=20.0)
+    args = ap.parse_args(argv)
+    print(f"B1 spin-up, {args.duration:g} s; Newton iterations / factorizations per step")
+    print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{'theta ' + t:>17}" for t in args.thetas.split(",")))
+    for h in (float(x) for x in args.steps.split(",")):
+        for cfg in args.configs.split(","):
+            n_se, modes = (int(v) for v in cfg.split("x"))
+            cells, notes = [], []
+            for theta in (float(t) for t in args.thetas.split(",")):
+                it, fac, failure = run(h, n_se, modes, theta, args.duration)
+                cells.append(f"{it:8.2f} / {fac:5.2f}{'*' if failure else ' '}")
+                if failure:
+                    notes.append(f"theta {theta:g}: {failure}")
+            print(f"{1e3 * h:7g} {cfg:>10} " + " ".join(cells))
+            for note in notes:
+                print(f"{'':19}* {note}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
