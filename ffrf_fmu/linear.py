@@ -108,3 +108,109 @@ def static_displacements(body: BodyData, loads: dict[int, np.ndarray], fixed: np
     u = np.zeros(K.shape[0])
     u[free] = x
     return u[node_dofs]
+
+
+# ---------------------------------------------------------------------------------------------
+# The runtime equations linearized about a steady spin (shared/spec/stiffening.md check)
+#
+# A body whose motion-driven ports spin at a constant world rate w (about an axis through the world
+# origin) has a relative equilibrium: in the spinning frame nothing moves. With the unknowns of
+# runtime/layout.py seen from that frame (world vectors x, v0 rotated back, body-axes rotation
+# increments dTheta: R <- R exp(dTheta)), the rates of a perturbed motion are
+#     d(xdot) = xi' + skew(w) xi        (node and CM positions, CM velocity v0: world vectors)
+#     d(W)    = dTheta' + skew(W) dTheta (W = R^T w the body-axes rate of the steady motion)
+#     the rest: xi'                      (eta, Omega0, r_bar are body quantities)
+# i.e. d(ydot) = xi' + P xi. The runtime's F_ydot, F_y then give the time-invariant system
+#     F_ydot xi' + (F_y + F_ydot P) xi = 0,
+# whose matrix J = F_y + F_ydot P is also the Newton matrix of the steady state (rates = P-rule).
+# Eigenvalues lambda of J xi = -lambda F_ydot xi: frequencies |Im lambda| / 2 pi in the spinning frame.
+# ---------------------------------------------------------------------------------------------
+
+
+def _spin_rates(system, w: np.ndarray) -> np.ndarray:
+    """Global ydot of the steady spin at the system's current configuration (layout.py order)."""
+    L = system.layout
+    yd = np.zeros(L.ny)
+    zN, zS, vd = system._split_cfg_rates(yd)
+    zN[:, 0:3] = np.cross(w, system.xN)
+    zN[:, 3:6] = w @ system.RN  # R^T w
+    zS[:, 0:3] = np.cross(w, system.x0)
+    zS[:, 3:6] = w @ system.R0
+    vd[:, 0:3] = np.cross(w, system.v[:, 0:3])
+    return yd
+
+
+def _spin_operator(system, w: np.ndarray) -> np.ndarray:
+    """P (ny, ny): d(ydot) = xi' + P xi about the steady spin (block comment above)."""
+    L = system.layout
+    P = np.zeros((L.ny, L.ny))
+    W = _skew(w)
+    for i in range(L.n_nodes):
+        P[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = W
+        P[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = _skew(system.RN[i].T @ w)
+    nN, nS = 6 * L.n_nodes, 6 + L.nm
+    for e in range(L.n_se):
+        c, v = nN + e * nS, nN + L.n_se * nS + e * L.nv
+        P[c : c + 3, c : c + 3] = W
+        P[c + 3 : c + 6, c + 3 : c + 6] = _skew(system.R0[e].T @ w)
+        P[v : v + 3, v : v + 3] = W
+    return P
+
+
+def _spin_system(system, w):
+    """(F, J, F_ydot) on the unknowns at the current configuration with the steady-spin rates."""
+    system.yd = _spin_rates(system, w)
+    fi = system._free_idx
+    F = system._local(system.xN, system.RN, system.x0, system.R0, system.eta, system.v, system.yd, False)[0][fi]
+    Fz, Fy = system.linearization()
+    P = _spin_operator(system, w)[np.ix_(fi, fi)]
+    return F, Fy + Fz @ P, Fz
+
+
+def steady_spin(system, omega: float, axis=(0.0, 0.0, 1.0), tol: float = 1e-10, max_iter: int = 30):
+    """Bring `system` (a runtime.body.BodySystem, no loads, no gravity; its motion-driven ports at
+    their reference frames, R = I) to its relative equilibrium at the constant spin omega about
+    `axis` through the world origin: Newton on F(y, ydot(y)) = 0 with the matrix J (block comment).
+    Returns the system (state set: configuration, velocities, rates)."""
+    from .runtime.rotation import expm
+
+    w = omega * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    L = system.layout
+    system._reset_reference()
+    system.v[:, 0:3] = np.cross(w, system.x0)
+    system.v[:, 3:6] = w @ system.R0
+    fi = system._free_idx
+    for _ in range(max_iter):
+        F, J, _ = _spin_system(system, w)
+        d = np.zeros(L.ny)
+        d[fi] = np.linalg.solve(J, -F)
+        dN, dS, dv = system._split_cfg_rates(d)
+        system.xN = system.xN + dN[:, 0:3]
+        system.RN = system.RN @ expm(dN[:, 3:6])
+        system.x0 = system.x0 + dS[:, 0:3]
+        system.R0 = system.R0 @ expm(dS[:, 3:6])
+        system.eta = system.eta + dS[:, 6:]
+        system.v = system.v + dv
+        if np.abs(d).max() < tol:
+            system.yd = _spin_rates(system, w)
+            return system
+    raise RuntimeError(f"steady spin at {omega} rad/s: Newton did not converge (last correction {np.abs(d).max():.3g})")
+
+
+def spin_modes(system, omega: float, axis=(0.0, 0.0, 1.0), f_max: float = 50.0):
+    """Small vibrations about the steady spin (the system is brought there first): frequencies [Hz]
+    in the spinning frame, ascending, up to f_max, and the eigenvectors on the unknowns (columns).
+    An eigenvalue with a positive real part (divergence) is returned as a NaN frequency."""
+    steady_spin(system, omega, axis)
+    w = omega * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    _, J, Fz = _spin_system(system, w)
+    lam, vec = sla.eig(-J, Fz)
+    ok = np.isfinite(lam)
+    lam, vec = lam[ok], vec[:, ok]
+    unstable = lam.real > 1e-6 * np.maximum(1.0, np.abs(lam))
+    f = np.abs(lam.imag) / (2.0 * np.pi)
+    keep = ((lam.imag > 1e-9) & (f < f_max)) | unstable & (np.abs(lam) / (2 * np.pi) < f_max) & (lam.imag >= 0)
+    f = np.where(unstable, np.nan, f)[keep]
+    vec = vec[:, keep]
+    order = np.argsort(np.nan_to_num(f, nan=-1.0))
+    return f[order], vec[:, order]
