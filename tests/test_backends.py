@@ -91,3 +91,29 @@ def test_uncovered_term_set_or_missing_numba_falls_back_with_a_note(monkeypatch,
         s = BodySystem(body, backend="numba")
     assert s.backend == "numpy" and "numba is not installed" in s.backend_note
     assert "running on numpy" in caplog.text
+
+
+def test_a_term_the_kernel_lacks_is_caught_at_the_first_step(caplog):
+    """A term in the numpy equations that the kernel does not have (here a constant elastic force
+    added through the fused hook, as a new term set would be) makes the first step disagree: the body
+    continues on numpy, from the numpy step, with a note."""
+    from ffrf_fmu.runtime.fused import FusedResidual
+
+    model = load_model("models/haug_beam.toml", ["superelements=1", "modes=2"])
+    sc = model.scene("spinup")
+    body, _ = build_body(model.body)
+    s, inputs = sim.build_system(body, sc, backend="numba")
+    ref, _ = sim.build_system(body, sc, backend="numpy")
+    for system in (s, ref):
+        const = np.full(system.layout.n, 10.0)
+
+        def extra(st, D, const=const):
+            g = np.broadcast_to(const, st["q"].shape).copy()
+            return (g, None, None) if D is None else (g, np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)),
+                                                        np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)))
+        system.fused = FusedResidual(system.layout, system.stack, system.gyro, g_terms=(extra,))
+    with caplog.at_level(logging.WARNING, logger="ffrf_fmu"):
+        s.step(sc.step, inputs)
+    assert s.backend == "numpy" and "disagrees" in s.backend_note and "disagrees" in caplog.text
+    ref.step(sc.step, inputs)
+    np.testing.assert_array_equal(s.get_state(), ref.get_state())  # the numpy step, exactly

@@ -131,6 +131,7 @@ class CompiledStep:
         self.R = np.zeros((L.n_nodes + L.n_se, 3, 3))
         self.fn = None  # the compiled entry point, once known (calling it skips numba's type dispatch)
         self.compile_seconds = None  # seconds of the first call in this process (compilation or cache load)
+        self.verified = False  # the first step is checked against the numpy path (`step`)
 
     def _adopt(self, system):
         """The body's state in the kernel's buffers (after set_state, initialize or a numpy step)."""
@@ -148,7 +149,40 @@ class CompiledStep:
             self.lu_meta[0], self.lu_meta[1], self.lu_meta[2:] = 1.0, lu[2], np.ravel(lu[3])
 
     def step(self, system, h, inputs, am, af, gamma) -> int:
-        """BodySystem.step on the compiled kernel; raises StepFailure with the numpy path's messages."""
+        """BodySystem.step on the compiled kernel; raises StepFailure with the numpy path's messages.
+
+        The first step that the numpy path completes is also taken by it, from the same state, and
+        the rates compared: a body whose equations hold a term the kernel lacks (added to the numpy
+        path without a refusal in BodySystem) then runs on numpy with a note instead of computing
+        something else. Both paths agree to ~1e-10 (tests/test_backends.py); the check allows 1e-6."""
+        if not self.verified:
+            return self._verified_step(system, h, inputs, am, af, gamma)
+        return self._kernel_step(system, h, inputs, am, af, gamma)
+
+    def _verified_step(self, system, h, inputs, am, af, gamma) -> int:
+        saved = system.get_state()
+        try:
+            system._step(h, inputs, am, af, gamma, commit_config=True)
+        except StepFailure:
+            system.set_state(saved)
+            return self._kernel_step(system, h, inputs, am, af, gamma)  # nothing to compare: next step
+        reference, yd_ref = system.get_state(), system.yd.copy()
+        system.set_state(saved)
+        it = self._kernel_step(system, h, inputs, am, af, gamma)
+        if system._compiled is None:  # the kernel did not compile: numpy already took over
+            return it
+        scale = float(np.max(np.abs(yd_ref))) or 1.0
+        if float(np.max(np.abs(system.yd - yd_ref))) > 1e-6 * scale:
+            system.set_state(reference)
+            system._compiled, system.backend = None, "numpy"
+            system.backend_note = ("the numba kernel disagrees with the numpy equations of this body at its first "
+                                   "step (a term the kernel does not cover): running on numpy")
+            logging.getLogger("ffrf_fmu").warning(system.backend_note)
+            return system.iterations
+        self.verified = True
+        return it
+
+    def _kernel_step(self, system, h, inputs, am, af, gamma) -> int:
         t1 = system.t + h
         if not (h > 0.0 and np.isfinite(h)):
             raise StepFailure(system.t, f"step size must be positive and finite, got {h}")
