@@ -78,6 +78,8 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default="spinup")
     ap.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (default 2)")
     ap.add_argument("--comm-step", type=float, default=None, help="communication step (default: internal step)")
+    ap.add_argument("--backend", choices=("numba", "numpy"), default="numba",
+                    help="the body's backend, the same for the standalone run and the FMU (default numba)")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each, interleaved; the best counts (default 3)")
     args = ap.parse_args(argv)
     overrides = [f"duration={args.duration}"]
@@ -92,10 +94,12 @@ def main(argv=None) -> int:
         best[key] = [min(best[key][0], wall), min(best[key][1], cpu)]
 
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = build_from_model(args.model, Path(tmp) / "body.fmu", scene=scene.name, overrides=overrides)
+        fmu = build_from_model(args.model, Path(tmp) / "body.fmu", scene=scene.name, overrides=overrides,
+                               backend=args.backend)
         zipfile.ZipFile(fmu).extractall(Path(tmp) / "x")
         for _ in range(max(1, args.repeat)):
-            ref, wall, cpu = timed(lambda: run(body, scene, origin=model.body.origin, progress=False))
+            ref, wall, cpu = timed(lambda: run(body, scene, origin=model.body.origin, progress=False,
+                                                backend=args.backend))
             keep("standalone", wall, cpu)
             wall, cpu, n, it_core = run_core(Path(tmp) / "x" / "resources", scene, inputs, H)
             keep("core", wall, cpu)
@@ -107,7 +111,7 @@ def main(argv=None) -> int:
     steps = int(round(scene.duration / scene.step))
     print(f"B1 {model.body.name}/{scene.name}: {len(body.superelements)} SE, {args.duration:g} s, "
           f"internal step {scene.step:g} s ({steps} steps), communication step {H:g} s ({n} doStep); "
-          f"best of {args.repeat}, load average {os.getloadavg()[0]:.2f}")
+          f"backend {args.backend} (standalone ran {ref.summary['backend']}), best of {args.repeat}, load average {os.getloadavg()[0]:.2f}")
     print(f"  {'':12s} {'wall [s]':>9s} {'CPU [s]':>8s} {'CPU/step':>10s}")
     for key, label in (("standalone", "standalone"), ("core", "core"), ("fmu", "fmu (fmpy)")):
         w, c = best[key]
