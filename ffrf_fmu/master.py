@@ -29,6 +29,16 @@ node this solves the same discrete equations as the one-body run (the node equil
 t_c + H), which explicit coupling cannot: its one-step lag of the interface force makes the
 split beam unstable (added-mass effect) whatever the step.
 
+`interface_jacobian=True` is linearly implicit coupling (Kuebler and Schiehlen 2000; Sadjina et
+al. 2017): no iteration to convergence but one Newton step on the same interface equations. At
+t_c the FMU states are saved; the sweep from them is a map x -> G(x) of the iterated held inputs
+(the implicit scheme's unknowns); its coupling Jacobian J = dG/dx over the step (outputs at
+t_c + H w.r.t. inputs held over [t_c, t_c + H], chained through the receivers in the sweep) is
+taken by forward finite differences, one sweep per input from the restored states; one linear
+solve (I - J) dx = G(x_0) - x_0 gives the interface inputs and the real step is the sweep at
+x_0 + dx: n + 2 sweeps for n iterated inputs. For linear subsystems this is the converged
+implicit step; the FMUs' nonlinearity over one step leaves a residual that is not iterated away.
+
 `body_port_links` wires two body ports (ports.md): the motion-driven side receives the frame of
 the force-driven side; the force-driven side receives minus the reaction of the motion-driven
 side (the force on one body is the opposite of the force on the other).
@@ -295,11 +305,18 @@ class CoSimulation:
 
     def __init__(self, fmus: dict, *, step: float, scheme: str = "gauss-seidel", extrapolation: bool = False,
                  order: Iterable[str] | None = None, start_values: dict | None = None, iterations: int = 1,
-                 tolerance: float = 1e-6, abs_tolerance: float = 1e-8, reuse: int = 8):
+                 tolerance: float = 1e-6, abs_tolerance: float = 1e-8, reuse: int = 8,
+                 interface_jacobian: bool = False, fd_step: float = 1e-6):
         """iterations: sweeps per step; 1 = explicit coupling, > 1 = implicit coupling (FMU state
         rollback until the iterated inputs converge, IQN-ILS). Converged when the largest change
         of an iterated input is <= tolerance * (largest |input| so far in the run) + abs_tolerance;
-        keep it above the noise of the FMUs' own Newton tolerance."""
+        keep it above the noise of the FMUs' own Newton tolerance.
+        interface_jacobian: linearly implicit coupling (module docstring), exclusive with
+        iterations > 1; fd_step: its finite-difference step, relative to the largest iterated
+        input so far (absolute floor abs_tolerance * 100)."""
+        if interface_jacobian and int(iterations) > 1:
+            raise CoSimulationError("interface_jacobian is one linearly implicit step: use iterations=1 with it")
+        self.interface_jacobian, self.fd_step = bool(interface_jacobian), float(fd_step)
         self.iterations, self.max_iterations = int(iterations), int(iterations)
         self.tolerance, self.abs_tolerance, self.reuse = float(tolerance), float(abs_tolerance), int(reuse)
         if scheme not in self.SCHEMES:
@@ -500,7 +517,7 @@ class CoSimulation:
             inst, var = _split(full)
             rec_by[inst].append(var)
         need = self._sources_of()
-        iterated = self._iterated_links() if self.iterations > 1 else []
+        iterated = self._iterated_links() if (self.iterations > 1 or self.interface_jacobian) else []
 
         # initialization: start values, then a few passes of output -> input propagation
         for inst in self.instances.values():
@@ -534,6 +551,8 @@ class CoSimulation:
                 if not iterated:
                     self._sweep(t, h, ext, prev, cur, {}, need)
                     iters.append(1)
+                elif self.interface_jacobian:
+                    iters.append(self._linearly_implicit_step(t, h, ext, prev, cur, need, iterated))
                 else:
                     iters.append(self._implicit_step(t, h, ext, prev, cur, need, iterated, accel))
             except CoSimulationError as e:
@@ -574,6 +593,51 @@ class CoSimulation:
                 f"(largest change of an iterated input {np.max(np.abs(r)):.3g} > {limit:.3g} = "
                 f"tolerance {self.tolerance:g} x {self._scale:.3g} + abs_tolerance {self.abs_tolerance:g})"
             )
+        finally:
+            for name, inst in self.instances.items():
+                inst.fmu.freeFMUstate(states[name])
+
+    def _coupling_jacobian(self, t, h, ext, prev, cur, need, iterated, x0, g0, restore) -> np.ndarray:
+        """J = dG/dx of the sweep map at x0 (G(x0) = g0 given), by forward differences, one sweep
+        from the saved states per iterated input. The place where FMU directional derivatives
+        (fmi2GetDirectionalDerivative of each FMU's outputs at t_c + H w.r.t. its held inputs,
+        chained through the sweep) would replace the differences."""
+        keys = [l.dst for l in iterated]
+        J = np.empty((len(x0), len(x0)))
+        for j in range(len(x0)):
+            d = self.fd_step * max(self._scale, float(np.max(np.abs(x0)))) + 100.0 * self.abs_tolerance
+            x = x0.copy()
+            x[j] += d
+            restore()
+            fresh = self._sweep(t, h, ext, prev, cur, dict(zip(keys, x)), need)
+            J[:, j] = (np.array([l.gain * fresh[l.src] for l in iterated]) - g0) / d
+        return J
+
+    def _linearly_implicit_step(self, t, h, ext, prev, cur, need, iterated) -> int:
+        """One linearly implicit step (module docstring): predictor x0 = the stale inputs, G(x0)
+        and J = dG/dx from the saved states, x = x0 + (I - J)^-1 (G(x0) - x0), the real sweep at
+        x. Returns the sweeps done (n + 2)."""
+        keys = [l.dst for l in iterated]
+        x0 = np.array([self._stale(l, h, prev, cur)[l.dst] for l in iterated])
+        states = {k: inst.fmu.getFMUstate() for k, inst in self.instances.items()}
+
+        def restore():
+            for name, inst in self.instances.items():
+                inst.fmu.setFMUstate(states[name])
+
+        try:
+            fresh = self._sweep(t, h, ext, prev, cur, dict(zip(keys, x0)), need)
+            g0 = np.array([l.gain * fresh[l.src] for l in iterated])
+            self._scale = max(self._scale, float(np.max(np.abs(g0))))
+            J = self._coupling_jacobian(t, h, ext, prev, cur, need, iterated, x0, g0, restore)
+            A = np.eye(len(x0)) - J
+            try:
+                x = x0 + np.linalg.solve(A, g0 - x0)
+            except np.linalg.LinAlgError:
+                raise CoSimulationError(f"interface Jacobian at t = {t:.6g} s: I - dG/dx is singular") from None
+            restore()
+            self._sweep(t, h, ext, prev, cur, dict(zip(keys, x)), need)
+            return len(x0) + 2
         finally:
             for name, inst in self.instances.items():
                 inst.fmu.freeFMUstate(states[name])
