@@ -510,6 +510,8 @@ terms = "{model.scene("spinup").terms}"
 IMPLICIT = ("gauss-seidel implicit", "gauss-seidel", False, "fwd")
 #: motor case with the shaft in the beam's compliant hub (ffrf_fmu/compliant_b5.py, docs/cosim.md)
 COMPLIANT = ("compliant jacobi", "jacobi", False, "fwd")
+#: linearly implicit coupling (master.CoSimulation(interface_jacobian=True), docs/cosim.md)
+INTERFACE_JACOBIAN = ("interface-jacobian", "gauss-seidel", False, "fwd")
 
 
 def _compare(run: CosimRun, ref: CosimRun, length: float, ref_torque_peak: float) -> dict:
@@ -587,7 +589,7 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
             refs[H] = load(key)
             return refs[H]
 
-        schemes = list(settings.schemes) + [IMPLICIT] + ([COMPLIANT] if kind == "motor" else [])
+        schemes = list(settings.schemes) + [IMPLICIT, INTERFACE_JACOBIAN] + ([COMPLIANT] if kind == "motor" else [])
         compliant_fmus = None
         for H in (settings.steps if kind == "motor" else settings.split_steps):
             ref = reference(H)
@@ -604,7 +606,8 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
                     compliant_fmus = compliant_fmus or compliant_b5.build(model_path, out_dir / "fmus", settings)
                     run = compliant_b5.run_master(compliant_fmus, settings, H, case.duration)
                 else:
-                    run = case.run(H, scheme, extrap, order, iterations=settings.implicit_iterations if implicit else 1)
+                    run = case.run(H, scheme, extrap, order, iterations=settings.implicit_iterations if implicit else 1,
+                                   interface_jacobian=label == INTERFACE_JACOBIAN[0])
                 row = {"case": kind, "scheme": label, "H": float(H), **_compare(run, ref, case.length, peak)}
                 save(row, run, f"{kind}_{label}_H{H:g}")
                 log(f"{kind} H = {H:g} s {label}: error {row['rel_error']:.3g}"
@@ -807,7 +810,7 @@ def plot_cosim(rows: list[dict], path) -> None:
               "split": "B1 beam split in two body FMUs at its middle node: error of the tip deflection"}
     for ax, case in zip(axes[:, 0], cases):
         rs = [r for r in rows if r["case"] == case and r["scheme"] != "monolithic reference"]
-        schemes = [s[0] for s in COSIM_SCHEMES + (IMPLICIT, COMPLIANT) if any(r["scheme"] == s[0] for r in rs)]
+        schemes = [s[0] for s in COSIM_SCHEMES + (IMPLICIT, INTERFACE_JACOBIAN, COMPLIANT) if any(r["scheme"] == s[0] for r in rs)]
         steps = sorted({r["H"] for r in rs})
         grid = np.full((len(schemes), len(steps)), np.nan)
         label = {}
