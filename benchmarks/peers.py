@@ -45,7 +45,7 @@ from pathlib import Path  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from ffrf_fmu import chart as ch  # noqa: E402
+from ffrf_fmu.studies import chart as ch  # noqa: E402
 from ffrf_fmu.peers import available  # noqa: E402
 
 STEPS = ["0.002", "0.005", "0.01", "0.02", "0.04"]

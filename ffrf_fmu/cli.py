@@ -228,7 +228,7 @@ def stability(args) -> int:
     """Map where models, integrator or coupling become inaccurate or unstable (docs/stability.md)."""
     from pathlib import Path
 
-    from . import stability as st
+    from .studies import stability as st
 
     out = Path(args.output)
     values = tuple(float(x) for x in args.values.split(",")) if args.values else None
@@ -292,7 +292,7 @@ def chart(args) -> int:
     """Accuracy against cost: error of each configuration against the full-order reference over its wall time."""
     from pathlib import Path
 
-    from . import chart as ch
+    from .studies import chart as ch
     from .studies.store import StoreVersionError
     from .studies.sweep import SweepError
 
@@ -336,7 +336,7 @@ def chart(args) -> int:
 )
 def study(args) -> int:
     """Parameter study: the scene's metrics against each varied key of the body and scene (plot and table)."""
-    from .chart import ChartError, parse_sweep
+    from .studies.chart import ChartError, parse_sweep
     from .studies.store import StoreVersionError
     from .studies.study import StudyError, read_table
     from .studies.study import study as run_study
@@ -394,7 +394,7 @@ def _fraction(text: str) -> float:
 )
 def advise(args) -> int:
     """Pick superelements, modes, term set and step for a scene and a tolerance, with the reasons."""
-    from . import advise as ad
+    from .studies import advise as ad
 
     model, scene = _load(args)
     if not 0.0 < args.tolerance < 1.0:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .stability import CosimRun, CosimSettings, _ssd, _tip_deflection, _vec
+from .studies.stability import CosimRun, CosimSettings, _ssd, _tip_deflection, _vec
 
 SHAFT_K = 300.0
 

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ffrf_fmu import advise as ad
-from ffrf_fmu import chart as ch
+from ffrf_fmu.studies import advise as ad
+from ffrf_fmu.studies import chart as ch
 from ffrf_fmu.model import load_model
 
 ROOT = Path(__file__).resolve().parent.parent

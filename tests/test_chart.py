@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ffrf_fmu import chart as ch
+from ffrf_fmu.studies import chart as ch
 
 ROOT = Path(__file__).resolve().parent.parent
 B1 = str(ROOT / "models" / "haug_beam.toml")

@@ -99,7 +99,7 @@ B5_H, B5_SPAN = 0.01, 0.3  # a fraction of the scene: the claim is equality of t
 @pytest.fixture(scope="module")
 def b5(tmp_path_factory):
     from ffrf_fmu import compliant_b5
-    from ffrf_fmu.stability import CosimSettings
+    from ffrf_fmu.studies.stability import CosimSettings
 
     settings = CosimSettings()
     fmus = compliant_b5.build(MODELS / "haug_beam.toml", tmp_path_factory.mktemp("b5c"), settings)
@@ -143,7 +143,7 @@ def test_nan_input_in_libcosim_is_a_failed_step_and_the_host_lives(b5, tmp_path)
     from libcosimpy.CosimManipulator import CosimManipulator
 
     from ffrf_fmu import compliant_b5
-    from ffrf_fmu.stability import _ssd
+    from ffrf_fmu.studies.stability import _ssd
 
     fmus, settings, _ = b5
     comps = {}

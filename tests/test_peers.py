@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from ffrf_fmu import simulate as sim
-from ffrf_fmu.chart import _body_data, front_cost_at
+from ffrf_fmu.studies.chart import _body_data, front_cost_at
 from ffrf_fmu.model import effective_ports, load_model
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import pythonfmu  # noqa: F401
 
-from ffrf_fmu import stability as st
+from ffrf_fmu.studies import stability as st
 from ffrf_fmu.model import load_model
 
 ROOT = Path(__file__).resolve().parent.parent

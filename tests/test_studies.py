@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from ffrf_fmu import chart as ch
+from ffrf_fmu.studies import chart as ch
 from ffrf_fmu.studies import store as st
 from ffrf_fmu.studies import sweep as sw
 from ffrf_fmu.studies.study import read_table

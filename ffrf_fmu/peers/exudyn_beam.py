@@ -277,7 +277,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
     import traceback
 
     from .. import simulate as sim
-    from ..chart import _body_data, _trajectory
+    from ..studies.chart import _body_data, _trajectory
     from ..model import effective_ports, load_model
 
     out = {"values": dict(values), "runner": "exudyn", "completed": False, "failure": None}

@@ -103,11 +103,11 @@ def execute(task: Task) -> dict:
 def _run(task: Task, model_path: str) -> dict:
     opts = dict(task.options)
     if task.runner in ("standalone", "fmu"):
-        from ..chart import run_configuration
+        from .chart import run_configuration
 
         return run_configuration(model_path, task.scene, list(task.overrides), {}, task.runner, task.backend)
     if task.runner == "reference":
-        from ..chart import run_reference
+        from .chart import run_reference
 
         ref = run_reference(model_path, task.scene, list(task.overrides), opts.get("elements"), opts.get("step"),
                             opts.get("cache_dir"))

@@ -47,11 +47,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .model import Model, effective_ports, load_model
-from .studies.progress import Bar
-from .studies.sweep import Scheduler, connect, parse_scheduler, run_sweep
-from .studies.store import ResultStore
-from .studies.task import code_version, make_task
+from ..model import Model, effective_ports, load_model
+from .progress import Bar
+from .sweep import Scheduler, connect, parse_scheduler, run_sweep
+from .store import ResultStore
+from .task import code_version, make_task
 
 # scene.metrics -> the metric whose relative error the chart reports
 PRIMARY_METRIC = {"haug": "tip_deflection_max_m", "spherical": "omega_y_mean_after_load"}
@@ -120,13 +120,13 @@ def label(values: dict[str, Any], extra: dict[str, Any] | None = None) -> str:
 
 # ------------------------------------------------------------------------------ runs
 def _body_data(model: Model, scene):
-    from .reduction import build_body, reduction_options
+    from ..reduction import build_body, reduction_options
 
     return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))[0]
 
 
 def _trajectory(result) -> np.ndarray:
-    from .simulate import elastic_tip, end_ports
+    from ..simulate import elastic_tip, end_ports
 
     hub, tip = end_ports(result.body)
     return elastic_tip(result, hub, tip)
@@ -136,7 +136,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
                       values: dict[str, str], runner: str = "standalone", backend: str = "numpy") -> dict:
     """Run one configuration (in a worker process). Returns a picklable dict: shown values,
     times and the elastic tip trajectory, metrics, wall and CPU time, completion."""
-    from . import simulate as sim
+    from .. import simulate as sim
 
     out: dict[str, Any] = {"values": dict(values), "runner": runner, "completed": False, "failure": None}
     try:
@@ -177,9 +177,9 @@ def _run_fmu(model_path, model, sc, overrides, body, backend="numpy"):
 
     from fmpy import read_model_description
 
-    from .fmu.builder import build_from_model
-    from .simulate import SimulationResult, scene_inputs
-    from .validate import fmu_input_table, run_fmu
+    from ..fmu.builder import build_from_model
+    from ..simulate import SimulationResult, scene_inputs
+    from ..validate import fmu_input_table, run_fmu
 
     with tempfile.TemporaryDirectory(prefix="ffrf_chart_fmu_") as tmp:
         fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
@@ -206,7 +206,7 @@ def reference_key(model_path, scene_name: str, base_overrides: Sequence[str], n_
     the reference's own source files (a change of the reference code invalidates the cache)."""
     h = hashlib.sha256(Path(model_path).read_bytes())
     h.update(json.dumps([scene_name, list(base_overrides), int(n_elements), float(step)]).encode())
-    for f in sorted((Path(__file__).resolve().parent / "reference").glob("*.py")):
+    for f in sorted((Path(__file__).resolve().parents[1] / "reference").glob("*.py")):
         h.update(f.read_bytes())
     return h.hexdigest()[:12]
 
@@ -223,8 +223,8 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
     "cached", "path"}. The mesh must place the body's ports on nodes: n_elements a multiple of
     the model's superelements (default: max(16, 4 * superelements), the reference's own default).
     """
-    from .reference import simulate_reference
-    from .simulate import SimulationResult, metrics, variable_names
+    from ..reference import simulate_reference
+    from ..simulate import SimulationResult, metrics, variable_names
 
     model = load_model(model_path, base_overrides)
     sc = model.scene(scene_name)
@@ -270,7 +270,7 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
 
 def reference_warning(energy_error: float | None, step: float) -> str:
     """The reference solver's energy warning (reference/solver.py), or "" when the run is trusted."""
-    from .reference.solver import ENERGY_ERROR_SUSPECT
+    from ..reference.solver import ENERGY_ERROR_SUSPECT
 
     if energy_error is None or energy_error <= ENERGY_ERROR_SUSPECT:
         return ""
@@ -347,7 +347,7 @@ PEER_NAMES = {"exudyn": "Exudyn"}
 def _peer_configurations(peer: str | None, sweep) -> list[dict[str, str]]:
     if not peer:
         return []
-    from .peers import available
+    from ..peers import available
 
     ok, why = available(peer)
     if not ok:

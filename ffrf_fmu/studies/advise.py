@@ -41,7 +41,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .model import Body, Model, Port, effective_ports, load_model
+from ..model import Body, Model, Port, effective_ports, load_model
 
 # Error budget: the chain (geometric stiffening) may take CHAIN_SHARE of the tolerance; the step
 # gets what the chain leaves up to RESERVE x tolerance (the rest is kept for the modal truncation
@@ -151,7 +151,7 @@ def _band(signal: np.ndarray, dt: float, energy_fraction: float) -> float:
 
 def excitation(scene, tolerance: float) -> tuple[float, list[str]]:
     """(highest excitation frequency [Hz], the contributions as text)."""
-    from .runtime.drives import evaluate
+    from ..runtime.drives import evaluate
 
     n = min(200_001, int(round(scene.duration / scene.step)) + 1)
     t = np.linspace(0.0, scene.duration, n)
@@ -205,7 +205,7 @@ def drive_time_scale(scene) -> float | None:
 
 
 def _body_data(body: Body):
-    from .reduction import build_body
+    from ..reduction import build_body
 
     return build_body(body)
 
@@ -234,7 +234,7 @@ def valid_count(body: Body, n_min: int) -> int:
 
 def first_frequency(body: Body) -> float:
     """First natural frequency [Hz] of the chain with the motion-driven port parts held."""
-    from .linear import natural_frequencies
+    from ..linear import natural_frequencies
 
     f = natural_frequencies(_body_data(body)[0])
     return float(f[0]) if len(f) else math.nan
@@ -295,7 +295,7 @@ class Advice:
 def spin_history(scene, n_max: int = 200_001):
     """(t, rate, acc, axis, source) of the scene's fastest rotation drive, or of its initial spin
     (constant rate, no acceleration); None when nothing spins."""
-    from .runtime.drives import evaluate
+    from ..runtime.drives import evaluate
 
     t = np.linspace(0.0, scene.duration, min(n_max, int(round(scene.duration / scene.step)) + 1))
     best = None
@@ -320,7 +320,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     """The configuration for `scene_name` at `tolerance` (relative error of the scene's primary
     metric); module doc for the rules. fmu: the body will run as an FMU with communication step =
     internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR)."""
-    from .invariants import body_inertia_report
+    from ..invariants import body_inertia_report
 
     if not 0.0 < tolerance < 1.0:
         raise ValueError(f"tolerance must be in (0, 1), got {tolerance}")
