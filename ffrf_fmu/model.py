@@ -24,7 +24,7 @@ from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 
 PART_CAUSALITIES = ("motion", "force", "compliant")
 TERM_SETS = ("linear", "gyroscopic", "full")
-FULL_TERMS = ("inertia_W1", "inertia_W2", "coupling_coriolis")  # runtime.body.FULL_TERMS
+FULL_TERMS = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")  # runtime.body.FULL_TERMS
 METRICS = ("haug", "spherical", "free", "")
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
 

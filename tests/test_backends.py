@@ -111,7 +111,7 @@ def test_a_term_the_kernel_lacks_is_caught_at_the_first_step(caplog):
             g = np.broadcast_to(const, st["q"].shape).copy()
             return (g, None, None) if D is None else (g, np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)),
                                                         np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)))
-        system.fused = FusedResidual(system.layout, system.stack, system.gyro, g_terms=(extra,))
+        system.fused = FusedResidual(system.layout, system.stack, system.coupling, system.coriolis, g_terms=(extra,))
     with caplog.at_level(logging.WARNING, logger="ffrf_fmu"):
         s.step(sc.step, inputs)
     assert s.backend == "numpy" and "disagrees" in s.backend_note and "disagrees" in caplog.text

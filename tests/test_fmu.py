@@ -177,6 +177,29 @@ def test_variables_follow_ports_md(small_fmu):
     assert all(u.dependencies == [] for u in md.outputs)
 
 
+def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
+    """The term switches and the stiffening flag are in the modelDescription text (one source:
+    variables.equations_text) and in the body the FMU runs."""
+    from ffrf_fmu.fmu.variables import FULL_TERM_TEXT, equations_text
+    from ffrf_fmu.runtime.body import FULL_TERMS
+
+    fmu = build_from_model(small, tmp_path / "full.fmu", scene="spin",
+                           overrides=["terms=full", 'full_terms=["inertia_W2", "coriolis"]', "stiffening=true"], backend="numpy")
+    md = read_model_description(str(fmu))
+    text = equations_text("full", ("inertia_W2", "coriolis"), True)
+    assert text in md.description
+    assert "off: inertia_W1, inertia_coupling" in text and "stiffening inside each superelement: on" in text
+    assert tuple(FULL_TERM_TEXT) == FULL_TERMS
+    cfg = read_fmu_config(fmu)
+    assert cfg["parameters"]["full_terms"] == ["inertia_W2", "coriolis"] and cfg["stiffening"] is True
+    inst, inputs, _ = _started(fmu, "spin", small)
+    _inputs_at(inst, inputs(0.01))
+    inst.fmu.doStep(0.0, 0.01, True)  # fmpy raises unless fmi2OK: the body runs `full` with these switches
+    assert np.isfinite(inst.get(["tip.r[1]"])).all()
+    plain = build_from_model(small, tmp_path / "plain.fmu", scene="spin", backend="numpy")
+    assert equations_text("linear", FULL_TERMS, False) in read_model_description(str(plain)).description
+
+
 def test_free_scene_changes_causality(small, tmp_path):
     fmu = build_from_model(small, tmp_path / "free.fmu", scene="free")
     v = {x.name: x for x in read_model_description(str(fmu)).modelVariables}

@@ -103,7 +103,7 @@ class Slave:
 @pytest.mark.parametrize("values, stop, cause", [
     ({"solver.rho_inf": 2.0}, None, "solver.rho_inf must be in [0, 1], got 2.0"),
     ({"solver.step": 0.0}, None, "solver.step must be positive and finite, got 0.0"),
-    ({"solver.terms": 7}, None, "solver.terms must be 0 (linear) or 1 (gyroscopic), got 7"),
+    ({"solver.terms": 7}, None, "solver.terms must be 0 (linear), 1 (gyroscopic) or 2 (full), got 7"),
     ({"solver.step": 1e9}, 0.2, "solver.step = 1e+09 s is longer than the experiment"),
     ({"initial.v[1]": 0.5}, None, "initial.v = [0.5, 0.0, 0.0] is set, but the translation of port hub is motion-driven"),
     ({"initial.w[3]": 1.0}, None, "initial.w = [0.0, 0.0, 1.0] is set, but the rotation of port hub is motion-driven"),

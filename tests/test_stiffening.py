@@ -246,7 +246,7 @@ def test_b3_one_stiffened_superelement_follows_the_beam_past_the_first_frequency
 
 
 # ----------------------------------------------------------------------------- term set `full`
-FULL = ("inertia_W1", "inertia_W2", "coupling_coriolis")
+FULL = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
 
 
 def _full_state(full_terms, stiff: bool):
@@ -260,7 +260,9 @@ def _full_state(full_terms, stiff: bool):
     return s, values
 
 
-@pytest.mark.parametrize("full_terms, stiff", [(FULL, False), (FULL, True), (("inertia_W2",), False), (("inertia_W1",), True)])
+@pytest.mark.parametrize("full_terms, stiff", [(FULL, False), (FULL, True), (("inertia_W2",), False), (("inertia_W1",), True),
+                                               (("inertia_coupling",), False), (("coriolis", "inertia_W2"), False),
+                                               (("inertia_W1", "inertia_W2", "inertia_coupling"), True)])
 def test_full_term_set_jacobian_and_oracle(full_terms, stiff):
     """`full` and its switches: the iteration matrix against central differences (1e-6 of its largest
     entry, W1 and W2 scaled by 1e4 so their blocks are visible) and the fused residual against the
@@ -279,7 +281,7 @@ def test_full_term_set_jacobian_and_oracle(full_terms, stiff):
         J_fd[:, j] = (s.newton_system(yp, h, values, jacobian=False) - s.newton_system(ym, h, values, jacobian=False)) / (2 * eps)
     assert np.max(np.abs(J - J_fd)) <= 1e-6 * np.max(np.abs(J))
     F1, Fz, Fy = s._local(s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd, True)
-    # the oracle sees the body's W2 as given, the fused path subtracts G^T M^-1 G when coupling_coriolis
+    # the oracle sees the body's W2 as given, the fused path subtracts G^T M^-1 G when coriolis
     # is on: hand the oracle the same effective W2
     ses = tuple(dataclasses.replace(se, W2=s.W2[e]) if s.W2 is not None else se for e, se in enumerate(s.data.superelements))
     data = dataclasses.replace(s.data, superelements=ses)

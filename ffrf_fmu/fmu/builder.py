@@ -43,7 +43,7 @@ from .. import __version__
 from ..runtime.data import BodyData
 from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
-from .variables import INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, TERM_SETS
+from .variables import FULL_TERM_TEXT, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, TERM_SETS, equations_text
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
@@ -145,6 +145,7 @@ class SceneParameters:
     port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     duration: float | None = None  # DefaultExperiment stopTime when given
     probes: tuple[str, ...] = ()  # "<port>_from_<port>" outputs (eq. 92)
+    full_terms: tuple[str, ...] = tuple(FULL_TERM_TEXT)  # Witteveen's terms on in `full` (fixed at build)
 
     @classmethod
     def of_scene(cls, scene) -> "SceneParameters":
@@ -158,11 +159,14 @@ class SceneParameters:
             port_displacements=tuple(scene.initial.port_displacements),
             duration=scene.duration,
             probes=tuple(scene.outputs),
+            full_terms=tuple(scene.full_terms),
         )
 
     def as_config(self) -> dict:
         if self.terms not in TERM_SETS:
             raise BuildError(f"terms must be one of {TERM_SETS}, got {self.terms!r}")
+        if not set(self.full_terms) <= set(FULL_TERM_TEXT):
+            raise BuildError(f"full_terms must be among {tuple(FULL_TERM_TEXT)}, got {self.full_terms!r}")
         return {
             "step": float(self.step),
             "rho_inf": float(self.rho_inf),
@@ -172,6 +176,7 @@ class SceneParameters:
             "initial_angular_velocity": [float(x) for x in self.initial_angular_velocity],
             "port_displacements": {k: [float(x) for x in v] for k, v in self.port_displacements},
             "probes": list(self.probes),
+            "full_terms": list(self.full_terms),
         }
 
 
@@ -273,10 +278,8 @@ def build_fmu(
     }
     ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
     stiff = all(se.stiffening for se in data.superelements)
-    config["description"] = DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text) + (
-        " Geometric stiffening inside each superelement: " + ("on (centrifugal correction modes, W1 inertia, "
-        "second-order membrane strain; built into the reduced data)." if stiff else "off.")
-    )
+    config["description"] = (DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text) + " "
+                             + equations_text(params.terms, params.full_terms, stiff))
     config["stiffening"] = stiff
     if params.duration is not None:
         config["experiment"] = {"stop_time": float(params.duration), "step_size": float(params.step)}

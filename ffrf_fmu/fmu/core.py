@@ -191,7 +191,10 @@ class BodyCoSim:
             return f"parameter solver.rho_inf must be in [0, 1], got {p['rho_inf']!r}"
         terms = float(self.values[self.index[("parameter", "terms")][0]])
         if terms not in range(len(TERM_SETS)):
-            return f"parameter solver.terms must be 0 (linear) or 1 (gyroscopic), got {terms!r}"
+            return f"parameter solver.terms must be 0 (linear), 1 (gyroscopic) or 2 (full), got {terms!r}"
+        if TERM_SETS[int(terms)] == "full" and any(se.W2 is None for se in self.data.superelements):
+            return ("parameter solver.terms = 2 (full) needs the inertia data W1, W2, which this FMU was built "
+                    "without: build it from a scene with terms = \"full\"")
         named = {"gravity": "gravity", "initial_velocity": "initial.v", "initial_angular_velocity": "initial.w"}
         for key, name in named.items():
             if not np.all(np.isfinite(p[key])):
@@ -215,6 +218,7 @@ class BodyCoSim:
         key = (p["rho_inf"], p["terms"], tuple(p["gravity"]))
         if self.system is None or self._system_params != key:
             self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"],
+                                     full_terms=tuple(self.config["parameters"]["full_terms"]),
                                      backend=self.config.get("backend", "numpy"))
             self.backend_note = self.system.backend_note  # numba wanted but not usable: the slave logs it
             self._system_params = key

@@ -30,6 +30,26 @@ UNITS: dict[str, dict[str, int]] = {
 }
 
 TERM_SETS = ("linear", "gyroscopic", "full")  # solver.terms: Integer enumeration, index into this tuple
+# Witteveen's terms of the set `full` (runtime.body.FULL_TERMS, docs/inertia-terms.md), what each adds
+FULL_TERM_TEXT = {
+    "inertia_W1": "inertia_W1 (inertia tensor change W1 q, with the constant centrifugal load on the modes)",
+    "inertia_W2": "inertia_W2 (inertia tensor change q W2 q, with the elastic centrifugal force)",
+    "inertia_coupling": "inertia_coupling (rotation-elastic coupling S(q) in the angular momentum)",
+    "coriolis": "coriolis (elastic Coriolis force G(W0) on the elastic coordinates)",
+}
+
+
+def equations_text(terms: str, full_terms, stiffening: bool) -> str:
+    """The sentence of the modelDescription that says which terms the body equations hold (the one
+    source of that text: builder.py's description, docs/fmu.md)."""
+    on = [FULL_TERM_TEXT[k] for k in FULL_TERM_TEXT if k in full_terms]
+    full = f"Witteveen's terms on in `full`: {', '.join(on) if on else 'none'}"
+    off = [k for k in FULL_TERM_TEXT if k not in full_terms]
+    return (f"Term set (parameter solver.terms): {terms} by default. {full}"
+            + (f"; off: {', '.join(off)}" if off else "") + " (fixed at build). "
+            + "Geometric stiffening inside each superelement: "
+            + ("on (centrifugal correction modes, W1 inertia, second-order membrane strain; built into the reduced data)."
+               if stiffening else "off."))
 
 # (shape, unit, meaning) of the six fields of a port
 FIELDS = {

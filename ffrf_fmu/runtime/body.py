@@ -22,9 +22,10 @@ from .ports import PortValues, StepFailure
 from .rotation import cross, is_rotation, vect
 
 TERM_SETS = ("linear", "gyroscopic", "full")
-# Witteveen's terms, switchable within `full`: the inertia tensor's change W1 q and q W2 q (the latter with
-# the elastic centrifugal force), and the inertia coupling S(q) with the elastic Coriolis force G(W0)
-FULL_TERMS = ("inertia_W1", "inertia_W2", "coupling_coriolis")
+# Witteveen's terms, switchable within `full` (docs/inertia-terms.md): the inertia tensor's change W1 q
+# (with the constant centrifugal load) and q W2 q (with the elastic centrifugal force), the inertia coupling
+# S(q) in the angular momentum, the elastic Coriolis force G(W0) on the elastic coordinates
+FULL_TERMS = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
 BACKENDS = ("numpy", "numba")
 
 
@@ -84,8 +85,10 @@ class BodySystem(GeneralizedAlpha):
         if unknown:
             raise ValueError(f"unknown full_terms {sorted(unknown)}; choose from {FULL_TERMS}")
         self.full_terms = tuple(full_terms)
-        # the gyroscopic set's terms: S(q) coupling (55) and G(W0) Coriolis (53) in (77)-(79)
-        self.gyro = terms == "gyroscopic" or (terms == "full" and "coupling_coriolis" in self.full_terms)
+        # the gyroscopic set's two parts: the S(q) coupling (55) in (77), the G(W0) Coriolis (53) in (78)-(79)
+        self.coupling = terms == "gyroscopic" or (terms == "full" and "inertia_coupling" in self.full_terms)
+        self.coriolis = terms == "gyroscopic" or (terms == "full" and "coriolis" in self.full_terms)
+        self.gyro = self.coupling and self.coriolis  # the whole gyroscopic set (the numba kernel's flag)
         # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it; the
         # deformation-dependent inertia (Witteveen's I0 + W1 q + q W2 q) with the `full` term set
         ses = data.superelements
@@ -100,7 +103,7 @@ class BodySystem(GeneralizedAlpha):
             self.W1 = np.stack([se.W1 for se in ses]) * (1.0 if use_W1 else 0.0)
         if use_W2:
             self.W2 = np.stack([se.W2 for se in ses])
-            if self.gyro:
+            if self.coriolis:  # G(W0) in (79) holds G^T M^-1 G of the softening already
                 self.W2 = self.W2 - stiffening.gyroscopic_part_of_W2(self.G, self.M)
         if self.stiffening:
             self.vk_a = np.stack([se.vk_a for se in ses])
@@ -109,7 +112,7 @@ class BodySystem(GeneralizedAlpha):
         if self.W1 is not None:
             g_term, row_term = stiffening.fused_hooks(self.W1, L.nc, self.vk_a, self.vk_B, self.W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        self.fused = FusedResidual(L, S, self.gyro, **hooks)
+        self.fused = FusedResidual(L, S, self.coupling, self.coriolis, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
@@ -485,7 +488,7 @@ class BodySystem(GeneralizedAlpha):
         The elastic velocity field carries no momentum about each CM (69h), so these are sums over CMs."""
         p = self.mass[:, None] * self.v[:, 0:3]
         hc = np.einsum("eij,ejk,ek->ei", self.R0, self.J0, self.v[:, 3:6])
-        if self.gyro:
+        if self.coupling:
             q = self.elastic_coordinates()
             s = np.einsum("ei,ekij,ej->ek", self.v[:, 6:], self.G, q)
             hc = hc + np.einsum("eij,ej->ei", self.R0, s)

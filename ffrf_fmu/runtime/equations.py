@@ -23,7 +23,9 @@ Residual rows (`[...]`: gyroscopic term set only; `linear` is Remark 6, eqs. 72a
             - sum_P (rho_P x g_dP + Q_P H_P^T g_aP)              (77) with (91)
     e_eta = g_eta
     e_xP  = R0 g_dP,   e_TP = H_P^T g_aP                         (91), summed over the SEs at P
-with G(W) = sum_k W_k G_k (53), s_k = r_bar^T G_k q_bar (55) and sdot_k its time derivative.
+with G(W) = sum_k W_k G_k (53), s_k = r_bar^T G_k q_bar (55) and sdot_k its time derivative. The two
+parts of `[...]` can be switched apart (`parts`, the `full` term set's switches): the inertia coupling
+(s, sdot in e_T0) and the elastic Coriolis (G(W0) in k_q and g).
 Loads on the nodes are not part of a superelement (the body adds -f, -R^T t on node rows).
 
 The Jacobian is with respect to the rates (F_ydot) and to the configuration (F_y): variations
@@ -111,17 +113,24 @@ def residual(se: Superelement, terms: str, gravity, x0, R0, eta, xP, RP, v, zdot
     return residual_and_jacobian(se, terms, gravity, x0, R0, eta, xP, RP, v, zdot, vdot)[0]
 
 
-def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP, RP, v, zdot, vdot, g_terms=(), row_terms=()):
+def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP, RP, v, zdot, vdot, g_terms=(), row_terms=(),
+                          parts=None):
     """(F, F_ydot, F_y) of one superelement: F (nv + nc,) local rows; F_ydot, F_y (nv + nc, nc + nv)
     with columns [configuration (nc) | velocities (nv)] (rates zdot, vdot for F_ydot).
+
+    parts: which parts of the gyroscopic terms are on, a subset of ("inertia_coupling", "coriolis")
+    (default: both for `gyroscopic`, none for `linear`): the coupling s = S(q) r (55) and its rate in
+    the CM rotation row (77), the Coriolis G(W0) q in (79) and G(W0) r in (78).
 
     Hooks for further terms, each a function (se, kin: Kinematics, v, zdot, vdot) -> (value, d/d rates,
     d/d configuration) with derivative columns as above: `g_terms` return a contribution to the elastic
     force g (n,), projected on the CM and node rows like g itself (91); `row_terms` return local rows
     (nv + nc,) directly."""
-    gyro = terms == "gyroscopic"
     if terms not in ("linear", "gyroscopic"):
         raise ValueError(f"unknown term set {terms!r}")
+    if parts is None:
+        parts = ("inertia_coupling", "coriolis") if terms == "gyroscopic" else ()
+    coupling, coriolis = "inertia_coupling" in parts, "coriolis" in parts
     nb, nm = len(se.X_B), len(eta)
     n, nc, nv = 6 * nb + nm, 6 + nm + 6 * nb, 6 + 6 * nb + nm
     kin = kinematics(se, x0, R0, eta, xP, RP, zdot)
@@ -160,13 +169,14 @@ def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP
     torque = J0 @ Omega0dot
     Fz[eT0, nc + 3 : nc + 6] = J0
     Fy[eT0, cOm0] = skew(W0) @ J0
-    if gyro:
+    if coriolis:
         F[kq] += GW @ q
         Fz[kq, cT0] += np.stack([G[k] @ q for k in range(3)], axis=1)
         Fy[kq, cfg] += GW @ Dq
         g += GW @ r
         dg_z[:, cT0] += np.stack([G[k] @ r for k in range(3)], axis=1)
         dg_y[:, cr] += GW
+    if coupling:
         s = np.array([r @ G[k] @ q for k in range(3)])  # (55)
         sdot = np.array([rdot @ G[k] @ q + r @ G[k] @ qdot for k in range(3)])
         h = h + s
@@ -200,7 +210,7 @@ def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP
 
 
 def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0, eta, v, yd,
-                               full_terms=("inertia_W1", "inertia_W2", "coupling_coriolis")):
+                               full_terms=("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")):
     """Every superelement of a body through `residual_and_jacobian`, one at a time: the assembled
     residual without loads F (ny,) (rows summed Boolean-wise at the shared nodes) and the local blocks
     F_ydot, F_y (E, nv + nc, nc + nv). `data` is a BodyData, `layout` its runtime.layout.Layout,
@@ -220,9 +230,9 @@ def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0
             sd_h = sd if use_W1 else dataclasses.replace(sd, W1=0.0 * sd.W1)
             g_term, row_term = plain_hooks(sd_h, membrane=sd.stiffening, W2=use_W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        base = "gyroscopic" if terms == "gyroscopic" or (full and "coupling_coriolis" in full_terms) else "linear"
-        Fe, Fze, Fye = residual_and_jacobian(se, base, gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
-                                             v[e], yd[cfg], yd[vel], **hooks)
+        parts = tuple(p for p in ("inertia_coupling", "coriolis") if terms == "gyroscopic" or (full and p in full_terms))
+        Fe, Fze, Fye = residual_and_jacobian(se, "linear", gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
+                                             v[e], yd[cfg], yd[vel], parts=parts, **hooks)
         np.add.at(F, np.concatenate([vel, cfg]), Fe)
         Fz.append(Fze)
         Fy.append(Fye)

@@ -41,8 +41,12 @@ class FusedResidual:
     node rows; a `row_terms` value (E, nv + nc) adds to the local rows [kinematic | dynamic] directly.
     """
 
-    def __init__(self, layout: Layout, stack: SuperelementStack, gyroscopic: bool, g_terms=(), row_terms=()):
-        self.layout, self.gyro = layout, gyroscopic
+    def __init__(self, layout: Layout, stack: SuperelementStack, coupling: bool, coriolis: bool, g_terms=(), row_terms=()):
+        """coupling, coriolis: the two parts of the gyroscopic terms (docs/inertia-terms.md, switches):
+        the inertia coupling s = S(q) r (55) in the angular momentum of (77), and the elastic Coriolis
+        G(W0) (53) in (78)-(79). The term set `gyroscopic` has both."""
+        self.layout, self.coupling, self.coriolis = layout, coupling, coriolis
+        self._G_terms = coupling or coriolis  # G_k q, G_k r: read by either part
         self.g_terms, self.row_terms = tuple(g_terms), tuple(row_terms)
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = stack.K, stack.M, stack.G, stack.mass, stack.J0, stack.X_B
         self.se_nodes = stack.nodes
@@ -120,7 +124,7 @@ class FusedResidual:
         # ---- u: the local vector of each SE that the linear operator acts on
         u = self._u = Segments(
             q=n, qd=n, rb=n, rbd=n, x0d=3, W0=3, v0=3, Om0=3, v0d=3, Om0d=3, one=1,
-            **({"Gq": n, "Gr": n, "s": 3, "sdot": 3} if self.gyro else {}),
+            **({"Gq": n, "Gr": n, "s": 3, "sdot": 3} if self._G_terms else {}),
         )
         uidx = np.full((E, u.size), ONE)
         for e in range(E):
@@ -168,9 +172,10 @@ class FusedResidual:
             Le[u["q"].start + d_rows, o["rho"].start + col] = 1.0  # rho_P = X_P + d_P
             Le[u["one"], o["rho"]] = self.X_B[e].ravel()
             Le[u["W0"], o["W0"]] = I3
-            if self.gyro:
+            if self.coriolis:
                 Le[u["Gq"], o["kq"]] = np.eye(n)  # + G(W0) q
                 Le[u["Gr"]] += gsel  # g + G(W0) r
+            if self.coupling:
                 Le[u["s"], o["h_ang"]] = I3
                 Le[u["sdot"], o["eT0"]] = I3
         # SEs with bitwise-equal data share one operator: one 2D matmul instead of a per-SE stack
@@ -267,7 +272,7 @@ class FusedResidual:
         # every term linear in u = [q, qdot, r, rdot, x0dot, W0, v0, Omega0, v0dot, Omega0dot, 1]: kinematic
         # rows (69b, 69d, 79), m v0dot, J0 Omega0dot, e_eta and g_B = K q + M rdot (78), h = J0 Omega0, rho
         u = src[self._u_idx]
-        if self.gyro:
+        if self._G_terms:
             gy = self._gyroscopic(u, W0, jacobian)
         if self._linear_op.ndim == 2:
             np.dot(u, self._linear_op, out=b.WO)
@@ -275,7 +280,7 @@ class FusedResidual:
             np.matmul(u[:, None, :], self._linear_op, out=b.WO3)
         s = None
         if jacobian or self.g_terms or self.row_terms:
-            s = self._intermediates(R0, W0, u, gy if self.gyro else None)
+            s = self._intermediates(R0, W0, u, gy if self._G_terms else None)
         for term in self.g_terms:  # further elastic forces: into g's blocks before the projection (91)
             b.WO += term(s, None)[0] @ self._g_to_O
         # g_B to the CM and the nodes (91): R0 g_d on node and (minus) CM rows, H^T g_alpha on node rows,
@@ -362,7 +367,7 @@ class FusedResidual:
         kr = slice(6, 6 + n)
         FF[:, :, kr, :nc] = M @ DD  # k_q = M (q_dot - r)
         dg[0, :, :, :nc] = K @ Dq
-        if self.gyro:
+        if self.coriolis:
             Gw, Gq, Gr = s["Gw"], s["Gq"], s["Gr"]
             Fz[:, kr, cT0] += Gq
             Fy[:, kr, :nc] += Gw @ Dq
@@ -374,7 +379,8 @@ class FusedResidual:
         # W0 x h_ang: d/dW0 = -skew(h_ang); d/dOmega0 = skew(W0) J0
         Fz[:, oT0 : oT0 + 3, cT0] -= skew(s["h_ang"])
         Fy[:, oT0 : oT0 + 3, V + 3 : V + 6] += W0x @ self.J0
-        if self.gyro:
+        if self.coupling:
+            Gq, Gr = s["Gq"], s["Gr"]
             rb, rbd, q, qd = s["rb"], s["rbd"], s["q"], s["qd"]
             Grd = np.einsum("ekij,ej->eik", self.G, rbd)
             GqdT = np.einsum("ekij,ej->eik", self.G, qd)
