@@ -131,7 +131,7 @@ def _spin_rates(system, w: np.ndarray) -> np.ndarray:
     """Global ydot of the steady spin at the system's current configuration (layout.py order)."""
     L = system.layout
     yd = np.zeros(L.ny)
-    zN, zS, vd = system._split_cfg_rates(yd)
+    zN, zS, vd = system.split_rates(yd)
     zN[:, 0:3] = np.cross(w, system.xN)
     zN[:, 3:6] = w @ system.RN  # R^T w
     zS[:, 0:3] = np.cross(w, system.x0)
@@ -160,8 +160,8 @@ def _spin_operator(system, w: np.ndarray) -> np.ndarray:
 def _spin_system(system, w):
     """(F, J, F_ydot) on the unknowns at the current configuration with the steady-spin rates."""
     system.yd = _spin_rates(system, w)
-    fi = system._free_idx
-    F = system._local(system.xN, system.RN, system.x0, system.R0, system.eta, system.v, system.yd, False)[0][fi]
+    fi = system.unknowns
+    F = system.residual(system.yd)
     Fz, Fy = system.linearization()
     P = _spin_operator(system, w)[np.ix_(fi, fi)]
     return F, Fy + Fz @ P, Fz
@@ -172,25 +172,16 @@ def steady_spin(system, omega: float, axis=(0.0, 0.0, 1.0), tol: float = 1e-10, 
     their reference frames, R = I) to its relative equilibrium at the constant spin omega about
     `axis` through the world origin: Newton on F(y, ydot(y)) = 0 with the matrix J (block comment).
     Returns the system (state set: configuration, velocities, rates)."""
-    from .runtime.rotation import expm
-
     w = omega * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
     L = system.layout
-    system._reset_reference()
+    system.reset_reference()
     system.v[:, 0:3] = np.cross(w, system.x0)
     system.v[:, 3:6] = w @ system.R0
-    fi = system._free_idx
     for _ in range(max_iter):
         F, J, _ = _spin_system(system, w)
         d = np.zeros(L.ny)
-        d[fi] = np.linalg.solve(J, -F)
-        dN, dS, dv = system._split_cfg_rates(d)
-        system.xN = system.xN + dN[:, 0:3]
-        system.RN = system.RN @ expm(dN[:, 3:6])
-        system.x0 = system.x0 + dS[:, 0:3]
-        system.R0 = system.R0 @ expm(dS[:, 3:6])
-        system.eta = system.eta + dS[:, 6:]
-        system.v = system.v + dv
+        d[system.unknowns] = np.linalg.solve(J, -F)
+        system.move(d)
         if np.abs(d).max() < tol:
             system.yd = _spin_rates(system, w)
             return system

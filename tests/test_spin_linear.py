@@ -103,3 +103,17 @@ def test_coned_beam_small_cone_gyroscopic_terms_are_exact_with_one_superelement(
     # 64-element FE against 8 elements and the FFRF's small geometric nonlinearity at 0.5 % of L: 5e-4
     assert tips["gyroscopic"] == pytest.approx(ref, rel=5e-4)
     assert tips["linear"] < ref * (1 - 5e-3)
+
+
+def test_public_analysis_interface(b1):
+    """BodySystem.unknowns / residual / move (what linear.steady_spin uses): the body at rest has a zero
+    residual; moving it keeps the motion-driven hub where it is and changes the unknowns by d."""
+    section, _ = b1
+    s = _system(section, (1, 0, 0), 2, terms="linear", stiffening=False)
+    assert np.abs(s.residual(np.zeros(s.layout.ny))).max() < 1e-12
+    d = np.zeros(s.layout.ny)
+    d[s.unknowns] = 1e-3
+    x_hub, x_tip = s.xN[0].copy(), s.xN[-1].copy()
+    s.move(d)
+    assert np.array_equal(s.xN[0], x_hub) and np.allclose(s.xN[-1] - x_tip, 1e-3)
+    assert np.abs(s.residual(np.zeros(s.layout.ny))).max() > 1e-6  # a deformed body at rest is not in equilibrium

@@ -144,7 +144,7 @@ class BodySystem(GeneralizedAlpha):
         self._zeros_input_buf = np.zeros(inp.size)
         self.t = 0.0
         self.iterations = 0
-        self._reset_reference()
+        self.reset_reference()
         self._compiled, self.backend, self.backend_note = None, "numpy", None
         if backend == "numba":
             module, why = load_kernel(terms)
@@ -157,7 +157,8 @@ class BodySystem(GeneralizedAlpha):
                 self._compiled, self.backend = CompiledStep(self, module), "numba"
 
     # ------------------------------------------------------------------ state
-    def _reset_reference(self):
+    def reset_reference(self):
+        """The reference state: undeformed, at rest, motion-driven parts at their reference frames, t kept."""
         L, d = self.layout, self.data
         self.xN = np.array(d.node_positions, dtype=float)
         self.RN = np.repeat(np.eye(3)[None], L.n_nodes, axis=0)
@@ -208,7 +209,7 @@ class BodySystem(GeneralizedAlpha):
             self._lu = (lu, piv, beta, R_ref)
 
     # ------------------------------------------------------------- equations
-    def _split_cfg_rates(self, yd):
+    def split_rates(self, yd):
         """Global ydot -> node (N, 6) rates, SE (E, 6 + nm) rates, SE (E, nv) velocity rates."""
         L = self.layout
         nN, nS = 6 * L.n_nodes, L.n_se * (6 + L.nm)
@@ -334,7 +335,7 @@ class BodySystem(GeneralizedAlpha):
         v + w x (x - origin) (or the motion inputs' velocities), optional port offsets (an initial
         elastic deformation), then consistent rates ydot_0 from a backward-Euler micro-step."""
         fn = inputs if callable(inputs) else (lambda t, _v=inputs: _v)
-        self._reset_reference()
+        self.reset_reference()
         self.t = float(t0)
         values = fn(t0)
         xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t0, values)
@@ -363,7 +364,7 @@ class BodySystem(GeneralizedAlpha):
         if port_displacements:
             self._relax(set(port_displacements))
         vel = lambda x: v_lin + cross(w, x - o)
-        zN, zS, v = self._split_cfg_rates(self.yd)  # views into self.yd
+        zN, zS, v = self.split_rates(self.yd)  # views into self.yd
         zN[:, 0:3] = vel(self.xN)
         zN[:, 3:6] = w @ self.RN  # R^T w, body-axes rates of the rigid field
         zS[:, 0:3] = vel(self.x0)
@@ -434,6 +435,22 @@ class BodySystem(GeneralizedAlpha):
                                   f"deformed body found ({max_iter} Newton iterations, last correction "
                                   f"{np.max(np.abs(delta)):.3g}); smaller displacements, or ports whose displacements "
                                   "the body can hold")
+
+    @property
+    def unknowns(self) -> np.ndarray:
+        """Indices of the unknowns in the global ydot layout (runtime/layout.py): all but the
+        motion-driven node parts. `linearization`, `residual` and `move` work on these."""
+        return self._free_idx
+
+    def residual(self, yd: np.ndarray) -> np.ndarray:
+        """The body equations without port loads at the current configuration and velocities with the
+        rates yd (global ydot layout), on the unknowns: zero on a motion of the unloaded body."""
+        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, yd, False)[0][self._free_idx]
+
+    def move(self, d: np.ndarray) -> None:
+        """Change the configuration and velocities by d (global ydot layout: positions and eta added,
+        rotations R <- R expm(d_Theta), velocities added); motion-driven node parts stay where they are."""
+        self.xN, self.RN, self.x0, self.R0, self.eta, self.v = self._configuration(self.xN, self.RN, d)
 
     def linearization(self) -> tuple[np.ndarray, np.ndarray]:
         """(F_ydot, F_y) of the assembled equations at the current state, restricted to the unknowns:

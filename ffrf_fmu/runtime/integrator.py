@@ -281,7 +281,7 @@ class GeneralizedAlpha:
     def _configuration(self, xN_pres, RN_pres, delta_h):
         """Configuration at t_{n+1} from the increment h*Delta (global ydot layout); prescribed nodes from inputs."""
         L = self.layout
-        dN, dS, dv = self._split_cfg_rates(delta_h)
+        dN, dS, dv = self.split_rates(delta_h)
         rot = expm(np.concatenate([dN[:, 3:6], dS[:, 3:6]]))
         xN = self.xN + dN[:, 0:3]
         RN = self.RN @ rot[: L.n_nodes]
