@@ -14,7 +14,7 @@ after another in this process (one core; BLAS and Exudyn pinned to one thread):
   same spin-up prescribed at the hub, generalized-alpha with the same rho_inf) over elements
   {2, 3, 4, 6, 8, 16} x steps {2, 5, 10, 20, 40} ms;
 - the converged reference: the in-house full-order beam (ffrf_fmu/reference) with
-  --reference-elements (default 64) at 2 ms, cached in DIR as `ffrf-fmu chart` caches it.
+  --reference-elements (default 64) at 2 ms, kept in DIR's result store as `ffrf-fmu chart` keeps it.
 
 Prints and writes (DIR/peers.md, DIR/peers.json, DIR/chart.csv, DIR/chart.png):
 - every run's error of the maximum transverse tip deflection against the reference, its wall and
@@ -46,6 +46,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from ffrf_fmu.studies import chart as ch  # noqa: E402
+from ffrf_fmu.studies.grid import parse_values  # noqa: E402
+from ffrf_fmu.studies.runners import run_configuration  # noqa: E402
 from ffrf_fmu.peers import available  # noqa: E402
 
 STEPS = ["0.002", "0.005", "0.01", "0.02", "0.04"]
@@ -65,7 +67,7 @@ def warm_up(model_path, scene, overrides, backend) -> None:
     cache, Exudyn and the modules imported, so no configuration pays that in its time."""
     from ffrf_fmu.peers.exudyn_beam import run_configuration
 
-    ch.run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {}, "standalone", backend)
+    run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {}, "standalone", backend)
     run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {"elements": 2, "step": 0.02})
 
 
@@ -176,8 +178,8 @@ def main(argv=None) -> int:
     if not ok:
         print(f"peers: skipped: {why}")
         return 0
-    ours = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else (QUICK_OURS if args.quick else OURS)
-    peer_sweep = ch.parse_sweep(args.peer_sweep) if args.peer_sweep else (QUICK_PEER if args.quick else ch.PEER_SWEEP)
+    ours = [parse_values(g) for g in args.sweep] if args.sweep else (QUICK_OURS if args.quick else OURS)
+    peer_sweep = parse_values(args.peer_sweep) if args.peer_sweep else (QUICK_PEER if args.quick else ch.PEER_SWEEP)
     n_ref = 16 if args.quick else args.reference_elements
     warm_up(args.model, args.scene, args.overrides, args.backend)
     t0 = time.perf_counter()

@@ -223,44 +223,52 @@ def simulate(args) -> int:
         "(integrator, cosim); default: the documented sweep"),
     arg("--duration", type=float, help="run duration [s] (spin, cosim: the spin-up time T scales with it)"),
     arg("--plot-only", action="store_true", help="redraw DIR/map.png from DIR/map.csv, run nothing"),
+    *SWEEP_ARGS,
 )
 def stability(args) -> int:
     """Map where models, integrator or coupling become inaccurate or unstable (docs/stability.md)."""
     from pathlib import Path
 
     from .studies import stability as st
+    from .studies.store import StoreVersionError
+    from .studies.sweep import SweepError
 
     out = Path(args.output)
     values = tuple(float(x) for x in args.values.split(",")) if args.values else None
-    log = lambda m: print(m, flush=True)  # noqa: E731
     if not args.plot_only:
         model = load_model(args.model, args.overrides)
-        if args.map == "spin":
-            scene = model.scene(args.scene or "spinup_fast").name
-            s = st.SpinSettings(overrides=tuple(args.overrides))
-            if values:
-                s.omegas = values
-            if args.duration:
-                s.T, s.duration = s.T * args.duration / s.duration, args.duration
-            st.spin_map(args.model, scene, s, out, log=log)
-        elif args.map == "integrator":
-            scene = model.scene(args.scene).name
-            s = dataclasses.replace(st.INTEGRATOR_DEFAULTS.get((model.body.name, scene), st.IntegratorSettings(
-                steps=(model.scene(scene).step * k for k in (0.5, 1, 2, 5, 10)))))
-            s.steps, s.overrides = tuple(s.steps), (*s.overrides, *args.overrides)
-            if values:
-                s.steps = values
-            if args.duration:
-                s.duration = args.duration
-            st.integrator_map(args.model, scene, s, out, log=log)
-        else:
-            s = st.CosimSettings(overrides=tuple(args.overrides))
-            if values:
-                s.steps = values
-            if args.duration:
-                s.T, s.duration = s.T * args.duration / s.duration, args.duration
-            st.cosim_map(args.model, s, out, log=log)
-    rows = st.read_csv(out / "map.csv")
+        log = lambda m: print(m, flush=True)  # noqa: E731
+        try:
+            sweep = st.SweepOptions(_scheduler(args), args.fresh, progress=True, log=log)
+            if args.map == "spin":
+                scene = model.scene(args.scene or "spinup_fast").name
+                s = st.SpinSettings(overrides=tuple(args.overrides))
+                if values:
+                    s.omegas = values
+                if args.duration:
+                    s.T, s.duration = s.T * args.duration / s.duration, args.duration
+                st.spin_map(args.model, scene, s, out, sweep)
+            elif args.map == "integrator":
+                scene = model.scene(args.scene).name
+                s = dataclasses.replace(st.INTEGRATOR_DEFAULTS.get((model.body.name, scene), st.IntegratorSettings(
+                    steps=(model.scene(scene).step * k for k in (0.5, 1, 2, 5, 10)))))
+                s.steps, s.overrides = tuple(s.steps), (*s.overrides, *args.overrides)
+                if values:
+                    s.steps = values
+                if args.duration:
+                    s.duration = args.duration
+                st.integrator_map(args.model, scene, s, out, sweep)
+            else:
+                s = st.CosimSettings(overrides=tuple(args.overrides))
+                if values:
+                    s.steps = values
+                if args.duration:
+                    s.T, s.duration = s.T * args.duration / s.duration, args.duration
+                st.cosim_map(args.model, s, out, sweep=sweep)
+        except (SweepError, StoreVersionError) as e:
+            print(f"{PROG}: error: {e}", file=sys.stderr)
+            return 2
+    rows = st.read_map(out / "map.csv")
     st.PLOTS[args.map](rows, out / "map.png")
     print(f"wrote {out / 'map.csv'} ({len(rows)} runs) and {out / 'map.png'}")
     return 0
@@ -278,7 +286,7 @@ def stability(args) -> int:
     arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's)"),
     *SWEEP_ARGS,
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
-        "chart.json, the cached reference run (npz) and the result store (runs.jsonl: a rerun skips finished runs)"),
+        "chart.json and the result store of every run, the reference's included (runs.jsonl: a rerun skips finished runs)"),
     BACKEND_ARG,
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
@@ -293,6 +301,7 @@ def chart(args) -> int:
     from pathlib import Path
 
     from .studies import chart as ch
+    from .studies.grid import GridError, parse_values
     from .studies.store import StoreVersionError
     from .studies.sweep import SweepError
 
@@ -301,13 +310,13 @@ def chart(args) -> int:
         print(f"wrote {out}")
         return 0
     try:
-        groups = [ch.parse_sweep(g) for g in args.sweep] if args.sweep else None
+        groups = [parse_values(g) for g in args.sweep] if args.sweep else None
         out = ch.chart(args.model, args.scene, groups, overrides=args.overrides, fmu=args.fmu, backend=args.backend,
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
                        out_dir=args.output, cost=args.cost, peer=args.peer,
-                       peer_sweep=ch.parse_sweep(args.peer_sweep, "--peer-sweep") if args.peer_sweep else None,
+                       peer_sweep=parse_values(args.peer_sweep, "--peer-sweep") if args.peer_sweep else None,
                        scheduler=_scheduler(args), fresh=args.fresh)
-    except (ch.ChartError, SweepError, StoreVersionError) as e:
+    except (GridError, SweepError, StoreVersionError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2
     ref = out["reference"]
@@ -336,7 +345,7 @@ def chart(args) -> int:
 )
 def study(args) -> int:
     """Parameter study: the scene's metrics against each varied key of the body and scene (plot and table)."""
-    from .studies.chart import ChartError, parse_sweep
+    from .studies.grid import GridError, parse_values
     from .studies.store import StoreVersionError
     from .studies.study import StudyError, read_table
     from .studies.study import study as run_study
@@ -345,13 +354,13 @@ def study(args) -> int:
     try:
         vary = {}
         for group in args.vary:
-            for k, v in parse_sweep(group, "--vary").items():
+            for k, v in parse_values(group, "--vary").items():
                 if k in vary:
                     raise StudyError(f"--vary: key {k!r} given twice")
                 vary[k] = v
         out = run_study(args.model, args.scene, vary, overrides=args.overrides, scheduler=_scheduler(args),
                         out_dir=args.output, fresh=args.fresh, backend=args.backend)
-    except (ChartError, StudyError, SweepError, StoreVersionError) as e:
+    except (GridError, StudyError, SweepError, StoreVersionError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2
     meta, rows = out["meta"], read_table(out["csv"])
@@ -389,12 +398,16 @@ def _fraction(text: str) -> float:
     arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
         "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
     arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
-    arg("-o", "--output", default="chart", metavar="DIR", help="where the reference run is cached (with --check)"),
+    arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
+        "(a chart's directory: its reference run is not repeated)"),
     arg("--json", action="store_true", help="print a JSON object instead of text"),
+    *SWEEP_ARGS,
 )
 def advise(args) -> int:
     """Pick superelements, modes, term set and step for a scene and a tolerance, with the reasons."""
     from .studies import advise as ad
+    from .studies.store import StoreVersionError
+    from .studies.sweep import SweepError
 
     model, scene = _load(args)
     if not 0.0 < args.tolerance < 1.0:
@@ -405,8 +418,13 @@ def advise(args) -> int:
     if not args.json:
         print(ad.format_advice(advice, model.body.name, scene.name))
     if args.check:
-        res = ad.check(args.model, scene.name, advice, overrides=args.overrides,
-                       reference_elements=args.reference_elements, cache_dir=args.output, chart_csv=args.chart)
+        try:
+            res = ad.check(args.model, scene.name, advice, overrides=args.overrides,
+                           reference_elements=args.reference_elements, out_dir=args.output, chart_csv=args.chart,
+                           scheduler=_scheduler(args), fresh=args.fresh, progress=not args.json)
+        except (SweepError, StoreVersionError) as e:
+            print(f"{PROG}: error: {e}", file=sys.stderr)
+            return 2
         out["check"] = res
         if not args.json:
             print(ad.format_check(res, advice.tolerance))

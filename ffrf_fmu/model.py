@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import json
 import math
 import re
 import sys
@@ -665,3 +666,46 @@ def effective_ports(model: Model, scene: Scene) -> tuple[Port, ...]:
         dataclasses.replace(p, translation=over[p.name][0], rotation=over[p.name][1]) if p.name in over else p
         for p in model.body.ports
     )
+
+
+# ------------------------------------------------------------------------------ writing
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v) if math.isfinite(v) else {math.inf: "inf", -math.inf: "-inf"}.get(v, "nan")
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a TOML basic string
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise ModelError(f"cannot write {type(v).__name__} {v!r} to a model file")
+
+
+def _toml_key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else json.dumps(k)
+
+
+def model_text(raw: dict, comment: str = "") -> str:
+    """The TOML text of a model given as its raw tables (what load_model reads: {"body": {...},
+    "scenes": {...}}): a table per dict of dicts, inline tables inside arrays; `comment` on top."""
+    lines = [f"# {c}" for c in comment.splitlines()]
+
+    def table(path: list[str], t: dict) -> None:
+        scalars = {k: v for k, v in t.items() if not isinstance(v, dict)}
+        if path and (scalars or not t):
+            lines.append(f"[{'.'.join(_toml_key(p) for p in path)}]")
+        lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in scalars.items())
+        for k, v in t.items():
+            if isinstance(v, dict):
+                table([*path, k], v)
+
+    table([], raw)
+    return "\n".join(lines) + "\n"
+
+
+def write_model(raw: dict, path, comment: str = "") -> Model:
+    """Write the raw tables as a model file and load it back (a ModelError names what is wrong)."""
+    Path(path).write_text(model_text(raw, comment), encoding="utf-8")
+    return load_model(path)

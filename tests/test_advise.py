@@ -115,3 +115,23 @@ def test_cli_advise_json():
     bad = subprocess.run([sys.executable, "-m", "ffrf_fmu", "advise", B1, "--tolerance", "abc"], cwd=ROOT, env=env,
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "percentage" in bad.stderr
+
+
+def test_check_runs_on_the_sweep_layer_and_reuses_the_charts_reference(tmp_path):
+    """`advise --check` is two tasks of the sweep layer kept in DIR's store: in a chart's directory
+    the chart's reference run is taken from the store (not run again), and the achieved error is
+    the chart's error measure of the advised run against it. The first 1.5 s of B1 (the hub barely
+    turns: 1 SE suffices), reference 8 elements; checked at 5 %."""
+    from ffrf_fmu.studies.runners import run_configuration
+
+    ov = ["duration=1.5"]
+    chart = ch.chart(B1, "spinup", {"superelements": ["1"], "modes": ["2"]}, overrides=ov, reference_elements=8,
+                     workers=1, out_dir=tmp_path, progress=False, plot=False)
+    a = ad.advise(B1, "spinup", 0.05, overrides=ov)
+    res = ad.check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
+    assert res["reference"]["cached"] and res["completed"] and res["within_tolerance"]
+    assert res["metric_reference"] == chart["reference"]["metrics"]["tip_deflection_max_m"]
+    run = run_configuration(B1, "spinup", ov, {"superelements": str(a.superelements), "modes": str(a.modes),
+                                               "terms": a.terms, "step": f"{a.step:g}",
+                                               "stiffening": "true" if a.stiffening else "false"})
+    assert res["metric"] == run["metrics"]["tip_deflection_max_m"]  # the same run, here and through the sweep

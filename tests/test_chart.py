@@ -1,4 +1,4 @@
-"""`ffrf-fmu chart`: sweep parsing, error measures, Pareto front, the cached reference, the CSV and
+"""`ffrf-fmu chart`: sweep parsing, error measures, Pareto front, the stored reference, the CSV and
 the plot, on short B1 runs (a fraction of a second to a few seconds of simulated time)."""
 import csv
 import math
@@ -12,22 +12,25 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.studies import chart as ch
+from ffrf_fmu.studies import grid
+from ffrf_fmu.studies.runners import run_reference
+from ffrf_fmu.studies.task import make_task
 
 ROOT = Path(__file__).resolve().parent.parent
 B1 = str(ROOT / "models" / "haug_beam.toml")
 
 
 def test_parse_sweep_and_configurations():
-    sweep = ch.parse_sweep(["superelements=1,2,4", "terms=linear,gyroscopic"])
+    sweep = grid.parse_values(["superelements=1,2,4", "terms=linear,gyroscopic"])
     assert sweep == {"superelements": ["1", "2", "4"], "terms": ["linear", "gyroscopic"]}
-    configs = ch.configurations(sweep)
+    configs = grid.combinations(sweep)
     assert len(configs) == 6 and configs[0] == {"superelements": "1", "terms": "linear"}
     # several groups: the union of their products, in order
-    union = ch.configurations([sweep, {"superelements": ["8"], "step": ["1e-2"]}])
+    union = grid.combinations([sweep, {"superelements": ["8"], "step": ["1e-2"]}])
     assert len(union) == 7 and union[-1] == {"superelements": "8", "step": "1e-2"}
     for bad in (["superelements"], ["superelements="], ["=1,2"], ["modes=2", "modes=4"]):
-        with pytest.raises(ch.ChartError):
-            ch.parse_sweep(bad)
+        with pytest.raises(grid.GridError):
+            grid.parse_values(bad)
 
 
 def test_label():
@@ -95,15 +98,19 @@ def test_chart_end_to_end(tmp_path):
         assert col in header
     assert (tmp_path / "chart.png").exists()  # the plot's content is not checked here
     assert ch.json.loads((tmp_path / "chart.json").read_text())["reference"]["warning"] == ""
-    # the reference is cached: a second chart does not run it again
-    cached = list(tmp_path.glob("reference_haug_beam_spinup_8el_2ms_*.npz"))
-    assert len(cached) == 1 and not out["reference"]["cached"]
-    again = ch.run_reference(B1, "spinup", ["duration=1.5"], 8, None, tmp_path)
-    assert again["cached"]
-    assert again["metrics"]["tip_deflection_max_m"] == out["reference"]["metrics"]["tip_deflection_max_m"]
-    assert again["energy_error"] == out["reference"]["energy_error"]
+    # the reference is stored: a second chart runs nothing again, and gets the same numbers
+    assert not out["reference"]["cached"]
+    again = ch.chart(B1, "spinup", {"superelements": ["1", "2"], "modes": ["2"]}, overrides=["duration=1.5"],
+                     reference_elements=8, workers=1, out_dir=tmp_path, progress=False, plot=False)
+    assert again["reference"]["cached"] and again["meta"]["runs_ran"] == 0 and again["meta"]["runs_stored"] == 3
+    assert again["reference"]["metrics"] == out["reference"]["metrics"]
+    assert [r["metric_error_rel"] for r in again["rows"]] == [r["metric_error_rel"] for r in rows]
+    direct = run_reference(B1, "spinup", ["duration=1.5"], 8, None)
+    assert direct["metrics"]["tip_deflection_max_m"] == out["reference"]["metrics"]["tip_deflection_max_m"]
+    assert direct["energy_error"] == out["reference"]["energy_error"]
     # another duration is another reference
-    assert ch.reference_key(B1, "spinup", ["duration=1.5"], 8, 0.002) != ch.reference_key(B1, "spinup", [], 8, 0.002)
+    assert make_task(B1, ["duration=1.5"], "spinup", "reference", elements=8).key != \
+        make_task(B1, [], "spinup", "reference", elements=8).key
 
 
 def test_suspect_reference_is_marked(tmp_path):

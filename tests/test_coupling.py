@@ -98,14 +98,14 @@ B5_H, B5_SPAN = 0.01, 0.3  # a fraction of the scene: the claim is equality of t
 
 @pytest.fixture(scope="module")
 def b5(tmp_path_factory):
-    from ffrf_fmu import compliant_b5
+    from ffrf_fmu.studies.stability import compliant_b5
     from ffrf_fmu.studies.stability import CosimSettings
 
     settings = CosimSettings()
-    fmus = compliant_b5.build(MODELS / "haug_beam.toml", tmp_path_factory.mktemp("b5c"), settings)
-    ours = compliant_b5.run_master(fmus, settings, B5_H, B5_SPAN)
+    b5 = compliant_b5.build(MODELS / "haug_beam.toml", tmp_path_factory.mktemp("b5c"), settings)
+    ours = compliant_b5.run_master(b5, settings, B5_H, B5_SPAN)
     assert not ours.stopped_early and ours.t[-1] == pytest.approx(B5_SPAN)
-    return fmus, settings, ours
+    return b5, settings, ours
 
 
 def _same(run, ours):
@@ -119,17 +119,17 @@ def _same(run, ours):
 
 
 def test_b5_compliant_in_libcosim_equals_our_jacobi(b5, tmp_path):
-    from ffrf_fmu import compliant_b5
+    from ffrf_fmu.studies.stability import compliant_b5
 
-    fmus, settings, ours = b5
-    _same(compliant_b5.run_libcosim(fmus, settings, B5_H, B5_SPAN, tmp_path), ours)
+    built, settings, ours = b5
+    _same(compliant_b5.run_libcosim(built, settings, B5_H, B5_SPAN, tmp_path), ours)
 
 
 def test_b5_compliant_in_ecos_equals_our_jacobi(b5):
-    from ffrf_fmu import compliant_b5
+    from ffrf_fmu.studies.stability import compliant_b5
 
-    fmus, settings, ours = b5
-    _same(compliant_b5.run_ecos(fmus, settings, B5_H, B5_SPAN), ours)
+    built, settings, ours = b5
+    _same(compliant_b5.run_ecos(built, settings, B5_H, B5_SPAN), ours)
 
 
 def test_nan_input_in_libcosim_is_a_failed_step_and_the_host_lives(b5, tmp_path):
@@ -142,15 +142,15 @@ def test_nan_input_in_libcosim_is_a_failed_step_and_the_host_lives(b5, tmp_path)
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimManipulator import CosimManipulator
 
-    from ffrf_fmu import compliant_b5
-    from ffrf_fmu.studies.stability import _ssd
+    from ffrf_fmu.studies.stability import compliant_b5
+    from ffrf_fmu.engines import write_ssd
 
-    fmus, settings, _ = b5
+    built, settings, _ = b5
     comps = {}
-    for name, fmu in fmus.items():
+    for name, fmu in built.fmus.items():
         shutil.copy(fmu, tmp_path / Path(fmu).name)
         comps[name] = Path(fmu).name
-    ex = CosimExecution.from_ssp_file(str(_ssd(tmp_path / "SystemStructure.ssd", comps, compliant_b5.connections())),
+    ex = CosimExecution.from_ssp_file(str(write_ssd(tmp_path / "SystemStructure.ssd", comps, compliant_b5.connections())),
                                       step_size=int(round(B5_H * 1e9)))
     index = {i.name.decode(): i.index for i in ex.slave_infos()}
     refs = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
@@ -175,13 +175,13 @@ def test_nan_input_in_ecos_leaves_the_body_at_its_last_good_state(b5):
     the last good communication point); after the NaN is cleared it still refuses, because ecos's
     clock has left the body's time (stepping on after a discard is fmi2Error, docs/fmu.md): in ecos
     a failed body step silently freezes the body for the rest of the run."""
-    from ffrf_fmu import compliant_b5
+    from ffrf_fmu.studies.stability import compliant_b5
     from ffrf_fmu.engines import import_ecospy
 
     ecospy = import_ecospy()
-    fmus, settings, _ = b5
+    built, settings, _ = b5
     with ecospy.EcosSimulationStructure() as ss:
-        for name, fmu in fmus.items():
+        for name, fmu in built.fmus.items():
             ss.add_model(name, str(fmu))
         for src, dst, g in compliant_b5.connections():
             s, d = src.replace(".", "::", 1), dst.replace(".", "::", 1)

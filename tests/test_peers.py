@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from ffrf_fmu import simulate as sim
-from ffrf_fmu.studies.chart import _body_data, front_cost_at
+from ffrf_fmu.studies.chart import front_cost_at
+from ffrf_fmu.studies.runners import body_data
 from ffrf_fmu.model import effective_ports, load_model
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -35,7 +36,7 @@ def test_exudyn_b1_reproduces_the_reference_max_deflection():
     from ffrf_fmu.peers import exudyn_beam as xb
 
     model, sc, body = _b1(8.0)
-    bd = _body_data(model, sc)
+    bd = body_data(model, sc)
     peak = {}
     for n in (8, 16):
         res = xb.simulate(body, sc, n, 0.01)

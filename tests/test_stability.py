@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 import pythonfmu  # noqa: F401
 
-from ffrf_fmu.studies import stability as st
 from ffrf_fmu.model import load_model
+from ffrf_fmu.reference.solver import ENERGY_ERROR_SUSPECT
+from ffrf_fmu.studies import stability as st
+from ffrf_fmu.studies.runners import run_beam, run_reference, transverse
 
 ROOT = Path(__file__).resolve().parent.parent
 HAUG = ROOT / "models" / "haug_beam.toml"
@@ -24,16 +26,20 @@ SPHERICAL = ROOT / "models" / "spherical_beam.toml"
 # ------------------------------------------------------------------------------------ helpers
 
 def test_csv_round_trip(tmp_path):
-    rows = [{"a": 1.5, "b": "x", "u": True}, {"a": 2.0, "b": "y", "u": False, "c": 3.0}]
-    st.write_csv(tmp_path / "m.csv", rows)
-    back = st.read_csv(tmp_path / "m.csv")
+    """map.csv (table.py): numbers, booleans, texts and empty cells come back as written."""
+    from ffrf_fmu.studies.table import read_rows, write_rows
+
+    rows = [{"a": 1.5, "b": "x", "u": True, "n": 3}, {"a": 2.0, "b": "y", "u": False, "c": 3.0, "f": None}]
+    write_rows(tmp_path / "m.csv", rows)
+    back = read_rows(tmp_path / "m.csv", text=("b",))
     assert back[0]["a"] == 1.5 and back[0]["u"] is True and back[1]["u"] is False and back[1]["c"] == 3.0
-    assert st._done(back, a=2.0, b="y") is back[1] and st._done(back, a=3.0) is None
+    assert back[0]["n"] == 3 and back[1]["b"] == "y" and back[0]["c"] is None and back[1]["f"] is None
 
 
 def test_split_models_are_the_halves_of_the_beam(tmp_path):
     a, b = st.split_models(HAUG, tmp_path)
     ma, mb, m = load_model(a), load_model(b), load_model(HAUG)
+    assert ma.body.modes == mb.body.modes == m.body.modes and ma.scene("run").step == m.scene("spinup").step
     assert ma.body.length + mb.body.length == pytest.approx(m.body.length)
     assert ma.body.superelements + mb.body.superelements == m.body.superelements
     assert mb.body.origin[0] == pytest.approx(m.body.length / 2)
@@ -168,13 +174,14 @@ def test_several_superelements_recover_the_stiffening_at_12_rad_s():
     deflection peaks at ~4 s): 4 superelements (linear term set) stay within 3.5 % of the nonlinear
     beam's peak (map and measured here: +2.75 %; the bound leaves room for the reference's own
     spatial error and separates 4 SE from 2 SE, +16 %); one superelement bends past L at ~4.1 s."""
-    model, sc = st.spin_scene(HAUG, "spinup_fast", 12.0, T=7.5, duration=4.5)
-    t, d_ref, energy_error = st.reference_deflection(model, sc)
-    assert energy_error < st.ENERGY_ERROR_SUSPECT  # the reference is trusted
-    four = st.run_beam(*_model_scene(12.0, 4, "linear"), record_every=10)
+    ov = st.spin_overrides("spinup_fast", 12.0, T=7.5, duration=4.5)
+    ref = run_reference(str(HAUG), "spinup_fast", ov, 16, st.reference_step(12.0))
+    assert ref["energy_error"] < ENERGY_ERROR_SUSPECT  # the reference is trusted
+    d_ref = transverse(ref["d"], np.array([1.0, 0.0, 0.0]))
+    four = run_beam(*_model_scene(12.0, 4, "linear"), record_every=10)
     assert not four.unstable
     assert abs(four.max_deflection - np.max(d_ref)) < 0.035 * np.max(d_ref)
-    one = st.run_beam(*_model_scene(12.0, 1, "linear"), record_every=10)
+    one = run_beam(*_model_scene(12.0, 1, "linear"), record_every=10)
     assert one.unstable and "> 8 m" in one.failure
 
 
@@ -187,14 +194,42 @@ def test_spin_map_marks_rows_whose_reference_is_suspect(tmp_path, monkeypatch):
     exceeds the solver's warning level (2 %) is marked in its row and in every row compared with it.
     Here the reference is forced coarse (4 elements, h = 0.1 s over a 1.5 s spin-up to 4 rad/s:
     measured energy error 10.6 %); the 1-SE model run is short (1.5 s)."""
-    monkeypatch.setattr(st, "reference_step", lambda omega: 0.1)
+    from ffrf_fmu.studies.stability import spin
+
+    monkeypatch.setattr(spin, "reference_step", lambda omega: 0.1)
     settings = st.SpinSettings(omegas=(4.0,), models=((1, "linear"),), T=1.5, duration=1.5, reference_elements=4)
-    with pytest.warns(RuntimeWarning, match="reference: energy error"):  # the solver's own warning is not silenced
-        rows = st.spin_map(HAUG, "spinup_fast", settings, tmp_path, log=lambda *a: None)
+    rows = st.spin_map(HAUG, "spinup_fast", settings, tmp_path, st.SweepOptions(progress=False))
     assert [r["model"] for r in rows] == ["reference", "1SE-linear"]
-    assert rows[0]["ref_energy_error"] > st.ENERGY_ERROR_SUSPECT
+    assert rows[0]["ref_energy_error"] > ENERGY_ERROR_SUSPECT
     assert all(r["reference_suspect"] for r in rows)
-    assert all(r["reference_suspect"] is True for r in st.read_csv(tmp_path / "map.csv"))
+    assert all(r["reference_suspect"] is True for r in st.read_map(tmp_path / "map.csv"))
+
+
+def test_spin_map_row_on_the_pool_equals_the_direct_run(tmp_path):
+    """The spin map through the sweep layer on a two-process pool gives the numbers of the runs made
+    directly in this process (same code, same inputs: bit-identical): the model row's maximum
+    deflection is runners.run_beam's, the reference row's is the full-order beam's. A rerun takes
+    every run from the store. 4 rad/s, spin-up 2 s, 1.2 s, 1 SE; reference 4 elements at 20 ms."""
+    from ffrf_fmu.studies.sweep import Scheduler
+    from ffrf_fmu.studies.stability import spin
+
+    settings = st.SpinSettings(omegas=(4.0,), models=((1, "linear"),), T=2.0, duration=1.2, reference_elements=4)
+    pool = st.SweepOptions(Scheduler("pool", 2), progress=False)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(spin, "reference_step", lambda omega: 0.02)  # the parent names the step: the workers get it
+        rows = st.spin_map(HAUG, "spinup_fast", settings, tmp_path, pool)
+    ref, model_row = rows
+    direct = run_beam(*_model_scene(4.0, 1, "linear", T=2.0, duration=1.2), record_every=spin.RECORD_EVERY)
+    assert model_row["max_deflection"] == direct.max_deflection and not model_row["unstable"]
+    ov = st.spin_overrides("spinup_fast", 4.0, T=2.0, duration=1.2)
+    d_ref = transverse(run_reference(str(HAUG), "spinup_fast", ov, 4, 0.02)["d"], np.array([1.0, 0.0, 0.0]))
+    assert ref["max_deflection"] == float(np.max(d_ref)) and ref["first_frequency_rad_s"] == pytest.approx(2.915, rel=2e-3)
+    assert model_row["rel_error"] == pytest.approx(direct.max_deflection / np.max(d_ref) - 1.0, rel=1e-12)
+    lines = (tmp_path / "runs.jsonl").read_text().count("\n")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(spin, "reference_step", lambda omega: 0.02)
+        again = st.spin_map(HAUG, "spinup_fast", settings, tmp_path, pool)
+    assert again == rows and (tmp_path / "runs.jsonl").read_text().count("\n") == lines == 2
 
 
 # ------------------------------------------------------------------------------------ integrator map
@@ -234,12 +269,12 @@ def test_libcosim_fixed_step_agrees_with_the_master_jacobi(split, motor, tmp_pat
     master.CoSimulation(scheme="jacobi"). Split beam: the same trajectory to round-off and the
     same failing step (added-mass instability, t = 0.044 s at H = 2 ms); motor case: the same
     trajectory to round-off over 0.3 s."""
-    lc = st.libcosim_run(split, 0.002, 0.06, tmp_path / "split")
+    lc = split.libcosim(0.002, 0.06, tmp_path / "split")
     ours = split.run(0.002, "jacobi", duration=0.06)
     assert lc.stopped_early and ours.stopped_early and lc.t[-1] == pytest.approx(ours.t[-1])
     n = len(lc.t)
     assert np.allclose(lc.deflection, ours.deflection[1:n + 1], rtol=1e-9, atol=1e-12)
-    lc = st.libcosim_run(motor, 0.004, 0.3, tmp_path / "motor")
+    lc = motor.libcosim(0.004, 0.3, tmp_path / "motor")
     ours = motor.run(0.004, "jacobi", duration=0.3)
     assert lc.stopped_early == "" and ours.stopped_early == ""
     n = len(lc.t)

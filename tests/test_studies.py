@@ -32,14 +32,14 @@ def _cli(*args, **kw):
 
 
 def test_task_key_is_the_content_that_defines_the_run(tmp_path):
-    """The same bytes under another directory are the same run; a cache directory is not part of
-    the run; an override, the scene or the runner are."""
+    """The same bytes under another directory are the same run; an override, the scene, the runner
+    or a runner option are part of the run."""
     copy = tmp_path / "haug_beam.toml"
     copy.write_bytes(Path(B1).read_bytes())
     a = make_task(B1, ["duration=0.1"], "spinup")
     assert make_task(copy, ["duration=0.1"], "spinup").key == a.key
-    assert make_task(B1, ["duration=0.1"], "spinup", "reference", cache_dir="x").key == \
-        make_task(B1, ["duration=0.1"], "spinup", "reference", cache_dir="y").key
+    assert make_task(B1, ["duration=0.1"], "spinup", "reference", elements=8).key != \
+        make_task(B1, ["duration=0.1"], "spinup", "reference", elements=16).key
     others = [make_task(B1, ["duration=0.2"], "spinup"), make_task(B1, ["duration=0.1"], "spinup_fast"),
               make_task(B1, ["duration=0.1"], "spinup", "fmu")]
     assert len({a.key, *(t.key for t in others)}) == 4

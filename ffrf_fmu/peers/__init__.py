@@ -9,6 +9,7 @@ A peer is optional: `available(name)` says whether it can run here and, if not, 
 from __future__ import annotations
 
 PEERS = ("exudyn",)
+NAMES = {"exudyn": "Exudyn"}  # the peer code's name in chart labels and legends
 
 
 def available(name: str) -> tuple[bool, str]:

@@ -272,12 +272,12 @@ def columns(result: PeerResult) -> dict[str, np.ndarray]:
 
 
 def run_configuration(model_path: str, scene_name: str | None, base_overrides, values: dict) -> dict:
-    """One peer run as a chart row source (chart.run_configuration's dict): values {"elements", "step"}
+    """One peer run as a chart row source (runners.run_configuration's dict): values {"elements", "step"}
     (texts or numbers; step default: the scene's). Runs in a chart worker; never raises."""
     import traceback
 
     from .. import simulate as sim
-    from ..studies.chart import _body_data, _trajectory
+    from ..studies.runners import body_data, tip_trajectory
     from ..model import effective_ports, load_model
 
     out = {"values": dict(values), "runner": "exudyn", "completed": False, "failure": None}
@@ -288,11 +288,11 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
         h = float(values.get("step") or sc.step)
         out["resolved"] = {"elements": n_el, "step": h}
         res = simulate(dataclasses.replace(model.body, ports=effective_ports(model, sc)), sc, n_el, h)
-        result = sim.SimulationResult(res.t, columns(res), {}, _body_data(model, sc))
+        result = sim.SimulationResult(res.t, columns(res), {}, body_data(model, sc))
         out |= {"wall_time_s": res.wall_time_s, "cpu_time_s": res.cpu_time_s, "completed": res.completed,
                 "failure": res.failure, "t_end_s": float(res.t[-1]),
                 "newton_iterations_mean": res.newton_iterations_mean, "metrics": sim.metrics(result, sc),
-                "t": np.asarray(res.t), "d": _trajectory(result)}
+                "t": np.asarray(res.t), "d": tip_trajectory(result)}
     except Exception as e:  # noqa: BLE001 - a configuration that cannot run is a chart row, not a crash
         out["failure"] = f"{type(e).__name__}: {e}"
         out["traceback"] = traceback.format_exc(limit=4)

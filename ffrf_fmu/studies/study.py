@@ -14,8 +14,6 @@ layer (sweep.py: process pool, LocalCluster or a dask scheduler). Written to DIR
 """
 from __future__ import annotations
 
-import csv
-import itertools
 import json
 import math
 import os
@@ -23,22 +21,19 @@ from pathlib import Path
 from typing import Sequence
 
 from ..model import load_model
+from .grid import GridError, combinations, value_overrides
 from .progress import Bar
 from .store import ResultStore
 from .sweep import Scheduler, connect, run_sweep
+from .table import read_rows, replace_text, write_rows
 from .task import code_version, make_task
 
 FIRST = ("completed", "failure")
 LAST = ("wall_time_s", "cpu_time_s", "t_end_s", "attempts", "code_version")
 
 
-class StudyError(ValueError):
+class StudyError(GridError):
     """A study cannot be set up (bad --vary)."""
-
-
-def combinations(vary: dict[str, list[str]]) -> list[dict[str, str]]:
-    keys = list(vary)
-    return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
 def _number(text: str):
@@ -70,9 +65,8 @@ def study(model_path, scene_name: str | None, vary: dict[str, list[str]], *, ove
     scene = model.scene(scene_name)
     combos = combinations(vary)
     for c in combos:  # every combination must load (ModelError naming the bad value) before anything runs
-        load_model(model_path, [*overrides, *(f"{k}={v}" for k, v in c.items())]).scene(scene.name)
-    tasks = [make_task(model_path, [*overrides, *(f"{k}={v}" for k, v in c.items())], scene.name, backend=backend)
-             for c in combos]
+        load_model(model_path, [*overrides, *value_overrides(c)]).scene(scene.name)
+    tasks = [make_task(model_path, [*overrides, *value_overrides(c)], scene.name, backend=backend) for c in combos]
     out_dir = Path(out_dir)
     bar = Bar(len({t.key for t in tasks}), f"study {model.body.name}/{scene.name}") if progress else None
     done = 0
@@ -97,17 +91,10 @@ def study(model_path, scene_name: str | None, vary: dict[str, list[str]], *, ove
             "scheduler": runner.description, "code_version": code_version(), "runs": len(rows),
             "runs_stored": outcome.stored, "runs_ran": outcome.ran, "runs_retried": outcome.retried,
             "runs_failed": sum(not r["completed"] for r in rows), "cpu_count": os.cpu_count()}
-    _replace_text(paths["json"], json.dumps(meta, indent=2) + "\n")
+    replace_text(paths["json"], json.dumps(meta, indent=2) + "\n")
     if plot:
         plot_study(rows, list(vary), paths["png"], f"{model.body.name} / {scene.name}")
     return {"rows": rows, "meta": meta, **{k: str(v) for k, v in paths.items()}}
-
-
-def _replace_text(path: Path, text: str) -> None:
-    """Write whole or not at all (a temporary file renamed over the old one)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
 
 
 def metric_names(rows: list[dict], keys: Sequence[str]) -> list[str]:
@@ -116,28 +103,13 @@ def metric_names(rows: list[dict], keys: Sequence[str]) -> list[str]:
 
 
 def write_table(rows: list[dict], keys: Sequence[str], path) -> None:
-    import io
-
-    fields = [*keys, *FIRST, *metric_names(rows, keys), *LAST]
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: "" if r.get(k) is None else (f"{r[k]:.10g}" if isinstance(r[k], float) else r[k]) for k in fields})
-    _replace_text(Path(path), buf.getvalue())
+    write_rows(path, rows, [*keys, *FIRST, *metric_names(rows, keys), *LAST], float_format=".10g")
 
 
 def read_table(path) -> list[dict]:
-    """study.csv rows, numbers parsed (empty -> None), completed as bool."""
-    rows = []
-    with open(path, newline="", encoding="utf-8") as fh:
-        for raw in csv.DictReader(fh):
-            row = {}
-            for k, v in raw.items():
-                row[k] = None if v == "" else (v == "True") if k == "completed" else v if k in (
-                    "failure", "code_version") else _number(v)
-            rows.append(row)
-    return rows
+    """study.csv rows, numbers parsed as floats (empty -> None), completed as bool."""
+    rows = read_rows(path, text=("failure", "code_version"))
+    return [{k: float(v) if isinstance(v, int) and not isinstance(v, bool) else v for k, v in r.items()} for r in rows]
 
 
 def plot_study(rows: list[dict], keys: Sequence[str], path, title: str = "") -> None:

@@ -10,8 +10,10 @@ result carries that code's version (`code_version`) and the sweep refuses result
 version than its own (sweep.py).
 
 Runners (RUNNERS): `standalone` (simulate.run) and `fmu` (the body's FMU under fmpy) through
-chart.run_configuration; `reference` (the full-order beam, chart.run_reference; options
-elements, step, cache_dir); `peer:NAME` (ffrf_fmu.peers; options elements, step).
+runners.run_configuration; `reference` (the full-order beam, runners.run_reference; options
+elements, step); `beam` (runners.run_beam, the stability maps' standalone run; option
+record_every); `cosim` (a coupled run of the co-simulation map, stability/cosim.py; options case,
+H, scheme, settings); `peer:NAME` (ffrf_fmu.peers; options elements, step).
 """
 from __future__ import annotations
 
@@ -26,8 +28,7 @@ from pathlib import Path
 from typing import Any
 
 PACKAGE = Path(__file__).resolve().parent.parent  # ffrf_fmu/
-RUNNERS = ("standalone", "fmu", "reference")  # and "peer:<name>"
-NOT_DEFINING = ("cache_dir",)  # options that say where to cache, not what to run: not in the key
+RUNNERS = ("standalone", "fmu", "reference", "beam", "cosim")  # and "peer:<name>"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,7 +51,7 @@ class Task:
         default name comes from it); where the file lies is not."""
         h = hashlib.sha256(self.model_bytes)
         h.update(json.dumps([self.model_name, list(self.overrides), self.scene, self.runner, self.backend,
-                             [list(o) for o in self.options if o[0] not in NOT_DEFINING]]).encode())
+                             [list(o) for o in self.options]]).encode())
         return h.hexdigest()[:20]
 
     def describe(self) -> dict:
@@ -103,15 +104,24 @@ def execute(task: Task) -> dict:
 def _run(task: Task, model_path: str) -> dict:
     opts = dict(task.options)
     if task.runner in ("standalone", "fmu"):
-        from .chart import run_configuration
+        from .runners import run_configuration
 
         return run_configuration(model_path, task.scene, list(task.overrides), {}, task.runner, task.backend)
     if task.runner == "reference":
-        from .chart import run_reference
+        from .runners import run_reference
 
-        ref = run_reference(model_path, task.scene, list(task.overrides), opts.get("elements"), opts.get("step"),
-                            opts.get("cache_dir"))
+        ref = run_reference(model_path, task.scene, list(task.overrides), opts.get("elements"), opts.get("step"))
         return {**ref, "completed": True, "failure": None}
+    if task.runner == "beam":
+        from ..model import load_model
+        from .runners import run_beam
+
+        model = load_model(model_path, list(task.overrides))
+        return run_beam(model, model.scene(task.scene), **opts).as_result()
+    if task.runner == "cosim":
+        from .stability.cosim import run_task
+
+        return run_task(model_path, list(task.overrides), opts)
     if task.runner.startswith("peer:"):
         from ..peers import runner
 

@@ -14,12 +14,13 @@ is the reference.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .studies.stability import CosimRun, CosimSettings, _ssd, _tip_deflection, _vec
+from .cosim import CosimRun, CosimSettings, _vec, tip_deflection
 
 SHAFT_K = 300.0
 
@@ -30,15 +31,27 @@ def beam_overrides(settings: CosimSettings, k: float = SHAFT_K, c: float = 0.0) 
             f"scenes.hub_free.duration={settings.duration!r}"]
 
 
-def build(model_path, fmu_dir, settings: CosimSettings) -> dict[str, Path]:
-    from .examples import build_hub_drive
-    from .fmu.builder import build_from_model
+@dataclasses.dataclass(frozen=True)
+class CompliantB5:
+    """The two FMUs {"beam", "drive"} and the beam's tip seen from its hub at rest (eq. 92's X_tip)."""
+
+    fmus: dict
+    X_tip: tuple[float, float, float]
+
+
+def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantB5:
+    from ...examples import build_hub_drive
+    from ...fmu.builder import build_from_model
+    from ...model import load_model
 
     fmu_dir = Path(fmu_dir)
     fmu_dir.mkdir(parents=True, exist_ok=True)
-    return {"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene="hub_free",
-                                     overrides=beam_overrides(settings)),
-            "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")}
+    body = load_model(model_path, beam_overrides(settings)).body
+    e = np.asarray(body.direction, float)
+    return CompliantB5({"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene="hub_free",
+                                                 overrides=beam_overrides(settings)),
+                        "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")},
+                       tuple(float(x) for x in body.length * e / np.linalg.norm(e)))
 
 
 def connections(acceleration: bool = True) -> list[tuple[str, str, float]]:
@@ -65,73 +78,42 @@ NODE_R = [f"beam.hub.node.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
 RECORD = [*NODE_R, *_vec("beam", "tip", "r"), "beam.hub.node.w[3]", "beam.hub.t[3]"]
 
 
-def _result(t, get, stopped, wall) -> CosimRun:
+def _result(b5: CompliantB5, t, get, stopped, wall) -> CosimRun:
     """CosimRun from recorded columns: deflection against the beam root (the node frame), hub speed
     of the beam root, shaft torque on the beam."""
     R = np.stack([get(n) for n in NODE_R], -1).reshape(-1, 3, 3)
     r_tip = np.stack([get(n) for n in _vec("beam", "tip", "r")], -1)
-    X_tip = np.array([8.0, 0.0, 0.0])
-    d = _tip_deflection(R, np.zeros_like(r_tip), r_tip, X_tip) if len(t) else np.zeros(0)
+    d = tip_deflection(R, np.zeros_like(r_tip), r_tip, np.array(b5.X_tip)) if len(t) else np.zeros(0)
     return CosimRun(np.asarray(t), d, get("beam.hub.node.w[3]"), get("beam.hub.t[3]"), stopped, wall)
 
 
-def run_master(fmus, settings: CosimSettings, H: float, duration: float, scheme: str = "jacobi",
+def run_master(b5: CompliantB5, settings: CosimSettings, H: float, duration: float, scheme: str = "jacobi",
                acceleration: bool = True) -> CosimRun:
-    from .master import CoSimulation
+    from ...master import CoSimulation
 
     t0 = time.perf_counter()
-    with CoSimulation(fmus, step=H, scheme=scheme, order=["beam", "drive"],
+    with CoSimulation(b5.fmus, step=H, scheme=scheme, order=["beam", "drive"],
                       start_values=start_values(settings, H)) as sim:
         for src, dst, g in connections(acceleration):
             sim.connect(src, dst, g)
         res = sim.run(duration, record=RECORD)
-    return _result(res.t, lambda n: res.columns[n], res.stopped_early, time.perf_counter() - t0)
+    return _result(b5, res.t, lambda n: res.columns[n], res.stopped_early, time.perf_counter() - t0)
 
 
-def run_libcosim(fmus, settings: CosimSettings, H: float, duration: float, work_dir,
+def run_libcosim(b5: CompliantB5, settings: CosimSettings, H: float, duration: float, work_dir,
                  acceleration: bool = True, overrides: dict | None = None) -> CosimRun:
-    """libcosim's fixed-step algorithm (Jacobi, held inputs) from a generated SSD."""
-    import shutil
+    """libcosim's fixed-step algorithm (Jacobi, held inputs) from a generated SSD (engines.libcosim_run)."""
+    from ...engines import libcosim_run
 
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-
-    log_output_level(CosimLogLevel.ERROR)
-    work = Path(work_dir)
-    work.mkdir(parents=True, exist_ok=True)
-    comps = {}
-    for name, fmu in fmus.items():
-        shutil.copy(fmu, work / Path(fmu).name)
-        comps[name] = Path(fmu).name
-    ssd = _ssd(work / "SystemStructure.ssd", comps, connections(acceleration))
-    ex = CosimExecution.from_ssp_file(str(ssd), step_size=int(round(H * 1e9)))
-    index = {info.name.decode(): info.index for info in ex.slave_infos()}
-    refs = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
-    for full, value in {**start_values(settings, H), **(overrides or {})}.items():
-        inst, var = full.split(".", 1)
-        ex.real_initial_value(index[inst], refs[inst][var], float(value))
-    observer = CosimObserver.create_last_value()
-    ex.add_observer(observer)
-    names = [n.split(".", 1)[1] for n in RECORD]
-    t0 = time.perf_counter()
-    rows, times, stopped = [], [], ""
-    for k in range(int(round(duration / H))):
-        if not ex.step(1):
-            stopped = f"libcosim: step at t = {k * H:.6g} s failed"
-            break
-        rows.append(observer.last_real_values(index["beam"], [refs["beam"][n] for n in names]))
-        times.append((k + 1) * H)
-    wall = time.perf_counter() - t0
-    cols = {full: np.array([r[i] for r in rows]) for i, full in enumerate(RECORD)}
-    del ex
-    return _result(times, lambda n: cols[n], stopped, wall)
+    t, cols, stopped, wall = libcosim_run(b5.fmus, connections(acceleration), {**start_values(settings, H), **(overrides or {})},
+                                          H, duration, RECORD, work_dir)
+    return _result(b5, t, lambda n: cols[n], stopped, wall)
 
 
-def run_ecos(fmus, settings: CosimSettings, H: float, duration: float, acceleration: bool = True,
+def run_ecos(b5: CompliantB5, settings: CosimSettings, H: float, duration: float, acceleration: bool = True,
              overrides: dict | None = None) -> CosimRun:
     """ecos (ecospy) with its fixed-step Jacobi algorithm, the FMUs loaded in this process."""
-    from .engines import import_ecospy
+    from ...engines import import_ecospy
 
     ecospy = import_ecospy()
     EcosSimulation, EcosSimulationStructure = ecospy.EcosSimulation, ecospy.EcosSimulationStructure
@@ -139,7 +121,7 @@ def run_ecos(fmus, settings: CosimSettings, H: float, duration: float, accelerat
     t0 = time.perf_counter()
     rows, times, stopped = [], [], ""
     with EcosSimulationStructure() as ss:
-        for name, fmu in fmus.items():
+        for name, fmu in b5.fmus.items():
             ss.add_model(name, str(fmu))
         for src, dst, g in connections(acceleration):
             s, d = src.replace(".", "::", 1), dst.replace(".", "::", 1)
@@ -161,4 +143,4 @@ def run_ecos(fmus, settings: CosimSettings, H: float, duration: float, accelerat
                 times.append((k + 1) * H)
             sim.terminate()
     cols = {full: np.array([r[i] for r in rows]) for i, full in enumerate(RECORD)}
-    return _result(times, lambda n: cols[n], stopped, time.perf_counter() - t0)
+    return _result(b5, times, lambda n: cols[n], stopped, time.perf_counter() - t0)

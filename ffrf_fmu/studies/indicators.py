@@ -1,0 +1,210 @@
+"""The indicators the advisor reads (advise.py), none of which needs a reference run: the spin
+against the first bending frequency (Southwell), the excitation band of the drives and loads, the
+integrator's period error (generalized-alpha amplification), the free-free frequencies of one
+superelement of a chain, and the step that divides a duration."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..model import Body
+
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy 2 renamed trapz
+
+
+def southwell_coefficient(n: int = 20001) -> float:
+    """S1 = int_0^L (L^2 - x^2)/2 w'^2 dx / int_0^L w^2 dx for the first Euler-Bernoulli cantilever
+    mode w (L = 1): omega^2 = omega_0^2 + S1 Omega^2 for a beam spun about its root, bending out of
+    the plane of rotation (Southwell; 1.1933); in the plane of rotation the centrifugal load turns
+    with the deflection and takes 1 off: S1 - 1 = 0.193."""
+    x = np.linspace(0.0, 1.0, n)
+    w, dw = _cantilever_mode(x)
+    return float(_trapezoid((1.0 - x**2) / 2.0 * dw**2, x) / _trapezoid(w**2, x))
+
+
+def _cantilever_mode(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    bl = 1.8751040687119611
+    s = (math.cosh(bl) + math.cos(bl)) / (math.sinh(bl) + math.sin(bl))
+    w = np.cosh(bl * x) - np.cos(bl * x) - s * (np.sinh(bl * x) - np.sin(bl * x))
+    dw = bl * (np.sinh(bl * x) + np.sin(bl * x) - s * (np.cosh(bl * x) - np.cos(bl * x)))
+    return w, dw
+
+
+def amplification(wh: float, rho_inf: float) -> complex:
+    """Principal root of the first-order generalized-alpha method (runtime/integrator.py) on
+    y' = i omega y: per step, z ~ exp(i omega h)."""
+    am = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf))
+    af = 1.0 / (1.0 + rho_inf)
+    g = 0.5 + am - af
+    lam = 1j * wh
+    # am a1 + (1 - am) a0 = af lam y1 + (1 - af) lam y0,  y1 = y0 + (1 - g) a0 + g a1   (h = 1)
+    lhs = np.array([[1.0, -g], [-af * lam, am]])
+    rhs = np.array([[1.0, 1.0 - g], [(1.0 - af) * lam, -(1.0 - am)]])
+    z = np.linalg.eigvals(np.linalg.solve(lhs, rhs))
+    return complex(z[np.argmin(np.abs(z - np.exp(lam)))])
+
+
+def period_error(wh: float, rho_inf: float) -> float:
+    """Relative period (frequency) error of the integrator at omega h (negative: too slow)."""
+    return float(np.angle(amplification(wh, rho_inf)) / wh - 1.0)
+
+
+def largest_step(omega: float, rho_inf: float, max_error: float) -> float:
+    """Largest h with |period_error(omega h)| <= max_error (bisection on omega h in (0, 1.5])."""
+    lo, hi = 1e-6, 1.5
+    if abs(period_error(hi, rho_inf)) <= max_error:
+        return hi / omega
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if abs(period_error(mid, rho_inf)) <= max_error else (lo, mid)
+    return lo / omega
+
+
+def _band(signal: np.ndarray, dt: float, energy_fraction: float) -> float:
+    """Frequency above which the spectrum of `signal` holds at most energy_fraction of its energy."""
+    x = np.asarray(signal, dtype=float)
+    if not np.any(x):
+        return 0.0
+    x = x * np.hanning(len(x))  # no jump from the periodic extension of a signal that ends high
+    X = np.abs(np.fft.rfft(x)) ** 2
+    f = np.fft.rfftfreq(len(x), dt)
+    tail = np.cumsum(X[::-1])[::-1]  # energy at and above each frequency
+    above = tail / tail[0]
+    k = int(np.argmax(above <= energy_fraction)) if np.any(above <= energy_fraction) else len(f) - 1
+    return float(f[max(k - 1, 0)])
+
+
+def excitation(scene, tolerance: float) -> tuple[float, list[str]]:
+    """(highest excitation frequency [Hz], the contributions as text)."""
+    from ..runtime.drives import evaluate
+
+    n = min(200_001, int(round(scene.duration / scene.step)) + 1)
+    t = np.linspace(0.0, scene.duration, n)
+    dt = t[1] - t[0]
+    parts: list[tuple[float, str]] = []
+    for d in scene.drives:
+        for kind, drive in (("rotation", d.rotation), ("translation", d.translation)):
+            if drive is None:
+                continue
+            tf = drive.angle if kind == "rotation" else drive.displacement
+            vals = np.array([evaluate(tf.kind, dict(tf.params), float(x)) for x in t])
+            rate, acc = vals[:, 1], vals[:, 2]
+            fb = _band(acc, dt, tolerance**2)
+            parts.append((fb, f"band of {d.port}.{kind} acceleration {fb:.3g} Hz"))
+            if kind == "rotation":
+                fc = _band(rate**2, dt, tolerance**2)
+                parts.append((fc, f"band of the squared {d.port} rate (centrifugal load) {fc:.3g} Hz"))
+                spin = float(np.max(np.abs(rate)))
+                parts.append((spin / (2 * math.pi), f"spin rate {spin:.3g} rad/s = {spin / (2 * math.pi):.3g} Hz "
+                              "(Coriolis coupling, loads fixed in space seen from the body)"))
+            if tf.kind == "sine":
+                fs = dict(tf.params)["frequency_hz"]
+                parts.append((fs, f"sine drive {fs:.3g} Hz"))
+    for ld in scene.loads:
+        if math.isfinite(ld.t_end):
+            fw = 1.0 / (ld.t_end - ld.t_start)
+            parts.append((fw, f"load window on {ld.port} of {ld.t_end - ld.t_start:g} s: {fw:.3g} Hz"))
+    if any(scene.initial.angular_velocity):
+        w = float(np.linalg.norm(scene.initial.angular_velocity))
+        parts.append((w / (2 * math.pi), f"initial spin {w:.3g} rad/s"))
+    if not parts:
+        return 0.0, ["no drives or loads with a time scale: quasi-static"]
+    parts.sort(key=lambda p: -p[0])
+    return parts[0][0], [p[1] for p in parts]
+
+
+def drive_time_scale(scene) -> float | None:
+    """Shortest characteristic time of the drives: T of a spin-up, the period of a sine."""
+    out = []
+    for d in scene.drives:
+        for drive in (d.rotation, d.translation):
+            if drive is None:
+                continue
+            tf = drive.angle if d.rotation is drive else drive.displacement
+            p = dict(tf.params)
+            if tf.kind == "haug_spinup":
+                out.append(p["T"])
+            elif tf.kind == "sine" and p["frequency_hz"] > 0:
+                out.append(1.0 / p["frequency_hz"])
+    return min(out) if out else None
+
+
+def reduced(body: Body):
+    """(BodyData, reductions) of the body (reduction.build_body)."""
+    from ..reduction import build_body
+
+    return build_body(body)
+
+
+def rechain(body: Body, n_se: int, modes: int | None = None) -> Body:
+    """The body as a chain of n_se superelements: ports keep their place along the beam (node k of
+    n becomes node k n_se / n, which must be whole: see `valid_counts`)."""
+    n0 = body.superelements
+    ports = []
+    for p in body.ports:
+        k, r = divmod(p.node * n_se, n0)
+        if r:
+            raise ValueError(f"port {p.name!r} at node {p.node} of {n0} is not on a boundary node of {n_se} "
+                             "superelements")
+        ports.append(dataclasses.replace(p, node=k))
+    return dataclasses.replace(body, superelements=n_se, ports=tuple(ports),
+                               modes=body.modes if modes is None else modes)
+
+
+def valid_count(body: Body, n_min: int) -> int:
+    """Smallest chain length >= n_min that keeps every port on a boundary node."""
+    n0 = body.superelements
+    step = n0 // math.gcd(n0, math.gcd(*[p.node for p in body.ports], n0)) if body.ports else 1
+    return max(step, step * math.ceil(n_min / step))
+
+
+def first_frequency(body: Body) -> float:
+    """First natural frequency [Hz] of the chain with the motion-driven port parts held."""
+    from ..linear import natural_frequencies
+
+    f = natural_frequencies(reduced(body)[0])
+    return float(f[0]) if len(f) else math.nan
+
+
+def free_free_frequencies(body: Body, n_se: int, n_modes: int) -> np.ndarray:
+    """Free-free frequencies [Hz] of one superelement of a chain of n_se (its kept-mode candidates)."""
+    sub = dataclasses.replace(body, superelements=n_se, modes=n_modes, ports=())
+    data, _ = reduced(sub)
+    return np.asarray(data.superelements[0].frequencies_hz, dtype=float)
+
+
+def nice_step(h_max: float, duration: float) -> float:
+    """The largest of 1, 1.25, 1.6, 2, 2.5, 3.2, 4, 5, 6.4, 8 x 10^k not above h_max that divides the
+    duration into whole steps."""
+    e = math.floor(math.log10(h_max))
+    mant = (1, 1.25, 1.6, 2, 2.5, 3.2, 4, 5, 6.4, 8)
+    cands = sorted({float(f"{m * 10.0**k:.6g}") for k in range(e - 3, e + 1) for m in mant}, reverse=True)
+    for h in cands:
+        if h <= h_max * (1 + 1e-12) and abs(duration / h - round(duration / h)) < 1e-9 * duration / h:
+            return float(f"{h:.6g}")
+    return float(f"{h_max:.3g}")
+
+
+def spin_history(scene, n_max: int = 200_001):
+    """(t, rate, acc, axis, source) of the scene's fastest rotation drive, or of its initial spin
+    (constant rate, no acceleration); None when nothing spins."""
+    from ..runtime.drives import evaluate
+
+    t = np.linspace(0.0, scene.duration, min(n_max, int(round(scene.duration / scene.step)) + 1))
+    best = None
+    for d in scene.drives:
+        if d.rotation is None:
+            continue
+        tf = d.rotation.angle
+        vals = np.array([evaluate(tf.kind, dict(tf.params), float(x))[1:] for x in t])
+        if best is None or np.max(np.abs(vals[:, 0])) > np.max(np.abs(best[1])):
+            best = (t, vals[:, 0], vals[:, 1], np.asarray(d.rotation.axis, float), f"drive {d.port}.rotation ({tf.kind})")
+    if best is None and any(scene.initial.angular_velocity):
+        w = np.asarray(scene.initial.angular_velocity, dtype=float)
+        best = (t, np.full_like(t, np.linalg.norm(w)), np.zeros_like(t), w, "initial angular velocity")
+    if best is None or not np.any(best[1]):
+        return None
+    t, rate, acc, axis, src = best
+    return t, rate, acc, axis / np.linalg.norm(axis), src

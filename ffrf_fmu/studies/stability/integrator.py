@@ -1,0 +1,98 @@
+"""The integrator map (docs/stability.md): generalized-alpha step size against rho_inf on one
+scene, each run's tip deflection against a converged (small-step) run; unstable = Newton failure,
+a non-finite state, deflection > L, or energy created by the integrator (`ENERGY_GROWTH`)."""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from ...model import Model, load_model
+from ..runners import BeamRun, beam_run_of, run_beam
+from ..task import make_task
+from .common import SweepOptions, run_tasks, write_map
+
+RHO_INFS = (0.0, 0.5, 0.8, 1.0)
+ENERGY_GROWTH = 0.05  # unstable: the integrator created more than 5 % of the energy level
+
+
+@dataclasses.dataclass
+class IntegratorSettings:
+    """Step sizes against rho_inf for one scene; the converged run uses `converged_step`."""
+
+    steps: tuple[float, ...]
+    rhos: tuple[float, ...] = RHO_INFS
+    converged_step: float = 5e-4
+    converged_rho: float = 0.8
+    duration: float | None = None  # None: the scene's
+    overrides: tuple[str, ...] = ()
+
+
+#: per benchmark scene: B1 spin-up halved like the spin map (T = 7.5 s, 10 s), B2 cut after 20 s
+#: (torque 0-10 s, tip load 15-15.2 s, 4.8 s of the 1.74 Hz vibration after it)
+INTEGRATOR_DEFAULTS = {
+    ("haug_beam", "spinup"): IntegratorSettings(steps=(1e-3, 2e-3, 5e-3, 0.01, 0.02, 0.05, 0.1, 0.2),
+                                                converged_step=5e-4, duration=10.0,
+                                                overrides=("scenes.spinup.drives.hub.rotation.angle.T=7.5",)),
+    ("spherical_beam", "torque_then_tip"): IntegratorSettings(steps=(5e-3, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5),
+                                                               converged_step=1e-3, duration=20.0),
+}
+
+
+def integrator_overrides(scene: str, step: float, rho: float, settings: IntegratorSettings) -> list[str]:
+    ov = [*settings.overrides, f"scenes.{scene}.step={step!r}", f"scenes.{scene}.rho_inf={rho!r}"]
+    if settings.duration is not None:
+        ov.append(f"scenes.{scene}.duration={settings.duration!r}")
+    return ov
+
+
+def integrator_run(model_path, scene: str, step: float, rho: float, settings: IntegratorSettings) -> tuple[BeamRun, Model]:
+    """One run of the map in this process (the map's runs are the same, through the sweep layer)."""
+    model = load_model(model_path, integrator_overrides(scene, step, rho, settings))
+    return run_beam(model, model.scene(scene)), model
+
+
+def integrator_map(model_path, scene: str, settings: IntegratorSettings, out_dir,
+                   sweep: SweepOptions = SweepOptions()) -> list[dict]:
+    """Step size against rho_inf on one scene: error of the maximum transverse tip deflection
+    (`peak_rel_error`, signed) and of its history (`rel_error`: max over time of the difference,
+    over the converged run's peak), energy growth, stability."""
+    s = settings
+    name = Path(model_path).stem
+    conv_task = make_task(model_path, integrator_overrides(scene, s.converged_step, s.converged_rho, s), scene, "beam")
+    tasks = {(rho, h): make_task(model_path, integrator_overrides(scene, h, rho, s), scene, "beam")
+             for rho in s.rhos for h in s.steps}
+    notes = {conv_task.key: f"{name}/{scene}: converged run h = {s.converged_step:g} s",
+             **{t.key: f"{name}/{scene} h = {h:g} s rho_inf {rho:g}" for (rho, h), t in tasks.items()}}
+    results = run_tasks([conv_task, *tasks.values()], out_dir, f"integrator map {name}/{scene}", notes, sweep)
+    c = results[conv_task.key]
+    if not c.get("completed"):
+        raise RuntimeError(f"{name}/{scene}: the converged run failed: {c['failure']}")
+    conv = beam_run_of(c)
+    t_c, d_c = conv.t, conv.deflection
+    rows = [{"benchmark": name, "scene": scene, "step": s.converged_step, "rho_inf": s.converged_rho,
+             "converged": True, "peak_rel_error": 0.0, "rel_error": 0.0, "energy_growth": conv.energy_growth,
+             "unstable": False, "failure": "", "t_end": float(t_c[-1]), "wall_time_s": conv.wall_time_s}]
+    series = {f"{name}_{scene}_converged": np.column_stack([t_c, d_c])}
+    peak = float(np.max(np.abs(d_c)))
+    for (rho, h), task in tasks.items():
+        res = results[task.key]
+        if "t" not in res:  # the run could not start: a row with its cause
+            rows.append({"benchmark": name, "scene": scene, "step": float(h), "rho_inf": float(rho),
+                         "converged": False, "unstable": True, "failure": res["failure"]})
+            continue
+        run = beam_run_of(res)
+        n = len(run.t)
+        err = float(np.max(np.abs(run.deflection - np.interp(run.t, t_c, d_c))) / peak) if n else float("nan")
+        growth = run.energy_growth
+        failure = run.failure
+        if not run.unstable and growth > ENERGY_GROWTH:
+            failure = f"energy growth {growth:.3g} > {ENERGY_GROWTH:g} of the energy level"
+        rows.append({"benchmark": name, "scene": scene, "step": float(h), "rho_inf": float(rho), "converged": False,
+                     "peak_rel_error": float((run.max_deflection - peak) / peak), "rel_error": err,
+                     "energy_growth": growth, "unstable": bool(failure), "failure": failure,
+                     "t_end": float(run.t[-1]), "wall_time_s": run.wall_time_s})
+        series[f"{name}_{scene}_h{h:g}_rho{rho:g}"] = np.column_stack([run.t, run.deflection])
+    write_map(out_dir, rows, series)
+    return rows
