@@ -44,7 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .fe import FEModel, node_dofs, skew
+from .fe import FEModel, node_dofs
+from .runtime.rotation import skew
 from .fe.beam import beam_model, local_frame, local_interpolation
 from .model import Body, Scene, Section
 from .runtime.drives import evaluate

@@ -21,15 +21,12 @@ import numpy as np
 import scipy.linalg as sla
 
 from .runtime.data import BodyData, SuperelementData
-
-
-def _skew(a: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+from .runtime.rotation import expm, skew
 
 
 def boundary_rigid_modes(X_B: np.ndarray) -> np.ndarray:
     """U_B: rows of the rigid modes about the CM at the boundary nodes (eq. 11), (6 nb, 6)."""
-    blocks = [np.block([[np.eye(3), -_skew(x)], [np.zeros((3, 3)), np.eye(3)]]) for x in X_B]
+    blocks = [np.block([[np.eye(3), -skew(x)], [np.zeros((3, 3)), np.eye(3)]]) for x in X_B]
     return np.vstack(blocks)
 
 
@@ -144,15 +141,15 @@ def _spin_operator(system, w: np.ndarray) -> np.ndarray:
     """P (ny, ny): d(ydot) = xi' + P xi about the steady spin (block comment above)."""
     L = system.layout
     P = np.zeros((L.ny, L.ny))
-    W = _skew(w)
+    W = skew(w)
     for i in range(L.n_nodes):
         P[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = W
-        P[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = _skew(system.RN[i].T @ w)
+        P[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = skew(system.RN[i].T @ w)
     nN, nS = 6 * L.n_nodes, 6 + L.nm
     for e in range(L.n_se):
         c, v = nN + e * nS, nN + L.n_se * nS + e * L.nv
         P[c : c + 3, c : c + 3] = W
-        P[c + 3 : c + 6, c + 3 : c + 6] = _skew(system.R0[e].T @ w)
+        P[c + 3 : c + 6, c + 3 : c + 6] = skew(system.R0[e].T @ w)
         P[v : v + 3, v : v + 3] = W
     return P
 

@@ -45,7 +45,6 @@ side (the force on one body is the opposite of the force on the other).
 """
 from __future__ import annotations
 
-import math
 import shutil
 import time as _time
 from ctypes import byref
@@ -54,6 +53,8 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 import numpy as np
+
+from .runtime.rotation import expm
 
 
 class CoSimulationError(RuntimeError):
@@ -238,15 +239,6 @@ def port_causality(inst: FmuInstance, port: str) -> dict:
         v = inst.variable(f"{port}.{pos}")
         out[part] = "motion" if v.causality == "input" else "force"
     return out
-
-
-def _expm(theta: np.ndarray) -> np.ndarray:
-    """Rodrigues: exp(skew(theta))."""
-    th = float(np.linalg.norm(theta))
-    K = np.array([[0.0, -theta[2], theta[1]], [theta[2], 0.0, -theta[0]], [-theta[1], theta[0], 0.0]])
-    if th < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + (math.sin(th) / th) * K + ((1.0 - math.cos(th)) / th**2) * (K @ K)
 
 
 class _IQN:
@@ -435,7 +427,7 @@ class CoSimulation:
         if link.kind == "translation":
             p0 = p1 - H * rate
         else:
-            p0 = (_expm(-H * rate) @ p1.reshape(3, 3)).ravel()
+            p0 = (expm(-H * rate) @ p1.reshape(3, 3)).ravel()
         out = dict(zip(link.dst_pos, p0))
         out.update(zip(link.dst_rate, rate))
         return out

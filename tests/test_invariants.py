@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu import invariants as iv
-from ffrf_fmu.fe import skew
+from ffrf_fmu.runtime.rotation import skew
 from ffrf_fmu.fe.beam import beam_model, local_frame, local_interpolation
 from ffrf_fmu.model import Section, load_model
 from ffrf_fmu.reduction import reduce_superelement

@@ -3,6 +3,7 @@ from fractions import Fraction
 from math import factorial
 
 import numpy as np
+import pytest
 
 from ffrf_fmu.runtime import rotation as rot
 
@@ -29,3 +30,28 @@ def test_tangent_coefficients_are_exact_to_round_off():
             exact = _exact_series(float(t), offset)
             worst = max(worst, abs(float((Fraction(float(v)) - exact) / exact)))
     assert worst < 4 * eps, worst
+
+
+@pytest.mark.parametrize("scale", [1e-4, 0.05, 0.5, 2.5])
+def test_exp_log_round_trip_and_tangent(scale):
+    """exp/log round trip and the tangent (right Jacobian) by central differences of log, at small
+    and large angles (the coefficient series switch at 1e-5 and 2 rad, logm's at 1e-2 rad)."""
+    rng = np.random.default_rng(1)
+    a = scale * rng.normal(size=(6, 3)) / np.sqrt(3)
+    R = rot.expm(a)
+    assert np.allclose(np.swapaxes(R, -1, -2) @ R, np.eye(3), atol=1e-14)
+    assert np.allclose(rot.logm(R), a, atol=1e-13)
+    # exp(a + da) = exp(a) exp(T(a) da) to first order; central difference, error O(eps^2)
+    eps = 1e-6
+    for k in range(3):
+        da = np.zeros(3)
+        da[k] = eps
+        d = rot.logm(np.swapaxes(rot.expm(a - da), -1, -2) @ rot.expm(a + da)) / (2 * eps)
+        assert np.allclose(d, rot.tangent(a)[:, :, k], atol=1e-8)
+
+
+def test_logm_near_pi():
+    """At and next to pi, where the skew part vanishes, the axis comes from the symmetric part."""
+    axis = np.array([1.0, 2.0, -2.0]) / 3.0
+    for t in (np.pi - 1e-3, np.pi - 1e-7, np.pi):
+        assert np.allclose(rot.logm(rot.expm(t * axis)), t * axis, atol=1e-8)

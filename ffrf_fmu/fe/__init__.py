@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..runtime.rotation import skew
+
 DOFS_PER_NODE = 6
 
 
@@ -34,20 +36,6 @@ class FEModel:
 def node_dofs(nodes) -> np.ndarray:
     """Global dof indices of `nodes`, node-major: (len(nodes) * 6,)."""
     return (DOFS_PER_NODE * np.asarray(nodes, dtype=int)[:, None] + np.arange(DOFS_PER_NODE)).ravel()
-
-
-def skew(a) -> np.ndarray:
-    """skew(a) b = a x b; works on (..., 3) arrays."""
-    a = np.asarray(a, dtype=float)
-    z = np.zeros(a.shape[:-1])
-    return np.stack(
-        [
-            np.stack([z, -a[..., 2], a[..., 1]], -1),
-            np.stack([a[..., 2], z, -a[..., 0]], -1),
-            np.stack([-a[..., 1], a[..., 0], z], -1),
-        ],
-        -2,
-    )
 
 
 def rigid_modes(coords: np.ndarray, origin) -> np.ndarray:

@@ -28,7 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import Section
-from . import FEModel, skew
+from ..runtime.rotation import skew
+from . import FEModel
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(4)
 _XI = 0.5 * (_GAUSS_X + 1.0)  # points on [0, 1]

@@ -1,8 +1,9 @@
 """Full-order geometrically exact beam: the independent reference for the superelement path.
 
 Shares no dynamics code with the superelement path: it imports only the model dataclasses
-(`ffrf_fmu.model`) and the drive time functions (`ffrf_fmu.runtime.drives`); SO(3) helpers,
-element, mass, integrator and Newton solver are its own (`so3`, `beam`, `solver`).
+(`ffrf_fmu.model`), the drive time functions (`ffrf_fmu.runtime.drives`) and the package's one
+SO(3) toolkit (`ffrf_fmu.runtime.rotation`, checked against exact arithmetic on its own in
+tests/test_rotation.py); element, mass, integrator and Newton solver are its own (`beam`, `solver`).
 
 Formulation choice: Simo-Reissner (geometrically exact) rather than co-rotational.
 - It is exact for arbitrarily large displacements, rotations and (within the linear section law)

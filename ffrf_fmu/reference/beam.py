@@ -26,11 +26,66 @@ from __future__ import annotations
 
 import numpy as np
 
-from .so3 import coefficients, cross, dot, hat, logm
+from ..runtime.rotation import cross, logm, skew
+
+# The coefficient functions of exp and its right Jacobians with their derivatives in p = phi^2,
+# which the exact tangent needs (the SO(3) basics are runtime/rotation.py's). The arrays are
+# small (one entry per element), so the cost is the number of numpy calls: one Taylor series
+# when every angle is below SERIES rad, closed forms otherwise.
+SERIES = 0.1  # rad; series truncation error < 1e-13 below; closed forms lose digits to cancellation
+
+# Taylor coefficients in p = phi^2 (columns: s1, s2, s3, s4, ds1/dp, ds2/dp, ds3/dp, ds4/dp)
+#   s1 = sin(phi)/phi, s2 = (1 - cos phi)/phi^2, s3 = (phi - sin phi)/phi^3,
+#   s4 = 1/phi^2 - (1 + cos phi)/(2 phi sin phi)
+_TAYLOR = np.array(
+    [
+        [1.0, 1 / 2, 1 / 6, 1 / 12, -1 / 6, -1 / 24, -1 / 120, 1 / 720],
+        [-1 / 6, -1 / 24, -1 / 120, 1 / 720, 1 / 60, 1 / 360, 1 / 2520, 1 / 15120],
+        [1 / 120, 1 / 720, 1 / 5040, 1 / 30240, -1 / 1680, -1 / 13440, -1 / 120960, 1 / 403200],
+        [-1 / 5040, -1 / 40320, -1 / 362880, 1 / 1209600, 1 / 90720, 1 / 907200, 1 / 9979200, 1 / 11975040],
+        [1 / 362880, 1 / 3628800, 1 / 39916800, 1 / 47900160, 0.0, 0.0, 0.0, 0.0],
+    ]
+)
+_POW = np.arange(5)
+
+
+def coefficients(p: np.ndarray, derivatives: bool = False) -> np.ndarray:
+    """Coefficient functions of p = phi^2, stacked on a new last axis.
+
+    Returns (..., 4) [s1, s2, s3, s4], or (..., 8) with their derivatives d/dp appended.
+    """
+    p = np.asarray(p, dtype=float)
+    ncol = 8 if derivatives else 4
+    if p.size == 0 or p.max() < SERIES * SERIES:
+        return (p[..., None] ** _POW) @ _TAYLOR[:, :ncol]
+    small = p < SERIES * SERIES
+    q = np.where(small, 1.0, p)
+    f = np.sqrt(q)
+    sn, cs = np.sin(f), np.cos(f)
+    cot_h = (1.0 + cs) / sn  # cot(phi/2)
+    cols = [sn / f, (1.0 - cs) / q, (f - sn) / (f * q), 1.0 / q - cot_h / (2.0 * f)]
+    if derivatives:
+        csc2_h = 1.0 / np.sin(0.5 * f) ** 2
+        cols += [
+            (f * cs - sn) / (2.0 * f * q),
+            (f * sn - 2.0 + 2.0 * cs) / (2.0 * q * q),
+            ((1.0 - cs) * f - 3.0 * (f - sn)) / (2.0 * q * q * f),
+            (-2.0 / (f * q) + (f * csc2_h + 2.0 * cot_h) / (4.0 * q)) / (2.0 * f),
+        ]
+    out = np.stack(cols, axis=-1)
+    if np.any(small):
+        out = np.where(small[..., None], (p[..., None] ** _POW) @ _TAYLOR[:, :ncol], out)
+    return out
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of stacks of 3-vectors."""
+    return (a * b).sum(-1)
+
 
 _E1 = np.array([1.0, 0.0, 0.0])
 _I3 = np.eye(3)
-# F = I + b A + c A^2 (A = hat(psi)) for E = exp(psi^/2), Jh = J_r(-psi/2), Jri = J_r^-1(psi),
+# F = I + b A + c A^2 (A = skew(psi)) for E = exp(psi^/2), Jh = J_r(-psi/2), Jri = J_r^-1(psi),
 # Jrim = J_r^-1(-psi): (b, c) picked from [s1..s4 at p/4, s1..s4 at p] (see state()).
 _BC_IDX = np.array([0, 1, 0, 0, 1, 2, 7, 7])
 _BC_SCALE = np.array([0.5, 0.5, 0.0, 0.0, 0.25, 0.25, 1.0, 1.0])
@@ -42,7 +97,7 @@ _SEL = np.array([0, 1, 2, 2, 3, 3])
 
 
 def _dFv(b, c, db, dc, psi, v):
-    """d(F(psi) v)/dpsi at fixed v for F = I + b(p) hat(psi) + c(p) hat(psi)^2, p = |psi|^2.
+    """d(F(psi) v)/dpsi at fixed v for F = I + b(p) skew(psi) + c(p) skew(psi)^2, p = |psi|^2.
 
     Stacked: b, c, db, dc (k, ne), psi (ne, 3), v (k, ne, 3) -> (k, ne, 3, 3).
     """
@@ -52,7 +107,7 @@ def _dFv(b, c, db, dc, psi, v):
     out = c[..., None, None] * (
         pv[..., None, None] * _I3 + psi[..., :, None] * v[..., None, :] - 2.0 * v[..., :, None] * psi[..., None, :]
     )
-    out -= b[..., None, None] * hat(v)
+    out -= b[..., None, None] * skew(v)
     out += (2.0 * (db[..., None] * pxv + dc[..., None] * pxpxv))[..., :, None] * psi[..., None, :]
     return out
 
@@ -75,12 +130,14 @@ class BeamElements:
         psi = logm(np.swapaxes(R1, -1, -2) @ R2)
         ne = psi.shape[0]
         p = dot(psi, psi)
+        if p.size and p.max() > (np.pi - 1e-6) ** 2:
+            raise ValueError("element relative rotation too close to pi: refine the mesh")
         pp = np.concatenate([p, 0.25 * p])
         co = coefficients(pp)
         cat = np.concatenate([co[ne:], co[:ne]], axis=1)  # s1..s4 at p/4, then s1..s4 at p
         bc = cat[:, _BC_IDX] * _BC_SCALE + _BC_OFFSET
         b, c = bc[:, :4].T, bc[:, 4:].T
-        A = hat(psi)
+        A = skew(psi)
         A2 = A @ A
         F = _I3 + b[..., None, None] * A + c[..., None, None] * A2
         E, Jh, Jri, Jrim = F
@@ -134,7 +191,7 @@ class BeamElements:
         Gpsi = np.concatenate([P1, P2], axis=-1)  # (ne, 3, 6)
         Gm = np.concatenate([A1, A2], axis=-1)
         Bu = np.swapaxes(Rm, -1, -2) / L  # d gamma / d(u2 - u1)
-        H = hat(np.array([g, n]))
+        H = skew(np.array([g, n]))
         Hg, Hn = H[0], H[1]
         # translational rows of node 2 (node 1: minus)
         Kx_u = (Rm * CN) @ Bu

@@ -53,7 +53,7 @@ from scipy.linalg import lapack
 from ..model import Body, Scene
 from ..runtime.drives import evaluate
 from .beam import BeamElements
-from .so3 import cross, expm, expm_jr, hat
+from ..runtime.rotation import cross, expm, skew, tangent
 
 # an energy error (|kinetic + strain - work - initial| / energy level) above this makes the run suspect:
 # the solver warns, and the chart and the spin map mark what they compared against it
@@ -73,7 +73,7 @@ def section_frame(direction) -> np.ndarray:
     """
     e1 = np.asarray(direction, dtype=float)
     e1 = e1 / np.linalg.norm(e1)
-    e2 = cross([0.0, 0.0, 1.0], e1)
+    e2 = cross(np.array([0.0, 0.0, 1.0]), e1)
     if np.linalg.norm(e2) < 1e-9:
         e2 = np.array([0.0, 1.0, 0.0])
     e2 = e2 / np.linalg.norm(e2)
@@ -276,7 +276,7 @@ class _Scene:
                 else:
                     a = np.asarray(rd.axis, float)
                     a = a / np.linalg.norm(a)
-                    A = hat(a)
+                    A = skew(a)
                     self.rot.append((k, (a, A, A @ A), rd.angle.kind, dict(rd.angle.params)))
         free = np.ones((nn, 6), bool)
         free[self.presc_t, :3] = False
@@ -542,7 +542,7 @@ def simulate_reference(
             hinc = h * inc[:, 3:]
             x1 = np.where(free[:, :3], x0 + h * inc[:, :3], x1)
             if refresh or fac is None:
-                Eh, Tm = expm_jr(hinc)
+                Eh, Tm = expm(hinc), tangent(hinc)
             else:
                 Eh = expm(hinc)
             R1 = np.where(free[:, 3:4, None], R0 @ Eh, R1)
@@ -567,9 +567,9 @@ def simulate_reference(
                 Ke = el.tangent_from(st) * beta_p
                 Ke[:, :, 3:6] = Ke[:, :, 3:6] @ Tm[:-1]
                 Ke[:, :, 9:12] = Ke[:, :, 9:12] @ Tm[1:]
-                Kr = gamma_p * (hat(W) * J[:, None, :] - hat(JW))
+                Kr = gamma_p * (skew(W) * J[:, None, :] - skew(JW))
                 if sc.has_moments:
-                    Kr = Kr - beta_p * hat(np.einsum("nji,nj->ni", R1, T)) @ Tm
+                    Kr = Kr - beta_p * skew(np.einsum("nji,nj->ni", R1, T)) @ Tm
                 fac = band.factor(Ke, Kr)
                 R_fac = R1[kref].copy()
                 n_factor += 1
@@ -705,7 +705,7 @@ def static_reference(
             r[:, :3] -= lam * Ftot
             r[:, 3:] -= Tmat
             Ke = mesh.elements.tangent_from(st)
-            Kr = -hat(Tmat)
+            Kr = -skew(Tmat)
             d = band.solve(band.factor(Ke, Kr), -r.ravel()).reshape(nn, 6)
             x = x + d[:, :3]
             R = R @ expm(d[:, 3:])

@@ -1,4 +1,10 @@
-"""SO(3) in one place: skew, exponential, tangent operator and the elastic rotation map `vect`.
+"""The one SO(3) toolkit of the package: skew, cross, exponential, its tangent, logarithm, the
+elastic rotation map `vect` and the rotation check.
+
+Every stage imports it from here (the FE model, linearization, the reference beam, the master,
+the studies): it lives in runtime/ because runtime/ ships inside each FMU. Its compiled twins are
+the scalar numba functions `_skew`, `_cross`, `_expm`, `_tangent` of runtime/kernel.py (checked
+through whole runs against the numpy backend in tests/test_backends.py).
 
 Conventions: rotations are matrices R (columns = rotated axes in fixed axes), updated on the
 right, R <- R exp(skew(theta)), with theta in the rotated (body) axes. All functions accept
@@ -113,16 +119,26 @@ def tangent(theta: np.ndarray) -> np.ndarray:
     return np.eye(3) - b[..., None, None] * S + c[..., None, None] * (S @ S)
 
 
+# [axial vector of (R - R^T)/2, (trace R - 1)/2] = R.ravel() @ _LOG + _LOG_OFF
+_LOG = np.zeros((9, 4))
+_LOG[7, 0], _LOG[5, 0], _LOG[2, 1], _LOG[6, 1], _LOG[3, 2], _LOG[1, 2] = 0.5, -0.5, 0.5, -0.5, 0.5, -0.5
+_LOG[[0, 4, 8], 3] = 0.5
+_LOG_OFF = np.array([0.0, 0.0, 0.0, -0.5])
+
+
 def logm(R: np.ndarray) -> np.ndarray:
-    """Rotation vector of R (angle in [0, pi]); used for outputs, not in the equations."""
+    """Rotation vector of R (angle in [0, pi]). The angle is atan2(sin t, cos t) of the skew part
+    v = sin(t) axis and of the trace, accurate at every angle (arccos of the trace loses half the
+    digits near 0); near pi, where v -> 0, the axis comes from the symmetric part."""
     R = np.asarray(R, dtype=float)
-    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    t = np.arccos(cos)
-    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
-    small = t < _EPS
-    factor = np.where(small, 1.0 + t**2 / 6.0, t / np.where(small, 1.0, np.sin(np.where(small, 1.0, t))))
+    vc = R.reshape(R.shape[:-2] + (9,)) @ _LOG + _LOG_OFF
+    v, cos = vc[..., :3], vc[..., 3]
+    sin = np.sqrt(np.einsum("...i,...i->...", v, v))
+    t = np.arctan2(sin, cos)
+    small = t < 1e-2  # t/sin t = 1 + t^2/6 + 7 t^4/360 + O(t^6): below 1e-2 the next term is < 1e-13
+    t2 = t * t
+    factor = np.where(small, 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0, t / np.where(small, 1.0, sin))
     out = factor[..., None] * v
-    # near pi, sin(t) -> 0: take the axis from the symmetric part instead
     near_pi = t > np.pi - 1e-4
     if np.any(near_pi):
         B = (R + np.swapaxes(R, -1, -2)) / 2.0 - cos[..., None, None] * np.eye(3)
