@@ -24,6 +24,7 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+from fmpy import read_model_description
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -34,7 +35,7 @@ from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.model import effective_ports  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
 from ffrf_fmu.simulate import run, scene_inputs  # noqa: E402
-from ffrf_fmu.validate import run_fmu  # noqa: E402
+from ffrf_fmu.fmu.run import run_fmu  # noqa: E402
 
 
 def run_core(fmu_resources: Path, scene, inputs, H: float) -> tuple[float, float, int, float]:
@@ -97,16 +98,17 @@ def main(argv=None) -> int:
         fmu = build_from_model(args.model, Path(tmp) / "body.fmu", scene=scene.name, overrides=overrides,
                                backend=args.backend)
         zipfile.ZipFile(fmu).extractall(Path(tmp) / "x")
+        outputs = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]
         for _ in range(max(1, args.repeat)):
             ref, wall, cpu = timed(lambda: run(body, scene, origin=model.body.origin, progress=False,
                                                 backend=args.backend))
             keep("standalone", wall, cpu)
             wall, cpu, n, it_core = run_core(Path(tmp) / "x" / "resources", scene, inputs, H)
             keep("core", wall, cpu)
-            (res, _, log), wall, cpu = timed(run_fmu, fmu, scene, inputs, H)
+            fmu_run, wall, cpu = timed(lambda: run_fmu(fmu, scene, inputs, H, record=outputs))
             keep("fmu", wall, cpu)
-            if abs(res["time"][-1] - scene.duration) > 1e-9:
-                print(f"FMU run stopped early at t = {res['time'][-1]}: {log[-1:]}")
+            if not fmu_run.reached:
+                print(f"FMU run stopped early at t = {fmu_run.t[-1]}: {fmu_run.log[-1:]}")
                 return 1
     steps = int(round(scene.duration / scene.step))
     print(f"B1 {model.body.name}/{scene.name}: {len(body.superelements)} SE, {args.duration:g} s, "

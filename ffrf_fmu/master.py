@@ -54,6 +54,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from .fmu.variables import port_variables
 from .runtime.rotation import expm
 
 
@@ -202,12 +203,6 @@ def _split(full: str) -> tuple[str, str]:
     return inst, var
 
 
-def _vec_names(port: str, field_: str) -> tuple[str, ...]:
-    if field_ == "R":
-        return tuple(f"{port}.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3))
-    return tuple(f"{port}.{field_}[{i}]" for i in (1, 2, 3))
-
-
 def body_port_links(a: str, port_a: str, b: str, port_b: str, causality_a: dict, causality_b: dict) -> list:
     """Connections joining port_a of body FMU a to port_b of body FMU b (rigid joint of the frames).
 
@@ -224,10 +219,10 @@ def body_port_links(a: str, port_a: str, b: str, port_b: str, causality_a: dict,
         (m, pm), (s, ps) = ((a, port_a), (b, port_b)) if ca == "motion" else ((b, port_b), (a, port_a))
         # the motion-driven side m follows the frame of the force-driven side s ...
         links.append(Motion(part,
-                            tuple(f"{s}.{n}" for n in _vec_names(ps, pos)), tuple(f"{s}.{n}" for n in _vec_names(ps, rate)),
-                            tuple(f"{m}.{n}" for n in _vec_names(pm, pos)), tuple(f"{m}.{n}" for n in _vec_names(pm, rate))))
+                            tuple(f"{s}.{n}" for n in port_variables(ps, pos)), tuple(f"{s}.{n}" for n in port_variables(ps, rate)),
+                            tuple(f"{m}.{n}" for n in port_variables(pm, pos)), tuple(f"{m}.{n}" for n in port_variables(pm, rate))))
         # ... and s receives minus the reaction on m
-        for src, dst in zip(_vec_names(pm, load), _vec_names(ps, load)):
+        for src, dst in zip(port_variables(pm, load), port_variables(ps, load)):
             links.append(Held(f"{m}.{src}", f"{s}.{dst}", -1.0))
     return links
 
@@ -235,8 +230,8 @@ def body_port_links(a: str, port_a: str, b: str, port_b: str, causality_a: dict,
 def port_causality(inst: FmuInstance, port: str) -> dict:
     """Part causalities of a body port, read from the FMU variables."""
     out = {}
-    for part, pos in (("translation", "r[1]"), ("rotation", "R[1,1]")):
-        v = inst.variable(f"{port}.{pos}")
+    for part, pos in (("translation", "r"), ("rotation", "R")):
+        v = inst.variable(port_variables(port, pos)[0])
         out[part] = "motion" if v.causality == "input" else "force"
     return out
 

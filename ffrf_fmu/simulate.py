@@ -19,14 +19,15 @@ from .runtime.data import BodyData
 from .runtime.ports import PortValues, StepFailure
 from .runtime.rotation import expm, logm
 from .runtime.body import BodySystem
+from .fmu.variables import ENERGIES as VARIABLE_ENERGIES, field_shape, port_variables
 
-PORT_FIELDS = (("r", (3,)), ("R", (3, 3)), ("v", (3,)), ("w", (3,)), ("f", (3,)), ("t", (3,)))
-ENERGIES = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")
+ENERGIES = tuple(VARIABLE_ENERGIES)
 
 
 def variable_names(port: str) -> list[str]:
-    """FMU variable names of one port (ports.md), 1-based structured names, in output order."""
-    return [name for fld, shape in PORT_FIELDS for name in _field_names(port, fld, shape)]
+    """FMU variable names of one port's outputs (ports.md), in the columns order of
+    BodySystem.port_array."""
+    return [name for fld in BodySystem.OUTPUT_FIELDS for name in port_variables(port, fld)]
 
 
 def _tf(fn, t):
@@ -82,12 +83,8 @@ class SimulationResult:
 
     def port(self, name: str, fld: str) -> np.ndarray:
         """(nt, 3) or (nt, 3, 3) series of one port field."""
-        shape = dict(PORT_FIELDS)[fld]
-        if len(shape) == 1:
-            return np.stack([self.columns[f"{name}.{fld}[{i + 1}]"] for i in range(3)], -1)
-        return np.stack(
-            [np.stack([self.columns[f"{name}.{fld}[{i + 1},{j + 1}]"] for j in range(3)], -1) for i in range(3)], -2
-        )
+        series = np.stack([self.columns[n] for n in port_variables(name, fld)], -1)
+        return series.reshape(series.shape[:-1] + field_shape(fld))
 
     def write_csv(self, path) -> None:
         names = ["time"] + list(self.columns)
@@ -152,9 +149,6 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
     except StepFailure as e:
         raise InitializationFailure(f"scene {scene.name!r} cannot start: {e.cause}") from e
     return system, inputs
-
-
-assert BodySystem.OUTPUT_FIELDS == tuple(fld for fld, _ in PORT_FIELDS)  # port_array columns = variable order
 
 
 def record(system: BodySystem) -> np.ndarray:
@@ -409,9 +403,9 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
     shell = BodyData(name=body.name, superelements=(), node_positions=nodes, ports=ports)
     columns = {}
     for p in ports:
-        for fld, shape in PORT_FIELDS:
+        for fld in BodySystem.OUTPUT_FIELDS:
             arr = ref.ports[p.name][fld].reshape(len(ref.t), -1)
-            columns.update(zip(_field_names(p.name, fld, shape), arr.T))
+            columns.update(zip(port_variables(p.name, fld), arr.T))
     for k in ("kinetic", "strain", "work_external"):
         columns[f"energy.{k}"] = ref.energy[k]
     summary = {
@@ -424,9 +418,3 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
     result = SimulationResult(ref.t, columns, summary, shell)
     summary["metrics"] = metrics(result, scene)
     return result
-
-
-def _field_names(port: str, fld: str, shape) -> list[str]:
-    if len(shape) == 1:
-        return [f"{port}.{fld}[{i + 1}]" for i in range(3)]
-    return [f"{port}.{fld}[{i + 1},{j + 1}]" for i in range(3) for j in range(3)]

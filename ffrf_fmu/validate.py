@@ -8,11 +8,9 @@ required (--model): the standalone reference needs the body, which an FMU delibe
 carry (it holds reduced matrices only), and the scene needs its drives and loads. The FMU's
 reduced data is checked against the one the model gives (`fmu_matches_model` in the report).
 
-The scene's port inputs (simulate.scene_inputs) are sampled on the communication grid
-t_k = k H and given to fmpy.simulate_fmu as an input table with output_interval = H: fmpy sets
-the values at t_k before each doStep(t_k, H), so the FMU sees the exact signal values at the
-communication points and applies its own rule in between (docs/fmu.md). The run must reach the
-scene's duration (simulate_fmu stops early on fmi2Discard without raising). Every FMU output is
+The FMU runs under fmpy through the scene's inputs (fmu/run.py: the input table on the
+communication grid, the FMU's own rule in between); the run must reach the scene's duration
+(simulate_fmu stops early on fmi2Discard without raising). Every FMU output is
 compared with the standalone run at the communication points, per group (`port.part`, e.g.
 `tip.r`, and the energies together): max_abs_diff, and max_rel_diff = max_abs_diff / max |standalone| of
 the group. A group passes when max_rel_diff <= rtol (default 1e-3; groups whose standalone
@@ -26,10 +24,12 @@ import json
 import sys
 import tempfile
 import time
-import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from .fmu.run import FmuRunError, fmu_body, run_fmu
+from .fmu.variables import parse_port_variable
 
 DEFAULT_RTOL = 1e-3
 DEFAULT_ATOL = 1e-9
@@ -37,87 +37,6 @@ DEFAULT_ATOL = 1e-9
 
 class ValidationError(RuntimeError):
     """The validation could not run (bad arguments, missing model)."""
-
-
-def fmu_input_table(fmu_path, inputs, times) -> np.ndarray:
-    """fmpy input table: every FMU input sampled at `times` from inputs(t) -> {port: PortValues}."""
-    from fmpy import read_model_description
-
-    md = read_model_description(str(fmu_path))
-    names = [v.name for v in md.modelVariables if v.causality == "input"]
-    table = np.zeros(len(times), dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
-    table["time"] = times
-    # each name's (port, field) and flat index into that field (R[i,j] row-major): one gather per time
-    where = []
-    for n in names:
-        port, _, rest = n.partition(".")
-        field, _, idx = rest[:-1].partition("[")
-        ij = [int(i) - 1 for i in idx.split(",")]
-        where.append((port, field, ij[0] * 3 + ij[1] if len(ij) == 2 else ij[0]))
-    keys = list(dict.fromkeys((port, field) for port, field, _ in where))
-    rows = np.empty((len(times), len(names)))
-    flat = None
-    for k, t in enumerate(times):
-        values = inputs(float(t))
-        parts = [np.ravel(getattr(values[port], field)) for port, field in keys]
-        if flat is None:
-            offset = dict(zip(keys, np.cumsum([0] + [part.size for part in parts])))
-            flat = np.array([offset[(port, field)] + i for port, field, i in where], dtype=int)
-        rows[k] = np.concatenate(parts)[flat]
-    for j, n in enumerate(names):
-        table[n] = rows[:, j]
-    return table
-
-
-def scene_start_values(scene, fmu_path) -> dict:
-    """The scene's solver and initial values as FMU parameter start values."""
-    from fmpy import read_model_description
-
-    from .fmu.variables import TERM_SETS
-
-    names = {v.name for v in read_model_description(str(fmu_path)).modelVariables}
-    sv = {"solver.step": scene.step, "solver.rho_inf": scene.rho_inf, "solver.terms": TERM_SETS.index(scene.terms)}
-    for i in range(3):
-        sv[f"gravity[{i + 1}]"] = scene.gravity[i]
-        sv[f"initial.v[{i + 1}]"] = scene.initial.velocity[i]
-        sv[f"initial.w[{i + 1}]"] = scene.initial.angular_velocity[i]
-    for port, d in scene.initial.port_displacements:
-        for i in range(3):
-            sv[f"initial.{port}.d[{i + 1}]"] = d[i]
-    missing = [k for k in sv if k not in names]
-    if missing:
-        raise ValidationError(f"{fmu_path}: the FMU has no parameter(s) {missing}: not an ffrf-fmu body FMU?")
-    return sv
-
-
-def run_fmu(fmu_path, scene, inputs, comm_step: float, record_names=None):
-    """Simulate the FMU through the scene with fmpy. Returns (result array, wall time, log)."""
-    import fmpy
-
-    n = int(round(scene.duration / comm_step))
-    times = np.arange(n + 1) * comm_step
-    if times[-1] < scene.duration * (1 - 1e-12):
-        times = np.append(times, scene.duration)
-    table = fmu_input_table(fmu_path, inputs, times)
-    log: list[str] = []
-
-    def logger(component, instance, status, category, message):
-        dec = lambda b: b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b)
-        log.append(f"[{dec(category)}] {dec(message)}")
-
-    t0 = time.perf_counter()
-    res = fmpy.simulate_fmu(
-        str(fmu_path),
-        start_time=0.0,
-        stop_time=scene.duration,
-        output_interval=comm_step,
-        input=table,
-        output=record_names,
-        start_values=scene_start_values(scene, fmu_path),
-        debug_logging=True,
-        logger=logger,
-    )
-    return res, time.perf_counter() - t0, log
 
 
 def _groups(names):
@@ -131,8 +50,11 @@ def _groups(names):
         if n.startswith("energy."):
             g = "energies"
         else:
-            port, _, rest = n.partition(".")
-            g = f"{port}.{rest.split('[')[0]}"
+            try:
+                port, fld, _ = parse_port_variable(n)
+                g = f"{port}.{fld}"
+            except ValueError:  # probes: one group each
+                g = n.partition("[")[0]
         groups.setdefault(g, []).append(n)
     return groups
 
@@ -164,15 +86,6 @@ def compare(fmu_t, fmu_cols: dict, ref_t, ref_cols: dict, names, rtol: float, at
     return out
 
 
-def _fmu_body(fmu_path):
-    from .runtime.data import BodyData
-
-    with zipfile.ZipFile(fmu_path) as z, tempfile.TemporaryDirectory() as tmp:
-        p = Path(tmp) / "body.npz"
-        p.write_bytes(z.read("resources/body.npz"))
-        return BodyData.load(p)
-
-
 def same_body(a, b, rtol: float = 1e-10) -> bool:
     """Same reduced data (ports, node positions, every superelement matrix) to round-off."""
     if [(p.name, p.node, p.translation, p.rotation) for p in a.ports] != \
@@ -193,7 +106,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     """Run the validation; returns the report (also written to report_dir/report.json)."""
     from .fmu.builder import build_from_model
     from .model import load_model
-    from .simulate import SimulationResult, metrics, run_scene, scene_inputs
+    from .simulate import metrics, run_scene, scene_inputs
 
     source = Path(source)
     report_dir = Path(report_dir) if report_dir else None
@@ -218,7 +131,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     mdl = load_model(model_path, overrides)
     sc = mdl.scene(scene)
     H = float(comm_step) if comm_step else sc.step
-    fmu_body = _fmu_body(fmu_path)
+    fmu_data = fmu_body(fmu_path)
     ports = lambda b: [(p.name, p.node, p.translation, p.rotation) for p in b.ports]
     if not built:
         import dataclasses
@@ -227,9 +140,9 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
         from .reduction import build_body, reduction_options
 
         scene_body, _ = build_body(dataclasses.replace(mdl.body, ports=effective_ports(mdl, sc)), **reduction_options(sc))
-        if ports(fmu_body) != ports(scene_body):
+        if ports(fmu_data) != ports(scene_body):
             raise ValidationError(
-                f"{fmu_path}: the FMU's ports {ports(fmu_body)} differ from those of scene {sc.name!r} of "
+                f"{fmu_path}: the FMU's ports {ports(fmu_data)} differ from those of scene {sc.name!r} of "
                 f"{model_path}: {ports(scene_body)} (build the FMU for this scene: ffrf-fmu build --scene {sc.name})"
             )
 
@@ -237,33 +150,19 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     ref = run_scene(mdl, sc.name)
     wall_ref = time.perf_counter() - t0
     body = ref.body
-    matches = same_body(fmu_body, body)
+    matches = same_body(fmu_data, body)
 
     from fmpy import read_model_description
 
-    md = read_model_description(str(fmu_path))
-    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
-    port_vars = [v.name for v in md.modelVariables if v.causality in ("input", "output")
-                 and not v.name.startswith(("energy.", "solver."))]
-    res, wall_fmu, log = run_fmu(fmu_path, sc, scene_inputs(body, sc), H,
-                                 record_names=port_vars + [n for n in outputs if n not in port_vars])
-    t_fmu = np.asarray(res["time"], dtype=float)
-    reached = bool(abs(t_fmu[-1] - sc.duration) <= 1e-9 * max(1.0, sc.duration))
-    # fmpy records the last sample twice when a step is discarded: keep strictly increasing times
-    keep = np.concatenate([np.diff(t_fmu) > 0, [True]])
-    t_fmu = t_fmu[keep]
-    fmu_cols = {n: np.asarray(res[n], dtype=float)[keep] for n in res.dtype.names if n != "time"}
-    # fmpy records after doStep(t_c, H) at t_c + H, when the inputs still hold the values set for
-    # t_c: take the input columns from the input signal itself at the recorded times
-    exact = fmu_input_table(fmu_path, scene_inputs(body, sc), t_fmu)
-    for n in exact.dtype.names[1:]:
-        fmu_cols[n] = np.asarray(exact[n], dtype=float)
+    run = run_fmu(fmu_path, sc, scene_inputs(body, sc), H)
+    t_fmu, fmu_cols, reached, wall_fmu, log = run.t, run.columns, run.reached, run.wall_time_s, run.log
+    outputs = [v.name for v in read_model_description(str(fmu_path)).modelVariables if v.causality == "output"]
     ref_ok = bool(ref.summary.get("completed", True))
     compared = [n for n in outputs if n in ref.columns]
     groups = compare(t_fmu, fmu_cols, ref.t, ref.columns, compared, rtol, atol)
 
     # benchmark metrics of both runs (from port signals: the FMU side uses its own port values)
-    fmu_result = SimulationResult(t_fmu, {n: fmu_cols[n] for n in fmu_cols}, {}, body)
+    fmu_result = run.result(body)
     metric_rows = {}
     m_fmu, m_ref = {}, {}
     if reached and ref_ok:  # a metric of a run that stopped early is not the scene's metric: not compared
@@ -419,7 +318,7 @@ def validate_command(args) -> int:
     try:
         rep = validate(args.source, scene=args.scene, model=args.model, overrides=args.overrides,
                        comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol)
-    except (ValidationError, ModelError, BuildError, OSError) as e:
+    except (ValidationError, FmuRunError, ModelError, BuildError, OSError) as e:
         print(f"ffrf-fmu validate: error: {e}", file=sys.stderr)
         return 2
     print(f"FMU {rep['fmu']} / scene {rep['scene']}: H = {rep['comm_step']:g} s, internal step "

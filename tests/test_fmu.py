@@ -26,8 +26,9 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from ffrf_fmu.fmu.builder import BuildError, build_from_model, check_shipped_imports, read_fmu_config  # noqa: E402
 from ffrf_fmu.master import CoSimulation, FmuInstance  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.simulate import SimulationResult, elastic_tip, run_scene, scene_inputs  # noqa: E402
-from ffrf_fmu.validate import fmu_input_table, run_fmu, validate, validate_command  # noqa: E402
+from ffrf_fmu.simulate import elastic_tip, run_scene, scene_inputs  # noqa: E402
+from ffrf_fmu.fmu.run import fmu_input_table, input_values, run_fmu  # noqa: E402
+from ffrf_fmu.validate import validate, validate_command  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models"
@@ -107,12 +108,7 @@ def small_fmu(small):
 def _inputs_at(inst: FmuInstance, values: dict, names=None):
     """Set every input of a body FMU instance from {port: PortValues}."""
     names = names or inst.names("input")
-    vals = []
-    for n in names:
-        port, _, rest = n.partition(".")
-        field, _, idx = rest[:-1].partition("[")
-        vals.append(getattr(values[port], field)[tuple(int(i) - 1 for i in idx.split(","))])
-    inst.set(names, vals)
+    inst.set(names, input_values(values, names))
 
 
 def _started(path, scene, model_path, start_values=None):
@@ -406,9 +402,9 @@ def test_simulate_fmu_stopping_early_is_detected(small, small_fmu):
             v["hub"].w = np.array([0.0, 0.0, math.nan])
         return v
 
-    res, _, log = run_fmu(small_fmu, sc, poisoned, sc.step)
-    assert res["time"][-1] == pytest.approx(0.1)
-    assert any("not finite" in m and "t = 0.1 s" in m for m in log)
+    run = run_fmu(small_fmu, sc, poisoned)
+    assert run.t[-1] == pytest.approx(0.1) and not run.reached
+    assert any("not finite" in m and "t = 0.1 s" in m for m in run.log)
 
 
 SUBPROCESS = r"""
@@ -484,8 +480,8 @@ def test_master_gauss_seidel_single_fmu_matches_simulate_fmu(small, small_fmu):
     with CoSimulation({"B": small_fmu}, step=sc.step, start_values={"B.solver.step": sc.step}) as sim:
         res = sim.run(sc.duration, sources=sources, record=["B.tip.r[2]", "B.energy.strain"])
     assert res.stopped_early == "" and res.t[-1] == pytest.approx(sc.duration)
-    fm, _, _ = run_fmu(small_fmu, sc, inputs, sc.step)
-    assert np.allclose(res.columns["B.tip.r[2]"], fm["tip.r[2]"], rtol=0, atol=1e-15)
+    fm = run_fmu(small_fmu, sc, inputs)
+    assert np.allclose(res.columns["B.tip.r[2]"], fm.columns["tip.r[2]"], rtol=0, atol=1e-15)
 
 
 def test_master_connect_ports_wiring_and_errors(small, tmp_path):
@@ -507,14 +503,9 @@ def test_master_connect_ports_wiring_and_errors(small, tmp_path):
 def _fmu_result(fmu, sc, body, H):
     """FMU run under fmpy with every port field recorded; input columns from the signal itself
     (fmpy records inputs after doStep, still holding the values set for the step's start)."""
-    names = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality in ("input", "output")]
-    inputs = scene_inputs(body, sc)
-    res, _, log = run_fmu(fmu, sc, inputs, H, record_names=names)
-    assert res["time"][-1] == pytest.approx(sc.duration), log[-3:]
-    cols = {n: np.asarray(res[n], dtype=float) for n in res.dtype.names if n != "time"}
-    exact = fmu_input_table(fmu, inputs, res["time"])
-    cols.update({n: np.asarray(exact[n], dtype=float) for n in exact.dtype.names[1:]})
-    return SimulationResult(np.asarray(res["time"], dtype=float), cols, {}, body)
+    run = run_fmu(fmu, sc, scene_inputs(body, sc), H)
+    assert run.reached, run.log[-3:]
+    return run.result(body)
 
 
 def _transverse(d, axis):
@@ -631,14 +622,7 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path):
              if v.causality == "input" and v.name.startswith("hub.")]
 
     def sources(prefix):
-        def f(t):
-            pv = hub(t)["hub"]
-            out = {}
-            for n in names:
-                idx = tuple(int(i) - 1 for i in n.split("[")[1][:-1].split(","))
-                out[f"{prefix}.{n}"] = float(getattr(pv, n.split(".")[1].split("[")[0])[idx])
-            return out
-        return f
+        return lambda t: {f"{prefix}.{n}": v for n, v in zip(names, input_values(hub(t), names))}
 
     with CoSimulation({"F": one}, step=sc.step) as sim:
         r1 = sim.run(sc.duration, sources=sources("F"), record=["F.tip.r[1]", "F.tip.r[2]", "F.hub.t[3]"])
@@ -658,7 +642,8 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path):
 
 def test_master_link_values():
     """The values the master gives a receiver (module doc of master.py), without FMUs."""
-    from ffrf_fmu.master import Held, Motion, _expm
+    from ffrf_fmu.master import Held, Motion
+    from ffrf_fmu.runtime.rotation import expm
 
     sim = CoSimulation({}, step=0.1)
     held = Held("S.y", "R.u", gain=-2.0)
@@ -670,7 +655,7 @@ def test_master_link_values():
     assert sim._fresh(held, 0.1, cur, fresh) == {"R.u": -2.0 * 3.5}  # explicit: mean of t_c and t_c + H
     # motion, fresh: the receiver's own extrapolation from what it gets ends on the source's frame
     H, w1 = 0.1, np.array([0.3, -0.2, 1.1])
-    R1 = _expm(np.array([0.4, 0.1, -0.7]))
+    R1 = expm(np.array([0.4, 0.1, -0.7]))
     rot = Motion("rotation", tuple(f"S.p.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)),
                  tuple(f"S.p.w[{i}]" for i in (1, 2, 3)),
                  tuple(f"R.p.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)), tuple(f"R.p.w[{i}]" for i in (1, 2, 3)))
@@ -678,7 +663,7 @@ def test_master_link_values():
     got = sim._fresh(rot, H, {}, fresh)
     R0 = np.array([got[n] for n in rot.dst_pos]).reshape(3, 3)
     w = np.array([got[n] for n in rot.dst_rate])
-    assert np.allclose(_expm(H * w) @ R0, R1, atol=1e-14) and np.array_equal(w, w1)
+    assert np.allclose(expm(H * w) @ R0, R1, atol=1e-14) and np.array_equal(w, w1)
     tr = Motion("translation", ("S.p.r[1]",) * 3, ("S.p.v[1]",) * 3, ("R.p.r[1]", "R.p.r[2]", "R.p.r[3]"),
                 ("R.p.v[1]", "R.p.v[2]", "R.p.v[3]"))
     got = sim._fresh(tr, H, {}, {"S.p.r[1]": 2.0, "S.p.v[1]": 5.0})
@@ -724,12 +709,9 @@ def test_b1_acceleration_inputs_make_the_extrapolation_second_order(tmp_path):
 
     rel = {}
     for label, inputs in (("dw", exact), ("no dw", held_rate)):
-        res, _, log = run_fmu(fmu, sc, inputs, sc.step, record_names=None)
-        assert res["time"][-1] == pytest.approx(sc.duration), log[-3:]
-        cols = {n: np.asarray(res[n], dtype=float) for n in res.dtype.names if n != "time"}
-        table = fmu_input_table(fmu, exact, res["time"])
-        cols.update({n: np.asarray(table[n], dtype=float) for n in table.dtype.names[1:]})
-        fr = SimulationResult(np.asarray(res["time"], dtype=float), cols, {}, ref.body)
+        run = run_fmu(fmu, sc, inputs)  # the motion inputs r, R of both are exact's: only dw differs
+        assert run.reached, run.log[-3:]
+        fr = run.result(ref.body)
         rel[label] = (_transverse(elastic_tip(fr, "hub", "tip"), axis).max() - peak_ref) / peak_ref
     assert abs(rel["dw"]) < 5e-4, rel
     assert rel["no dw"] > 1e-3, rel

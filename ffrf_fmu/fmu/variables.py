@@ -5,7 +5,10 @@ builder writes the unit definitions and the ModelStructure from it, validate.py 
 read names from it. Shipped inside every FMU: standard library only (no numpy, no pythonfmu).
 
 Value references are the positions in the returned list. Index conventions: `P.r[i]` i = 1..3,
-`P.R[i,j]` = component i (world axis) of nodal axis j, both 1-based.
+`P.R[i,j]` = component i (world axis) of nodal axis j, both 1-based. The names are made by
+`port_variable` / `port_variables` (and `component_name` for the non-port vectors) and read back
+by `parse_port_variable`, here only: the standalone run's columns, the master's connections, the
+fmpy input tables and the studies all use these.
 """
 from __future__ import annotations
 
@@ -101,6 +104,47 @@ INPUT_RULE = {
 }
 
 
+def component_name(base: str, index: tuple[int, ...]) -> str:
+    """The name of one component: ("tip.R", (0, 1)) -> "tip.R[1,2]" (0-based index, 1-based name)."""
+    return f"{base}[{','.join(str(i + 1) for i in index)}]"
+
+
+def _indices(shape: tuple[int, ...]) -> list[tuple[int, ...]]:
+    """Component indices of a (3,) vector or a (3, 3) matrix, row-major."""
+    return [(i,) for i in range(3)] if shape == (3,) else [(i, j) for i in range(3) for j in range(3)]
+
+
+def field_shape(field: str) -> tuple[int, ...]:
+    """(3,) or (3, 3) of a port field, also of the node frame fields "node.r", "node.R" of a compliant part."""
+    return FIELDS[field.rpartition(".")[2]][0]
+
+
+def port_variable(port: str, field: str, index: tuple[int, ...]) -> str:
+    """FMU variable name of one component of a port field: ("hub", "R", (0, 1)) -> "hub.R[1,2]"."""
+    return component_name(f"{port}.{field}", index)
+
+
+def port_variables(port: str, field: str) -> list[str]:
+    """Every component name of a port field in value-reference order (R row-major: R[1,1], R[1,2], ...).
+    `port` may carry an instance prefix ("A.hub"): the master's connections name variables so."""
+    return [component_name(f"{port}.{field}", idx) for idx in _indices(field_shape(field))]
+
+
+def parse_port_variable(name: str) -> tuple[str, str, tuple[int, ...]]:
+    """Inverse of `port_variable`: "tip.R[1,2]" -> ("tip", "R", (0, 1)), "hub.node.w[3]" ->
+    ("hub", "node.w", (2,)). ValueError for a name that is not a port field component."""
+    port, dot, rest = name.partition(".")
+    base, bracket, idx = rest.partition("[")
+    try:
+        index = tuple(int(i) - 1 for i in idx[:-1].split(","))
+        ok = dot and bracket and idx.endswith("]") and index and len(index) == len(field_shape(base))
+    except (KeyError, ValueError):
+        ok = False
+    if not ok or not all(0 <= i < 3 for i in index):
+        raise ValueError(f"{name!r} is not a port variable name (PORT.FIELD[i] or PORT.R[i,j], 1-based)")
+    return port, base, index
+
+
 @dataclass(frozen=True)
 class Variable:
     name: str
@@ -124,12 +168,6 @@ def port_field_causality(translation: str, rotation: str, field: str) -> str:
     motion = (translation if part == "translation" else rotation) in ("motion", "compliant")  # compliant: motion in
     is_load = field in ("f", "t")
     return "output" if motion == is_load else "input"
-
-
-def _components(shape):
-    if shape == (3,):
-        return [((i,), f"[{i + 1}]") for i in range(3)]
-    return [((i, j), f"[{i + 1},{j + 1}]") for i in range(3) for j in range(3)]
 
 
 def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
@@ -157,7 +195,7 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                 desc = f"{meaning} [input, {how}; {rule}]"
             else:
                 desc = f"{meaning} [output at the communication point, {how}]"
-            for idx, suffix in _components(shape):
+            for idx in _indices(shape):
                 if causality == "input":
                     if field == "r":
                         start = r_ref[idx[0]]
@@ -168,14 +206,14 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                 else:
                     start = None
                 out.append(
-                    Variable(f"{p.name}.{field}{suffix}", "Real", causality, "continuous", unit, desc, start,
+                    Variable(port_variable(p.name, field, idx), "Real", causality, "continuous", unit, desc, start,
                              "port", p.name, field, idx)
                 )
         out.extend(_compliant_variables(p))
     for name in parameters.get("probes", ()):
         seen, _, frame = name.partition("_from_")
         for i in range(3):
-            out.append(Variable(f"probe.{name}[{i + 1}]", "Real", "output", "continuous", "m",
+            out.append(Variable(component_name(f"probe.{name}", (i,)), "Real", "output", "continuous", "m",
                                 f"elastic displacement of port {seen} seen from the frame of port {frame} (geradin eq. 92): "
                                 f"R_{frame}^T (r_{seen} - r_{frame}) - (X_{seen} - X_{frame}), axis {i + 1} of the {frame} frame "
                                 "[output at the communication point]", None, "probe", field=name, index=(i,)))
@@ -200,15 +238,15 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
                         "inertia data, built when the scene's term set is full)",
                         TERM_SETS.index(par["terms"]), "parameter", field="terms", min=0, max=len(TERM_SETS) - 1))
     for i in range(3):
-        out.append(Variable(f"gravity[{i + 1}]", "Real", "parameter", "fixed", "m/s2",
+        out.append(Variable(component_name("gravity", (i,)), "Real", "parameter", "fixed", "m/s2",
                             "uniform gravity acceleration, world axes", float(par["gravity"][i]), "parameter",
                             field="gravity", index=(i,)))
     for i in range(3):
-        out.append(Variable(f"initial.v[{i + 1}]", "Real", "parameter", "fixed", "m/s",
+        out.append(Variable(component_name("initial.v", (i,)), "Real", "parameter", "fixed", "m/s",
                             "initial rigid velocity field v + w x (X - origin) of a body with no motion-driven port: v",
                             float(par["initial_velocity"][i]), "parameter", field="initial_velocity", index=(i,)))
     for i in range(3):
-        out.append(Variable(f"initial.w[{i + 1}]", "Real", "parameter", "fixed", "rad/s",
+        out.append(Variable(component_name("initial.w", (i,)), "Real", "parameter", "fixed", "rad/s",
                             "initial rigid velocity field v + w x (X - origin) of a body with no motion-driven port: w",
                             float(par["initial_angular_velocity"][i]), "parameter",
                             field="initial_angular_velocity", index=(i,)))
@@ -218,7 +256,7 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
             continue
         d = disp.get(p.name, (0.0, 0.0, 0.0))
         for i in range(3):
-            out.append(Variable(f"initial.{p.name}.d[{i + 1}]", "Real", "parameter", "fixed", "m",
+            out.append(Variable(component_name(f"initial.{p.name}.d", (i,)), "Real", "parameter", "fixed", "m",
                                 f"initial elastic displacement of port {p.name} from its reference position",
                                 float(d[i]), "parameter", port=p.name, field="port_displacement", index=(i,)))
     return out
@@ -245,13 +283,13 @@ def _compliant_variables(p) -> list[Variable]:
             continue
         for field in fields:
             shape, unit, meaning = FIELDS[field]
-            for idx, suffix in _components(shape):
-                out.append(Variable(f"{p.name}.node.{field}{suffix}", "Real", "output", "continuous", unit,
+            for idx in _indices(shape):
+                out.append(Variable(port_variable(p.name, "node." + field, idx), "Real", "output", "continuous", unit,
                                     f"{meaning} of the body's own node at compliant port {p.name} "
                                     "[output at the communication point]", None, "port", p.name, "node." + field, idx))
         for suffix, unit, meaning, row in params:
             for i in range(3):
-                out.append(Variable(f"{p.name}.coupling.{suffix}[{i + 1}]", "Real", "parameter", "fixed", unit,
+                out.append(Variable(component_name(f"{p.name}.coupling.{suffix}", (i,)), "Real", "parameter", "fixed", unit,
                                     f"coupling spring-damper of compliant port {p.name}: {meaning}",
                                     float(comp[3 * row + i]), "parameter", p.name, "coupling." + suffix, (i,)))
     return out

@@ -50,6 +50,7 @@ import time
 
 import numpy as np
 
+from ..fmu.variables import port_variables
 from ..model import Body, Scene
 from ..runtime import drives
 
@@ -264,10 +265,7 @@ def columns(result: PeerResult) -> dict[str, np.ndarray]:
     out = {}
     for p, flds in result.ports.items():
         for f, arr in flds.items():
-            if arr.ndim == 3:
-                out |= {f"{p}.{f}[{i + 1},{j + 1}]": arr[:, i, j] for i in range(3) for j in range(3)}
-            else:
-                out |= {f"{p}.{f}[{i + 1}]": arr[:, i] for i in range(3)}
+            out |= dict(zip(port_variables(p, f), arr.reshape(len(arr), -1).T))
     return out
 
 

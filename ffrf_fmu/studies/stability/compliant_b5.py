@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...fmu.variables import port_variables
 from .cosim import CosimRun, CosimSettings, _vec, tip_deflection
 
 SHAFT_K = 300.0
@@ -57,11 +58,10 @@ def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantB5:
 def connections(acceleration: bool = True) -> list[tuple[str, str, float]]:
     """(source, sink, gain): the drive's hub frame to the beam's compliant hub inputs, minus the
     beam's spring moment to the drive hub, the bearing's (zero) position and velocity."""
-    c = [(f"drive.hub_frame.R[{i},{j}]", f"beam.hub.R[{i},{j}]", 1.0) for i in (1, 2, 3) for j in (1, 2, 3)]
-    c += [(f"drive.hub_frame.w[{i}]", f"beam.hub.w[{i}]", 1.0) for i in (1, 2, 3)]
-    if acceleration:
-        c += [(f"drive.hub_frame.dw[{i}]", f"beam.hub.dw[{i}]", 1.0) for i in (1, 2, 3)]
-    c += [(f"drive.hub.{f}[{i}]", f"beam.hub.{f}[{i}]", 1.0) for f in ("r", "v") for i in (1, 2, 3)]
+    joined = lambda src, dst, fields: [(a, b, 1.0) for f in fields
+                                       for a, b in zip(port_variables(src, f), port_variables(dst, f))]
+    c = joined("drive.hub_frame", "beam.hub", ("R", "w", "dw") if acceleration else ("R", "w"))
+    c += joined("drive.hub", "beam.hub", ("r", "v"))
     c += [("beam.hub.t[3]", "drive.hub_frame.t[3]", -1.0)]
     return c
 
