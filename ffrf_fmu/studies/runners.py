@@ -100,33 +100,19 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
 
 def run_fmu_configuration(model_path, model: Model, sc: Scene, overrides, body, backend="numpy"):
     """Build the configuration's FMU (into a temporary directory) and run it under fmpy with
-    communication step = internal step; (SimulationResult, wall time, CPU time)."""
+    communication step = internal step (fmu/run.py); (SimulationResult, wall time, CPU time)."""
     import tempfile
     from pathlib import Path
 
-    from fmpy import read_model_description
-
     from ..fmu.builder import build_from_model
-    from ..simulate import SimulationResult, scene_inputs
-    from ..validate import fmu_input_table, run_fmu
+    from ..fmu.run import run_fmu
+    from ..simulate import scene_inputs
 
     with tempfile.TemporaryDirectory(prefix="ffrf_chart_fmu_") as tmp:
         fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
                                backend=backend)
-        md = read_model_description(str(fmu))
-        names = [v.name for v in md.modelVariables if v.causality in ("input", "output")]
-        inputs = scene_inputs(body, sc)
-        c0 = time.process_time()
-        res, wall, _ = run_fmu(fmu, sc, inputs, sc.step, record_names=names)
-        cpu = time.process_time() - c0
-        t = np.asarray(res["time"], dtype=float)
-        keep = np.concatenate([np.diff(t) > 0, [True]])  # fmpy repeats the last sample after a discard
-        t = t[keep]
-        cols = {n: np.asarray(res[n], dtype=float)[keep] for n in res.dtype.names if n != "time"}
-        exact = fmu_input_table(fmu, inputs, t)  # inputs as the signal gives them at the recorded times
-        for n in exact.dtype.names[1:]:
-            cols[n] = np.asarray(exact[n], dtype=float)
-    return SimulationResult(t, cols, {}, body), wall, cpu
+        run = run_fmu(fmu, sc, scene_inputs(body, sc))
+    return run.result(body), run.wall_time_s, run.cpu_time_s
 
 
 # ------------------------------------------------------------------------------ reference

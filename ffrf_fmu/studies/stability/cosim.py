@@ -22,6 +22,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ...fmu.variables import port_variables
 from ...model import load_model
 from ..runners import transverse
 from ..task import make_task
@@ -52,9 +53,7 @@ GROWTH_DEVIATION = 0.5  # ... or off the monolithic run by half its peak and gro
 
 
 def _vec(prefix: str, port: str, fld: str) -> list[str]:
-    if fld == "R":
-        return [f"{prefix}.{port}.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
-    return [f"{prefix}.{port}.{fld}[{i}]" for i in (1, 2, 3)]
+    return port_variables(f"{prefix}.{port}", fld)
 
 
 def _rotz(phi: np.ndarray) -> np.ndarray:
