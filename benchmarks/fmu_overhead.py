@@ -15,7 +15,6 @@ extrapolated hub motion changes the Newton iterations) and (fmu - core) per comm
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import sys
 import tempfile
@@ -32,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 from ffrf_fmu.fmu.builder import build_from_model  # noqa: E402
 from ffrf_fmu.fmu.core import BodyCoSim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.model import effective_ports  # noqa: E402
+from ffrf_fmu.model import scene_body  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
 from ffrf_fmu.simulate import run, scene_inputs  # noqa: E402
 from ffrf_fmu.fmu.run import run_fmu  # noqa: E402
@@ -87,7 +86,7 @@ def main(argv=None) -> int:
     model = load_model(args.model, overrides)
     scene = model.scene(args.scene)
     H = args.comm_step or scene.step
-    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)))
+    body, _ = build_body(scene_body(model.body, scene))
     inputs = scene_inputs(body, scene)
     best = {k: [np.inf, np.inf] for k in ("standalone", "core", "fmu")}
 

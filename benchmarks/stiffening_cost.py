@@ -7,15 +7,14 @@ configuration (CPU time of this process).
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from ffrf_fmu import simulate as sim  # noqa: E402
-from ffrf_fmu.model import effective_ports, load_model  # noqa: E402
-from ffrf_fmu.reduction import build_body, reduction_options  # noqa: E402
+from ffrf_fmu.model import load_model  # noqa: E402
+from ffrf_fmu.reduction import build_scene_body  # noqa: E402
 
 STEPS, REPEAT = 500, 3
 CONFIGS = {
@@ -30,7 +29,7 @@ CONFIGS = {
 def cost_per_step(overrides):
     model = load_model("models/haug_beam.toml", overrides)
     scene = model.scene("spinup")
-    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))
+    body, _ = build_scene_body(model.body, scene)
     best = float("inf")
     for _ in range(REPEAT):
         system, inputs = sim.build_system(body, scene)

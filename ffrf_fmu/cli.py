@@ -14,7 +14,7 @@ import sys
 # BLAS threads: pinned to one when the package is imported (ffrf_fmu/__init__.py)
 from typing import Callable, Sequence
 
-from .model import Model, ModelError, Scene, effective_ports, load_model
+from .model import Model, ModelError, Scene, load_model, scene_body
 
 PROG = "ffrf-fmu"
 _COMMANDS: list[tuple[Callable, tuple]] = []
@@ -77,9 +77,9 @@ def _load(args) -> tuple[Model, Scene]:
 
 def _body_for_scene(model: Model, scene: Scene):
     """The body with the scene's causality, built and reduced: (BodyData, reductions)."""
-    from .reduction import build_body, reduction_options  # heavy (scipy); only the commands that need it pay
+    from .reduction import build_scene_body  # heavy (scipy); only the commands that need it pay
 
-    return build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))
+    return build_scene_body(model.body, scene)
 
 
 def _hz(values, n: int = 6) -> str:
@@ -114,7 +114,7 @@ def info(args) -> int:
     from .invariants import body_inertia_report, scene_spin  # Witteveen's invariants and indicators
 
     spin, axis, spin_source = scene_spin(scene)
-    inertia = body_inertia_report(dataclasses.replace(body, ports=effective_ports(model, scene)), spin, axis,
+    inertia = body_inertia_report(scene_body(body, scene), spin, axis,
                                   first_frequency_hz=freqs[0] if freqs else None, reductions=reductions)
     inertia["spin_source"] = spin_source
     if args.json:

@@ -22,10 +22,9 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
+from .runtime.terms import FULL_TERMS, TERM_SETS
 
 PART_CAUSALITIES = ("motion", "force", "compliant")
-TERM_SETS = ("linear", "gyroscopic", "full")
-FULL_TERMS = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")  # runtime.body.FULL_TERMS
 METRICS = ("haug", "spherical", "free", "")
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
 
@@ -659,13 +658,16 @@ def _full_terms(r: _Reader, t: dict, sp: str) -> tuple[str, ...]:
     return tuple(v)
 
 
-def effective_ports(model: Model, scene: Scene) -> tuple[Port, ...]:
-    """The body's ports with the scene's causality overrides applied."""
+def scene_body(body: Body, scene: Scene) -> Body:
+    """The body with the scene's causality overrides on its ports: the one place they are applied
+    (the reduction, the standalone run, the FMU builder and the reference take the body it returns)."""
     over = {name: (tr, rot) for name, tr, rot in scene.causality}
-    return tuple(
-        dataclasses.replace(p, translation=over[p.name][0], rotation=over[p.name][1]) if p.name in over else p
-        for p in model.body.ports
-    )
+    unknown = set(over) - {p.name for p in body.ports}
+    if unknown:
+        raise ModelError(f"{body.source}: scene {scene.name!r} sets the causality of unknown port(s) {sorted(unknown)}")
+    ports = tuple(dataclasses.replace(p, translation=over[p.name][0], rotation=over[p.name][1]) if p.name in over else p
+                  for p in body.ports)
+    return dataclasses.replace(body, ports=ports)
 
 
 # ------------------------------------------------------------------------------ writing

@@ -18,7 +18,7 @@ import scipy.linalg as sla
 from .fe import FEModel, node_dofs, rigid_modes
 from .fe.beam import beam_model, strain_kernels
 from .invariants import tensor_kernel
-from .model import Body, ModelError, PART_CAUSALITIES
+from .model import Body, ModelError, PART_CAUSALITIES, scene_body
 from .runtime.data import BodyData, PortData, SuperelementData
 
 
@@ -240,17 +240,13 @@ def reduce_superelement(
     )
 
 
-def _port_data(body: Body, n_nodes: int, causality: Sequence[tuple[str, str, str]]) -> tuple[PortData, ...]:
-    override = {name: (t, r) for name, t, r in causality}
-    unknown = set(override) - {p.name for p in body.ports}
-    if unknown:
-        raise ModelError(f"{body.source}: causality override for unknown port(s) {sorted(unknown)}")
+def _port_data(body: Body, n_nodes: int) -> tuple[PortData, ...]:
     ports = []
     for p in body.ports:
         node = p.node + n_nodes if p.node < 0 else p.node
         if not 0 <= node < n_nodes:
             raise ModelError(f"{body.source}: port {p.name!r} node {p.node} outside 0..{n_nodes - 1}")
-        t, r = override.get(p.name, (p.translation, p.rotation))
+        t, r = p.translation, p.rotation
         if t not in PART_CAUSALITIES or r not in PART_CAUSALITIES:
             raise ModelError(f"{body.source}: port {p.name!r} causality must be one of {PART_CAUSALITIES}")
         ports.append(PortData(p.name, node, t, r))
@@ -262,8 +258,14 @@ def reduction_options(scene) -> dict:
     return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
 
 
+def build_scene_body(body: Body, scene) -> tuple[BodyData, tuple[Reduction, ...]]:
+    """The body as a scene runs it: the scene's causality (model.scene_body) and the data its
+    options need (reduction_options)."""
+    return build_body(scene_body(body, scene), **reduction_options(scene))
+
+
 def build_body(
-    body: Body, causality: Sequence[tuple[str, str, str]] = (), stiffening: bool = False, inertia: bool = False
+    body: Body, stiffening: bool = False, inertia: bool = False
 ) -> tuple[BodyData, tuple[Reduction, ...]]:
     """Split the beam into body.superelements equal segments, each its own FE model of
     body.elements_per_superelement elements, reduce each on its two end nodes.
@@ -271,7 +273,8 @@ def build_body(
     inertia: add Witteveen's W1, W2 (the term set `full`).
 
     Global boundary node i sits at s = i L / n_se; superelement e joins nodes (e, e+1).
-    causality: optional (port, translation, rotation) overrides (model.Scene.causality).
+    The ports keep the body's causality: a scene's overrides come in through model.scene_body
+    (build_scene_body).
     """
     n_se, n_el = body.superelements, body.elements_per_superelement
     if n_se < 1:
@@ -300,7 +303,7 @@ def build_body(
         name=body.name,
         superelements=tuple(r.data for r in reductions),
         node_positions=node_positions,
-        ports=_port_data(body, n_se + 1, causality),
+        ports=_port_data(body, n_se + 1),
     )
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
         data = dataclasses.replace(data, ports=tuple(_compliance(data, body, p) for p in data.ports))

@@ -13,7 +13,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .model import Model, Scene, effective_ports, load_model
+from .model import Model, Scene, load_model, scene_body
 from .runtime import drives
 from .runtime.data import BodyData
 from .runtime.ports import PortValues, StepFailure
@@ -256,12 +256,12 @@ def energy_balance(columns: dict[str, np.ndarray]) -> float:
 def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False,
               backend: str = "numpy"):
     """Load (if a path), build and reduce the body for the scene, run it standalone."""
-    from .reduction import build_body, reduction_options
+    from .reduction import build_scene_body
 
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
-    body, _ = build_body(dataclasses.replace(model.body, ports=effective_ports(model, scene)), **reduction_options(scene))
+    body, _ = build_scene_body(model.body, scene)
     return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
 
 
@@ -394,7 +394,7 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
     from .reference import simulate_reference
     from .runtime.data import BodyData, PortData
 
-    body = dataclasses.replace(model.body, ports=effective_ports(model, scene))
+    body = scene_body(model.body, scene)
     n = n_elements or body.superelements * body.elements_per_superelement
     ref = simulate_reference(body, scene, n_elements=n, step=step)
     L, e = body.length, np.asarray(body.direction, float) / np.linalg.norm(body.direction)

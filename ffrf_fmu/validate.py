@@ -134,12 +134,9 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     fmu_data = fmu_body(fmu_path)
     ports = lambda b: [(p.name, p.node, p.translation, p.rotation) for p in b.ports]
     if not built:
-        import dataclasses
+        from .reduction import build_scene_body
 
-        from .model import effective_ports
-        from .reduction import build_body, reduction_options
-
-        scene_body, _ = build_body(dataclasses.replace(mdl.body, ports=effective_ports(mdl, sc)), **reduction_options(sc))
+        scene_body, _ = build_scene_body(mdl.body, sc)
         if ports(fmu_data) != ports(scene_body):
             raise ValidationError(
                 f"{fmu_path}: the FMU's ports {ports(fmu_data)} differ from those of scene {sc.name!r} of "

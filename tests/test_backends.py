@@ -10,7 +10,6 @@ loads are residual rows at the Newton solution, differences of elastic forces of
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 
 import numpy as np
@@ -18,6 +17,7 @@ import pytest
 
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
+from ffrf_fmu.model import scene_body
 from ffrf_fmu.reduction import build_body
 from ffrf_fmu.runtime import compiled
 from ffrf_fmu.runtime.body import BodySystem
@@ -40,7 +40,7 @@ def _run(name, backend):
     path, scene, overrides = RUNS[name]
     model = load_model(path, overrides)
     sc = model.scene(scene)
-    body, _ = build_body(dataclasses.replace(model.body, ports=sim.effective_ports(model, sc)), stiffening=sc.stiffening)
+    body, _ = build_body(scene_body(model.body, sc), stiffening=sc.stiffening)
     return sim.run(body, sc, origin=model.body.origin, progress=False, backend=backend)
 
 

@@ -116,9 +116,10 @@ def _started(path, scene, model_path, start_values=None):
     inst = FmuInstance("body", path, start_values=start_values)
     model = load_model(model_path)
     sc = model.scene(scene)
+    from ffrf_fmu.model import scene_body
     from ffrf_fmu.reduction import build_body
 
-    data, _ = build_body(model.body, sc.causality)
+    data, _ = build_body(scene_body(model.body, sc))
     inputs = scene_inputs(data, sc)
     inst.fmu.setupExperiment(startTime=0.0)
     inst.set_start_values()

@@ -318,6 +318,7 @@ def test_tumbling_free_beam_starts_with_the_rigid_velocity_field_under_a_load():
     the initial velocity of every port is the rigid field w x (x - origin), to round-off (a guard
     for the exact initial rates with a displaced port, modal rates included, under rotation)."""
     from ffrf_fmu.model import load_model
+    from ffrf_fmu.model import scene_body
     from ffrf_fmu.reduction import build_body
     from ffrf_fmu.runtime.body import BodySystem
     from ffrf_fmu.simulate import scene_inputs
@@ -325,7 +326,7 @@ def test_tumbling_free_beam_starts_with_the_rigid_velocity_field_under_a_load():
     root = Path(__file__).resolve().parent.parent
     model = load_model(root / "models" / "free_beam.toml")
     sc = model.scene("tumble")
-    data, _ = build_body(model.body, sc.causality)
+    data, _ = build_body(scene_body(model.body, sc))
     base = scene_inputs(data, sc)
 
     def inputs(t):

@@ -1,10 +1,11 @@
 """Model files: the bundled models load, overrides apply, and every class of mistake gets a
 message that names the file, the dotted key and what was expected."""
+import dataclasses
 from pathlib import Path
 
 import pytest
 
-from ffrf_fmu.model import ModelError, effective_ports, load_model
+from ffrf_fmu.model import ModelError, load_model, scene_body
 
 MODELS = Path(__file__).resolve().parent.parent / "models"
 
@@ -57,9 +58,11 @@ def test_bundled_models_load():
     spin = b1.scene("spinup")
     assert spin.drives[0].rotation.angle.params == (("T", 15.0), ("omega", 4.0))
     assert dict(b1.scene("spinup_fast").drives[0].rotation.angle.params)["omega"] == 8.0
-    hub = effective_ports(b1, b1.scene("hub_free"))[0]
+    hub = scene_body(b1.body, b1.scene("hub_free")).ports[0]
     assert (hub.translation, hub.rotation) == ("motion", "force")
-    assert effective_ports(b1, spin) == b1.body.ports
+    assert scene_body(b1.body, spin).ports == b1.body.ports
+    with pytest.raises(ModelError, match=r"scene 'spinup' sets the causality of unknown port\(s\) \['nope'\]"):
+        scene_body(b1.body, dataclasses.replace(spin, causality=(("nope", "motion", "force"),)))
 
     b2 = load_model(MODELS / "spherical_beam.toml")
     assert b2.body.section.GA2 is None  # Euler-Bernoulli

@@ -9,7 +9,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.studies.chart import front_cost_at
 from ffrf_fmu.studies.runners import body_data
-from ffrf_fmu.model import effective_ports, load_model
+from ffrf_fmu.model import load_model, scene_body
 
 ROOT = Path(__file__).resolve().parent.parent
 # the converged maximum transverse tip deflection of B1 from the in-house reference (ffrf_fmu/reference):
@@ -21,7 +21,7 @@ B1_CONVERGED = 0.531864
 def _b1(duration):
     model = load_model(ROOT / "models" / "haug_beam.toml", [f"duration={duration}"])
     sc = model.scene("spinup")
-    return model, sc, dataclasses.replace(model.body, ports=effective_ports(model, sc))
+    return model, sc, scene_body(model.body, sc)
 
 
 def test_exudyn_b1_reproduces_the_reference_max_deflection():

@@ -144,9 +144,9 @@ def test_mesh_errors(b1):
 
 def test_build_body(b1):
     section, L = b1
-    ports = (Port("hub", 0, "motion", "motion"), Port("tip", -1, "force", "force"))
+    ports = (Port("hub", 0, "motion", "force"), Port("tip", -1, "force", "force"))
     body = Body("beam", L, (1.0, 2.0, 0.0), (0.0, 1.0, 0.0), section, 4, 4, 6, ports)
-    data, reds = build_body(body, causality=(("hub", "motion", "force"),))
+    data, reds = build_body(body)
     assert np.allclose(data.node_positions, [[1.0, 2.0 + 2.0 * i, 0.0] for i in range(5)])
     assert [tuple(se.nodes) for se in data.superelements] == [(0, 1), (1, 2), (2, 3), (3, 4)]
     for i, se in enumerate(data.superelements):

@@ -302,9 +302,9 @@ def test_full_term_set_conserves_momentum_and_energy(terms):
     changes the angular momentum by ~1e-5 here)."""
     m = load_model("models/free_beam.toml", [f"terms={terms}", "duration=1.0", "superelements=1"])
     sc = m.scene("tumble")
-    from ffrf_fmu.reduction import reduction_options
+    from ffrf_fmu.reduction import build_scene_body
 
-    body, _ = build_body(dataclasses.replace(m.body, ports=sim.effective_ports(m, sc)), **reduction_options(sc))
+    body, _ = build_scene_body(m.body, sc)
     s, inputs = sim.build_system(body, sc, m.body.origin)
     _, L0 = s.momenta()
     E0 = sum(v for k, v in s.energies().items() if k != "work_external")

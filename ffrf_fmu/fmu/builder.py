@@ -43,7 +43,8 @@ from .. import __version__
 from ..runtime.data import BodyData
 from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
-from .variables import FULL_TERM_TEXT, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, TERM_SETS, equations_text
+from ..runtime.terms import FULL_TERMS, TERM_SETS
+from .variables import INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, equations_text
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
@@ -145,7 +146,7 @@ class SceneParameters:
     port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     duration: float | None = None  # DefaultExperiment stopTime when given
     probes: tuple[str, ...] = ()  # "<port>_from_<port>" outputs (eq. 92)
-    full_terms: tuple[str, ...] = tuple(FULL_TERM_TEXT)  # Witteveen's terms on in `full` (fixed at build)
+    full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in `full` (fixed at build)
 
     @classmethod
     def of_scene(cls, scene) -> "SceneParameters":
@@ -165,8 +166,8 @@ class SceneParameters:
     def as_config(self) -> dict:
         if self.terms not in TERM_SETS:
             raise BuildError(f"terms must be one of {TERM_SETS}, got {self.terms!r}")
-        if not set(self.full_terms) <= set(FULL_TERM_TEXT):
-            raise BuildError(f"full_terms must be among {tuple(FULL_TERM_TEXT)}, got {self.full_terms!r}")
+        if not set(self.full_terms) <= set(FULL_TERMS):
+            raise BuildError(f"full_terms must be among {FULL_TERMS}, got {self.full_terms!r}")
         return {
             "step": float(self.step),
             "rho_inf": float(self.rho_inf),
@@ -352,11 +353,11 @@ def build_fmu(
 def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numba") -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
     from ..model import load_model
-    from ..reduction import build_body, reduction_options
+    from ..reduction import build_scene_body
 
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
-    data, _ = build_body(model.body, sc.causality, **reduction_options(sc))
+    data, _ = build_scene_body(model.body, sc)
     info = {
         "model_file": str(Path(model_path).name),
         "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),

@@ -24,16 +24,16 @@ import numpy as np
 
 from ..runtime.data import BodyData
 from ..runtime.ports import PortValues, StepFailure
-from ..runtime.rotation import expm
+from ..runtime.rotation import ROTATION_TOL, expm
+from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
-from .variables import TERM_SETS, Variable, body_variables
+from .variables import Variable, body_variables
 
 try:  # optional: one BLAS thread during the FMU's own calls only (docs/fmu.md, BLAS threads)
     from threadpoolctl import ThreadpoolController
 except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before numpy loads, when it can
     ThreadpoolController = None
 
-ROTATION_TOL = 1e-6  # reject R when max |R^T R - I| exceeds this
 ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
 _I3 = np.eye(3)
 STATE_VERSION = 1

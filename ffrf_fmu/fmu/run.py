@@ -19,7 +19,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .variables import TERM_SETS, component_name, parse_port_variable
+from ..runtime.terms import TERM_SETS
+from .variables import component_name, parse_port_variable
 
 
 class FmuRunError(RuntimeError):

@@ -2,7 +2,8 @@
 
 One table, `body_variables`, drives everything: the slave registers it with pythonfmu, the
 builder writes the unit definitions and the ModelStructure from it, validate.py and master.py
-read names from it. Shipped inside every FMU: standard library only (no numpy, no pythonfmu).
+read names from it. Shipped inside every FMU: the standard library and the runtime's constants
+(runtime.terms, runtime.rotation), no pythonfmu.
 
 Value references are the positions in the returned list. Index conventions: `P.r[i]` i = 1..3,
 `P.R[i,j]` = component i (world axis) of nodal axis j, both 1-based. The names are made by
@@ -14,6 +15,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from xml.etree.ElementTree import Element, SubElement
+
+from ..runtime.rotation import ROTATION_TOL
+from ..runtime.terms import TERM_SETS
 
 # FMI 2.0 unit definitions (BaseUnit exponents of SI base units; rad is FMI's extra base unit)
 UNITS: dict[str, dict[str, int]] = {
@@ -32,8 +36,7 @@ UNITS: dict[str, dict[str, int]] = {
     "s": {"s": 1},
 }
 
-TERM_SETS = ("linear", "gyroscopic", "full")  # solver.terms: Integer enumeration, index into this tuple
-# Witteveen's terms of the set `full` (runtime.body.FULL_TERMS, docs/inertia-terms.md), what each adds
+# Witteveen's terms of the set `full` (runtime.terms.FULL_TERMS, docs/inertia-terms.md), what each adds
 FULL_TERM_TEXT = {
     "inertia_W1": "inertia_W1 (inertia tensor change W1 q, with the constant centrifugal load on the modes)",
     "inertia_W2": "inertia_W2 (inertia tensor change q W2 q, with the elastic centrifugal force)",
@@ -96,7 +99,7 @@ INPUT_RULE = {
     "v": "extrapolated from t_c with {p}.a: v(t) = v_c + a_c s (the slope of the extrapolation of {p}.r)",
     "a": "held constant over the communication step (0 by default: first-order extrapolation of {p}.r, {p}.v)",
     "R": "extrapolated with {p}.w and {p}.dw: R(t) = expm(skew(w_c s + dw_c s^2/2)) R_c; must be a rotation "
-    "(|R^T R - I| <= 1e-6, det > 0, re-orthonormalized when not exact)",
+    f"(|R^T R - I| <= {ROTATION_TOL:g}, det > 0, re-orthonormalized when not exact)",
     "w": "extrapolated from t_c with {p}.dw: w(t) = w_c + dw_c s (the rate of the extrapolation of {p}.R)",
     "dw": "held constant over the communication step (0 by default: first-order extrapolation of {p}.R, {p}.w)",
     "f": "held constant over the communication step",

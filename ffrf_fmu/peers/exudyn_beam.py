@@ -276,7 +276,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
 
     from .. import simulate as sim
     from ..studies.runners import body_data, tip_trajectory
-    from ..model import effective_ports, load_model
+    from ..model import load_model, scene_body
 
     out = {"values": dict(values), "runner": "exudyn", "completed": False, "failure": None}
     try:
@@ -285,7 +285,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
         n_el = int(values["elements"])
         h = float(values.get("step") or sc.step)
         out["resolved"] = {"elements": n_el, "step": h}
-        res = simulate(dataclasses.replace(model.body, ports=effective_ports(model, sc)), sc, n_el, h)
+        res = simulate(scene_body(model.body, sc), sc, n_el, h)
         result = sim.SimulationResult(res.t, columns(res), {}, body_data(model, sc))
         out |= {"wall_time_s": res.wall_time_s, "cpu_time_s": res.cpu_time_s, "completed": res.completed,
                 "failure": res.failure, "t_end_s": float(res.t[-1]),

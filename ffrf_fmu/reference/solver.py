@@ -50,7 +50,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 
-from ..model import Body, Scene
+from ..model import Body, Scene, scene_body
 from ..runtime.drives import evaluate
 from .beam import BeamElements
 from ..runtime.rotation import cross, expm, skew, tangent
@@ -218,15 +218,13 @@ class _Scene:
     """Causality, prescribed motion and loads of one scene on a mesh."""
 
     def __init__(self, mesh: Mesh, body: Body, scene: Scene | None):
+        if scene is not None:
+            body = scene_body(body, scene)
         caus = {p.name: (p.translation, p.rotation) for p in body.ports}
         drives = {}
         loads = []
         gravity = np.zeros(3)
         if scene is not None:
-            for name, tr, ro in scene.causality:
-                if name not in caus:
-                    raise ValueError(f"reference: scene {scene.name!r} sets causality of unknown port {name!r}")
-                caus[name] = (tr, ro)
             for d in scene.drives:
                 if d.port not in caus:
                     raise ValueError(f"reference: scene {scene.name!r} drives unknown port {d.port!r}")

@@ -19,13 +19,9 @@ from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
 from .coupling import add_springs
 from .ports import PortValues, StepFailure
-from .rotation import cross, is_rotation, vect
+from .rotation import ROTATION_TOL, cross, is_rotation, vect
+from .terms import FULL_TERMS, TERM_SETS
 
-TERM_SETS = ("linear", "gyroscopic", "full")
-# Witteveen's terms, switchable within `full` (docs/inertia-terms.md): the inertia tensor's change W1 q
-# (with the constant centrifugal load) and q W2 q (with the elastic centrifugal force), the inertia coupling
-# S(q) in the angular momentum, the elastic Coriolis force G(W0) on the elastic coordinates
-FULL_TERMS = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
 BACKENDS = ("numpy", "numba")
 
 
@@ -275,7 +271,7 @@ class BodySystem(GeneralizedAlpha):
                 ends = (_input(pv, "r", p.name, t) if ct else None, _input(pv, "v", p.name, t) if ct else None,
                         _input(pv, "R", p.name, t) if cr else None, _input(pv, "w", p.name, t) if cr else None)
                 if cr and not is_rotation(ends[2]):
-                    raise StepFailure(t, f"port {p.name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
+                    raise StepFailure(t, f"port {p.name!r}: input R is not a rotation matrix (|R^T R - I| > {ROTATION_TOL:g} or det < 0)")
                 springs.append((k, ct, cr, self.compliance[p.name], ends))
             if p.translation == "motion":
                 xN[k], zN[k, 0:3] = _value(pv, "r", p.name, t), _value(pv, "v", p.name, t)
@@ -299,7 +295,7 @@ class BodySystem(GeneralizedAlpha):
         for k in self._motion_R:
             if not is_rotation(RN[k]):
                 name = next(p.name for p in self.data.ports if p.node == k and p.rotation == "motion")
-                raise StepFailure(t, f"port {name!r}: input R is not a rotation matrix (|R^T R - I| > 1e-6 or det < 0)")
+                raise StepFailure(t, f"port {name!r}: input R is not a rotation matrix (|R^T R - I| > {ROTATION_TOL:g} or det < 0)")
         self._springs = springs
         return xN, RN, zN, f, tq
 

@@ -16,6 +16,9 @@ import math
 
 import numpy as np
 
+# An input rotation matrix is accepted when max |R^T R - I| <= ROTATION_TOL and det R > 0 (runtime/body.py,
+# fmu/core.py; the FMU variable descriptions quote it)
+ROTATION_TOL = 1e-6
 _EPS = 1e-5  # below this angle 1 - t^2/6 and 1 + t^2/6 equal sin(t)/t and t/sin(t) to round-off (next term t^4/120)
 
 # (t - sin t)/t^3 = sum_k (-1)^k t^(2k) / (2k+3)!: the closed form loses ~eps t/(t - sin t) ~ 6 eps/t^2 to
@@ -164,7 +167,7 @@ def vect_tangent(Q: np.ndarray) -> np.ndarray:
     return 0.5 * (tr[..., None, None] * np.eye(3) - np.swapaxes(Q, -1, -2))
 
 
-def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
+def is_rotation(R: np.ndarray, tol: float = ROTATION_TOL) -> bool:
     """R is a (3, 3) array with |R^T R - I| <= tol and det(R) > 0 (in floats: cheaper than numpy at
     this size; a NaN or inf entry makes det NaN or |R^T R - I| infinite, so it fails)."""
     R = np.asarray(R, dtype=float)

@@ -34,7 +34,6 @@ what no rule estimates (modal truncation, interactions).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +41,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..model import Model, effective_ports, load_model
+from ..model import Model, load_model, scene_body
 from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_MODES, MODE_BAND, RESERVE,
                           SPIN_RATIO_CHECKED, STEP_ERROR_FACTOR, STEPS_PER_DRIVE_TIME, STIFFENED_ERROR,
                           STIFFENING_SIGMA)
@@ -96,7 +95,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
-    body = dataclasses.replace(model.body, ports=effective_ports(model, scene))
+    body = scene_body(model.body, scene)
     ind: dict[str, Any] = {}
     why: dict[str, str] = {}
 

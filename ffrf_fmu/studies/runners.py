@@ -21,7 +21,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..model import Model, Scene, effective_ports, load_model
+from ..model import Model, Scene, load_model, scene_body
 from .grid import value_overrides
 
 
@@ -38,10 +38,9 @@ def resolved(model: Model, scene_name: str | None) -> dict[str, Any]:
 
 def body_data(model: Model, scene: Scene):
     """The reduced body (BodyData) of the model with the scene's port causality."""
-    from ..reduction import build_body, reduction_options
+    from ..reduction import build_scene_body
 
-    body = dataclasses.replace(model.body, ports=effective_ports(model, scene))
-    return build_body(body, **reduction_options(scene))[0]
+    return build_scene_body(model.body, scene)[0]
 
 
 def tip_trajectory(result) -> np.ndarray:
@@ -140,7 +139,7 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
     sc = model.scene(scene_name)
     n_el = reference_elements(model, n_elements)
     h = float(step) if step else sc.step
-    ref_body = dataclasses.replace(model.body, ports=effective_ports(model, sc))
+    ref_body = scene_body(model.body, sc)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="reference: energy error", category=RuntimeWarning)
         res = simulate_reference(ref_body, sc, n_elements=n_el, step=h)
