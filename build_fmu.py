@@ -6,16 +6,14 @@
 The FMU takes the scene's port causality and its solver values (step, rho_inf, terms, gravity,
 initial velocities) as parameter defaults; see docs/fmu.md.
 """
-import argparse
 import sys
 
-from ffrf_fmu.fmu.builder import add_build_arguments, build_command
+from ffrf_fmu.cli import command_parser
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="build_fmu.py", description=__doc__.strip().splitlines()[0])
-    add_build_arguments(parser)
-    return build_command(parser.parse_args(argv))
+    args = command_parser("build", prog="build_fmu.py").parse_args(argv)
+    return args.run(args)
 
 
 if __name__ == "__main__":

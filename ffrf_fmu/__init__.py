@@ -1,4 +1,18 @@
-"""ffrf-fmu: flexible beams as two-field FFRF superelement chains, shipped as FMI co-simulation FMUs."""
+"""ffrf-fmu: flexible beams as two-field FFRF superelement chains, shipped as FMI co-simulation FMUs.
+
+The public API: `load_model(path, overrides)`, `build_body(model, scene)` (the reduced body as the
+scene runs it), `run_scene(model, scene)` (the standalone run), `build_fmu(model_path, dest,
+scene=...)` and `validate_fmu(fmu_or_model, model=..., scene=...)` (the FMU under fmpy against the
+standalone run). From the repository root:
+
+    >>> import ffrf_fmu
+    >>> model = ffrf_fmu.load_model("models/haug_beam.toml", ["superelements=2", "duration=0.2"])
+    >>> len(ffrf_fmu.build_body(model, "spinup").superelements)
+    2
+    >>> result = ffrf_fmu.run_scene(model, "spinup")
+    >>> result.summary["completed"], float(result.columns["tip.r[1]"][0])  # the tip starts at x = L
+    (True, 8.0)
+"""
 import os as _os
 import sys as _sys
 
@@ -21,3 +35,26 @@ if not any(v in _os.environ for v in _BLAS_VARS):
             pass
         else:
             _limits(limits=1, user_api="blas")
+
+# The public API, imported on first use (importing ffrf_fmu stays cheap and sets the BLAS threads
+# above before numpy loads). `simulate` names the submodule ffrf_fmu.simulate, so the standalone run
+# is `run_scene`.
+_API = {
+    "load_model": ("ffrf_fmu.model", "load_model"),
+    "build_body": ("ffrf_fmu.reduction", "build_model_body"),  # the model-level build_body
+    "run_scene": ("ffrf_fmu.simulate", "run_scene"),
+    "build_fmu": ("ffrf_fmu.fmu.builder", "build_from_model"),
+    "validate_fmu": ("ffrf_fmu.validate", "validate"),
+}
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name):
+    if name in _API:
+        import importlib
+
+        module, attr = _API[name]
+        value = getattr(importlib.import_module(module), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'ffrf_fmu' has no attribute {name!r}")

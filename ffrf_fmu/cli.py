@@ -1,4 +1,5 @@
-"""`ffrf-fmu` command line: one function per subcommand, registered with @command.
+"""`ffrf-fmu` command line: one function per subcommand, registered with @command; all of the
+package's argparse code is here (build_fmu.py uses `build` through `command_parser`).
 
 A subcommand is `def name(args) -> int` whose docstring is its help; its arguments come from
 the decorator. Expected failures (a bad model file, a missing file) print
@@ -15,6 +16,7 @@ import sys
 from typing import Callable, Sequence
 
 from .model import Model, ModelError, Scene, load_model, scene_body
+from .validate import DEFAULT_ATOL, DEFAULT_RTOL
 
 PROG = "ffrf-fmu"
 _COMMANDS: list[tuple[Callable, tuple]] = []
@@ -434,19 +436,114 @@ def advise(args) -> int:
     return 0 if not args.check or out["check"]["within_tolerance"] else 1
 
 
+@command(
+    arg("model", help="model file (TOML, see docs/model-format.md)"),
+    arg("--scene", help="scene whose causality and parameters the FMU takes (default: the first)"),
+    arg("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        help="override a model value (repeatable), e.g. --set superelements=2"),
+    arg("-o", "--output", default=None, help="FMU file to write (default: <body name>.fmu in the current directory)"),
+    arg("--backend", choices=("numba", "numpy"), default="numba",
+        help="numba (default): the FMU runs the compiled step when its host has numba, else numpy "
+             "with a logged message; numpy: always the reference implementation"),
+)
+def build(args) -> int:
+    """Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
+    from .fmu.builder import BuildError, build_from_model, read_fmu_config
+
+    try:
+        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
+                               backend=args.backend)
+    except (ModelError, BuildError, OSError) as e:
+        print(f"{PROG} build: error: {e}", file=sys.stderr)
+        return 2
+    cfg = read_fmu_config(out)
+    print(f"wrote {out} (model identifier {cfg['names']['class']}, scene {cfg['build'].get('scene')!r})")
+    return 0
+
+
+@command(
+    arg("source", metavar="MODEL|FMU", help="model file (.toml; the FMU is built) or a built .fmu"),
+    arg("--scene", help="scene to run (default: the first scene of the model)"),
+    arg("--model", help="model file, required with an .fmu (scene and standalone reference)"),
+    arg("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        help="override a model value (repeatable), e.g. --set duration=2"),
+    arg("--comm-step", type=float, default=None, help="communication step H [s] (default: the scene's internal step)"),
+    arg("--report", default=None, metavar="DIR", help="write DIR/report.json and DIR/*.png (and the built FMU)"),
+    arg("--rtol", type=float, default=DEFAULT_RTOL, help=f"relative tolerance per output group (default {DEFAULT_RTOL:g})"),
+    arg("--atol", type=float, default=DEFAULT_ATOL,
+        help=f"absolute tolerance for groups that stay near zero (default {DEFAULT_ATOL:g})"),
+)
+def validate(args) -> int:
+    """Run a scene through the FMU under fmpy and standalone, compare every output, write a report.
+
+    Exit 0 when every group is within tolerance and the FMU reached the stop time, 1 when not,
+    2 when the validation could not run."""
+    from .fmu.builder import BuildError
+    from .fmu.run import FmuRunError
+    from .validate import ValidationError
+    from .validate import validate as run_validation
+
+    try:
+        rep = run_validation(args.source, scene=args.scene, model=args.model, overrides=args.overrides,
+                             comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol)
+    except (ValidationError, FmuRunError, ModelError, BuildError, OSError) as e:
+        print(f"{PROG} validate: error: {e}", file=sys.stderr)
+        return 2
+    print(f"FMU {rep['fmu']} / scene {rep['scene']}: H = {rep['comm_step']:g} s, internal step "
+          f"{rep['internal_step']:g} s, t_end {rep['fmu_t_end']:g} of {rep['duration']:g} s")
+    if not rep["fmu_reached_stop_time"]:
+        print("  FMU run stopped early: " + (rep["fmu_log"][-1] if rep["fmu_log"] else "(no message)"))
+    if not rep["standalone_completed"]:
+        print(f"  standalone run stopped early ({rep['standalone_failure']}): compared up to where it stopped")
+    if not rep["fmu_matches_model"]:
+        print("  warning: " + rep["warning"])
+    for g, d in rep["groups"].items():
+        mark = "ok " if d["passed"] else "BAD"
+        print(f"  {mark} {g:28s} max|diff| {d['max_abs_diff']:.3e}  rel {d['max_rel_diff']:.3e}")
+    for k, d in rep["metrics"].items():
+        print(f"  metric {k}: FMU {d['fmu']:.6g}, standalone {d['standalone']:.6g}, rel diff {d['rel_diff']:.2e}")
+    w = rep["wall_time_s"]
+    print(f"  wall time: FMU {w['fmu']:.2f} s, standalone {w['standalone']:.2f} s")
+    print(("PASSED" if rep["passed"] else "FAILED") + f" (rtol {rep['tolerances']['rtol']:g})")
+    return 0 if rep["passed"] else 1
+
+
+@command(
+    arg("--elements", default="4,8,16,32", metavar="N1,N2", help="meshes of the reference beam"),
+    arg("--steps", default="0.02,0.01,0.005,0.002,0.001", metavar="H1,H2", help="time steps [s]"),
+    arg("--quick", action="store_true", help="elements 4,8,16 and steps 0.01,0.002"),
+)
+def convergence(args) -> int:
+    """Convergence of the full-order reference beam on B1 over mesh and step (ffrf_fmu/reference/convergence.py)."""
+    from .reference.convergence import convergence_table
+
+    els = [4, 8, 16] if args.quick else [int(x) for x in args.elements.split(",")]
+    steps = [0.01, 0.002] if args.quick else [float(x) for x in args.steps.split(",")]
+    return convergence_table(els, steps)
+
+
+def _add_arguments(parser: argparse.ArgumentParser, arguments) -> None:
+    for names, kwargs in arguments:
+        parser.add_argument(*names, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description="Flexible beams as FFRF superelement FMUs.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for fn, arguments in _COMMANDS:
         doc = (fn.__doc__ or "").strip()
         p = sub.add_parser(fn.__name__, help=doc.splitlines()[0] if doc else None, description=doc)
-        for names, kwargs in arguments:
-            p.add_argument(*names, **kwargs)
+        _add_arguments(p, arguments)
         p.set_defaults(run=fn)
-    from .fmu.builder import add_build_parser, add_validate_parser
+    return parser
 
-    add_build_parser(sub)
-    add_validate_parser(sub)
+
+def command_parser(name: str, prog: str) -> argparse.ArgumentParser:
+    """A stand-alone parser of one subcommand (build_fmu.py is `build` under another name)."""
+    fn, arguments = next((fn, a) for fn, a in _COMMANDS if fn.__name__ == name)
+    parser = argparse.ArgumentParser(prog=prog, description=(fn.__doc__ or "").strip().splitlines()[0])
+    _add_arguments(parser, arguments)
+    parser.set_defaults(run=fn)
     return parser
 
 

@@ -258,6 +258,11 @@ def reduction_options(scene) -> dict:
     return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
 
 
+def build_model_body(model, scene: str | None = None) -> BodyData:
+    """The reduced body of a model as its scene (default: the first) runs it: ffrf_fmu.build_body."""
+    return build_scene_body(model.body, model.scene(scene))[0]
+
+
 def build_scene_body(body: Body, scene) -> tuple[BodyData, tuple[Reduction, ...]]:
     """The body as a scene runs it: the scene's causality (model.scene_body) and the data its
     options need (reduction_options)."""

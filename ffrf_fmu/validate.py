@@ -19,7 +19,6 @@ values stay below `atol` pass on the absolute difference). The scene's benchmark
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -27,9 +26,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from .fmu.run import FmuRunError, fmu_body, run_fmu
-from .fmu.variables import parse_port_variable
 
 DEFAULT_RTOL = 1e-3
 DEFAULT_ATOL = 1e-9
@@ -43,6 +39,8 @@ def _groups(names):
     """FMU output names -> {group: [names]}: `port.part` for port fields (e.g. tip.r), `energies`
     for the four energies together (scaled by the largest of them: a negligible energy, such as
     the elastic kinetic energy of B1, is judged against the energy level of the body)."""
+    from .fmu.variables import parse_port_variable
+
     groups: dict[str, list[str]] = {}
     for n in names:
         if n.startswith("solver."):
@@ -105,6 +103,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
              report_dir=None, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, plots: bool = True) -> dict:
     """Run the validation; returns the report (also written to report_dir/report.json)."""
     from .fmu.builder import build_from_model
+    from .fmu.run import fmu_body, run_fmu
     from .model import load_model
     from .simulate import metrics, run_scene, scene_inputs
 
@@ -287,61 +286,3 @@ def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_res
     except (KeyError, ValueError):
         pass
     return written
-
-
-# ------------------------------------------------------------------------------------- CLI
-def add_validate_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("source", metavar="MODEL|FMU", help="model file (.toml; the FMU is built) or a built .fmu")
-    parser.add_argument("--scene", help="scene to run (default: the first scene of the model)")
-    parser.add_argument("--model", help="model file, required with an .fmu (scene and standalone reference)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a model value (repeatable), e.g. --set duration=2")
-    parser.add_argument("--comm-step", type=float, default=None,
-                        help="communication step H [s] (default: the scene's internal step)")
-    parser.add_argument("--report", default=None, metavar="DIR",
-                        help="write DIR/report.json and DIR/*.png (and the built FMU)")
-    parser.add_argument("--rtol", type=float, default=DEFAULT_RTOL,
-                        help=f"relative tolerance per output group (default {DEFAULT_RTOL:g})")
-    parser.add_argument("--atol", type=float, default=DEFAULT_ATOL,
-                        help=f"absolute tolerance for groups that stay near zero (default {DEFAULT_ATOL:g})")
-
-
-def validate_command(args) -> int:
-    """Exit 0 when every group is within tolerance and the FMU reached the stop time, 1 when not,
-    2 when the validation could not run."""
-    from .fmu.builder import BuildError
-    from .model import ModelError
-
-    try:
-        rep = validate(args.source, scene=args.scene, model=args.model, overrides=args.overrides,
-                       comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol)
-    except (ValidationError, FmuRunError, ModelError, BuildError, OSError) as e:
-        print(f"ffrf-fmu validate: error: {e}", file=sys.stderr)
-        return 2
-    print(f"FMU {rep['fmu']} / scene {rep['scene']}: H = {rep['comm_step']:g} s, internal step "
-          f"{rep['internal_step']:g} s, t_end {rep['fmu_t_end']:g} of {rep['duration']:g} s")
-    if not rep["fmu_reached_stop_time"]:
-        print("  FMU run stopped early: " + (rep["fmu_log"][-1] if rep["fmu_log"] else "(no message)"))
-    if not rep["standalone_completed"]:
-        print(f"  standalone run stopped early ({rep['standalone_failure']}): compared up to where it stopped")
-    if not rep["fmu_matches_model"]:
-        print("  warning: " + rep["warning"])
-    for g, d in rep["groups"].items():
-        mark = "ok " if d["passed"] else "BAD"
-        print(f"  {mark} {g:28s} max|diff| {d['max_abs_diff']:.3e}  rel {d['max_rel_diff']:.3e}")
-    for k, d in rep["metrics"].items():
-        print(f"  metric {k}: FMU {d['fmu']:.6g}, standalone {d['standalone']:.6g}, rel diff {d['rel_diff']:.2e}")
-    w = rep["wall_time_s"]
-    print(f"  wall time: FMU {w['fmu']:.2f} s, standalone {w['standalone']:.2f} s")
-    print(("PASSED" if rep["passed"] else "FAILED") + f" (rtol {rep['tolerances']['rtol']:g})")
-    return 0 if rep["passed"] else 1
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="ffrf-fmu validate", description=validate.__doc__)
-    add_validate_arguments(parser)
-    return validate_command(parser.parse_args(argv))
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

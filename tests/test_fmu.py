@@ -28,7 +28,7 @@ from ffrf_fmu.master import CoSimulation, FmuInstance  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.simulate import elastic_tip, run_scene, scene_inputs  # noqa: E402
 from ffrf_fmu.fmu.run import fmu_input_table, input_values, run_fmu  # noqa: E402
-from ffrf_fmu.validate import validate, validate_command  # noqa: E402
+from ffrf_fmu.validate import validate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models"
@@ -243,14 +243,9 @@ def test_validate_clean_when_extrapolation_is_exact(small, tmp_path):
 
 
 def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
-    import argparse
+    from ffrf_fmu.cli import build_parser
 
-    from ffrf_fmu.fmu.builder import add_build_parser, add_validate_parser
-
-    parser = argparse.ArgumentParser()
-    sub = parser.add_subparsers()
-    add_build_parser(sub)
-    add_validate_parser(sub)
+    parser = build_parser()
     # an .fmu without the model: exit 2 with a message
     args = parser.parse_args(["validate", str(small_fmu), "--scene", "spin"])
     assert args.run(args) == 2

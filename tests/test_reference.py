@@ -213,7 +213,7 @@ def test_b1_haug_beam_max_deflection():
     """B1 (Haug's beam, spin-up to 4 rad/s in 15 s, 20 s, rho_inf 0.8): max transverse tip
     deflection from the hub (eq. 92) against ODIN's 16-element nonlinear beam, 0.5333 m.
 
-    Convergence study (python -m ffrf_fmu.reference.convergence; table in its docstring): step error
+    Convergence study (ffrf-fmu convergence; table in its docstring): step error
     is second order, +0.11 % at h = 20 ms against h = 2 ms (the response is quasi-static in the
     rotating frame, 0.46 Hz); the mesh error is O(1/n^2): -0.68 %, -0.17 %, -0.042 %, -0.008 % at
     4, 8, 16, 32 elements against the converged 0.53186 m (64 elements, h = 2 ms; itself -0.27 %

@@ -22,7 +22,6 @@ different bodies (or two versions of the code) never share a module name in one 
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import hashlib
 import json
@@ -375,50 +374,3 @@ def read_fmu_config(fmu_path) -> dict:
 
     with zipfile.ZipFile(fmu_path) as z:
         return json.loads(z.read(f"resources/{CONFIG_FILE}").decode("utf-8"))
-
-
-def add_build_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("model", help="model file (TOML, see docs/model-format.md)")
-    parser.add_argument("--scene", help="scene whose causality and parameters the FMU takes (default: the first)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a model value (repeatable), e.g. --set superelements=2")
-    parser.add_argument("-o", "--output", default=None,
-                        help="FMU file to write (default: <body name>.fmu in the current directory)")
-    parser.add_argument("--backend", choices=("numba", "numpy"), default="numba",
-                        help="numba (default): the FMU runs the compiled step when its host has numba, else numpy "
-                             "with a logged message; numpy: always the reference implementation")
-
-
-def build_command(args) -> int:
-    """`ffrf-fmu build MODEL [--scene NAME] [--set k=v ...] [-o Body.fmu]`."""
-    from ..model import ModelError
-
-    try:
-        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
-                               backend=args.backend)
-    except (ModelError, BuildError, OSError) as e:
-        print(f"ffrf-fmu build: error: {e}", file=sys.stderr)
-        return 2
-    cfg = read_fmu_config(out)
-    print(f"wrote {out} (model identifier {cfg['names']['class']}, scene {cfg['build'].get('scene')!r})")
-    return 0
-
-
-def add_build_parser(subparsers) -> argparse.ArgumentParser:
-    """Register `build` on an argparse subparsers object; the command runs `args.run(args)`."""
-    doc = "Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."
-    p = subparsers.add_parser("build", help=doc, description=doc)
-    add_build_arguments(p)
-    p.set_defaults(run=build_command)
-    return p
-
-
-def add_validate_parser(subparsers) -> argparse.ArgumentParser:
-    """Register `validate` (implemented in ffrf_fmu/validate.py)."""
-    from ..validate import add_validate_arguments, validate_command
-
-    doc = "Run a scene through the FMU under fmpy and standalone, compare every output, write a report."
-    p = subparsers.add_parser("validate", help=doc, description=doc)
-    add_validate_arguments(p)
-    p.set_defaults(run=validate_command)
-    return p

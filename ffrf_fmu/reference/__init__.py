@@ -57,7 +57,7 @@ Limits: relative rotation across one element below pi (always true on sane meshe
 Initial.port_displacements (initially deformed body) raises NotImplementedError.
 
 Entry points: `simulate_reference`, `static_reference`, `tip_from_hub`; convergence study on B1:
-`python -m ffrf_fmu.reference.convergence`.
+`ffrf-fmu convergence`.
 """
 from .solver import Mesh, ReferenceResult, StaticResult, simulate_reference, static_reference, tip_from_hub
 

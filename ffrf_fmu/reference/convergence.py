@@ -1,6 +1,6 @@
 """Convergence study of the full-order reference on B1 (Haug's rotating beam, benchmarks.md).
 
-    python -m ffrf_fmu.reference.convergence [--quick] [--elements 4,8,16,32] [--steps 0.01,0.005,0.002]
+    ffrf-fmu convergence [--quick] [--elements 4,8,16,32] [--steps 0.01,0.005,0.002]
 
 Prints a table: elements, step, max |transverse tip deflection from hub| (eq. 92), its relative
 difference to the finest run, minimum axial tip displacement, wall time, Newton iterations per
@@ -28,8 +28,6 @@ independent of the mesh up to 16 elements (numpy call overhead dominates).
 """
 from __future__ import annotations
 
-import argparse
-import sys
 
 import numpy as np
 
@@ -59,14 +57,8 @@ def b1_run(n_elements: int, step: float, m_rot: float = 22.7e-6, duration: float
     return res, d
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--elements", default="4,8,16,32")
-    ap.add_argument("--steps", default="0.02,0.01,0.005,0.002,0.001")
-    ap.add_argument("--quick", action="store_true", help="elements 4,8,16 and steps 0.01,0.002")
-    a = ap.parse_args(argv)
-    els = [4, 8, 16] if a.quick else [int(x) for x in a.elements.split(",")]
-    steps = [0.01, 0.002] if a.quick else [float(x) for x in a.steps.split(",")]
+def convergence_table(els, steps) -> int:
+    """Run the study over the meshes `els` and steps `steps` and print the tables (module doc)."""
     rows = []
     print(f"{'elements':>8} {'step [s]':>9} {'max defl [m]':>13} {'axial min [m]':>14} {'wall [s]':>9} "
           f"{'cpu [s]':>8} {'newton/step':>11}")
@@ -90,6 +82,3 @@ def main(argv=None) -> int:
           f"({100 * (md / best[2] - 1):+.3f} %), {best[0]} elements, h = {best[1]:g} s")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,131 @@
+"""The package as a newcomer meets it: its public API (the docstring example runs) and its import
+graph (no module imports another that imports it back)."""
+from __future__ import annotations
+
+import ast
+import doctest
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import ffrf_fmu
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "ffrf_fmu"
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        is_package = parts[-1] == "__init__"
+        out[".".join(parts[:-1] if is_package else parts)] = (path, is_package)
+    return out
+
+
+def _imports(name: str, path: Path, is_package: bool, modules, top_level_only: bool) -> set[str]:
+    """The package modules `name` imports (statically; `from . import x` counts x when x is a module)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    found = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".") if is_package else name.split(".")[:-1]
+                base = base[: len(base) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for a in node.names:
+                found.add(f"{target}.{a.name}" if f"{target}.{a.name}" in modules else target)
+    return {m for m in found if m in modules and m != name}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+# Circles through imports inside functions (deferred, so Python tolerates them); each is a seam to
+# cut, and this list may only shrink. reduction imports invariants.tensor_kernel, invariants reduces
+# a body when not given its reductions; chart runs the peers, a peer run reports as a chart row;
+# the compliant B5 run is a stability map row and borrows the map's co-simulation harness.
+KNOWN_DEFERRED_CIRCLES = [
+    ["ffrf_fmu.invariants", "ffrf_fmu.reduction"],
+    ["ffrf_fmu.peers", "ffrf_fmu.peers.exudyn_beam", "ffrf_fmu.studies.chart", "ffrf_fmu.studies.sweep",
+     "ffrf_fmu.studies.task"],
+    ["ffrf_fmu.compliant_b5", "ffrf_fmu.studies.stability"],
+]
+
+
+def test_no_import_circle():
+    """No circle among module-level imports (the kind that fails at import time, depending on which
+    module is imported first), and none through deferred imports beyond the known ones."""
+    modules = _modules()
+    top = {m: _imports(m, p, pkg, modules, True) for m, (p, pkg) in modules.items()}
+    assert _cycles(top) == []
+    every = {m: _imports(m, p, pkg, modules, False) for m, (p, pkg) in modules.items()}
+    new = [c for c in _cycles(every) if not any(set(c) <= set(k) for k in KNOWN_DEFERRED_CIRCLES)]
+    assert new == [], f"new import circle(s) through deferred imports: {new}"
+
+
+def test_every_module_imports_first():
+    """Each module imported first in a fresh interpreter: an import-order dependence (a circle the
+    static check cannot see, e.g. through `importlib`) fails here. Optional extras (exudyn, dask) are
+    imported inside functions, so every module imports with the core dependencies."""
+    names = [m for m in _modules() if not m.endswith("__main__")]
+    script = ("import importlib, sys\nbad = []\nfor n in sys.argv[1:]:\n"
+              "    for k in [k for k in sys.modules if k.startswith('ffrf_fmu')]:\n        del sys.modules[k]\n"
+              "    try:\n        importlib.import_module(n)\n"
+              "    except Exception as e:\n        bad.append(f'{n}: {type(e).__name__}: {e}')\n"
+              "print('\\n'.join(bad))\nsys.exit(1 if bad else 0)\n")
+    out = subprocess.run([sys.executable, "-c", script, *names], capture_output=True, text=True, timeout=600,
+                         cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_public_api_docstring_example(monkeypatch):
+    """The example in ffrf_fmu's docstring runs (from the repository root) and gives what it shows."""
+    monkeypatch.chdir(ROOT)
+    result = doctest.testmod(ffrf_fmu, optionflags=doctest.ELLIPSIS)
+    assert result.attempted >= 4 and result.failed == 0
+
+
+def test_public_api_names():
+    assert set(ffrf_fmu.__all__) >= {"load_model", "build_body", "run_scene", "build_fmu", "validate_fmu"}
+    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.validate import validate
+
+    assert ffrf_fmu.build_fmu is build_from_model and ffrf_fmu.validate_fmu is validate
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        ffrf_fmu.nope  # noqa: B018
