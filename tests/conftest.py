@@ -1,10 +1,13 @@
-"""Benchmark beam sections of benchmarks.md (B1, B2), built directly from model.Section."""
+"""Shared set-ups: the benchmark beam sections of benchmarks.md (B1, B2) as model.Section, the
+model file of a small B1-like beam, and a body state far from its reference with the finite-
+difference iteration matrix at it."""
 import os
 
 # as the CLI does (ffrf_fmu/cli.py): one BLAS thread for the small body matrices, before numpy loads
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from ffrf_fmu.model import Section
@@ -34,3 +37,73 @@ def b2():
 def beam(request):
     """(Section, length) of each benchmark beam in turn."""
     return BEAMS[request.param]
+
+
+def b1_beam_toml(scenes: str, *, name: str | None = "small_beam", length: float = 8.0,
+                 superelements: int = 2, elements: int = 4, modes: int = 2, shear: bool = True,
+                 ports: str = "") -> str:
+    """A model file of a beam with B1's section (L = 8 unless given) followed by `scenes` (TOML text).
+    Ports: the hub (node 0) motion-driven and a free tip (node -1, default causality), unless
+    `ports` gives the [body.ports.*] tables. name None: no name (the file's stem is taken);
+    shear False: no GA2, GA3 (Euler-Bernoulli)."""
+    lines = ["[body]", *([f'name = "{name}"'] if name else []), f"length = {length!r}",
+             f"superelements = {superelements}", f"elements_per_superelement = {elements}", f"modes = {modes}",
+             "[body.section]", "EA = 5.03e6", *(["GA2 = 1.94e6", "GA3 = 1.94e6"] if shear else []), "GJ = 435.38",
+             "EI2 = 566.0", "EI3 = 566.0", "m = 0.201", "m22 = 22.7e-6", "m33 = 22.7e-6"]
+    ports = ports or '[body.ports.hub]\nnode = 0\ntranslation = "motion"\nrotation = "motion"\n[body.ports.tip]\nnode = -1\n'
+    return "\n".join(lines) + "\n" + ports + scenes
+
+
+@pytest.fixture(scope="session")
+def beam_toml():
+    """b1_beam_toml: the model file text of a B1-like beam with the given scenes."""
+    return b1_beam_toml
+
+
+def _far_from_reference(s, seed: int = 1) -> dict:
+    """Move BodySystem `s` far from its reference state (frames, modes, rates: a random state in
+    which every term of the equations is visible) and return port inputs for a hub whose
+    translation is motion-driven and rotation force-driven, with a free tip."""
+    rng = np.random.default_rng(seed)
+    from ffrf_fmu.runtime.ports import PortValues
+    from ffrf_fmu.runtime.rotation import expm
+
+    s.xN += rng.normal(size=s.xN.shape) * 0.05
+    s.x0 += rng.normal(size=s.x0.shape) * 0.05
+    s.RN = expm(rng.normal(size=s.RN.shape[:1] + (3,)) * 0.7)
+    s.R0 = expm(rng.normal(size=s.R0.shape[:1] + (3,)) * 0.7)
+    s.eta += rng.normal(size=s.eta.shape) * 0.01
+    s.v += rng.normal(size=s.v.shape)
+    s.yd = rng.normal(size=s.yd.shape)
+    s.a = rng.normal(size=s.a.shape)
+    return {
+        "hub": PortValues(r=np.array([0.1, 0.2, 0.3]), v=np.array([1.0, 2.0, 3.0]), t=rng.normal(size=3)),
+        "tip": PortValues(f=rng.normal(size=3), t=rng.normal(size=3)),
+    }
+
+
+@pytest.fixture(scope="session")
+def far_from_reference():
+    """far_from_reference(system, seed=1) -> port inputs: the system moved to a random state."""
+    return _far_from_reference
+
+
+def _iteration_matrix_check(s, values, h: float = 0.01, eps: float = 1e-6) -> float:
+    """max |J - J_fd| / max |J| of the Newton iteration matrix at s.yd + 0.3 against central
+    differences of the residual (eps = 1e-6 gives ~1e-8)."""
+    yd = s.yd + 0.3
+    _, J = s.newton_system(yd, h, values)
+    J_fd = np.zeros_like(J)
+    for j, g in enumerate(s._free_idx):
+        yp, ym = yd.copy(), yd.copy()
+        yp[g] += eps
+        ym[g] -= eps
+        J_fd[:, j] = (s.newton_system(yp, h, values, jacobian=False) - s.newton_system(ym, h, values, jacobian=False)) / (2 * eps)
+    return float(np.max(np.abs(J - J_fd)) / np.max(np.abs(J)))
+
+
+@pytest.fixture(scope="session")
+def iteration_matrix_error():
+    """iteration_matrix_error(system, values) -> relative difference of the iteration matrix to
+    central differences."""
+    return _iteration_matrix_check

@@ -39,30 +39,7 @@ MODELS = ROOT / "models"
 #        is then exact) and a constant tip load (held inputs are then exact too);
 #  spinup: a Wu-Haug spin-up (rates change: extrapolation is first order);
 #  free: hub rotation force-driven (a torque input), for the failure tests.
-SMALL = """
-[body]
-name = "small_beam"
-length = 8.0
-superelements = 2
-elements_per_superelement = 4
-modes = 2
-[body.section]
-EA = 5.03e6
-GA2 = 1.94e6
-GA3 = 1.94e6
-GJ = 435.38
-EI2 = 566.0
-EI3 = 566.0
-m = 0.201
-m22 = 22.7e-6
-m33 = 22.7e-6
-[body.ports.hub]
-node = 0
-translation = "motion"
-rotation = "motion"
-[body.ports.tip]
-node = -1
-
+SMALL_SCENES = """
 [scenes.spin]
 duration = 0.2
 step = 0.01
@@ -93,10 +70,10 @@ rotation = "force"
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
+def small(tmp_path_factory, beam_toml):
     d = tmp_path_factory.mktemp("small")
     path = d / "small.toml"
-    path.write_text(SMALL)
+    path.write_text(beam_toml(SMALL_SCENES))
     return path
 
 
@@ -264,11 +241,11 @@ def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
     assert not json.loads((tmp_path / "r" / "report.json").read_text())["passed"]
 
 
-def test_two_body_fmus_in_one_process(small, tmp_path):
+def test_two_body_fmus_in_one_process(small, tmp_path, beam_toml):
     """Same body name, different data (length 8 and 6): distinct module and package names, and
     each FMU runs its own body in the same process."""
     other = tmp_path / "other.toml"
-    other.write_text(SMALL.replace("length = 8.0", "length = 6.0"))
+    other.write_text(beam_toml(SMALL_SCENES, length=6.0))
     fa = build_from_model(small, tmp_path / "a.fmu", scene="spin")
     fb = build_from_model(other, tmp_path / "b.fmu", scene="spin")
     na, nb = read_fmu_config(fa)["names"], read_fmu_config(fb)["names"]
@@ -563,53 +540,27 @@ def test_b2_fmu_matches_standalone_and_converges(tmp_path):
     assert diffs[1] < 0.7 * diffs[0], diffs
 
 
-SPLIT_BODY = """
-[body]
-name = "{name}"
-length = 4.0
-origin = [{x0}, 0.0, 0.0]
-direction = [1.0, 0.0, 0.0]
-superelements = 2
-elements_per_superelement = 8
-modes = 6
-[body.section]
-EA = 5.03e6
-GA2 = 1.94e6
-GA3 = 1.94e6
-GJ = 435.38
-EI2 = 566.0
-EI3 = 566.0
-m = 0.201
-m22 = 22.7e-6
-m33 = 22.7e-6
-[body.ports.{p0}]
-node = 0
-translation = "{c0}"
-rotation = "{c0}"
-[body.ports.{p1}]
-node = -1
-translation = "{c1}"
-rotation = "{c1}"
-[scenes.run]
-duration = 0.25
-step = 2e-3
-"""
+@pytest.fixture(scope="module")
+def halves(tmp_path_factory):
+    """B1's beam (4 SE) cut at its middle node into two FMUs of 2 SE each (studies.stability.split_models):
+    A from the hub (motion-driven) to the cut (force-driven), B from the cut (motion-driven) to the tip."""
+    from ffrf_fmu.studies.stability import split_models
+
+    d = tmp_path_factory.mktemp("halves")
+    a, b = split_models(MODELS / "haug_beam.toml", d)
+    return build_from_model(a, d / "a.fmu"), build_from_model(b, d / "b.fmu")
 
 
-def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path):
+def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
     """B1's beam cut at its middle boundary node into two FMUs of 2 superelements each (the same
     superelements as the one-body model): A from the hub (motion-driven) to the cut (force-driven),
     B from the cut (motion-driven) to the tip. Implicit Gauss-Seidel coupling (A then B, rollback
     with FMU states, IQN-ILS) solves the node equilibrium at every step end, so the split system
     equals the one-body FMU under the same master to the coupling tolerance. Hub drive: the
     Wu-Haug law with T = 1 s (a fast spin-up that bends the beam within the short run)."""
-    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
-    a.write_text(SPLIT_BODY.format(name="half_a", x0=0.0, p0="hub", c0="motion", p1="cut", c1="force"))
-    b.write_text(SPLIT_BODY.format(name="half_b", x0=4.0, p0="cut", c0="motion", p1="tip", c1="force"))
     ov = ["duration=0.25", "scenes.spinup.drives.hub.rotation.angle.T=1.0"]
     one = build_from_model(MODELS / "haug_beam.toml", tmp_path / "one.fmu", scene="spinup", overrides=ov)
-    fa = build_from_model(a, tmp_path / "a.fmu")
-    fb = build_from_model(b, tmp_path / "b.fmu")
+    fa, fb = halves
     model = load_model(MODELS / "haug_beam.toml", ov)
     sc = model.scene("spinup")
     ref = run_scene(model, "spinup")
@@ -666,13 +617,10 @@ def test_master_link_values():
     assert got["R.p.r[1]"] + H * got["R.p.v[1]"] == pytest.approx(2.0)
 
 
-def test_master_connect_by_name(tmp_path):
+def test_master_connect_by_name(halves):
     """Same-named signals connect one to one (gain 1); body ports use connect_ports instead (the
     force on one body is minus the force on the other)."""
-    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
-    a.write_text(SPLIT_BODY.format(name="half_a", x0=0.0, p0="hub", c0="motion", p1="cut", c1="force"))
-    b.write_text(SPLIT_BODY.format(name="half_b", x0=4.0, p0="cut", c0="motion", p1="tip", c1="force"))
-    fa, fb = build_from_model(a, tmp_path / "a.fmu"), build_from_model(b, tmp_path / "b.fmu")
+    fa, fb = halves
     with CoSimulation({"A": fa, "B": fb}, step=0.01) as sim:
         # B.cut gets r, v, R, w (18) from A.cut; A.cut gets f, t (6) from B.cut; the hub and the tip
         # have no same-named partner

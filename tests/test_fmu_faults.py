@@ -23,30 +23,7 @@ from ffrf_fmu.validate import validate
 
 DISCARD, ERROR = 2, 3
 
-MODEL = """
-[body]
-name = "fault_beam"
-length = 8.0
-superelements = 2
-elements_per_superelement = 4
-modes = 2
-[body.section]
-EA = 5.03e6
-GA2 = 1.94e6
-GA3 = 1.94e6
-GJ = 435.38
-EI2 = 566.0
-EI3 = 566.0
-m = 0.201
-m22 = 22.7e-6
-m33 = 22.7e-6
-[body.ports.hub]
-node = 0
-translation = "motion"
-rotation = "motion"
-[body.ports.tip]
-node = -1
-
+SCENES = """
 [scenes.still]
 duration = 0.2
 step = 0.01
@@ -60,9 +37,9 @@ port_displacements.tip = [0.0, 0.01, 0.0]
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory):
+def model(tmp_path_factory, beam_toml):
     path = tmp_path_factory.mktemp("faults") / "fault_beam.toml"
-    path.write_text(MODEL)
+    path.write_text(beam_toml(SCENES, name="fault_beam"))
     return path
 
 

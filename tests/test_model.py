@@ -9,30 +9,10 @@ from ffrf_fmu.model import ModelError, load_model, scene_body
 
 MODELS = Path(__file__).resolve().parent.parent / "models"
 
-MINIMAL = """
-[body]
-length = 8.0
-superelements = 2
-elements_per_superelement = 4
-modes = 6
-[body.section]
-EA = 5.03e6
-GJ = 435.0
-EI2 = 566.0
-EI3 = 566.0
-m = 0.201
-m22 = 22.7e-6
-m33 = 22.7e-6
-[body.ports.hub]
-node = 0
-translation = "motion"
-rotation = "motion"
-[body.ports.tip]
-node = -1
-[scenes.run]
-duration = 1.0
-step = 1e-3
-"""
+@pytest.fixture
+def minimal(beam_toml) -> str:
+    """The smallest model file: no name, Euler-Bernoulli, one scene with its required keys only."""
+    return beam_toml("[scenes.run]\nduration = 1.0\nstep = 1e-3\n", name=None, modes=6, shear=False)
 
 
 def write(tmp_path, text, name="beam.toml"):
@@ -100,27 +80,27 @@ def test_bad_override_names_the_key():
         load_model(MODELS / "haug_beam.toml", ["step"])
 
 
-def test_minimal_model_defaults(tmp_path):
-    m = load_model(write(tmp_path, MINIMAL))
+def test_minimal_model_defaults(tmp_path, minimal):
+    m = load_model(write(tmp_path, minimal))
     s = m.scene()
     assert (s.rho_inf, s.terms, s.gravity, s.metrics) == (0.8, "linear", (0.0, 0.0, 0.0), "")
     assert m.body.name == "beam" and m.body.direction == (1.0, 0.0, 0.0)
     assert (m.body.ports[1].translation, m.body.ports[1].rotation) == ("force", "force")
 
 
-def test_unreadable_file(tmp_path):
+def test_unreadable_file(tmp_path, minimal):
     with pytest.raises(ModelError, match="cannot read"):
         load_model(tmp_path / "missing.toml")
-    assert "not valid TOML" in error(tmp_path, MINIMAL + "[[[")
+    assert "not valid TOML" in error(tmp_path, minimal + "[[[")
 
 
-def test_unknown_key_suggests_nearest(tmp_path):
-    msg = error(tmp_path, MINIMAL.replace("EI2 = 566.0", "EJ2 = 566.0"))
+def test_unknown_key_suggests_nearest(tmp_path, minimal):
+    msg = error(tmp_path, minimal.replace("EI2 = 566.0", "EJ2 = 566.0"))
     assert "body.section.EJ2: unknown key; did you mean body.section.EI2?" in msg
 
 
-def test_wrong_type(tmp_path):
-    msg = error(tmp_path, MINIMAL.replace("length = 8.0", 'length = "8 m"'))
+def test_wrong_type(tmp_path, minimal):
+    msg = error(tmp_path, minimal.replace("length = 8.0", 'length = "8 m"'))
     assert "body.length: expected a positive length [m], got '8 m' (string)" in msg
 
 
@@ -129,18 +109,18 @@ def test_wrong_type(tmp_path):
     ("EI2 = 566.0", "EI2 = -566.0", "body.section.EI2"),
     ("m = 0.201", "m = 0", "body.section.m"),
 ])
-def test_non_positive_length_stiffness_mass(tmp_path, old, new, key):
-    assert f"{key}: expected a positive" in error(tmp_path, MINIMAL.replace(old, new))
+def test_non_positive_length_stiffness_mass(tmp_path, old, new, key, minimal):
+    assert f"{key}: expected a positive" in error(tmp_path, minimal.replace(old, new))
 
 
-def test_too_few_elements(tmp_path):
-    msg = error(tmp_path, MINIMAL.replace("elements_per_superelement = 4", "elements_per_superelement = 1"))
+def test_too_few_elements(tmp_path, minimal):
+    msg = error(tmp_path, minimal.replace("elements_per_superelement = 4", "elements_per_superelement = 1"))
     assert "body.elements_per_superelement: expected an integer >= 2 (F_BB must be invertible" in msg
 
 
 @pytest.mark.parametrize("node", [3, -4])
-def test_port_on_missing_node(tmp_path, node):
-    msg = error(tmp_path, MINIMAL.replace("node = -1", f"node = {node}"))
+def test_port_on_missing_node(tmp_path, node, minimal):
+    msg = error(tmp_path, minimal.replace("node = -1", f"node = {node}"))
     assert f"body.ports.tip.node: expected a boundary node in 0..2 (or -3..-1 from the end)" in msg
 
 
@@ -150,21 +130,21 @@ def test_port_on_missing_node(tmp_path, node):
     ('[scenes.run.causality.tpi]\nrotation = "motion"\n', "scenes.run.causality.tpi"),
     ('[scenes.run.initial]\nport_displacements = { tpi = [0, 0.1, 0] }\n', "scenes.run.initial.port_displacements.tpi"),
 ])
-def test_scene_names_missing_port(tmp_path, section, key):
-    msg = error(tmp_path, MINIMAL + section)
+def test_scene_names_missing_port(tmp_path, section, key, minimal):
+    msg = error(tmp_path, minimal + section)
     assert f"{key}: expected the name of a body port, got" in msg and "did you mean '" in msg and "(ports: hub, tip)" in msg
 
 
-def test_load_on_motion_driven_part(tmp_path):
-    msg = error(tmp_path, MINIMAL + '[[scenes.run.loads]]\nport = "hub"\nmoment = [0, 0, 1]\n')
+def test_load_on_motion_driven_part(tmp_path, minimal):
+    msg = error(tmp_path, minimal + '[[scenes.run.loads]]\nport = "hub"\nmoment = [0, 0, 1]\n')
     assert "scenes.run.loads[0].moment: expected a force-driven rotation: port 'hub' rotation is motion-driven" in msg
     # a causality override in the scene makes the same load valid
-    ok = MINIMAL + '[scenes.run.causality.hub]\nrotation = "force"\n[[scenes.run.loads]]\nport = "hub"\nmoment = [0, 0, 1]\n'
+    ok = minimal + '[scenes.run.causality.hub]\nrotation = "force"\n[[scenes.run.loads]]\nport = "hub"\nmoment = [0, 0, 1]\n'
     assert load_model(write(tmp_path, ok, "ok.toml")).scene().loads[0].moment == (0.0, 0.0, 1.0)
 
 
-def test_drive_on_force_driven_part(tmp_path):
-    msg = error(tmp_path, MINIMAL + '[scenes.run.drives.tip.rotation]\naxis = [0, 0, 1]\nangle = 1.0\n')
+def test_drive_on_force_driven_part(tmp_path, minimal):
+    msg = error(tmp_path, minimal + '[scenes.run.drives.tip.rotation]\naxis = [0, 0, 1]\nangle = 1.0\n')
     assert "scenes.run.drives.tip.rotation: expected a motion-driven rotation" in msg
 
 
@@ -174,17 +154,17 @@ def test_drive_on_force_driven_part(tmp_path):
     ('{ kind = "haug_spinup", omega = 4.0, T = 15.0, phase = 0.0 }', "angle.phase", "unknown key"),
     ('{ omega = 4.0 }', "angle.kind", "missing; expected one of constant"),
 ])
-def test_bad_time_function(tmp_path, angle, key, expected):
-    msg = error(tmp_path, MINIMAL + f"[scenes.run.drives.hub.rotation]\naxis = [0, 0, 1]\nangle = {angle}\n")
+def test_bad_time_function(tmp_path, angle, key, expected, minimal):
+    msg = error(tmp_path, minimal + f"[scenes.run.drives.hub.rotation]\naxis = [0, 0, 1]\nangle = {angle}\n")
     assert f"scenes.run.drives.hub.rotation.{key}: {expected}" in msg
 
 
 @pytest.mark.parametrize("rho", ["-0.1", "1.5"])
-def test_rho_inf_outside_unit_interval(tmp_path, rho):
-    msg = error(tmp_path, MINIMAL + f"rho_inf = {rho}\n")
+def test_rho_inf_outside_unit_interval(tmp_path, rho, minimal):
+    msg = error(tmp_path, minimal + f"rho_inf = {rho}\n")
     assert "scenes.run.rho_inf: expected a spectral radius in [0, 1]" in msg
 
 
-def test_unknown_term_set(tmp_path):
-    msg = error(tmp_path, MINIMAL + 'terms = "nonlinear"\n')
+def test_unknown_term_set(tmp_path, minimal):
+    msg = error(tmp_path, minimal + 'terms = "nonlinear"\n')
     assert "scenes.run.terms: expected one of linear, gyroscopic" in msg
