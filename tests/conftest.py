@@ -107,3 +107,45 @@ def iteration_matrix_error():
     """iteration_matrix_error(system, values) -> relative difference of the iteration matrix to
     central differences."""
     return _iteration_matrix_check
+
+
+# A small B1-like beam (2 superelements, 2 modes each: fast) with three scenes:
+#  spin: hub driven at a constant rate in rotation and translation (ramps started before t = 0,
+#        so that the rates are constant over the run: the FMU's extrapolation of motion inputs
+#        is then exact) and a constant tip load (held inputs are then exact too);
+#  spinup: a Wu-Haug spin-up (rates change: extrapolation is first order);
+#  free: hub rotation force-driven (a torque input), for the failure tests.
+SMALL_SCENES = """
+[scenes.spin]
+duration = 0.2
+step = 0.01
+[scenes.spin.drives.hub.rotation]
+axis = [0.0, 0.0, 1.0]
+angle = { kind = "ramp", rate = 0.5, t_start = -1.0 }
+[scenes.spin.drives.hub.translation]
+direction = [0.0, 1.0, 0.0]
+displacement = { kind = "ramp", rate = 0.3, t_start = -1.0 }
+[[scenes.spin.loads]]
+port = "tip"
+force = [0.0, 0.0, 2.0]
+moment = [0.1, 0.0, 0.0]
+
+[scenes.spinup]
+duration = 0.3
+step = 0.01
+[scenes.spinup.drives.hub.rotation]
+axis = [0.0, 0.0, 1.0]
+angle = { kind = "haug_spinup", omega = 4.0, T = 1.0 }
+
+[scenes.free]
+duration = 0.2
+step = 0.01
+[scenes.free.causality.hub]
+rotation = "force"
+"""
+
+
+@pytest.fixture(scope="session")
+def small_toml():
+    """small_toml(**body options of b1_beam_toml) -> the model file text of the small beam (SMALL_SCENES)."""
+    return lambda **options: b1_beam_toml(SMALL_SCENES, **options)

@@ -33,47 +33,12 @@ from ffrf_fmu.validate import validate  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models"
 
-# A small B1-like beam (2 superelements, 2 modes each: fast) with three scenes:
-#  spin: hub driven at a constant rate in rotation and translation (ramps started before t = 0,
-#        so that the rates are constant over the run: the FMU's extrapolation of motion inputs
-#        is then exact) and a constant tip load (held inputs are then exact too);
-#  spinup: a Wu-Haug spin-up (rates change: extrapolation is first order);
-#  free: hub rotation force-driven (a torque input), for the failure tests.
-SMALL_SCENES = """
-[scenes.spin]
-duration = 0.2
-step = 0.01
-[scenes.spin.drives.hub.rotation]
-axis = [0.0, 0.0, 1.0]
-angle = { kind = "ramp", rate = 0.5, t_start = -1.0 }
-[scenes.spin.drives.hub.translation]
-direction = [0.0, 1.0, 0.0]
-displacement = { kind = "ramp", rate = 0.3, t_start = -1.0 }
-[[scenes.spin.loads]]
-port = "tip"
-force = [0.0, 0.0, 2.0]
-moment = [0.1, 0.0, 0.0]
-
-[scenes.spinup]
-duration = 0.3
-step = 0.01
-[scenes.spinup.drives.hub.rotation]
-axis = [0.0, 0.0, 1.0]
-angle = { kind = "haug_spinup", omega = 4.0, T = 1.0 }
-
-[scenes.free]
-duration = 0.2
-step = 0.01
-[scenes.free.causality.hub]
-rotation = "force"
-"""
-
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory, beam_toml):
+def small(tmp_path_factory, small_toml):
     d = tmp_path_factory.mktemp("small")
     path = d / "small.toml"
-    path.write_text(beam_toml(SMALL_SCENES))
+    path.write_text(small_toml())
     return path
 
 
@@ -241,11 +206,11 @@ def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
     assert not json.loads((tmp_path / "r" / "report.json").read_text())["passed"]
 
 
-def test_two_body_fmus_in_one_process(small, tmp_path, beam_toml):
+def test_two_body_fmus_in_one_process(small, tmp_path, small_toml):
     """Same body name, different data (length 8 and 6): distinct module and package names, and
     each FMU runs its own body in the same process."""
     other = tmp_path / "other.toml"
-    other.write_text(beam_toml(SMALL_SCENES, length=6.0))
+    other.write_text(small_toml(length=6.0))
     fa = build_from_model(small, tmp_path / "a.fmu", scene="spin")
     fb = build_from_model(other, tmp_path / "b.fmu", scene="spin")
     na, nb = read_fmu_config(fa)["names"], read_fmu_config(fb)["names"]

@@ -9,7 +9,6 @@ import pytest
 from ffrf_fmu.fmu.builder import build_from_model
 from ffrf_fmu.validate import compare, validate
 
-from test_fmu import SMALL  # the small B1-like beam; its scene `spin` has constant rates and loads
 
 
 def test_comparison_stops_where_the_reference_stopped():
@@ -22,16 +21,16 @@ def test_comparison_stops_where_the_reference_stopped():
     assert g["compared_until"] == pytest.approx(2.0)
 
 
-def test_fmu_of_another_model_fails(tmp_path):
+def test_fmu_of_another_model_fails(tmp_path, small_toml):
     """An FMU built with another torsional stiffness (GJ = 435.5 instead of 435.38, +0.03 %): its
     reduced stiffness differs from the model's (fmu_matches_model is False) while its outputs in the
     scene `spin` (constant rates: the same FMU equals the standalone run to 1e-7) move by at most
     5.3e-4 (measured, tip.w), inside the default rtol 1e-3. Such a validation must fail, not pass
     with a warning."""
     model = tmp_path / "small.toml"
-    model.write_text(SMALL)
+    model.write_text(small_toml())  # the small B1-like beam; its scene `spin` has constant rates and loads
     other = tmp_path / "other.toml"
-    other.write_text(SMALL.replace("GJ = 435.38", "GJ = 435.5"))
+    other.write_text(small_toml().replace("GJ = 435.38", "GJ = 435.5"))
     fmu = build_from_model(other, tmp_path / "other.fmu", scene="spin")
     rep = validate(fmu, model=model, scene="spin", plots=False)
     assert rep["fmu_reached_stop_time"] and all(g["passed"] for g in rep["groups"].values())
