@@ -2,7 +2,8 @@
 package's argparse code is here (build_fmu.py uses `build` through `command_parser`).
 
 A subcommand is `def name(args) -> int` whose docstring is its help; its arguments come from
-the decorator. Expected failures (a bad model file, a missing file) print
+the decorator. Over 400 lines: one short function per subcommand, each with its argument table
+above it, read one at a time; the work itself is in the modules they call. Expected failures (a bad model file, a missing file) print
 `ffrf-fmu: error: <message>` on stderr and exit 2, without a traceback.
 """
 from __future__ import annotations

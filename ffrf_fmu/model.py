@@ -2,13 +2,13 @@
 
 The TOML format is documented in docs/model-format.md; `load_model` parses, applies
 `--set key=value` overrides and validates, raising `ModelError` that names the file, the key
-and what was expected.
+and what was expected (the checked reading itself is checked_toml.py). Over 400 lines: the
+dataclasses, the key tables and the parser of one file format stay together, each key's
+meaning next to the check that reads it.
 """
 from __future__ import annotations
 
 import dataclasses
-import difflib
-import json
 import math
 import re
 import sys
@@ -21,16 +21,13 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
+from .checked_toml import REQUIRED, ModelError, Reader, apply_overrides, join, nearest, nonnegative, positive, toml_text
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 from .runtime.terms import FULL_TERMS, TERM_SETS
 
 PART_CAUSALITIES = ("motion", "force", "compliant")
 METRICS = ("haug", "spherical", "free", "")
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
-
-
-class ModelError(ValueError):
-    """A model file (or an override) is malformed; the message names file, key and expectation."""
 
 
 @dataclass(frozen=True)
@@ -253,182 +250,7 @@ OVERRIDE_ALIASES = {
     **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening", "full_terms")},
 }
 
-_REQUIRED = object()
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+\Z")
-
-
-def _positive(x: float) -> bool:
-    return 0.0 < x < math.inf
-
-
-def _nonnegative(x: float) -> bool:
-    return 0.0 <= x < math.inf
-
-
-def _finite(x: float) -> bool:
-    return math.isfinite(x)
-
-
-def _join(path: str, key: str | int) -> str:
-    if isinstance(key, int):
-        return f"{path}[{key}]"
-    key = key if _BARE_KEY.match(key) else '"' + key.replace('"', '\\"') + '"'
-    return f"{path}.{key}" if path else key
-
-
-def _nearest(key: str, known) -> str | None:
-    lower = {k.lower(): k for k in known}
-    hit = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.5)
-    return lower[hit[0]] if hit else None
-
-
-def _toml_type(v: Any) -> str:
-    names = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array", dict: "table"}
-    return names.get(type(v), type(v).__name__)
-
-
-class _Reader:
-    """Typed access to the raw TOML tables; every failure names file, dotted key, expectation."""
-
-    def __init__(self, file: str, origins: dict[str, str]):
-        self.file, self.origins = file, origins
-
-    def fail(self, path: str, message: str):
-        note = f" (set by --set {self.origins[path]})" if path in self.origins else ""
-        raise ModelError(f"{self.file}: {path}: {message}{note}")
-
-    def expected(self, path: str, what: str, value: Any):
-        self.fail(path, f"expected {what}, got {value!r} ({_toml_type(value)})")
-
-    def table(self, value: Any, path: str, known: dict | None, required: Sequence[str] = ()) -> dict:
-        """Check `value` is a table with only `known` keys (None: any key) and all `required` ones."""
-        if not isinstance(value, dict):
-            self.expected(path, "a table", value)
-        for k in value if known is not None else ():
-            if k not in known:
-                near = _nearest(k, known)
-                hint = f"; did you mean {_join(path, near)}?" if near else ""
-                self.fail(_join(path, k), f"unknown key{hint} (known keys here: {', '.join(known)})")
-        for k in required:
-            if k not in value:
-                self.fail(_join(path, k), f"missing; expected {known[k]}")
-        return value
-
-    def _value(self, t: dict, path: str, key: str, what: str, default: Any):
-        if key in t:
-            return t[key], False
-        if default is _REQUIRED:
-            self.fail(_join(path, key), f"missing; expected {what}")
-        return default, True
-
-    def real(self, t, path, key, what, default=_REQUIRED, ok=_finite) -> float:
-        v, is_default = self._value(t, path, key, what, default)
-        if is_default:
-            return v
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v) or not ok(v):
-            self.expected(_join(path, key), what, v)
-        return float(v)
-
-    def integer(self, t, path, key, what, default=_REQUIRED, low=0) -> int:
-        v, is_default = self._value(t, path, key, what, default)
-        if is_default:
-            return v
-        if isinstance(v, bool) or not isinstance(v, int) or v < low:
-            self.expected(_join(path, key), what, v)
-        return v
-
-    def boolean(self, t, path, key, what, default=_REQUIRED) -> bool:
-        v, is_default = self._value(t, path, key, what, default)
-        if not is_default and not isinstance(v, bool):
-            self.expected(_join(path, key), what, v)
-        return v
-
-    def string(self, t, path, key, what, default=_REQUIRED, choices: Sequence[str] | None = None) -> str:
-        v, is_default = self._value(t, path, key, what, default)
-        if is_default:
-            return v
-        if not isinstance(v, str) or (choices is not None and v not in choices):
-            self.expected(_join(path, key), what, v)
-        return v
-
-    def vec3(self, t, path, key, what, default=_REQUIRED, unit=False) -> tuple[float, float, float]:
-        """Three finite numbers; unit=True: not all zero, returned normalized."""
-        v, is_default = self._value(t, path, key, what, default)
-        if is_default:
-            return v
-        ok = isinstance(v, list) and len(v) == 3
-        ok = ok and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
-        norm = math.sqrt(sum(x * x for x in v)) if ok else 0.0
-        if not ok or (unit and norm == 0.0):
-            self.expected(_join(path, key), what, v)
-        return tuple(float(x) / norm for x in v) if unit else tuple(float(x) for x in v)
-
-    def port_name(self, ports: dict, path: str, name: Any) -> str:
-        if name not in ports:
-            near = _nearest(str(name), ports)
-            hint = f"; did you mean {near!r}?" if near else ""
-            self.fail(path, f"expected the name of a body port, got {name!r}{hint} (ports: {', '.join(ports) or 'none'})")
-        return name
-
-
-def _parse_override_value(text: str) -> Any:
-    """A TOML value (`8`, `2e-3`, `"gyroscopic"`, `[0, 0, -9.81]`); anything else is a bare string."""
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
-def _apply_overrides(raw: dict, overrides: Sequence[str], file: str) -> dict[str, str]:
-    """Write `key=value` overrides into the raw tables (validated with the rest afterwards).
-
-    Returns {dotted path: override text}, so that a message about an overridden key says so.
-    """
-    origins: dict[str, str] = {}
-    for text in overrides:
-        key, sep, value_text = text.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ModelError(f"{file}: --set {text!r}: expected key=value, e.g. step=1e-3")
-        if "." in key:
-            targets = (key,)
-        elif key in OVERRIDE_ALIASES:
-            targets = OVERRIDE_ALIASES[key]
-        else:
-            near = _nearest(key, OVERRIDE_ALIASES)
-            hint = f"did you mean {near}? " if near else ""
-            raise ModelError(
-                f"{file}: --set {text}: unknown key {key!r}; {hint}(short keys: {', '.join(OVERRIDE_ALIASES)}; "
-                "or a dotted path such as body.section.EI2 or scenes.spinup.step)"
-            )
-        value = _parse_override_value(value_text.strip())
-        for target in targets:
-            parts = target.split(".")
-            if parts[:2] == ["scenes", "*"]:  # scene keys apply to every scene
-                scenes = raw.get("scenes")
-                paths = [["scenes", name, *parts[2:]] for name in (scenes if isinstance(scenes, dict) else ())]
-            else:
-                paths = [parts]
-            for p in paths:
-                node, shown = raw, ""
-                for i, part in enumerate(p):
-                    if isinstance(node, list):
-                        if not (part.isdigit() and int(part) < len(node)):
-                            raise ModelError(f"{file}: --set {text}: {shown} is an array of {len(node)}; "
-                                             f"expected an index 0..{len(node) - 1}, got {part!r}")
-                        part = int(part)
-                    elif not isinstance(node, dict):
-                        raise ModelError(f"{file}: --set {text}: {shown} is not a table")
-                    shown = _join(shown, part)
-                    if i == len(p) - 1:
-                        node[part] = value
-                    else:
-                        if isinstance(node, dict):
-                            node.setdefault(part, {})
-                        node = node[part]
-                origins[shown] = text
-    return origins
 
 
 def load_model(path, overrides: Sequence[str] = ()) -> Model:
@@ -440,7 +262,7 @@ def load_model(path, overrides: Sequence[str] = ()) -> Model:
         raise ModelError(f"{file}: cannot read the model file: {e.strerror or e}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ModelError(f"{file}: not valid TOML: {e}") from None
-    r = _Reader(file, _apply_overrides(raw, overrides, file))
+    r = Reader(file, apply_overrides(raw, overrides, file, OVERRIDE_ALIASES))
     r.table(raw, "", TOP_KEYS, required=("body", "scenes"))
     default_name = re.sub(r"\W", "_", Path(path).stem)
     body = _parse_body(r, raw["body"], default_name if _NAME.match(default_name) else "body", file)
@@ -450,58 +272,58 @@ def load_model(path, overrides: Sequence[str] = ()) -> Model:
     return Model(body, tuple(_parse_scene(r, body, name, t) for name, t in scenes.items()), file)
 
 
-def _parse_body(r: _Reader, t: Any, default_name: str, file: str) -> Body:
+def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
     b = "body"
     r.table(t, b, BODY_KEYS, required=("length", "superelements", "elements_per_superelement", "modes", "section"))
     name = r.string(t, b, "name", BODY_KEYS["name"], default_name)
     if not _NAME.match(name):  # becomes part of FMU and variable names
-        r.expected(_join(b, "name"), BODY_KEYS["name"], name)
+        r.expected(join(b, "name"), BODY_KEYS["name"], name)
     n_se = r.integer(t, b, "superelements", BODY_KEYS["superelements"], low=1)
     n_el = r.integer(t, b, "elements_per_superelement", BODY_KEYS["elements_per_superelement"], low=2)
     modes = r.integer(t, b, "modes", BODY_KEYS["modes"], low=0)
     if modes > 6 * (n_el - 1):  # the modal columns of Y live on the interior dofs (eq. 76)
-        r.fail(_join(b, "modes"), f"expected at most 6 * (elements_per_superelement - 1) = {6 * (n_el - 1)} "
+        r.fail(join(b, "modes"), f"expected at most 6 * (elements_per_superelement - 1) = {6 * (n_el - 1)} "
                f"(interior dofs of a superelement), got {modes}")
 
     s, st = "body.section", t["section"]
     r.table(st, s, SECTION_KEYS, required=("EA", "GJ", "EI2", "EI3", "m", "m22", "m33"))
-    vals = {k: r.real(st, s, k, SECTION_KEYS[k], None, ok=_nonnegative if k in ("m22", "m33") else _positive)
+    vals = {k: r.real(st, s, k, SECTION_KEYS[k], None, ok=nonnegative if k in ("m22", "m33") else positive)
             for k in SECTION_KEYS}
     if (vals["GA2"] is None) != (vals["GA3"] is None):
         missing = "GA3" if vals["GA3"] is None else "GA2"
-        r.fail(_join(s, missing), "missing; expected GA2 and GA3 together (Timoshenko) or neither (Euler-Bernoulli)")
+        r.fail(join(s, missing), "missing; expected GA2 and GA3 together (Timoshenko) or neither (Euler-Bernoulli)")
     if vals["m11"] is None and vals["m22"] + vals["m33"] == 0.0:
-        r.fail(_join(s, "m11"), "missing; expected a positive torsional inertia when m22 = m33 = 0")
+        r.fail(join(s, "m11"), "missing; expected a positive torsional inertia when m22 = m33 = 0")
 
     ports = []
     pt = r.table(t.get("ports", {}), "body.ports", None)
     for pname, p in pt.items():
-        pp = _join("body.ports", pname)
+        pp = join("body.ports", pname)
         if not _NAME.match(pname):  # becomes an FMU variable prefix (ports.md)
             r.fail(pp, "expected a port name of letters, digits and _ (it prefixes FMU variable names)")
         r.table(p, pp, PORT_KEYS, required=("node",))
         node = r.integer(p, pp, "node", PORT_KEYS["node"], low=-math.inf)
         if not -n_se - 1 <= node <= n_se:
-            r.fail(_join(pp, "node"), f"expected a boundary node in 0..{n_se} (or -{n_se + 1}..-1 from the end) "
+            r.fail(join(pp, "node"), f"expected a boundary node in 0..{n_se} (or -{n_se + 1}..-1 from the end) "
                    f"for {n_se} superelements, got {node}")
         node = node % (n_se + 1)
         for other in ports:
             if other.node == node:
-                r.fail(_join(pp, "node"), f"expected a node without a port, but port {other.name!r} is on node {node}")
+                r.fail(join(pp, "node"), f"expected a node without a port, but port {other.name!r} is on node {node}")
         tr = r.string(p, pp, "translation", PORT_KEYS["translation"], "force", PART_CAUSALITIES)
         rot = r.string(p, pp, "rotation", PORT_KEYS["rotation"], "force", PART_CAUSALITIES)
         coupling = ()
         if "coupling" in p:
-            cp = _join(pp, "coupling")
+            cp = join(pp, "coupling")
             c = r.table(p["coupling"], cp, COUPLING_KEYS)
             cvals = {}
             if "step" in c:
-                cvals["step"] = r.real(c, cp, "step", COUPLING_KEYS["step"], ok=_positive)
+                cvals["step"] = r.real(c, cp, "step", COUPLING_KEYS["step"], ok=positive)
             for key in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
                 if key in c:
                     v = r.vec3(c, cp, key, COUPLING_KEYS[key])
                     if min(v) < 0.0:
-                        r.fail(_join(cp, key), f"expected {COUPLING_KEYS[key]}, got {list(v)}")
+                        r.fail(join(cp, key), f"expected {COUPLING_KEYS[key]}, got {list(v)}")
                     cvals[key] = v
             coupling = tuple(cvals.items())
         if "compliant" in (tr, rot) and not coupling:
@@ -511,7 +333,7 @@ def _parse_body(r: _Reader, t: Any, default_name: str, file: str) -> Body:
 
     return Body(
         name=name,
-        length=r.real(t, b, "length", BODY_KEYS["length"], ok=_positive),
+        length=r.real(t, b, "length", BODY_KEYS["length"], ok=positive),
         origin=r.vec3(t, b, "origin", BODY_KEYS["origin"], (0.0, 0.0, 0.0)),
         direction=r.vec3(t, b, "direction", BODY_KEYS["direction"], (1.0, 0.0, 0.0), unit=True),
         section=Section(**vals),
@@ -523,8 +345,8 @@ def _parse_body(r: _Reader, t: Any, default_name: str, file: str) -> Body:
     )
 
 
-def _parse_time_function(r: _Reader, t: dict, path: str, key: str) -> TimeFunction:
-    p, v = _join(path, key), t[key]
+def _parse_time_function(r: Reader, t: dict, path: str, key: str) -> TimeFunction:
+    p, v = join(path, key), t[key]
     if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
         return TimeFunction("constant", (("value", float(v)),))  # a plain number is a constant
     kinds = ", ".join(TIME_FUNCTION_KINDS)
@@ -532,30 +354,30 @@ def _parse_time_function(r: _Reader, t: dict, path: str, key: str) -> TimeFuncti
         r.expected(p, f"a number or an inline table {{ kind = ..., <parameters> }} (kinds: {kinds})", v)
     kind = r.string(v, p, "kind", f"one of {kinds}")
     if kind not in TIME_FUNCTION_KINDS:
-        near = _nearest(kind, TIME_FUNCTION_KINDS)
-        r.fail(_join(p, "kind"), f"expected one of {kinds}, got {kind!r}" + (f"; did you mean {near!r}?" if near else ""))
+        near = nearest(kind, TIME_FUNCTION_KINDS)
+        r.fail(join(p, "kind"), f"expected one of {kinds}, got {kind!r}" + (f"; did you mean {near!r}?" if near else ""))
     names, defaults = TIME_FUNCTION_KINDS[kind], TIME_FUNCTION_DEFAULTS.get(kind, {})
     what = f"a number (parameters of {kind}: {', '.join(names)})"
     r.table(v, p, {"kind": "a time-function kind", **{n: what for n in names}},
             required=[n for n in names if n not in defaults])
-    params = {n: r.real(v, p, n, what, defaults.get(n, _REQUIRED)) for n in names}
+    params = {n: r.real(v, p, n, what, defaults.get(n, REQUIRED)) for n in names}
     if kind == "haug_spinup" and params["T"] <= 0.0:
-        r.expected(_join(p, "T"), "a positive spin-up time [s]", params["T"])
+        r.expected(join(p, "T"), "a positive spin-up time [s]", params["T"])
     if kind == "window" and params["t_end"] <= params["t_start"]:
-        r.expected(_join(p, "t_end"), f"a time after t_start = {params['t_start']}", params["t_end"])
+        r.expected(join(p, "t_end"), f"a time after t_start = {params['t_start']}", params["t_end"])
     return TimeFunction(kind, tuple(sorted(params.items())))
 
 
-def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
-    sp = _join("scenes", name)
+def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
+    sp = join("scenes", name)
     r.table(t, sp, SCENE_KEYS, required=("duration", "step"))
     ports = {p.name: p for p in body.ports}
 
     # causality first: drives and loads are checked against the scene's effective causality
     causality, effective = [], {p.name: (p.translation, p.rotation) for p in body.ports}
-    cp = _join(sp, "causality")
+    cp = join(sp, "causality")
     for pname, c in r.table(t.get("causality", {}), cp, None).items():
-        path = _join(cp, pname)
+        path = join(cp, pname)
         r.port_name(ports, path, pname)
         r.table(c, path, CAUSALITY_KEYS)
         tr = r.string(c, path, "translation", CAUSALITY_KEYS["translation"], ports[pname].translation, PART_CAUSALITIES)
@@ -570,20 +392,20 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
                    f"({why})")
 
     drives = []
-    dp = _join(sp, "drives")
+    dp = join(sp, "drives")
     for pname, d in r.table(t.get("drives", {}), dp, None).items():
-        path = _join(dp, pname)
+        path = join(dp, pname)
         r.port_name(ports, path, pname)
         r.table(d, path, DRIVE_KEYS)
         rotation = translation = None
         if "rotation" in d:
-            rp = _join(path, "rotation")
+            rp = join(path, "rotation")
             require_part(rp, pname, "rotation", "motion", "only a motion-driven part can be prescribed")
             rt = r.table(d["rotation"], rp, ROTATION_DRIVE_KEYS, required=("axis", "angle"))
             rotation = RotationDrive(r.vec3(rt, rp, "axis", ROTATION_DRIVE_KEYS["axis"], unit=True),
                                      _parse_time_function(r, rt, rp, "angle"))
         if "translation" in d:
-            tp = _join(path, "translation")
+            tp = join(path, "translation")
             require_part(tp, pname, "translation", "motion", "only a motion-driven part can be prescribed")
             tt = r.table(d["translation"], tp, TRANSLATION_DRIVE_KEYS, required=("direction", "displacement"))
             translation = TranslationDrive(r.vec3(tt, tp, "direction", TRANSLATION_DRIVE_KEYS["direction"], unit=True),
@@ -593,28 +415,28 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
     loads = []
     lv = t.get("loads", [])
     if not isinstance(lv, list):
-        r.expected(_join(sp, "loads"), SCENE_KEYS["loads"], lv)
+        r.expected(join(sp, "loads"), SCENE_KEYS["loads"], lv)
     for i, lt in enumerate(lv):
-        lp = _join(_join(sp, "loads"), i)
+        lp = join(join(sp, "loads"), i)
         r.table(lt, lp, LOAD_KEYS, required=("port",))
-        pname = r.port_name(ports, _join(lp, "port"), lt["port"])
+        pname = r.port_name(ports, join(lp, "port"), lt["port"])
         force = r.vec3(lt, lp, "force", LOAD_KEYS["force"], (0.0, 0.0, 0.0))
         moment = r.vec3(lt, lp, "moment", LOAD_KEYS["moment"], (0.0, 0.0, 0.0))
         why = "its reaction is an output; a load needs a force-driven part"
         if any(force):
-            require_part(_join(lp, "force"), pname, "translation", "force", why)
+            require_part(join(lp, "force"), pname, "translation", "force", why)
         if any(moment):
-            require_part(_join(lp, "moment"), pname, "rotation", "force", why)
+            require_part(join(lp, "moment"), pname, "rotation", "force", why)
         t0 = r.real(lt, lp, "t_start", LOAD_KEYS["t_start"], 0.0)
         t1 = r.real(lt, lp, "t_end", LOAD_KEYS["t_end"], math.inf, ok=lambda x: x > t0)
         loads.append(Load(pname, force, moment, t0, t1))
 
-    ip = _join(sp, "initial")
+    ip = join(sp, "initial")
     it = r.table(t.get("initial", {}), ip, INITIAL_KEYS)
     displacements = []
-    pdp = _join(ip, "port_displacements")
+    pdp = join(ip, "port_displacements")
     for pname in r.table(it.get("port_displacements", {}), pdp, None):
-        path = _join(pdp, pname)
+        path = join(pdp, pname)
         r.port_name(ports, path, pname)
         require_part(path, pname, "translation", "force", "a motion-driven port starts at its reference position")
         displacements.append((pname, r.vec3(it["port_displacements"], pdp, pname, "3 numbers [m]")))
@@ -624,14 +446,14 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
         tuple(displacements),
     )
 
-    duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=_positive)
+    duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=positive)
     outputs = t.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
-        r.expected(_join(sp, "outputs"), SCENE_KEYS["outputs"], outputs)
+        r.expected(join(sp, "outputs"), SCENE_KEYS["outputs"], outputs)
     for o in outputs:  # probes (eq. 92): "<port>_from_<port>", the first port seen from the second's frame
         seen, sep, frame = o.partition("_from_")
         if not sep or seen not in ports or frame not in ports or seen == frame:
-            r.fail(_join(sp, "outputs"), f"expected probe names '<port>_from_<port>' of two ports of the body "
+            r.fail(join(sp, "outputs"), f"expected probe names '<port>_from_<port>' of two ports of the body "
                    f"({', '.join(ports)}), got {o!r}")
     return Scene(
         name=name,
@@ -651,10 +473,10 @@ def _parse_scene(r: _Reader, body: Body, name: str, t: Any) -> Scene:
     )
 
 
-def _full_terms(r: _Reader, t: dict, sp: str) -> tuple[str, ...]:
+def _full_terms(r: Reader, t: dict, sp: str) -> tuple[str, ...]:
     v = t.get("full_terms", list(FULL_TERMS))
     if not isinstance(v, list) or not all(isinstance(x, str) and x in FULL_TERMS for x in v) or len(set(v)) != len(v):
-        r.expected(_join(sp, "full_terms"), SCENE_KEYS["full_terms"], v)
+        r.expected(join(sp, "full_terms"), SCENE_KEYS["full_terms"], v)
     return tuple(v)
 
 
@@ -670,44 +492,7 @@ def scene_body(body: Body, scene: Scene) -> Body:
     return dataclasses.replace(body, ports=ports)
 
 
-# ------------------------------------------------------------------------------ writing
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v) if math.isfinite(v) else {math.inf: "inf", -math.inf: "-inf"}.get(v, "nan")
-    if isinstance(v, str):
-        return json.dumps(v)  # a JSON string is a TOML basic string
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise ModelError(f"cannot write {type(v).__name__} {v!r} to a model file")
-
-
-def _toml_key(k: str) -> str:
-    return k if _BARE_KEY.match(k) else json.dumps(k)
-
-
-def model_text(raw: dict, comment: str = "") -> str:
-    """The TOML text of a model given as its raw tables (what load_model reads: {"body": {...},
-    "scenes": {...}}): a table per dict of dicts, inline tables inside arrays; `comment` on top."""
-    lines = [f"# {c}" for c in comment.splitlines()]
-
-    def table(path: list[str], t: dict) -> None:
-        scalars = {k: v for k, v in t.items() if not isinstance(v, dict)}
-        if path and (scalars or not t):
-            lines.append(f"[{'.'.join(_toml_key(p) for p in path)}]")
-        lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in scalars.items())
-        for k, v in t.items():
-            if isinstance(v, dict):
-                table([*path, k], v)
-
-    table([], raw)
-    return "\n".join(lines) + "\n"
-
-
 def write_model(raw: dict, path, comment: str = "") -> Model:
     """Write the raw tables as a model file and load it back (a ModelError names what is wrong)."""
-    Path(path).write_text(model_text(raw, comment), encoding="utf-8")
+    Path(path).write_text(toml_text(raw, comment), encoding="utf-8")
     return load_model(path)

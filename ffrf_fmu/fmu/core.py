@@ -9,6 +9,9 @@ Inputs between communication points and internal steps: variables.INPUTS_BETWEEN
 and variables.INTERNAL_STEPS (the one source of the modelDescription text and docs/fmu.md). As
 H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run tends to the standalone
 run (which evaluates the exact signals at every internal step).
+
+Over 400 lines: one class, the FMU's state machine (values, initialization, communication steps,
+saved states); its invariants hold across all of its methods, so it stays in one file.
 """
 from __future__ import annotations
 
