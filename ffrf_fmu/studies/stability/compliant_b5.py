@@ -74,7 +74,7 @@ def start_values(settings: CosimSettings, H: float, beam_step: float | None = No
     return sv
 
 
-NODE_R = [f"beam.hub.node.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
+NODE_R = _vec("beam", "hub", "node.R")
 RECORD = [*NODE_R, *_vec("beam", "tip", "r"), "beam.hub.node.w[3]", "beam.hub.t[3]"]
 
 

@@ -234,9 +234,8 @@ class CosimCase:
         from ...master import FmuInstance, Motion, body_port_links, port_causality
 
         if self.kind == "motor":
-            conns = [(f"drive.hub.{f}[{i}]", f"beam.hub.{f}[{i}]", 1.0) for f in ("r", "v") for i in (1, 2, 3)]
-            conns += [(f"beam.hub.R[{i},{j}]", f"drive.hub.R[{i},{j}]", 1.0) for i in (1, 2, 3) for j in (1, 2, 3)]
-            conns += [(f"beam.hub.w[{i}]", f"drive.hub.w[{i}]", 1.0) for i in (1, 2, 3)]
+            joined = lambda src, dst, fields: [(a, b, 1.0) for f in fields for a, b in zip(_vec(*src, f), _vec(*dst, f))]
+            conns = joined(("drive", "hub"), ("beam", "hub"), ("r", "v")) + joined(("beam", "hub"), ("drive", "hub"), ("R", "w"))
             conns += [("drive.drive.shaft_torque", "beam.hub.t[3]", 1.0)]  # = -drive.hub.t[3]; t[1], t[2] are 0
             start = {**self.start_values, "beam.solver.step": min(H, self.settings.beam_step)}
             record = [*_vec("beam", "hub", "R"), *_vec("beam", "tip", "r"), "beam.hub.w[3]", "drive.drive.shaft_torque"]
