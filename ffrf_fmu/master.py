@@ -1,5 +1,8 @@
 """A small fixed-step co-simulation master over fmpy's FMU2Slave.
 
+Over 400 lines: the instance wrapper, the links and the coupling schemes in one module until it
+is split into a package (issue 11).
+
     sim = CoSimulation({"A": "a.fmu", "B": "b.fmu"}, step=1e-3, scheme="gauss-seidel")
     sim.connect_ports("A", "cut", "B", "cut")        # body port to body port, both parts
     sim.connect("ctrl.torque", "A.hub.t[3]")         # any output to any input, held
