@@ -120,6 +120,17 @@ def info(args) -> int:
     inertia = body_inertia_report(scene_body(body, scene), spin, axis,
                                   first_frequency_hz=freqs[0] if freqs else None, reductions=reductions)
     inertia["spin_source"] = spin_source
+    # what each term does on this chain's steady spin (the indicator of invariants.choose_term_set), and
+    # the recommendation: the advisor itself at INFO_TOLERANCE (one rule for info and advise)
+    from .invariants import INFO_TOLERANCE, steady_term_effects
+    from .studies.advise import advise
+
+    advice = advise(model, scene.name, INFO_TOLERANCE)
+    # W1 q is part of the stiffening option too: the terms are weighed with the stiffening the advisor picks
+    inertia["term_effects"] = steady_term_effects(scene_body(body, scene), scene,
+                                                  stiffening=advice.stiffening)
+    inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": advice.terms, "superelements": advice.superelements,
+                              "stiffening": advice.stiffening, "reason": advice.reasons["terms"]}
     if args.json:
         out = {
             "model": model.path,
@@ -163,8 +174,18 @@ def info(args) -> int:
               f"q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n    centrifugal softening {worst('softening'):.1e}, "
               f"Coriolis {worst('coriolis'):.1e}, widening {worst('widening'):.1e} of the length")
     needed = [k for k, v in inertia["needed"].items() if v]
-    print(f"  needed: {', '.join(needed) or 'nothing beyond the linear terms'}; "
-          f"recommended term set: {inertia['recommended_terms']}")
+    print(f"  Witteveen's flags (his section 8): {', '.join(needed) or 'nothing beyond the linear terms'}")
+    eff = inertia["term_effects"]
+    if eff["status"] == "ok":
+        print(f"  steady spin at {eff['spin_rate']:.3g} rad/s on this chain (stiffening {'on' if eff['stiffening'] else 'off'}): "
+              f"each term changes the boundary displacements by (of linear's) "
+              + ", ".join(f"{k.removeprefix('full[').removesuffix(']')} {v:.2%}" for k, v in eff["change"].items()
+                          if k != "linear"))
+    else:
+        print(f"  term effects not evaluated: {eff['status']}")
+    rec = inertia["recommended"]
+    print(f"  recommended at tolerance {rec['tolerance']:.0%} (ffrf-fmu advise): {rec['superelements']} SE, term set "
+          f"{rec['terms']}, stiffening {'on' if rec['stiffening'] else 'off'}: {rec['reason']}")
     return 0
 
 

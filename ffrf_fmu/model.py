@@ -58,6 +58,16 @@ class Port:
 
 
 @dataclass(frozen=True)
+class PointMass:
+    """A rigid body lumped at a node of the FE mesh (docs/model-format.md, [[body.masses]]): its mass
+    at the node and its inertia about the node, diagonal in the section axes 1, 2, 3."""
+
+    at: float  # distance from the body origin along the beam [m]; an FE node
+    mass: float  # [kg]
+    inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [kg m^2] about section axes 1, 2, 3
+
+
+@dataclass(frozen=True)
 class Body:
     name: str
     length: float
@@ -69,6 +79,7 @@ class Body:
     modes: int  # free-free vibration modes kept per superelement
     ports: tuple[Port, ...]
     source: str = ""  # file the body came from (for messages)
+    masses: tuple[PointMass, ...] = ()  # point masses at FE nodes
 
     def port(self, name: str) -> Port:
         for p in self.ports:
@@ -180,6 +191,12 @@ BODY_KEYS = {
     "modes": "an integer >= 0 free-free modes per superelement",
     "section": "a table [body.section]",
     "ports": "a table of ports [body.ports.NAME]",
+    "masses": "an array of point masses [[body.masses]]",
+}
+MASS_KEYS = {
+    "at": "a distance from the origin along the beam in [0, length] [m], on a node of the FE mesh",
+    "mass": "a positive mass [kg]",
+    "inertia": "3 non-negative moments of inertia [kg m^2] about the node, section axes 1, 2, 3 (default [0, 0, 0])",
 }
 SECTION_KEYS = {
     "EA": "a positive axial stiffness [N]",
@@ -331,9 +348,27 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
                    "stiffness/damping values")
         ports.append(Port(pname, node, tr, rot, coupling))
 
+    length = r.real(t, b, "length", BODY_KEYS["length"], ok=positive)
+    masses = []
+    mt = t.get("masses", [])
+    if not isinstance(mt, list):
+        r.expected(join(b, "masses"), BODY_KEYS["masses"], mt)
+    h = length / (n_se * n_el)  # FE element length
+    for i, pm in enumerate(mt):
+        mp = join(join(b, "masses"), str(i))
+        r.table(pm, mp, MASS_KEYS, required=("at", "mass"))
+        at = r.real(pm, mp, "at", MASS_KEYS["at"], ok=lambda x: 0.0 <= x <= length)
+        if abs(at / h - round(at / h)) > 1e-9 * max(1.0, at / h):
+            r.fail(join(mp, "at"), f"expected a node of the FE mesh (a multiple of length / (superelements * "
+                   f"elements_per_superelement) = {h:g} m), got {at!r}")
+        inertia = r.vec3(pm, mp, "inertia", MASS_KEYS["inertia"], (0.0, 0.0, 0.0))
+        if min(inertia) < 0.0:
+            r.expected(join(mp, "inertia"), MASS_KEYS["inertia"], list(inertia))
+        masses.append(PointMass(round(at / h) * h, r.real(pm, mp, "mass", MASS_KEYS["mass"], ok=positive), inertia))
+
     return Body(
         name=name,
-        length=r.real(t, b, "length", BODY_KEYS["length"], ok=positive),
+        length=length,
         origin=r.vec3(t, b, "origin", BODY_KEYS["origin"], (0.0, 0.0, 0.0)),
         direction=r.vec3(t, b, "direction", BODY_KEYS["direction"], (1.0, 0.0, 0.0), unit=True),
         section=Section(**vals),
@@ -342,6 +377,7 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
         modes=modes,
         ports=tuple(ports),
         source=file,
+        masses=tuple(masses),
     )
 
 

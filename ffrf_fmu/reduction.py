@@ -15,8 +15,8 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from .fe import FEModel, node_dofs, rigid_modes
-from .fe.beam import beam_model, strain_kernels
+from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
+from .fe.beam import beam_model, local_frame, strain_kernels
 from .invariants import tensor_kernel
 from .model import Body, ModelError, PART_CAUSALITIES, scene_body
 from .runtime.data import BodyData, PortData, SuperelementData
@@ -101,7 +101,7 @@ def centrifugal_loads(fe: FEModel, U: np.ndarray) -> np.ndarray:
     return np.stack([-0.5 * (Mk[b] @ Ur[:, a] + Mk[a] @ Ur[:, b]) for a, b in pairs])
 
 
-def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.ndarray, count: int | None = None) -> np.ndarray:
     """Static correction modes for the centrifugal load about the CM (docs/equations.md).
 
     The free (inertia-relief) static responses x_ab = G_e F_ab to the six centrifugal load cases,
@@ -109,8 +109,11 @@ def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.nda
     are: q_B must stay the boundary displacement of the spatial coordinates), then M-orthogonalized
     against the modal columns and orthonormalized in M (SVD). Shapes whose remaining M-norm exceeds
     CORRECTION_THRESHOLD of the largest response are kept (a straight beam: one, the axial stretch
-    under w_perp^2). Without them a superelement's axial force is that of its attachment shapes
-    (linear in the abscissa) where the centrifugal one is parabolic.
+    under w_perp^2; with a point mass whose inertia is not isotropic, also the tilt of its node under
+    the centrifugal moment). Without them a superelement's axial force is that of its attachment shapes
+    (linear in the abscissa) where the centrifugal one is parabolic. count: keep exactly the `count`
+    largest shapes (build_body: every superelement of a body needs the same number), each still above
+    CORRECTION_FLOOR of the largest response.
     """
     n_b = boundary.size
     P = mass_projector(fe.M, U)
@@ -129,9 +132,15 @@ def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.nda
     Lc = np.linalg.cholesky(fe.M)  # M-orthonormal basis of the residual shapes: SVD of L^T r
     _, sv, vt = np.linalg.svd(Lc.T @ r, full_matrices=False)
     keep = sv > CORRECTION_THRESHOLD * scale
+    if count is not None:
+        if count > sv.size or sv[count - 1] <= CORRECTION_FLOOR * scale:
+            raise ValueError(f"{count} centrifugal correction shapes requested, but this superelement has only "
+                             f"{int(np.sum(sv > CORRECTION_FLOOR * scale))} above {CORRECTION_FLOOR:g} of its response")
+        keep = np.arange(sv.size) < count
     return r @ vt[keep].T / sv[keep]
 
 
+CORRECTION_FLOOR = 1e-8  # a correction shape below this fraction of the largest response is round-off, not a shape
 STRAIN_RANK_TOL = 1e-9  # axial strain shapes below this fraction of the largest singular value are round-off
 
 
@@ -168,7 +177,8 @@ def inertia_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, T: np.ndarray) -> di
 
 
 def reduce_superelement(
-    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int], strain=None, tensor=None
+    fe: FEModel, boundary_nodes: Sequence[int], n_modes: int, global_nodes: Sequence[int], strain=None, tensor=None,
+    n_correction: int | None = None,
 ) -> Reduction:
     """Reduce `fe` to eq. (76): q = Y [q_B; eta], q_B = 6 dofs per boundary node (node-major,
     order of boundary_nodes), eta = amplitudes of the n_modes free-free modes.
@@ -204,7 +214,7 @@ def reduce_superelement(
     Y[interior, :n_b] = FBinv
     Y[interior, n_b:] = Xi[interior] - FBinv @ Xi[boundary]
     if strain is not None:  # geometric stiffening: static correction modes appended to eta
-        Y = np.concatenate([Y, correction_modes(fe, U, Y, boundary)], axis=1)
+        Y = np.concatenate([Y, correction_modes(fe, U, Y, boundary, n_correction)], axis=1)
     K_bar = Y.T @ fe.K @ Y
     M_bar = Y.T @ fe.M @ Y
     d = 1.0 / np.sqrt(np.diag(M_bar))
@@ -269,6 +279,30 @@ def build_scene_body(body: Body, scene) -> tuple[BodyData, tuple[Reduction, ...]
     return build_body(scene_body(body, scene), **reduction_options(scene))
 
 
+def superelement_models(body: Body, e: int, strain: bool = False, tensor: bool = False):
+    """The FE model of superelement e of `body` (its segment of the beam, the point masses on its nodes),
+    and on request its strain kernels (fe.beam.strain_kernels) and tensor kernel (invariants.tensor_kernel):
+    (fe, strain | None, tensor | None). A point mass on a node shared by two superelements belongs to the
+    one nearer the origin."""
+    n_se, n_el = body.superelements, body.elements_per_superelement
+    d = np.asarray(body.direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    seg = body.length / n_se
+    R = local_frame(d)
+    lumped = []
+    for pm in body.masses:
+        owner = 0 if pm.at <= 0.0 else min(n_se - 1, int(np.ceil(pm.at / seg - 1e-9)) - 1)
+        k = (pm.at - e * seg) / (seg / n_el)
+        if owner == e:
+            if abs(k - round(k)) > 1e-9 * n_el:
+                raise ModelError(f"{body.source}: point mass at {pm.at:g} m is not on a node of {n_se} superelement(s) x "
+                                 f"{n_el} elements (element length {seg / n_el:g} m)")
+            lumped.append((int(round(k)), pm.mass, R @ np.diag(pm.inertia) @ R.T))
+    fe = with_lumped_masses(beam_model(body.section, np.asarray(body.origin, dtype=float) + e * seg * d, d, seg, n_el), lumped)
+    return (fe, strain_kernels(body.section, d, seg, n_el) if strain else None,
+            tensor_kernel(body.section, d, seg, n_el, lumped) if tensor else None)
+
+
 def build_body(
     body: Body, stiffening: bool = False, inertia: bool = False
 ) -> tuple[BodyData, tuple[Reduction, ...]]:
@@ -291,19 +325,21 @@ def build_body(
     d = np.asarray(body.direction, dtype=float)
     d = d / np.linalg.norm(d)
     node_positions = np.asarray(body.origin, dtype=float) + np.outer(np.arange(n_se + 1) * body.length / n_se, d)
-    reductions = []
-    for e in range(n_se):
-        fe = beam_model(body.section, node_positions[e], d, body.length / n_se, n_el)
-        strain = strain_kernels(body.section, d, body.length / n_se, n_el) if stiffening else None
-        tensor = tensor_kernel(body.section, d, body.length / n_se, n_el) if inertia else None
-        try:
-            reductions.append(
-                reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1), strain=strain,
-                                   tensor=tensor)
-            )
-        except ValueError as err:
-            raise ValueError(f"body {body.name!r} ({body.source}), superelement {e}: {err}") from None
-    reductions = tuple(reductions)
+    def reduce_all(n_correction=None):
+        out = []
+        for e in range(n_se):
+            fe, strain, tensor = superelement_models(body, e, strain=stiffening, tensor=inertia)
+            try:
+                out.append(reduce_superelement(fe, boundary_nodes=(0, n_el), n_modes=body.modes, global_nodes=(e, e + 1),
+                                               strain=strain, tensor=tensor, n_correction=n_correction))
+            except ValueError as err:
+                raise ValueError(f"body {body.name!r} ({body.source}), superelement {e}: {err}") from None
+        return tuple(out)
+
+    reductions = reduce_all()
+    counts = {r.Y.shape[1] for r in reductions}
+    if len(counts) > 1:  # point masses: more correction shapes in some superelements; the layout needs one count
+        reductions = reduce_all(max(counts) - 6 * 2 - body.modes)
     data = BodyData(
         name=body.name,
         superelements=tuple(r.data for r in reductions),

@@ -120,7 +120,7 @@ def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
     """The term switches and the stiffening flag are in the modelDescription text (one source:
     variables.equations_text) and in the body the FMU runs."""
     from ffrf_fmu.fmu.variables import FULL_TERM_TEXT, equations_text
-    from ffrf_fmu.runtime.body import FULL_TERMS
+    from ffrf_fmu.runtime.terms import FULL_TERMS
 
     fmu = build_from_model(small, tmp_path / "full.fmu", scene="spin",
                            overrides=["terms=full", 'full_terms=["inertia_W2", "coriolis"]', "stiffening=true"], backend="numpy")

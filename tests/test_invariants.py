@@ -198,7 +198,6 @@ def test_report_and_cli():
     # hub rotation prescribed: deformed inertia and coupling not needed (his I-II); 4 rad/s is above the
     # first (cantilever) frequency 2.92 rad/s: Coriolis needed (his IV)
     assert report["needed"]["coriolis"] and not report["needed"]["deformed_inertia"]
-    assert report["recommended_terms"] == "gyroscopic"
     out = subprocess.run([sys.executable, "-m", "ffrf_fmu", "info", "models/free_beam.toml", "--json"], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr

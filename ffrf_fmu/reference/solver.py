@@ -129,6 +129,14 @@ class Mesh:
         self.mo = np.full(self.ne, m * self.Le / 6.0)
         self.J = w[:, None] * np.array([m11, sec.m22, sec.m33], dtype=float)[None, :]
         self.mass = m * self.length
+        for pm in body.masses:  # rigid bodies lumped at nodes: mass on the node, inertia in section axes
+            k = int(round(pm.at / self.Le))
+            if abs(pm.at - k * self.Le) > 1e-9 * self.length:
+                raise ValueError(f"reference: point mass at {pm.at:g} m is not on a node of the {n_elements}-element mesh "
+                                 f"(element length {self.Le:g} m): choose n_elements so that it is")
+            self.md[k] += pm.mass
+            self.J[k] += np.asarray(pm.inertia, dtype=float)
+            self.mass += pm.mass
         self.M_dense = None
         if self.nn <= 80:  # one dense mat-vec beats five sliced updates at these sizes
             self.M_dense = self._mass_columns()

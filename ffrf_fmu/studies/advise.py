@@ -20,10 +20,16 @@ what no rule estimates (modal truncation, interactions).
 2. Modes per superelement, from the excitation band (`excitation`): free-free modes above
    MODE_BAND x the highest excitation frequency respond quasi-statically and are dropped, but the
    first bending pair is always kept (static response to distributed inertial loads).
-3. Term set: Witteveen's indicators (invariants.body_inertia_report) are computed and reported, and
-   `linear` is chosen: measured on B1 and on the centrifugally soft coned_beam, the gyroscopic and
-   full sets with one superelement are further from the full-order beam than linear
-   (docs/inertia-terms.md), so no indicator threshold is known that would pick them with benefit.
+3. The chain's linear range and the term set, from the steady spin of the reduced chain at the scene's
+   top drive rate (invariants.steady_term_effects; no reference, no time run). The deflection inside one
+   superelement, theta = u_max / (N L), costs NONLINEAR_ERROR theta^2 (its elastic kinematics are
+   linear): N grows until chain + this fit CHAIN_SHARE x tolerance. The term set is the rule shared with
+   `info` (invariants.choose_term_set): linear when `full` changes the steady displacements by at most
+   TERM_SHARE x tolerance, else the cheapest set within that of `full`. The other fix of what one
+   superelement misses is more linear superelements (their frames carry the terms between them): the
+   smallest such chain within TERM_SHARE x tolerance of full is taken when its predicted cost per step
+   (`step_cost`, measured) is lower. Measured on disk_rotor, where the terms matter: it is
+   (docs/inertia-terms.md).
 4. Step, from the highest relevant (kept and excited) frequency and the drive's time scale: the
    integrator's period error (`period_error`, from its amplification matrix) times
    STEP_ERROR_FACTOR (+ FMU_INPUT_FACTOR through the FMU) within the budget the chain leaves, and
@@ -42,14 +48,15 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..model import Model, load_model, scene_body
-from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_MODES, MODE_BAND, RESERVE,
+from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_MODES, MODE_BAND, NONLINEAR_ERROR, RESERVE,
                           SPIN_RATIO_CHECKED, STEP_ERROR_FACTOR, STEPS_PER_DRIVE_TIME, STIFFENED_ERROR,
                           STIFFENING_SIGMA)
 from .chart import label, primary_metric
 from .store import RUNS, ResultStore
 from .task import make_task
 from .indicators import (excitation, drive_time_scale, first_frequency, free_free_frequencies, largest_step,
-                         nice_step, period_error, rechain, reduced, southwell_coefficient, spin_history, valid_count)
+                         nice_step, period_error, rechain, reduced, southwell_coefficient, spin_history, step_cost,
+                         valid_count)
 
 
 # ------------------------------------------------------------------------------ the advice
@@ -88,7 +95,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     """The configuration for `scene_name` at `tolerance` (relative error of the scene's primary
     metric); module doc for the rules. fmu: the body will run as an FMU with communication step =
     internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR)."""
-    from ..invariants import body_inertia_report
+    from ..invariants import TERM_SHARE, choose_term_set, steady_term_effects
 
     if not 0.0 < tolerance < 1.0:
         raise ValueError(f"tolerance must be in (0, 1), got {tolerance}")
@@ -171,32 +178,55 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         f"{MODE_BAND * f_exc:.3g} Hz" + (f"; kept {modes}: at least the first bending pair, which carries the static "
                                           "response to distributed inertial loads" if modes > keep else ""))
 
-    # --- terms (Witteveen's indicators on the chosen chain)
+    # --- the chain's linear range and the term set: ONE rule with `info` (invariants.choose_term_set) on the
+    # steady spin of the chosen chain; the deformation inside a superelement must stay in its linear range
     cand = rechain(body, n_se, modes)
-    data, reds = reduced(cand)
-    rep = body_inertia_report(cand, spin or None, axis if spin else None, first_frequency_hz=f1, reductions=reds)
-    worst = lambda k: max((s.get(k, 0.0) for s in rep["superelements"]), default=0.0)  # noqa: E731
-    cor, soft = worst("coriolis"), worst("softening")
-    # Witteveen's Coriolis indicator 2 Omega |G Omega^-1| takes each mode vibrating at its own
-    # frequency (qdot = omega_j q). Modes above the excitation band respond quasi-statically, at the
-    # excitation frequencies: qdot ~ omega_exc q, so the Coriolis force is smaller by f_exc / f_j.
-    f_low = float(ff[0]) if len(ff) else math.inf
-    cor_eff = cor * min(1.0, f_exc / f_low) if f_low > 0 else cor
-    need = max(cor_eff, soft) > tolerance
-    terms = "linear"
-    ind |= {"coriolis": cor, "coriolis_at_excitation": cor_eff, "softening": soft, "gyroscopic_needed": need}
-    why["terms"] = (
-        f"Witteveen indicators (worst superelement of {n_se}): Coriolis {cor:.2g} for modes at their own frequency, "
-        f"{cor_eff:.2g} at the excitation band (x {f_exc:.3g} / {f_low:.3g} Hz: the modes respond quasi-statically), "
-        f"centrifugal softening {soft:.2g}; tolerance {tolerance:.2g}: " + ("above" if need else "below") + ". "
-        "linear: the CM frames of the two-field equations carry these effects; measured, the gyroscopic and full "
-        "sets with one superelement are further from the full-order beam than linear (B1 +0.46 % against +0.16 %, "
-        "coned_beam -2.4 % against -0.2 %; docs/inertia-terms.md), so the indicators alone do not justify them")
+    eff = steady_term_effects(cand, scene, stiffening=stiff)
+    e_nl, grown = 0.0, {}
+    while eff.get("status") == "ok":
+        theta = eff["displacement_m"] / (n_se * body.length)  # deflection inside one superelement / its length
+        e_nl = NONLINEAR_ERROR * theta**2
+        grown[n_se] = e_nl
+        if e_n + e_nl <= CHAIN_SHARE * tolerance or n_se >= MAX_SUPERELEMENTS:
+            break
+        n_se = valid_count(body, n_se + 1)
+        cand = rechain(body, n_se, modes)
+        eff = steady_term_effects(cand, scene, stiffening=stiff)
+    if len(grown) > 1:
+        why["superelements"] += (
+            f"; the steady deflection inside a superelement ({eff['displacement_m']:.3g} m over {n_se} of "
+            f"{body.length / n_se:.3g} m) leaves the superelement's linear kinematics an error NONLINEAR_ERROR x "
+            f"theta^2 = " + ", ".join(f"{v:.2%} (N = {k})" for k, v in grown.items())
+            + f" (constant from coned_beam's steady spin, docs/inertia-terms.md) -> N = {n_se}")
+    terms, why["terms"] = choose_term_set(eff, tolerance)
+    alt = None
+    if terms != "linear":  # the other fix: more linear superelements (their frames carry the terms between them)
+        for n_alt in range(n_se + 1, MAX_SUPERELEMENTS + 1):
+            n_alt = valid_count(body, n_alt)
+            e_alt = steady_term_effects(rechain(body, n_alt, modes), scene, stiffening=stiff)
+            if e_alt.get("status") == "ok" and e_alt["to_full"]["linear"] <= TERM_SHARE * tolerance:
+                alt = (n_alt, e_alt["to_full"]["linear"])
+                break
+        if alt is not None:
+            c_terms, c_alt = step_cost(n_se, terms), step_cost(alt[0], "linear")
+            cheaper = c_alt <= c_terms
+            why["terms"] += (
+                f"; the other fix, linear with more superelements: N = {alt[0]} is within {alt[1]:.2%} of full; "
+                f"cost per step against 1 SE linear (step_cost: LINEAR_COST_PER_SE, TERM_COST from benchmarks/term_cost.py) {c_alt:.2f} against {c_terms:.2f} for {terms} "
+                f"with N = {n_se} -> " + (f"more superelements are cheaper: linear, N = {alt[0]}" if cheaper
+                                           else f"{terms} is cheaper"))
+            if cheaper:
+                n_se, terms = alt[0], "linear"
+                why["superelements"] += f"; raised to {n_se}: cheaper than a larger term set (see terms)"
+    # what the chosen set lacks against full on the chosen chain (steady spin): part of the error estimate
+    e_t = (alt[1] if alt is not None and n_se == alt[0] else eff["to_full"][terms]) if eff.get("status") == "ok" else 0.0
+    ind |= {"term_effects": eff, "nonlinear_error_estimate": e_nl, "terms_alternative": alt, "terms_error_estimate": e_t}
+    e_n = e_n + e_nl
 
     # --- step: the budget the chain leaves, the relevant frequency, the drive's time scale
     w_rot = math.sqrt(w1**2 + K * spin**2)
     f_rel = max(f_exc, w_rot / (2 * math.pi))
-    step_budget = max(RESERVE * tolerance - e_n, 0.05 * tolerance)
+    step_budget = max(RESERVE * tolerance - e_n - e_t, 0.05 * tolerance)
     factor = STEP_ERROR_FACTOR + (FMU_INPUT_FACTOR if fmu else 0.0)
     h_acc = largest_step(2 * math.pi * f_rel, scene.rho_inf, step_budget / factor)
     T_drive = drive_time_scale(scene)
@@ -209,7 +239,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
             "highest_kept_free_free_hz": float(ff[modes - 1]) if len(ff) >= modes else None}
     limits = [f"error {factor:g} x the integrator's period error at {f_rel:.3g} Hz"
               + (f" (standalone {STEP_ERROR_FACTOR:g} + FMU input extrapolation {FMU_INPUT_FACTOR:g})" if fmu else "") + " within the "
-              f"{step_budget:.2%} left by the chain: h <= {h_acc:.3g} s"]
+              f"{step_budget:.2%} left by the chain and the terms: h <= {h_acc:.3g} s"]
     if T_drive:
         limits.append(f"the drive's time scale {T_drive:g} s / {STEPS_PER_DRIVE_TIME}: h <= {h_drive:.3g} s")
     why["step"] = (
@@ -218,7 +248,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         f"error {e_h:.2%}). The kept modes (up to {ind['highest_kept_free_free_hz']:.3g} Hz) lie above the "
         f"excitation band and respond quasi-statically; generalized-alpha (rho_inf = {scene.rho_inf:g}) is "
         "unconditionally stable" + (" and damps them" if scene.rho_inf < 1 else "") + ": they need not be resolved")
-    predicted = {"chain": e_n, "step": e_h, "total_estimate": e_n + e_h}
+    predicted = {"chain": e_n, "terms": e_t, "step": e_h, "total_estimate": e_n + e_t + e_h}
     ind["runner"] = "fmu" if fmu else "standalone"
     warn = []
     if stiff and ind["spin_over_superelement_frequency"] > SPIN_RATIO_CHECKED:
@@ -305,7 +335,7 @@ def format_advice(advice: Advice, model_name: str = "", scene_name: str = "") ->
     for key in ("stiffening", "superelements", "modes", "terms", "step"):
         lines.append(f"  {key} = {getattr(advice, key)}: {advice.reasons[key]}")
     p = advice.predicted
-    lines.append(f"  predicted error: chain {p['chain']:.2%} + step {p['step']:.2%} = {p['total_estimate']:.2%} "
+    lines.append(f"  predicted error: chain {p['chain']:.2%} + terms {p['terms']:.2%} + step {p['step']:.2%} = {p['total_estimate']:.2%} "
                  f"(modal truncation not estimated: {1 - RESERVE:.0%} of the tolerance is kept for it)")
     lines += [f"  warning: {w}" for w in advice.warnings]
     return "\n".join(lines)

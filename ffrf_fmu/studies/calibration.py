@@ -52,3 +52,16 @@ MIN_MODES = 2
 # (tests/test_stability.py, T = 7.5 s), so the limit is conservative by 2 x or more.
 STEPS_PER_DRIVE_TIME = 400
 MAX_SUPERELEMENTS = 32  # the chain search stops here (a cap, with a warning in the advice)
+# Geometric nonlinearity inside a superelement (its elastic kinematics are linear): the steady deflection
+# inside one superelement, theta = u_max / (N L), costs NONLINEAR_ERROR x theta^2 of the response.
+# Calibration, ONE point: coned_beam (3 deg cone, 2 rad/s), the converged chain against the linear FE
+# beam: -1.2 % at theta = 5.2 % (docs/inertia-terms.md), i.e. 4.4 (the softening's amplification
+# 1.9 included). Checked: 0.3 deg cone, theta = 0.53 %: predicted 1.2e-4, measured 8e-5.
+NONLINEAR_ERROR = 4.4
+# Per-step cost against 1 superelement `linear` (numpy path, benchmarks/term_cost.py on disk_rotor,
+# CPU, best of 3, same run): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8 superelements, i.e.
+# LINEAR_COST_PER_SE = 0.13 per added superelement up to 4 (the step's fixed Python and LU overhead
+# dominates a short chain); gyroscopic x 1.35 and full x 2.71 at 1 SE (full x 2.95 at 2 SE). With numba,
+# linear x 1.18 / 1.49 / 1.59 and full x 6.7 (the kernel does not cover full yet: numpy fallback).
+LINEAR_COST_PER_SE = 0.13
+TERM_COST = {"linear": 1.0, "gyroscopic": 1.35, "full": 2.71}

@@ -160,6 +160,13 @@ def valid_count(body: Body, n_min: int) -> int:
     return max(step, step * math.ceil(n_min / step))
 
 
+def step_cost(n_se: int, terms: str) -> float:
+    """Predicted cost per step against 1 superelement `linear` (calibration.LINEAR_COST_PER_SE, TERM_COST)."""
+    from .calibration import LINEAR_COST_PER_SE, TERM_COST
+
+    return (1.0 + LINEAR_COST_PER_SE * (n_se - 1)) * TERM_COST[terms]
+
+
 def first_frequency(body: Body) -> float:
     """First natural frequency [Hz] of the chain with the motion-driven port parts held."""
     from ..linear import natural_frequencies

@@ -1,0 +1,113 @@
+"""The term-set rule shared by `info` and `advise` (invariants.steady_term_effects, choose_term_set) and the
+centrifugally soft scene where Witteveen's deformation-dependent terms matter (models/disk_rotor.toml;
+docs/inertia-terms.md, "disk_rotor")."""
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ffrf_fmu import simulate as sim
+from ffrf_fmu.invariants import TERM_SHARE, choose_term_set, steady_term_effects
+from ffrf_fmu.model import load_model, scene_body
+from ffrf_fmu.studies import advise as ad
+from ffrf_fmu.studies import calibration as cal
+
+ROOT = Path(__file__).resolve().parent.parent
+DISK, HAUG, CONED = (str(ROOT / "models" / f) for f in ("disk_rotor.toml", "haug_beam.toml", "coned_beam.toml"))
+
+
+def _effects(path, scene="spinup", overrides=(), stiffening=False):
+    m = load_model(path, list(overrides))
+    sc = m.scene(scene)
+    return steady_term_effects(scene_body(m.body, sc), sc, stiffening=stiffening)
+
+
+def test_disk_rotor_needs_the_deformation_dependent_inertia():
+    """One superelement of disk_rotor at its steady 0.9 rad/s: `full` moves the boundary displacements
+    by 2.65 % of linear's, and the switch that does it is Witteveen's W1 q (the tilting disk's inertia
+    change, 3.1 % alone) with the softening (W2 or the Coriolis set's G^T M^-1 G, 0.47 % each) against it;
+    the coupling S(q) does nothing in a steady state. The rule picks `full` at 1 % (the gyroscopic set is
+    3.1 % from full). Numbers measured; the bounds leave 10 % for the FE mesh and Newton's tolerance."""
+    e = _effects(DISK)
+    assert e["status"] == "ok" and e["superelements"] == 1
+    ch = e["change"]
+    assert ch["full"] == pytest.approx(0.0265, rel=0.1)
+    assert ch["full[inertia_W1]"] == pytest.approx(0.031, rel=0.1)
+    assert ch["full[inertia_W2]"] == pytest.approx(ch["full[coriolis]"], rel=0.1) == pytest.approx(0.0047, rel=0.1)
+    assert ch["full[inertia_coupling]"] < 1e-6
+    assert choose_term_set(e, 0.01)[0] == "full"
+
+
+def test_b1_and_coned_beam_picks():
+    """B1 with stiffening (W1 q is part of it): no term changes the steady state (< 1e-4): linear.
+    coned_beam at 1 SE: only the softening acts (W1 q: 2e-6, the stretch of a straight beam), 0.9 %:
+    the gyroscopic set holds it (docs/inertia-terms.md)."""
+    b1 = _effects(HAUG, overrides=["superelements=1", "modes=2"], stiffening=True)
+    assert b1["change"]["full"] < 1e-4
+    assert choose_term_set(b1, 0.01)[0] == "linear"
+    coned = _effects(CONED)
+    assert coned["change"]["full[inertia_W1]"] < 1e-5 and coned["change"]["full"] == pytest.approx(0.009, rel=0.1)
+    assert choose_term_set(coned, 0.01)[0] == "gyroscopic"
+    assert choose_term_set(_effects(HAUG, "hub_free"), 0.01)[0] == "linear"  # no driven spin
+
+
+def test_indicator_predicts_full_minus_linear_within_a_factor_2():
+    """The issue's acceptance on the new scene: the time runs of `full` and `linear` (1 SE, 2 modes,
+    h = 20 ms, the spin-up and 6 s at speed: the peak is at 24 s) differ in the maximum transverse tip
+    deflection by what the steady-spin indicator predicts, within a factor 2 (measured at 10 ms over
+    40 s: -3.26 % against the predicted 2.65 %)."""
+    predicted = _effects(DISK)["change"]["full"]
+    peaks = {}
+    for terms in ("linear", "full"):
+        run = sim.run_scene(DISK, "spinup", [f"terms={terms}", "step=0.02", "duration=26"])
+        assert run.summary["completed"]
+        peaks[terms] = run.summary["metrics"]["tip_deflection_max_m"]
+    measured = abs(peaks["full"] / peaks["linear"] - 1.0)
+    assert predicted / 2 <= measured <= 2 * predicted
+
+
+def test_advise_weighs_full_against_more_superelements():
+    """disk_rotor at 1 %: the rule says full at 1 SE (2.65 % > 0.5 %); linear with 3 SE is within
+    TERM_SHARE x tolerance of full and costs less per step (1.26 against 2.71, measured ratios), so the
+    advisor takes the superelements and says why. Measured (docs/chart_disk_rotor.csv, CPU): 1 SE full
+    0.28 % in 6.7 s, 4 SE linear 0.11 % in 3.8 s; the advice (3 SE linear, 50 ms) 0.34 % in 0.8 s.
+    B1 never gets full."""
+    a = ad.advise(DISK, "spinup", 0.01)
+    assert (a.superelements, a.terms) == (3, "linear")
+    assert "more superelements are cheaper" in a.reasons["terms"]
+    assert a.indicators["terms_alternative"][1] <= TERM_SHARE * 0.01
+    assert ad.step_cost(3, "linear") < ad.step_cost(1, "full")
+    # were full as cheap as linear per step, the advisor would keep one superelement with full
+    saved = dict(cal.TERM_COST)
+    try:
+        cal.TERM_COST["full"] = 1.0
+        assert (lambda b: (b.superelements, b.terms))(ad.advise(DISK, "spinup", 0.01)) == (1, "full")
+    finally:
+        cal.TERM_COST.clear()
+        cal.TERM_COST.update(saved)
+    for scene in ("spinup", "spinup_fast"):
+        assert ad.advise(HAUG, scene, 0.01).terms == "linear"
+
+
+def test_info_recommends_what_advise_picks():
+    out = subprocess.run([sys.executable, "-m", "ffrf_fmu", "info", DISK, "--json"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    inertia = json.loads(out.stdout)["inertia"]
+    a = ad.advise(DISK, "spinup", inertia["recommended"]["tolerance"])
+    assert (inertia["recommended"]["terms"], inertia["recommended"]["superelements"]) == (a.terms, a.superelements)
+    assert inertia["recommended"]["reason"] == a.reasons["terms"]
+    assert inertia["term_effects"]["change"]["full"] > 0.02  # the indicator says the terms matter at 1 SE
+
+
+def test_nonlinear_range_takes_more_superelements_on_the_coned_beam():
+    """coned_beam: 0.42 m steady deflection on 8 m (theta = 5.2 %): NONLINEAR_ERROR theta^2 = 1.2 % with one
+    superelement (its linear kinematics; measured 1.2 %, the calibration point) -> 2 superelements (0.30 %),
+    where the term sets agree to 0.1 %: linear."""
+    a = ad.advise(CONED, "spinup", 0.01)
+    assert (a.superelements, a.terms) == (2, "linear")
+    assert a.indicators["nonlinear_error_estimate"] == pytest.approx(ad.NONLINEAR_ERROR * (0.417 / 16) ** 2, rel=0.02)
