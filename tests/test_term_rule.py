@@ -111,3 +111,14 @@ def test_nonlinear_range_takes_more_superelements_on_the_coned_beam():
     a = ad.advise(CONED, "spinup", 0.01)
     assert (a.superelements, a.terms) == (2, "linear")
     assert a.indicators["nonlinear_error_estimate"] == pytest.approx(ad.NONLINEAR_ERROR * (0.417 / 16) ** 2, rel=0.02)
+
+
+def test_check_report_without_a_primary_metric():
+    """B5's hub_free scene has no primary metric: --check judges the trajectory's RMS error, and the report
+    says so (it used to fail formatting the missing metric)."""
+    res = {"label": "1SE/2m/lin/16ms", "runner": "standalone", "completed": True, "failure": None, "wall_time_s": 1.0,
+           "cpu_time_s": 0.5, "metric_name": None, "metric": None, "metric_reference": None, "metric_error_rel": None,
+           "rms_error_rel": 0.004, "within_tolerance": True,
+           "reference": {"n_elements": 16, "step": 0.002, "wall_time_s": 3.0, "cached": True}}
+    text = ad.format_check(res, 0.01)
+    assert "no primary metric; trajectory RMS error 0.40% (within 1.00%)" in text

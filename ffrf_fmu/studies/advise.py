@@ -349,10 +349,13 @@ def format_check(res: dict, tolerance: float) -> str:
         return f"check: {res['label']} FAILED: {res['failure']}"
     status = "completed" if res["completed"] else "FAILED: " + str(res["failure"])
     within = "within" if res["within_tolerance"] else "NOT within"
+    if res["metric_name"]:
+        judged = (f"{res['metric_name']} {res['metric']:.6g} vs {res['metric_reference']:.6g}: error "
+                  f"{pct(res['metric_error_rel'])} ({within} {tolerance:.2%}); trajectory RMS error {pct(res['rms_error_rel'])}")
+    else:  # no primary metric: the tolerance is on the trajectory (check())
+        judged = f"no primary metric; trajectory RMS error {pct(res['rms_error_rel'])} ({within} {tolerance:.2%})"
     lines = [f"check: {res['label']} ({res['runner']}) {status}, wall {res['wall_time_s']:.2f} s, cpu {res['cpu_time_s']:.2f} s",
-             f"  against the reference ({ref['n_elements']} elements, h = {ref['step']:g} s, {ref_cost}): "
-             f"{res['metric_name']} {res['metric']:.6g} vs {res['metric_reference']:.6g}: error "
-             f"{pct(res['metric_error_rel'])} ({within} {tolerance:.2%}); trajectory RMS error {pct(res['rms_error_rel'])}"]
+             f"  against the reference ({ref['n_elements']} elements, h = {ref['step']:g} s, {ref_cost}): {judged}"]
     if "chart_cheapest" in res:
         c = res["chart_cheapest"]
         lines.append(f"  cheapest chart configuration within {tolerance:.2%}: {c['label']} ({c['wall_time_s']:.2f} s "
