@@ -1,7 +1,6 @@
 """The term-set rule shared by `info` and `advise` (invariants.steady_term_effects, choose_term_set) and the
 centrifugally soft scene where Witteveen's deformation-dependent terms matter (models/disk_rotor.toml;
 docs/inertia-terms.md, "disk_rotor")."""
-import dataclasses
 import json
 import subprocess
 import sys
