@@ -120,9 +120,9 @@ def info(args) -> int:
     inertia = body_inertia_report(scene_body(body, scene), spin, axis,
                                   first_frequency_hz=freqs[0] if freqs else None, reductions=reductions)
     inertia["spin_source"] = spin_source
-    # what each term does on this chain's steady spin (the indicator of invariants.choose_term_set), and
+    # what each term does on this chain's steady spin (the indicator of term_rule.choose_term_set), and
     # the recommendation: the advisor itself at INFO_TOLERANCE (one rule for info and advise)
-    from .invariants import INFO_TOLERANCE, steady_term_effects
+    from .term_rule import INFO_TOLERANCE, steady_term_effects
     from .studies.advise import advise
 
     advice = advise(model, scene.name, INFO_TOLERANCE)

@@ -1,4 +1,4 @@
-"""The term-set rule shared by `info` and `advise` (invariants.steady_term_effects, choose_term_set) and the
+"""The term-set rule shared by `info` and `advise` (term_rule.steady_term_effects, choose_term_set) and the
 centrifugally soft scene where Witteveen's deformation-dependent terms matter (models/disk_rotor.toml;
 docs/inertia-terms.md, "disk_rotor")."""
 import json
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu import simulate as sim
-from ffrf_fmu.invariants import TERM_SHARE, choose_term_set, steady_term_effects
+from ffrf_fmu.term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 from ffrf_fmu.model import load_model, scene_body
 from ffrf_fmu.studies import advise as ad
 from ffrf_fmu.studies import calibration as cal

@@ -21,10 +21,10 @@ what no rule estimates (modal truncation, interactions).
    MODE_BAND x the highest excitation frequency respond quasi-statically and are dropped, but the
    first bending pair is always kept (static response to distributed inertial loads).
 3. The chain's linear range and the term set, from the steady spin of the reduced chain at the scene's
-   top drive rate (invariants.steady_term_effects; no reference, no time run). The deflection inside one
+   top drive rate (term_rule.steady_term_effects; no reference, no time run). The deflection inside one
    superelement, theta = u_max / (N L), costs NONLINEAR_ERROR theta^2 (its elastic kinematics are
    linear): N grows until chain + this fit CHAIN_SHARE x tolerance. The term set is the rule shared with
-   `info` (invariants.choose_term_set): linear when `full` changes the steady displacements by at most
+   `info` (term_rule.choose_term_set): linear when `full` changes the steady displacements by at most
    TERM_SHARE x tolerance, else the cheapest set within that of `full`. The other fix of what one
    superelement misses is more linear superelements (their frames carry the terms between them): the
    smallest such chain within TERM_SHARE x tolerance of full is taken when its predicted cost per step
@@ -95,7 +95,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     """The configuration for `scene_name` at `tolerance` (relative error of the scene's primary
     metric); module doc for the rules. fmu: the body will run as an FMU with communication step =
     internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR)."""
-    from ..invariants import TERM_SHARE, choose_term_set, steady_term_effects
+    from ..term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 
     if not 0.0 < tolerance < 1.0:
         raise ValueError(f"tolerance must be in (0, 1), got {tolerance}")
@@ -178,7 +178,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         f"{MODE_BAND * f_exc:.3g} Hz" + (f"; kept {modes}: at least the first bending pair, which carries the static "
                                           "response to distributed inertial loads" if modes > keep else ""))
 
-    # --- the chain's linear range and the term set: ONE rule with `info` (invariants.choose_term_set) on the
+    # --- the chain's linear range and the term set: ONE rule with `info` (term_rule.choose_term_set) on the
     # steady spin of the chosen chain; the deformation inside a superelement must stay in its linear range
     cand = rechain(body, n_se, modes)
     eff = steady_term_effects(cand, scene, stiffening=stiff)

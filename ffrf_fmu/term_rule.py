@@ -1,0 +1,97 @@
+"""Which term set: ONE rule for `info` and `advise` (docs/inertia-terms.md, "Choosing the term set").
+
+Witteveen's indicators (invariants.py) say which terms are large at a nominal deflection; whether they
+change what a run computes depends on the loads and the chain. This rule therefore measures each term's
+effect where a driven spin makes it steady: the relative equilibrium of the reduced body at the scene's
+largest drive rate (linear.steady_spin: Newton on the runtime equations, no reference, no time run), once
+per term set and once per switch of `full` alone.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .model import Body, Scene
+from .runtime.drives import evaluate
+
+INFO_TOLERANCE = 0.01  # `info` states the rule's pick at this tolerance (advise takes the user's)
+TERM_SHARE = 0.5  # a term set may leave at most this share of the tolerance to the terms it lacks
+# per-step cost of each term set against `linear` at the same chain (numpy path; benchmarks/term_cost.py,
+# docs/inertia-terms.md): the cheapest set within TERM_SHARE x tolerance of `full` wins
+TERM_SETS_BY_COST = ("linear", "gyroscopic", "full")
+SWITCH_ALONE = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
+
+
+def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -> dict:
+    """The effect of each term set and of each switch of `full` alone on the steady spin of `body` at
+    the scene's largest drive rate: the boundary nodes' displacements u in the spinning frame (all
+    relative to their reference positions), compared with `linear` and with `full` as
+        change[set] = max |u_set - u_linear| / max |u_linear|,  to_full[set] = max |u_set - u_full| / max |u_linear|.
+    status "ok", or why nothing was evaluated (no driven spin; a drive not about an axis through its own
+    port; no steady state: the spin is beyond what the superelements hold)."""
+    from .linear import steady_spin
+    from .reduction import build_body
+    from .runtime.body import BodySystem
+    from .runtime.terms import FULL_TERMS
+
+    best = None
+    t = np.linspace(0.0, scene.duration, min(20_001, int(round(scene.duration / scene.step)) + 1))
+    for d in scene.drives:
+        if d.rotation is not None:
+            tf = d.rotation.angle
+            rate = max(abs(evaluate(tf.kind, dict(tf.params), float(ti))[1]) for ti in t)
+            if rate > 0 and (best is None or rate > best[0]):
+                best = (rate, np.asarray(d.rotation.axis, dtype=float), d.port)
+    if best is None:
+        return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on"}
+    rate, axis, port = best
+    axis = axis / np.linalg.norm(axis)
+    data, _ = build_body(body, stiffening=stiffening, inertia=True)
+    node = data.port(port).node
+    x_port = data.node_positions[node]
+    if np.linalg.norm(np.cross(axis, x_port)) > 1e-9 * body.length:  # steady_spin spins about the origin
+        return {"status": f"drive {port}.rotation: its axis does not pass through the world origin"}
+    if any(p.translation != "motion" and p.rotation == "motion" for p in data.ports if p.node == node):
+        return {"status": f"drive {port}.rotation on a free translation: no relative equilibrium"}
+    u = {}
+    runs = [(name, name if name != "full" else "full", FULL_TERMS) for name in TERM_SETS_BY_COST]
+    runs += [(f"full[{s}]", "full", (s,)) for s in SWITCH_ALONE]
+    for label, terms, ft in runs:
+        try:
+            s = steady_spin(BodySystem(data, terms=terms, full_terms=ft), rate, axis)
+        except (RuntimeError, np.linalg.LinAlgError) as e:
+            return {"status": f"no steady state at {rate:.3g} rad/s with {label} ({e})"}
+        u[label] = s.xN - data.node_positions
+    scale = np.linalg.norm(u["linear"], axis=1).max()
+    if scale == 0.0:
+        return {"status": "the steady spin does not deform the body"}
+    rel = lambda a, b: float(np.linalg.norm(a - b, axis=1).max() / scale)  # noqa: E731
+    return {
+        "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
+        "superelements": len(data.superelements), "displacement_m": float(scale),
+        "change": {k: rel(v, u["linear"]) for k, v in u.items()},
+        "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
+    }
+
+
+def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
+    """THE term-set rule (info and advise): (term set, reason) from `steady_term_effects`.
+    `linear` when the complete set `full` changes the steady response by at most TERM_SHARE x tolerance;
+    else the cheapest of TERM_SETS_BY_COST whose response is within TERM_SHARE x tolerance of full's.
+    Without a steady driven spin there is nothing to measure the terms on: `linear`, the CM frames carry
+    the rigid-body inertia exactly, and Witteveen's flags are reported as flags (measured: gyroscopic and
+    full were no closer to the full-order beam on B1 and coned_beam, docs/inertia-terms.md)."""
+    budget = TERM_SHARE * tolerance
+    if effects.get("status") != "ok":
+        return "linear", (f"{effects.get('status')}; linear: the CM frames carry the rigid-body inertia exactly, "
+                          "and no term set was measured closer to the full-order beam without a steady spin "
+                          "(docs/inertia-terms.md)")
+    ch, tf = effects["change"], effects["to_full"]
+    parts = ", ".join(f"{s} {ch[f'full[{s}]']:.2%}" for s in SWITCH_ALONE)
+    what = (f"steady spin at {effects['spin_rate']:.3g} rad/s ({effects['superelements']} SE, stiffening "
+            f"{'on' if effects['stiffening'] else 'off'}): full changes the boundary displacements by {ch['full']:.2%} "
+            f"of linear's (each switch alone: {parts}; gyroscopic {ch['gyroscopic']:.2%})")
+    if ch["full"] <= budget:
+        return "linear", f"{what} <= {TERM_SHARE:g} x tolerance = {budget:.2%}: the linear terms suffice"
+    pick = next(s for s in TERM_SETS_BY_COST if tf[s] <= budget)
+    return pick, (f"{what} > {TERM_SHARE:g} x tolerance = {budget:.2%}; {pick} is the cheapest set within "
+                  f"{budget:.2%} of full ({', '.join(f'{s} {tf[s]:.2%}' for s in TERM_SETS_BY_COST)} from full)")
