@@ -4,6 +4,8 @@
  *       CYCLES times: instantiate INSTANCES instances, set VR_IN = VALUE in initialization mode,
  *       take STEPS doSteps of H, print "cycle instance value..." of VR_OUT (%.17g), free them all.
  *       Then dlclose and return 0: a crash at free, unload or exit shows in the exit status.
+ *   fmi2_host derivative ...   as run, and after the steps also "d cycle instance value..." of
+ *       fmi2GetDirectionalDerivative of VR_OUT with respect to VR_IN (seed 1).
  *   fmi2_host faults BINARY RESOURCE_URI GUID VR_REAL VR_INT VR_BAD_PARAM BAD_VALUE
  *       Each bad call twice on one instance, printing "call status" lines, then free and unload.
  */
@@ -33,6 +35,8 @@ typedef fmi2Status (*SetReal)(fmi2Component, const fmi2ValueReference *, size_t,
 typedef fmi2Status (*GetReal)(fmi2Component, const fmi2ValueReference *, size_t, double *);
 typedef fmi2Status (*SetInteger)(fmi2Component, const fmi2ValueReference *, size_t, const int *);
 typedef fmi2Status (*DoStep)(fmi2Component, double, double, int);
+typedef fmi2Status (*Derivative)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2ValueReference *, size_t,
+                                 const double *, double *);
 
 static void logger(void *env, const char *name, fmi2Status status, const char *category, const char *fmt, ...)
 {
@@ -75,7 +79,10 @@ int main(int argc, char **argv)
     Callbacks cb = {logger, calloc, free, NULL, NULL};
     const char *uri = argv[3], *guid = argv[4];
 
-    if (strcmp(argv[1], "run") == 0) {
+    int derivative = strcmp(argv[1], "derivative") == 0;
+    if (strcmp(argv[1], "run") == 0 || derivative) {
+        Derivative getDerivative = derivative ? (Derivative)sym(lib, "fmi2GetDirectionalDerivative") : NULL;
+        const double seed = 1.0;
         int steps = atoi(argv[5]), n = atoi(argv[7]), cycles = atoi(argv[8]);
         double H = atof(argv[6]);
         fmi2ValueReference vr_in = (fmi2ValueReference)atoi(argv[9]);
@@ -102,6 +109,12 @@ int main(int argc, char **argv)
                 printf("%d %d", cycle, k);
                 for (int i = 0; i < n_out; i++) printf(" %.17g", out[i]);
                 printf("\n");
+                if (derivative) {
+                    if (getDerivative(c[k], vr_out, (size_t)n_out, &vr_in, 1, &seed, out)) return 10;
+                    printf("d %d %d", cycle, k);
+                    for (int i = 0; i < n_out; i++) printf(" %.17g", out[i]);
+                    printf("\n");
+                }
             }
             for (int k = 0; k < n; k++) freeInstance(c[k]);
         }

@@ -112,8 +112,10 @@ def test_variables_follow_ports_md(small_fmu):
     assert v["solver.rho_inf"].causality == "parameter"
     assert v["solver.terms"].type == "Integer" and "1 = gyroscopic" in v["solver.terms"].description
     assert [v[f"gravity[{i}]"].unit for i in (1, 2, 3)] == ["m/s2"] * 3
-    # outputs have no direct feedthrough: the values at the end of the last step
-    assert all(u.dependencies == [] for u in md.outputs)
+    # over a communication step every output depends on every input (the dependencies of the
+    # directional derivatives, tests/test_fmu_derivatives.py)
+    inputs = {x.name for x in md.modelVariables if x.causality == "input"}
+    assert all({d.name for d in u.dependencies} == inputs for u in md.outputs)
 
 
 def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
@@ -575,7 +577,7 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
 
 
 def test_master_link_values():
-    """The values the master gives a receiver (module doc of master.py), without FMUs."""
+    """The values the master gives a receiver (package doc of ffrf_fmu/master), without FMUs."""
     from ffrf_fmu.master import Held, Motion
     from ffrf_fmu.runtime.rotation import expm
 
@@ -653,11 +655,11 @@ def test_input_rule_has_one_source_for_model_description_and_docs(small_fmu):
     generated from fmu/variables.py, and docs/fmu.md quotes the same sentences verbatim (a change
     of either without the other fails here); nothing says the last internal step is shortened,
     which the code stopped doing (equal internal steps)."""
-    from ffrf_fmu.fmu.variables import INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS
+    from ffrf_fmu.fmu.variables import DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS
 
     md = read_model_description(str(small_fmu))
     docs = (ROOT / "docs" / "fmu.md").read_text(encoding="utf-8")
-    for text in (INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS):
+    for text in (INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, DIRECTIONAL_DERIVATIVES):
         assert text in md.description
         assert f"> {text}\n" in docs
     step = next(v for v in md.modelVariables if v.name == "solver.step")

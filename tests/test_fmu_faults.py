@@ -49,7 +49,7 @@ def fmu(model):
 
 
 class Slave:
-    """An FmuInstance (master.py: per-instance log) with value references by name."""
+    """An FmuInstance (master/instance.py: per-instance log) with value references by name."""
 
     def __init__(self, path):
         self.inst = FmuInstance("body", path)

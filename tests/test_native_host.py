@@ -112,6 +112,33 @@ def test_two_instances_and_instantiate_free_instantiate_in_a_c_host(b1):
         assert np.array_equal(values, ref), key
 
 
+def test_directional_derivatives_in_a_c_host_equal_fmpys(b1):
+    """fmi2GetDirectionalDerivative through the native loader in a host without Python (the loader
+    routes it through pythonfmu's own SetReal/GetReal of the instance, docs/fmu.md): two instances,
+    each gives fmpy's derivatives bit for bit, and the process exits 0."""
+    fmu, unzip, host, md = b1
+    H, steps = 2e-3, 10
+    vr_in = _vr(md, ["tip.f[3]"])[0]
+    done = _host(b1, "derivative", steps, H, 2, 1, vr_in, FORCE, *_vr(md, OUTPUTS))
+    assert done.returncode == 0, f"exit status {done.returncode}\n{done.stderr[-3000:]}"
+    got = [np.array([float(x) for x in ln.split()[3:]]) for ln in done.stdout.splitlines() if ln.startswith("d ")]
+    s = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip), modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="fmpy")
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.setReal([vr_in], [FORCE])
+    s.exitInitializationMode()
+    for k in range(steps):
+        s.doStep(k * H, H)
+    ref = np.array(s.getDirectionalDerivative(_vr(md, OUTPUTS), [vr_in], [1.0]))
+    s.terminate()
+    s.freeInstance()
+    assert len(got) == 2 and ref[2] > 0.0  # pushing the tip up moves it up
+    for d in got:
+        assert np.array_equal(d, ref), (d, ref)
+
+
 def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
     """Each bad call twice, then free and unload: fmi2Error every time (3), logged with a category
     (pythonfmu alone: fmi2Fatal with a NULL category, then a segfault on the second call)."""

@@ -139,21 +139,25 @@ def test_split_beam_explicit_is_unstable_implicit_is_exact(split):
 
 
 def test_split_beam_interface_jacobian_is_stable_at_10_ms_and_equals_the_one_body(split):
-    """Linearly implicit coupling (finite-difference coupling Jacobian of the sweep from saved FMU
-    states, one linear solve, one real step; no iteration): at H = 10 ms, where every explicit
-    scheme fails within 15-30 steps (docs/stability.md), the split beam follows the one-body FMU.
-    The rigid joint makes the interface equations nearly linear over a step, so the one Newton
-    step lands within 1e-6 of the peak (measured 8.9e-9 over 0.2 s, 3.6e-6 over the 1 s scene,
-    where the beam deflects 7 m at the tip); sweeps = 6 iterated inputs (cut force and moment)
-    + G(x0) + the real step."""
+    """Linearly implicit coupling (coupling Jacobian of the sweep, one linear solve, one real step;
+    no iteration): at H = 10 ms, where every explicit scheme fails within 15-30 steps
+    (docs/stability.md), the split beam follows the one-body FMU. The rigid joint makes the
+    interface equations nearly linear over a step, so the one Newton step lands within 1e-6 of the
+    peak. The Jacobian from the FMUs' directional derivatives (the default: both halves provide
+    them) gives the run of the finite-difference Jacobian: measured 2.8e-8 of the peak apart over
+    0.2 s, 2.7e-8 and 8.9e-9 from the one body; sweeps: 2 (G(x0) and the real step) against 8
+    (+ one per iterated input: cut force and moment)."""
     H = 0.01
     one = split.run(H, one_body=True, duration=0.2)
     lin = split.run(H, "gauss-seidel", duration=0.2, interface_jacobian=True)
-    assert lin.stopped_early == ""
+    fd = split.run(H, "gauss-seidel", duration=0.2, interface_jacobian=True, jacobian="fd")
+    assert lin.stopped_early == "" and fd.stopped_early == ""
     scale = np.max(one.deflection)
     assert scale > 1e-3  # the beam bends: the comparison means something
     assert np.max(np.abs(lin.deflection - one.deflection)) < 1e-6 * scale
-    assert lin.sweeps == 8.0
+    assert np.max(np.abs(fd.deflection - one.deflection)) < 1e-6 * scale
+    assert np.max(np.abs(lin.deflection - fd.deflection)) < 1e-6 * scale
+    assert lin.sweeps == 2.0 and fd.sweeps == 8.0
 
 
 # ------------------------------------------------------------------------------------ spin map (B3)
@@ -330,11 +334,18 @@ def test_motor_implicit_coupling_is_stable_where_explicit_jacobi_is_not(motor, m
 
 
 def test_motor_interface_jacobian_at_10_ms_is_close_to_implicit_coupling(motor, motor_monolithic):
-    """Linearly implicit coupling (one Newton step on the interface equations with a finite-
-    difference coupling Jacobian, no iteration) at H = 10 ms, where explicit Jacobi and Gauss-Seidel
-    with extrapolation diverge (map): stable, and its error is the 10 ms sampling of the coupled
-    signals as for converged implicit coupling (map 1.5e-3 over 10 s). Measured 1.25e-3 of the
-    peak deflection over these 3 s (1.5e-3 over 10 s, peak hub speed +0.24 %); bound 2e-3."""
+    """Linearly implicit coupling (one Newton step on the interface equations, no iteration) at
+    H = 10 ms, where explicit Jacobi and Gauss-Seidel with extrapolation diverge (map): stable, and
+    its error is the 10 ms sampling of the coupled signals as for converged implicit coupling (map
+    1.5e-3 over 10 s). Measured 1.25e-3 of the peak deflection over these 3 s (1.5e-3 over 10 s,
+    peak hub speed +0.24 %); bound 2e-3. The coupling Jacobian comes from the beam's directional
+    derivatives and a finite difference of the drive's own step (the drive FMU provides none):
+    2 sweeps a step, and the run of the finite-difference Jacobian of the sweep to 1e-8 (measured
+    1.8e-10 of the peak deflection over 1 s)."""
     run = motor.run(0.01, "gauss-seidel", duration=3.0, interface_jacobian=True)
-    assert run.stopped_early == ""
+    assert run.stopped_early == "" and run.sweeps == 2.0
     assert _deflection_error(run, motor_monolithic) < 2e-3
+    fd = motor.run(0.01, "gauss-seidel", duration=0.5, interface_jacobian=True, jacobian="fd")
+    n = len(fd.t)
+    assert fd.sweeps == 5.0
+    assert np.max(np.abs(run.deflection[:n] - fd.deflection)) < 1e-8 * np.max(np.abs(fd.deflection))

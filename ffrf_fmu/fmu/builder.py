@@ -43,7 +43,8 @@ from ..runtime.data import BodyData
 from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
 from ..runtime.terms import FULL_TERMS, TERM_SETS
-from .variables import INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, equations_text
+from .variables import (DERIVATIVE_CHANNEL, DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS,
+                        equations_text)
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
@@ -98,8 +99,9 @@ def compile_loader(out: Path) -> str:
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if not cc:
         return "no C compiler found (set CC or install gcc)"
-    cmd = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wl,-z,nodelete", "-o", str(out), str(LOADER_SOURCE),
-           "-ldl", "-lpthread"]
+    channel = [f"-DFFRF_DERIVATIVE_{key}={value}u" for key, value in DERIVATIVE_CHANNEL.items()]
+    cmd = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wl,-z,nodelete", *channel, "-o", str(out),
+           str(LOADER_SOURCE), "-ldl", "-lpthread"]
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     except (OSError, subprocess.TimeoutExpired) as e:
@@ -107,14 +109,15 @@ def compile_loader(out: Path) -> str:
     return "" if done.returncode == 0 else f"{' '.join(cmd)} failed: {done.stderr.strip()[:2000]}"
 
 
-def install_loader(fmu: Path, model_identifier: str, stage: Path) -> str:
-    """Put the native loader in front of pythonfmu's linux64 binary inside `fmu`; '' or why not."""
+def native_loader_problem(out: Path) -> str:
+    """Compile the native loader into `out` for this platform; '' or why not."""
     if not sys.platform.startswith("linux"):
         return f"the native loader is built on Linux only (this is {sys.platform})"
-    loader = stage / "loader.so"
-    why = compile_loader(loader)
-    if why:
-        return why
+    return compile_loader(out)
+
+
+def install_loader(fmu: Path, model_identifier: str, loader: Path) -> str:
+    """Put the compiled native loader in front of pythonfmu's linux64 binary inside `fmu`; '' or why not."""
     name = f"binaries/linux64/{model_identifier}.so"
     rewritten = fmu.with_suffix(".tmp")
     with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as dst:
@@ -276,10 +279,17 @@ def build_fmu(
         "build": build_info or {},
         "backend": backend,
     }
+    stage_dir = tempfile.TemporaryDirectory(prefix="ffrf_fmu_build_")
+    stage = Path(stage_dir.name)
+    # the loader first: it is what provides fmi2GetDirectionalDerivative, which the modelDescription
+    # then declares (the slave reads config["directional_derivatives"])
+    loader_why = native_loader_problem(stage / "loader.so") if native_loader else "not asked for"
+    config["directional_derivatives"] = not loader_why
     ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
     stiff = all(se.stiffening for se in data.superelements)
     config["description"] = (DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text) + " "
-                             + equations_text(params.terms, params.full_terms, stiff))
+                             + equations_text(params.terms, params.full_terms, stiff)
+                             + (" " + DIRECTIONAL_DERIVATIVES if config["directional_derivatives"] else ""))
     config["stiffening"] = stiff
     if params.duration is not None:
         config["experiment"] = {"stop_time": float(params.duration), "step_size": float(params.step)}
@@ -296,8 +306,7 @@ def build_fmu(
             raise BuildError(f"{dest}: an FMU file name must end in .fmu (or name a directory)")
         dest = dest / f"{data.name}.fmu"
     dest.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="ffrf_fmu_build_") as tmp:
-        stage = Path(tmp)
+    with stage_dir:
         pkg = stage / package
         (pkg / "runtime").mkdir(parents=True)
         (pkg / "fmu").mkdir()
@@ -335,7 +344,7 @@ def build_fmu(
                 del sys.modules[key]
         out = Path(out)
         if native_loader:
-            why = install_loader(out, cls, stage)
+            why = loader_why or install_loader(out, cls, stage / "loader.so")
             if why:
                 warnings.warn(f"{out.name}: no native loader ({why}); the FMU runs only in a host that has "
                               "Python loaded (fmpy), or with libpython in LD_PRELOAD", BuildWarning, stacklevel=2)

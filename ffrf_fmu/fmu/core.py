@@ -11,7 +11,8 @@ H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run tends t
 run (which evaluates the exact signals at every internal step).
 
 Over 400 lines: one class, the FMU's state machine (values, initialization, communication steps,
-saved states); its invariants hold across all of its methods, so it stays in one file.
+saved states, directional derivatives of the last step); its invariants hold across all of its
+methods, so it stays in one file.
 """
 from __future__ import annotations
 
@@ -40,9 +41,32 @@ except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before 
 ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
 _I3 = np.eye(3)
 STATE_VERSION = 1
+# steps of the central differences of the directional derivatives, per kind of input: round-off and
+# truncation put the two kinds at opposite ends (B1-like beam, tests/test_fmu_derivatives.py):
+# - loads (f, t): a reaction is the small difference of world-axes node forces (stiffness x positions),
+#   ~1e-9 N of round-off, so a 0.014 N/N derivative to 1e-5 needs a large step; the response to loads
+#   is nearly linear (steps 0.1 and 0.01 N agree to 1e-7). Step: 1e-2 max(1, largest |load|).
+# - motions: a jump of the prescribed frame strains the stiff axial field at once (central differences
+#   1.4e-4 off at 1e-3 m, so 1.4e-8 at 1e-5 m), and the external work, a sum of reaction x velocity
+#   products, carries ~1e-5 relative round-off at 1e-6 m. Step: the largest displacement the
+#   perturbation makes over the step, 1e-5 max(1, largest |r|) m or rad: r, R move the frame by their
+#   change, v, w by H times it, a, dw by H^2/2 times it.
+DERIVATIVE_STEPS = {"load": 1e-2, "motion": 1e-5}
 
 CONFIG_FILE = "ffrf_fmu.json"
 DATA_FILE = "body.npz"
+
+
+@dataclass(frozen=True)
+class LastStep:
+    """What the directional derivatives of the last communication step need: its start, size and
+    internal steps, the body state at t_c and every variable value as set for it."""
+
+    t_c: float
+    H: float
+    n: int
+    state: np.ndarray
+    values: np.ndarray
 
 
 @dataclass
@@ -102,6 +126,7 @@ class BodyCoSim:
         self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
         self._output_map: tuple[np.ndarray, np.ndarray] | None = None  # see _output_values
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
+        self.last_step: LastStep | None = None  # the last successful doStep (directional derivatives)
 
     def one_blas_thread(self):
         """Context: BLAS limited to one thread (a no-op without threadpoolctl, or when every BLAS
@@ -154,9 +179,6 @@ class BodyCoSim:
             return f"{name} is a fixed parameter: it cannot change after initialization"
         self.values[vr] = value
         return ""
-
-    def _vec(self, port: str, field: str) -> np.ndarray:
-        return self.values[self.index[(port, field)]]
 
     def parameters(self) -> dict:
         v = self.values
@@ -230,26 +252,30 @@ class BodyCoSim:
         return self.system
 
     # ------------------------------------------------------------------ inputs
-    def _held_inputs(self, t_c: float) -> tuple[dict, str]:
-        """The input values set for t_c, checked: ({port: PortValues at t_c}, failure text)."""
-        if not np.isfinite(self.values[self.input_ix]).all():  # one vectorized test; names only on failure
-            bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(self.values[i])]
+    def _held_inputs(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[dict, str]:
+        """The input values set for t_c (or those of `values`), checked: ({port: PortValues at t_c},
+        failure text). strict=False projects a rotation input onto the nearest rotation however far
+        it is (the perturbed inputs of the directional derivatives: the projection is what the FMU
+        does within ROTATION_TOL, and its derivative is the FMU's)."""
+        values = self.values if values is None else values
+        if not np.isfinite(values[self.input_ix]).all():  # one vectorized test; names only on failure
+            bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(values[i])]
             shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
             return {}, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
         held = {}
+        vec = lambda port, field: values[self.index[(port, field)]]  # noqa: E731 - copies (fancy indexing)
         for p in self.data.ports:
             pv = PortValues()
             if p.translation in ("motion", "compliant"):
-                pv.r, pv.v = self._vec(p.name, "r").copy(), self._vec(p.name, "v").copy()
-                pv.a = self._vec(p.name, "a").copy()
+                pv.r, pv.v, pv.a = vec(p.name, "r"), vec(p.name, "v"), vec(p.name, "a")
             else:
-                pv.f = self._vec(p.name, "f").copy()
+                pv.f = vec(p.name, "f")
             if p.rotation in ("motion", "compliant"):
-                R = self._vec(p.name, "R").reshape(3, 3).copy()
+                R = vec(p.name, "R").reshape(3, 3)
                 dev = float(np.abs(R.T @ R - _I3).max())
                 (a, b, c), (d, e, f), (g, h, i) = R.tolist()
                 det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)  # np.linalg.det: 10x slower
-                if dev > ROTATION_TOL:
+                if dev > ROTATION_TOL and strict:
                     return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
                                 f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
                 if det <= 0.0:
@@ -258,9 +284,9 @@ class BodyCoSim:
                 if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
                     U, _, Vt = np.linalg.svd(R)
                     R = U @ Vt
-                pv.R, pv.w, pv.dw = R, self._vec(p.name, "w").copy(), self._vec(p.name, "dw").copy()
+                pv.R, pv.w, pv.dw = R, vec(p.name, "w"), vec(p.name, "dw")
             else:
-                pv.t = self._vec(p.name, "t").copy()
+                pv.t = vec(p.name, "t")
             held[p.name] = pv
         return held, ""
 
@@ -341,11 +367,13 @@ class BodyCoSim:
         msg = self._initialize() if (self._inputs_changed() or self.failure) else ""
         self.mode = "step"
         self.discarded = ""
+        self.last_step = None
         return msg
 
     # ------------------------------------------------------------------ stepping
     def do_step(self, t_c: float, H: float) -> StepReport:
         """One communication step; never raises (see StepReport for what is Discard, what Error)."""
+        self.last_step = None
         try:
             report = self._do_step(t_c, H)
         except Exception as e:  # noqa: BLE001 - a programming error: fmi2Error with the traceback
@@ -405,8 +433,75 @@ class BodyCoSim:
             system.set_state(saved)
             return StepReport(False, f"t = {t_c:.6g} s: {type(e).__name__}: {e}", traceback.format_exc(),
                               status="error")
+        self.last_step = LastStep(t_c, H, n, saved, self.values.copy())
         self.values[dst] = out
         return StepReport(True, iterations=worst)
+
+    # ------------------------------------------------------------------ directional derivatives
+    def directional_derivative(self, knowns, seeds, unknowns) -> tuple[np.ndarray | None, str]:
+        """Derivative of the outputs `unknowns` at the end of the last doStep(t_c, H) with respect to
+        the inputs `knowns` as set for that step, along `seeds`, the state at t_c fixed
+        (variables.DIRECTIONAL_DERIVATIVES): (values, '') or (None, why not). Central differences of
+        two runs of the step from the saved state at t_c per kind of input (DERIVATIVE_STEPS), the
+        same step the FMU takes (the body's Newton with its iteration matrix, predictor and stopping
+        rule): the derivative of what the FMU computes, which is what finite differences of its runs
+        see. Then the FMU is back at the end of the step exactly as it was."""
+        n = len(self.variables)
+        knowns, unknowns = np.asarray(knowns, dtype=int).ravel(), np.asarray(unknowns, dtype=int).ravel()
+        seeds = np.asarray(seeds, dtype=float).ravel()
+        name = lambda vr: self.variables[vr].name if 0 <= vr < n else f"value reference {vr}"  # noqa: E731
+        bad = [name(vr) for vr in knowns if not (0 <= vr < n and self.causality[vr] == "input")]
+        if bad:
+            return None, (f"directional derivative: {', '.join(bad[:6])} not input(s): the derivatives are those "
+                          "of outputs with respect to inputs")
+        bad = [name(vr) for vr in unknowns if not (0 <= vr < n and self._is_output[vr] and not self.is_integer[vr])]
+        if bad:
+            return None, f"directional derivative: {', '.join(bad[:6])} not Real output(s)"
+        if not np.isfinite(seeds).all():
+            return None, "directional derivative: the seed vector is not finite"
+        rec, system = self.last_step, self.system
+        if rec is None or system is None:
+            return None, ("directional derivative: no communication step to differentiate (they are the "
+                          "derivatives of the last successful doStep; none since initialization, a failed doStep "
+                          "or fmi2SetFMUstate)")
+        if not seeds.any():
+            return np.zeros(unknowns.size), ""
+        field = [self.variables[vr].field for vr in knowns]
+        is_load = np.array([f in ("f", "t") for f in field])
+        H = rec.H  # displacement over the step per unit change (DERIVATIVE_STEPS)
+        weight = np.array([{"v": H, "w": H, "a": 0.5 * H * H, "dw": 0.5 * H * H}.get(f, 1.0) for f in field])
+        end = system.get_state()
+        total = np.zeros(unknowns.size)
+        try:
+            with self.one_blas_thread():
+                for kind, part in (("load", is_load), ("motion", ~is_load)):
+                    s = np.where(part, seeds, 0.0)
+                    if not s.any():
+                        continue  # the derivative is linear in the seeds: each kind with its own step
+                    size = max(1.0, float(np.max(np.abs(rec.values[knowns[part]] * weight[part]))))
+                    eps = DERIVATIVE_STEPS[kind] * size / float(np.max(np.abs(s * weight)))
+                    sides = []
+                    for step in (eps, -eps):
+                        values = rec.values.copy()
+                        np.add.at(values, knowns, step * s)
+                        held, msg = self._held_inputs(rec.t_c, values, strict=False)
+                        if msg:
+                            return None, f"directional derivative: {msg}"
+                        system.set_state(rec.state)
+                        inputs = self.extrapolation(rec.t_c, held)
+                        for _ in range(rec.n):
+                            system.step(rec.H / rec.n, inputs)
+                        dst, out = self._output_values(0)
+                        full = np.zeros(n)
+                        full[dst] = out
+                        sides.append(full[unknowns])
+                    total += (sides[0] - sides[1]) / (2.0 * eps)
+        except StepFailure as e:
+            return None, (f"directional derivative of the step from t = {rec.t_c:.6g} s failed at t = {e.time:.6g} s: "
+                          f"{e.cause}")
+        finally:
+            system.set_state(end)
+        return total, ""
 
     @staticmethod
     def _check_finite(system: BodySystem, outputs: np.ndarray) -> None:
@@ -485,6 +580,7 @@ class BodyCoSim:
         self.start_time = float(state["start_time"])
         self.failure = str(state["failure"])
         self.discarded = ""  # a restored state is a fresh start from its time
+        self.last_step = None  # derivatives need a doStep from it
         iw = state.get("initialized_with")
         self._initialized_with = None if iw is None else np.asarray(iw, dtype=float).copy()
         if state["system"] is None:

@@ -115,8 +115,6 @@ typedef struct {
     X(fmi2Status, fmi2SerializedFMUstateSize, (fmi2Component, fmi2FMUstate, size_t *))              \
     X(fmi2Status, fmi2SerializeFMUstate, (fmi2Component, fmi2FMUstate, fmi2Byte[], size_t))         \
     X(fmi2Status, fmi2DeSerializeFMUstate, (fmi2Component, const fmi2Byte[], size_t, fmi2FMUstate *)) \
-    X(fmi2Status, fmi2GetDirectionalDerivative, (fmi2Component, const fmi2ValueReference[], size_t, \
-                                                 const fmi2ValueReference[], size_t, const fmi2Real[], fmi2Real[])) \
     X(fmi2Status, fmi2SetRealInputDerivatives, (fmi2Component, const fmi2ValueReference[], size_t,  \
                                                 const fmi2Integer[], const fmi2Real[]))             \
     X(fmi2Status, fmi2GetRealOutputDerivatives, (fmi2Component, const fmi2ValueReference[], size_t, \
@@ -349,10 +347,52 @@ FORWARD(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate s, size_t *n)
 FORWARD(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n), (inst->real, s, b, n))
 FORWARD(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s),
         (inst->real, b, n, s))
-FORWARD(fmi2GetDirectionalDerivative,
-        (fmi2Component c, const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[], size_t nz,
-         const fmi2Real dv[], fmi2Real df[]),
-        (inst->real, u, nu, z, nz, dv, df))
+/* pythonfmu has no fmi2GetDirectionalDerivative. The request goes to this instance's own Python slave
+ * through pythonfmu's fmi2SetReal and fmi2GetReal on the same component, on value references offset
+ * into a range no variable uses (fmu/variables.py DERIVATIVE_CHANNEL, passed by the builder as
+ * -DFFRF_DERIVATIVE_SEED/-DFFRF_DERIVATIVE_OUTPUT): first the seeds at SEED + known, then the
+ * derivatives read at OUTPUT + unknown. Nothing is kept outside the instance, so two instances in
+ * one process never see each other's request. */
+#if !defined(FFRF_DERIVATIVE_SEED) || !defined(FFRF_DERIVATIVE_OUTPUT)
+#error "compile with -DFFRF_DERIVATIVE_SEED=... -DFFRF_DERIVATIVE_OUTPUT=... (ffrf_fmu/fmu/builder.py does)"
+#endif
+EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
+                                               const fmi2ValueReference vKnown[], size_t nKnown,
+                                               const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    ENTER(c, "fmi2GetDirectionalDerivative")
+    if (nUnknown == 0) return fmi2OK;
+    if (!vUnknown || !dvUnknown || (nKnown && (!vKnown || !dvKnown))) {
+        say(inst, fmi2Error, "%s", "fmi2GetDirectionalDerivative: a NULL array");
+        return fmi2Error;
+    }
+    if (nKnown == 0) {
+        for (size_t i = 0; i < nUnknown; i++) dvUnknown[i] = 0.0;
+        return fmi2OK;
+    }
+    for (size_t i = 0; i < nKnown + nUnknown; i++) {
+        fmi2ValueReference vr = i < nKnown ? vKnown[i] : vUnknown[i - nKnown];
+        if (vr >= FFRF_DERIVATIVE_SEED) {
+            char text[128];
+            snprintf(text, sizeof text, "fmi2GetDirectionalDerivative: unknown value reference %u", vr);
+            say(inst, fmi2Error, "%s", text);
+            return fmi2Error;
+        }
+    }
+    fmi2ValueReference *known = malloc(nKnown * sizeof *known), *unknown = malloc(nUnknown * sizeof *unknown);
+    fmi2Status s = fmi2Error;
+    if (known && unknown) {
+        for (size_t i = 0; i < nKnown; i++) known[i] = FFRF_DERIVATIVE_SEED + vKnown[i];
+        for (size_t i = 0; i < nUnknown; i++) unknown[i] = FFRF_DERIVATIVE_OUTPUT + vUnknown[i];
+        s = real_fmi2SetReal(inst->real, known, nKnown, dvKnown);
+        if (s == fmi2OK && inst->worst < fmi2Error) s = real_fmi2GetReal(inst->real, unknown, nUnknown, dvUnknown);
+    } else {
+        say(inst, fmi2Error, "%s", "fmi2GetDirectionalDerivative: out of memory");
+    }
+    free(known);
+    free(unknown);
+    return finish(inst, s);
+}
 FORWARD(fmi2SetRealInputDerivatives,
         (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real v[]),
         (inst->real, vr, n, order, v))

@@ -63,8 +63,9 @@ from pythonfmu.default_experiment import DefaultExperiment  # noqa: E402
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability  # noqa: E402
 
 from {package}.fmu.core import BodyCoSim  # noqa: E402
-from {package}.fmu.variables import patch_model_description  # noqa: E402
+from {package}.fmu.variables import DERIVATIVE_CHANNEL, patch_model_description  # noqa: E402
 
+_SEED, _OUTPUT = DERIVATIVE_CHANNEL["SEED"], DERIVATIVE_CHANNEL["OUTPUT"]
 _CAUSALITY = {{"input": Fmi2Causality.input, "output": Fmi2Causality.output, "parameter": Fmi2Causality.parameter}}
 _VARIABILITY = {{"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variability.discrete,
                 "fixed": Fmi2Variability.fixed}}
@@ -120,6 +121,7 @@ class {cls}(Fmi2Slave):
         if exp:
             self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=exp["stop_time"],
                                                         step_size=exp["step_size"])
+        self._seeds = None  # (knowns, seeds) of the directional derivative being asked (see _derivatives)
         self._types = [var.type for var in core.variables]
         self._valid = set()  # (type, value references) of calls checked already (see _check)
         for vr, var in enumerate(core.variables):
@@ -157,8 +159,23 @@ class {cls}(Fmi2Slave):
 
     @_guarded(_zeros)
     def get_real(self, vrs):
+        if vrs and vrs[0] >= _OUTPUT:
+            return self._derivatives(vrs)
         self._check(vrs, "Real")
         return self.core.get_many(vrs)
+
+    def _derivatives(self, vrs):
+        """fmi2GetDirectionalDerivative, second half (native_loader.c): the derivatives of the outputs
+        vrs - DERIVATIVE_CHANNEL["OUTPUT"] along the seeds set just before (set_real)."""
+        if min(vrs) < _OUTPUT:
+            raise CallError(f"fmi2GetReal mixes variables and directional derivatives: {{vrs}}")
+        seeds, self._seeds = self._seeds, None
+        if seeds is None:
+            raise CallError("directional derivative: no seed vector set (the native loader sets it)")
+        values, problem = self.core.directional_derivative(seeds[0], seeds[1], [vr - _OUTPUT for vr in vrs])
+        if problem:
+            raise CallError(problem)
+        return values.tolist()
 
     @_guarded(_zeros)
     def get_integer(self, vrs):
@@ -176,6 +193,12 @@ class {cls}(Fmi2Slave):
 
     @_guarded(_zeros)
     def set_real(self, vrs, values):
+        if vrs and _SEED <= vrs[0] < _OUTPUT:  # fmi2GetDirectionalDerivative, first half: the seeds
+            self._seeds = None
+            if not all(_SEED <= vr < _OUTPUT for vr in vrs):
+                raise CallError(f"fmi2SetReal mixes variables and directional derivative seeds: {{vrs}}")
+            self._seeds = ([vr - _SEED for vr in vrs], list(values))
+            return
         self._check(vrs, "Real")
         problem = self.core.set_many(vrs, values)
         if problem:
@@ -196,7 +219,8 @@ class {cls}(Fmi2Slave):
         self._check(vrs, "String")
 
     def to_xml(self, model_options=dict()):
-        return patch_model_description(super().to_xml(model_options), self.core.variables)
+        return patch_model_description(super().to_xml(model_options), self.core.variables,
+                                       derivatives=bool(self.core.config.get("directional_derivatives")))
 
     @_guarded(lambda *a: None)
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):

@@ -1,7 +1,7 @@
 """The FMU variables of a body (shared/spec/ports.md): names, causality, units, descriptions.
 
 One table, `body_variables`, drives everything: the slave registers it with pythonfmu, the
-builder writes the unit definitions and the ModelStructure from it, validate.py and master.py
+builder writes the unit definitions and the ModelStructure from it, validate.py and master/
 read names from it. Shipped inside every FMU: the standard library and the runtime's constants
 (runtime.terms, runtime.rotation), no pythonfmu.
 
@@ -94,6 +94,20 @@ INTERNAL_STEPS = (
     "is a whole number up to 1e-6 relative): no step is shortened, so the body keeps its Newton "
     "iteration matrix."
 )
+DIRECTIONAL_DERIVATIVES = (
+    "Directional derivatives (fmi2GetDirectionalDerivative) are those of the last communication step: "
+    "of the outputs at t_c + H with respect to the inputs as set for doStep(t_c, H), held and extrapolated "
+    "over the step as above, with the state at t_c fixed; available after a successful doStep until the "
+    "next doStep or fmi2SetFMUstate. They are the derivatives of the step as the FMU computes it, taken by "
+    "central differences of two re-runs of that step from the saved state at t_c (input steps: 1e-2 "
+    "max(1, |load|) for forces and moments, 1e-5 m or rad of displacement over the step for motions), "
+    "not by an analytic tangent."
+)
+# fmi2GetDirectionalDerivative reaches the slave through pythonfmu's own per-instance fmi2SetReal and
+# fmi2GetReal on value references offset by these (no FMU has 2^28 variables): the native loader sets
+# the seeds at SEED + known, then reads the derivatives at OUTPUT + unknown (docs/fmu.md). The
+# builder compiles the loader with these values.
+DERIVATIVE_CHANNEL = {"SEED": 1 << 28, "OUTPUT": 2 << 28}
 INPUT_RULE = {
     "r": "extrapolated from t_c with {p}.v and {p}.a: r(t) = r_c + v_c s + a_c s^2/2, s = t - t_c",
     "v": "extrapolated from t_c with {p}.a: v(t) = v_c + a_c s (the slope of the extrapolation of {p}.r)",
@@ -298,10 +312,16 @@ def _compliant_variables(p) -> list[Variable]:
     return out
 
 
-def patch_model_description(root: Element, variables: list[Variable]) -> Element:
+def patch_model_description(root: Element, variables: list[Variable], derivatives: bool = False) -> Element:
     """Complete pythonfmu's modelDescription: units, UnitDefinitions and a ModelStructure with
-    Outputs (no direct feedthrough: dependencies="") and InitialUnknowns (every output; depends
-    on all inputs and parameters), so that fmpy's validate_fmu finds nothing to report."""
+    Outputs and InitialUnknowns (every output; depends on all inputs and parameters), so that fmpy's
+    validate_fmu finds nothing to report.
+
+    derivatives: the FMU provides directional derivatives (DIRECTIONAL_DERIVATIVES; needs the native
+    loader). Then providesDirectionalDerivative="true" and every output lists every input as a
+    dependency: over a communication step each output depends on each input (one elastic body couples
+    its ports). Without derivatives dependencies="": at the communication point there is no direct
+    feedthrough (setting an input changes no output before the next doStep)."""
     by_name = {v.name: v for v in variables}
     used_units = set()
     mv = root.find("ModelVariables")
@@ -327,10 +347,14 @@ def patch_model_description(root: Element, variables: list[Variable]) -> Element
         root.remove(old)
     structure = SubElement(root, "ModelStructure")
     outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
+    inputs = [i + 1 for i, v in enumerate(variables) if v.causality == "input"]
+    if derivatives:
+        root.find("CoSimulation").set("providesDirectionalDerivative", "true")
     if outputs:
         o = SubElement(structure, "Outputs")
+        deps = {"dependencies": " ".join(map(str, inputs)), "dependenciesKind": " ".join(["dependent"] * len(inputs))}
         for i in outputs:
-            SubElement(o, "Unknown", {"index": str(i), "dependencies": ""})
+            SubElement(o, "Unknown", {"index": str(i), **(deps if derivatives else {"dependencies": ""})})
         iu = SubElement(structure, "InitialUnknowns")
         for i in outputs:
             SubElement(iu, "Unknown", {"index": str(i)})

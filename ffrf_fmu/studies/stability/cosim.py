@@ -187,7 +187,7 @@ class CosimCase:
 
     def run(self, H: float, scheme: str = "gauss-seidel", extrapolation: bool = False, order: str = "fwd",
             iterations: int = 1, duration: float | None = None, one_body: bool = False,
-            interface_jacobian: bool = False) -> CosimRun:
+            interface_jacobian: bool = False, jacobian: str = "auto") -> CosimRun:
         from ...master import CoSimulation
 
         duration = self.duration if duration is None else duration
@@ -197,7 +197,7 @@ class CosimCase:
             sv = {**self.start_values, "beam.solver.step": min(H, self.settings.beam_step)}
             with CoSimulation(self.fmus, step=H, scheme=scheme, extrapolation=extrapolation, order=self.order[order],
                               start_values=sv, **self._implicit(iterations),
-                              interface_jacobian=interface_jacobian) as sim:
+                              interface_jacobian=interface_jacobian, jacobian=jacobian) as sim:
                 sim.connect_ports("beam", "hub", "drive", "hub")
                 res = sim.run(duration, record=rec)
             c = res.columns
@@ -215,7 +215,7 @@ class CosimCase:
                 rec = _vec("B", "tip", "r") + ["A.cut.t[3]"]
                 with CoSimulation(self.fmus, step=H, scheme=scheme, extrapolation=extrapolation,
                                   order=self.order[order], start_values=sv("A", "B"), **self._implicit(iterations),
-                                  interface_jacobian=interface_jacobian) as sim:
+                                  interface_jacobian=interface_jacobian, jacobian=jacobian) as sim:
                     sim.connect_ports("A", "cut", "B", "cut")
                     res = sim.run(duration, sources=self._hub_sources("A"), record=rec)
                 tip, torque = _vec("B", "tip", "r"), res.columns["A.cut.t[3]"]

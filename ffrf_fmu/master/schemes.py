@@ -1,242 +1,18 @@
-"""A small fixed-step co-simulation master over fmpy's FMU2Slave.
-
-Over 400 lines: the instance wrapper, the links and the coupling schemes in one module until it
-is split into a package (issue 11).
-
-    sim = CoSimulation({"A": "a.fmu", "B": "b.fmu"}, step=1e-3, scheme="gauss-seidel")
-    sim.connect_ports("A", "cut", "B", "cut")        # body port to body port, both parts
-    sim.connect("ctrl.torque", "A.hub.t[3]")         # any output to any input, held
-    result = sim.run(stop_time=2.0, sources=lambda t: {"A.hub.R[1,1]": ...})
-
-Names are "<instance>.<variable>". Each communication step [t_c, t_c + H]:
-
-- `jacobi`: every FMU gets its inputs from values at t_c, then every FMU steps.
-- `gauss-seidel`: the FMUs step one after the other in `order`; an FMU whose source has
-  already stepped gets the source's fresh values at t_c + H, otherwise the values at t_c.
-
-Two kinds of connection:
-- `Held`: dst <- gain * src; the receiver keeps the value over the step. Stale (source not yet
-  stepped): the value at t_c, or with `extrapolation=True` the value at t_c + H/2 of the line
-  through the source's values at t_c - H and t_c. Fresh: the value at t_c + H (with
-  extrapolation, explicit coupling: the mean of the values at t_c and t_c + H).
-- `Motion`: a frame with its rate, (r, v) or (R, w), for body FMUs, which extrapolate
-  r_c + v_c (t - t_c) and expm((t - t_c) skew(w_c)) R_c (docs/fmu.md). Stale: the source's
-  frame and rate at t_c. Fresh: (r_1 - H v_1, v_1) and (expm(-H w_1) R_1, w_1) from the
-  source's frame and rate at t_c + H, so that the receiver's extrapolation ends exactly on the
-  source's frame and rate.
-
-`iterations > 1` makes the coupling implicit: the FMU states are saved at t_c and the sweep is
-repeated from them until the held inputs that came from stale sources equal what their sources
-give at t_c + H (relative `tolerance`), with IQN-ILS acceleration. For two bodies joined at a
-node this solves the same discrete equations as the one-body run (the node equilibrium at
-t_c + H), which explicit coupling cannot: its one-step lag of the interface force makes the
-split beam unstable (added-mass effect) whatever the step.
-
-`interface_jacobian=True` is linearly implicit coupling (Kuebler and Schiehlen 2000; Sadjina et
-al. 2017): no iteration to convergence but one Newton step on the same interface equations. At
-t_c the FMU states are saved; the sweep from them is a map x -> G(x) of the iterated held inputs
-(the implicit scheme's unknowns); its coupling Jacobian J = dG/dx over the step (outputs at
-t_c + H w.r.t. inputs held over [t_c, t_c + H], chained through the receivers in the sweep) is
-taken by forward finite differences, one sweep per input from the restored states; one linear
-solve (I - J) dx = G(x_0) - x_0 gives the interface inputs and the real step is the sweep at
-x_0 + dx: n + 2 sweeps for n iterated inputs. For linear subsystems this is the converged
-implicit step; the FMUs' nonlinearity over one step leaves a residual that is not iterated away.
-
-`body_port_links` wires two body ports (ports.md): the motion-driven side receives the frame of
-the force-driven side; the force-driven side receives minus the reaction of the motion-driven
-side (the force on one body is the opposite of the force on the other).
-"""
+"""The master: fixed communication step, Jacobi or Gauss-Seidel sweeps, held-input extrapolation,
+implicit coupling (FMU state rollback, IQN-ILS); linearly implicit coupling comes from
+`interface.InterfaceJacobian` (see the package docstring for the schemes)."""
 from __future__ import annotations
 
-import shutil
 import time as _time
-from ctypes import byref
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable, Iterable
 
 import numpy as np
 
-from .fmu.variables import port_variables
-from .runtime.rotation import expm
-
-
-class CoSimulationError(RuntimeError):
-    """An FMU refused a step (discard/error) or the setup is inconsistent."""
-
-
-# ---------------------------------------------------------------------------------------------
-# one FMU instance
-
-
-_LIVE: dict[str, "FmuInstance"] = {}  # instanceName -> instance, for the shared log dispatcher
-
-
-def _dispatch_log(component, instance_name, status, category, message):
-    """fmpy's native logger proxy keeps ONE Python logger for the whole process (the last one
-    registered): every instance registers this same dispatcher, which routes by instance name."""
-    dec = lambda b: b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b)
-    inst = _LIVE.get(dec(instance_name))
-    if inst is not None:
-        inst.messages.append((int(status), dec(category), dec(message)))
-
-
-class FmuInstance:
-    """An FMU2Slave instance with name-based access and the messages it logged."""
-
-    _count = 0
-
-    def __init__(self, name: str, path, *, start_values: dict | None = None):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-        from fmpy.fmi1 import calloc, free
-        from fmpy.logging import addLoggerProxy
-
-        self.name = name
-        self.path = str(path)
-        self.md = read_model_description(self.path)
-        if self.md.coSimulation is None:
-            raise CoSimulationError(f"{path}: not a co-simulation FMU")
-        self.messages: list[tuple[int, str, str]] = []  # (status, category, message)
-        self.vars = {v.name: v for v in self.md.modelVariables}
-        self.start_values = dict(start_values or {})
-        FmuInstance._count += 1
-        self.instance_name = f"{name}#{FmuInstance._count}"
-        self.unzipdir = extract(self.path)
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(_dispatch_log)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(cb))
-        self._callbacks = cb  # keep alive
-        _LIVE[self.instance_name] = self
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=self.instance_name)
-        self.fmu.instantiate(callbacks=cb, loggingOn=True)
-
-    def variable(self, name: str):
-        try:
-            return self.vars[name]
-        except KeyError:
-            raise CoSimulationError(f"FMU {self.name!r} ({Path(self.path).name}) has no variable {name!r}") from None
-
-    def names(self, causality: str) -> list[str]:
-        return [v.name for v in self.md.modelVariables if v.causality == causality]
-
-    def _vrs(self, names) -> list[int]:
-        return [self.variable(n).valueReference for n in names]
-
-    def get(self, names: list[str]) -> np.ndarray:
-        """Values as floats (Integer and Boolean variables converted)."""
-        out = np.empty(len(names))
-        real = [i for i, n in enumerate(names) if self.variable(n).type == "Real"]
-        other = [i for i in range(len(names)) if i not in set(real)]
-        if real:
-            out[real] = self.fmu.getReal([self.variable(names[i]).valueReference for i in real])
-        for i in other:
-            v = self.variable(names[i])
-            if v.type in ("Integer", "Enumeration"):
-                out[i] = self.fmu.getInteger([v.valueReference])[0]
-            elif v.type == "Boolean":
-                out[i] = float(self.fmu.getBoolean([v.valueReference])[0])
-            else:
-                raise CoSimulationError(f"{self.name}.{names[i]} is a {v.type}: not a number")
-        return out
-
-    def set(self, names: list[str], values) -> None:
-        if names:
-            self.fmu.setReal(self._vrs(names), [float(x) for x in values])
-
-    def set_start_values(self) -> None:
-        for name, value in self.start_values.items():
-            v = self.variable(name)
-            if v.type == "Real":
-                self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type in ("Integer", "Enumeration"):
-                self.fmu.setInteger([v.valueReference], [int(value)])
-            elif v.type == "Boolean":
-                self.fmu.setBoolean([v.valueReference], [bool(value)])
-            else:
-                self.fmu.setString([v.valueReference], [str(value)])
-
-    def last_message(self) -> str:
-        return self.messages[-1][2] if self.messages else "(no message logged)"
-
-    def close(self) -> None:
-        try:
-            self.fmu.terminate()
-        except Exception:  # noqa: BLE001 - best effort on the way out
-            pass
-        try:
-            self.fmu.freeInstance()
-        finally:
-            _LIVE.pop(self.instance_name, None)
-            shutil.rmtree(self.unzipdir, ignore_errors=True)
-
-
-# ---------------------------------------------------------------------------------------------
-# connections
-
-
-@dataclass(frozen=True)
-class Held:
-    """dst <- gain * src, held by the receiver over the step."""
-
-    src: str
-    dst: str
-    gain: float = 1.0
-
-
-@dataclass(frozen=True)
-class Motion:
-    """A frame and its rate: positions (3 names, r or R flattened) and rates (3 names, v or w)."""
-
-    kind: str  # "translation" | "rotation"
-    src_pos: tuple[str, ...]
-    src_rate: tuple[str, ...]
-    dst_pos: tuple[str, ...]
-    dst_rate: tuple[str, ...]
-
-
-def _split(full: str) -> tuple[str, str]:
-    inst, sep, var = full.partition(".")
-    if not sep:
-        raise CoSimulationError(f"{full!r}: expected '<instance>.<variable>'")
-    return inst, var
-
-
-def body_port_links(a: str, port_a: str, b: str, port_b: str, causality_a: dict, causality_b: dict) -> list:
-    """Connections joining port_a of body FMU a to port_b of body FMU b (rigid joint of the frames).
-
-    causality_x: {"translation": "motion"|"force", "rotation": ...} of each port. Each part must be
-    motion-driven on exactly one side."""
-    links: list = []
-    for part, (pos, rate, load) in {"translation": ("r", "v", "f"), "rotation": ("R", "w", "t")}.items():
-        ca, cb = causality_a[part], causality_b[part]
-        if ca == cb:
-            raise CoSimulationError(
-                f"{a}.{port_a} and {b}.{port_b}: the {part} is {ca}-driven on both sides; one side must be "
-                "motion-driven and the other force-driven"
-            )
-        (m, pm), (s, ps) = ((a, port_a), (b, port_b)) if ca == "motion" else ((b, port_b), (a, port_a))
-        # the motion-driven side m follows the frame of the force-driven side s ...
-        links.append(Motion(part,
-                            tuple(f"{s}.{n}" for n in port_variables(ps, pos)), tuple(f"{s}.{n}" for n in port_variables(ps, rate)),
-                            tuple(f"{m}.{n}" for n in port_variables(pm, pos)), tuple(f"{m}.{n}" for n in port_variables(pm, rate))))
-        # ... and s receives minus the reaction on m
-        for src, dst in zip(port_variables(pm, load), port_variables(ps, load)):
-            links.append(Held(f"{m}.{src}", f"{s}.{dst}", -1.0))
-    return links
-
-
-def port_causality(inst: FmuInstance, port: str) -> dict:
-    """Part causalities of a body port, read from the FMU variables."""
-    out = {}
-    for part, pos in (("translation", "r"), ("rotation", "R")):
-        v = inst.variable(port_variables(port, pos)[0])
-        out[part] = "motion" if v.causality == "input" else "force"
-    return out
+from ..runtime.rotation import expm
+from .instance import CoSimulationError, FmuInstance
+from .interface import InterfaceJacobian
+from .links import Held, Motion, _split, body_port_links, port_causality
 
 
 class _IQN:
@@ -274,9 +50,6 @@ class _IQN:
         return xt + Wm @ c
 
 
-# ---------------------------------------------------------------------------------------------
-# the master
-
 
 @dataclass
 class Result:
@@ -286,27 +59,33 @@ class Result:
     stopped_early: str = ""  # the failure message when the run did not reach stop_time
     messages: dict[str, list] = field(default_factory=dict)  # per instance: (status, category, text)
     sweeps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # per step (1: explicit)
+    jacobian: str = ""  # interface-Jacobian runs: "fmu" (directional derivatives) or "fd" (finite differences)
 
 
-class CoSimulation:
+class CoSimulation(InterfaceJacobian):
     """Fixed-step master: Jacobi or Gauss-Seidel, optional held-input extrapolation."""
 
     SCHEMES = ("jacobi", "gauss-seidel")
+    JACOBIANS = ("auto", "fmu", "fd")
 
     def __init__(self, fmus: dict, *, step: float, scheme: str = "gauss-seidel", extrapolation: bool = False,
                  order: Iterable[str] | None = None, start_values: dict | None = None, iterations: int = 1,
                  tolerance: float = 1e-6, abs_tolerance: float = 1e-8, reuse: int = 8,
-                 interface_jacobian: bool = False, fd_step: float = 1e-6):
+                 interface_jacobian: bool = False, fd_step: float = 1e-6, jacobian: str = "auto"):
         """iterations: sweeps per step; 1 = explicit coupling, > 1 = implicit coupling (FMU state
         rollback until the iterated inputs converge, IQN-ILS). Converged when the largest change
         of an iterated input is <= tolerance * (largest |input| so far in the run) + abs_tolerance;
         keep it above the noise of the FMUs' own Newton tolerance.
         interface_jacobian: linearly implicit coupling (module docstring), exclusive with
-        iterations > 1; fd_step: its finite-difference step, relative to the largest iterated
-        input so far (absolute floor abs_tolerance * 100)."""
+        iterations > 1. jacobian: where its coupling Jacobian comes from: "fmu" (the FMUs' directional
+        derivatives chained through the sweep), "fd" (finite differences of sweeps), "auto" (fmu when
+        every FMU provides directional derivatives, else fd). fd_step: the finite-difference step,
+        relative to the largest iterated input so far (absolute floor abs_tolerance * 100)."""
         if interface_jacobian and int(iterations) > 1:
             raise CoSimulationError("interface_jacobian is one linearly implicit step: use iterations=1 with it")
-        self.interface_jacobian, self.fd_step = bool(interface_jacobian), float(fd_step)
+        if jacobian not in self.JACOBIANS:
+            raise CoSimulationError(f"jacobian must be one of {self.JACOBIANS}, got {jacobian!r}")
+        self.interface_jacobian, self.fd_step, self.jacobian = bool(interface_jacobian), float(fd_step), jacobian
         self.iterations, self.max_iterations = int(iterations), int(iterations)
         self.tolerance, self.abs_tolerance, self.reuse = float(tolerance), float(abs_tolerance), int(reuse)
         if scheme not in self.SCHEMES:
@@ -452,14 +231,17 @@ class CoSimulation:
             vals.update({k: v for k, v in guess.items() if _split(k)[0] == name})
             return vals
 
+        self._applied = {}  # per FMU: the inputs it stepped with (for `_step_derivative`)
         if self.scheme == "jacobi":
             for name in self.order:
-                self._apply(inputs(name))
+                self._applied[name] = inputs(name)
+                self._apply(self._applied[name])
             for name in self.order:
                 self._do_step(name, t, H)
             return self._read(need)
         for name in self.order:
-            self._apply(inputs(name))
+            self._applied[name] = inputs(name)
+            self._apply(self._applied[name])
             self._do_step(name, t, H)
             done.add(name)
             fresh.update(self._read({name: need[name]}))
@@ -508,6 +290,7 @@ class CoSimulation:
             rec_by[inst].append(var)
         need = self._sources_of()
         iterated = self._iterated_links() if (self.iterations > 1 or self.interface_jacobian) else []
+        source = self._jacobian_source() if (iterated and self.interface_jacobian) else ""
 
         # initialization: start values, then a few passes of output -> input propagation
         for inst in self.instances.values():
@@ -542,7 +325,7 @@ class CoSimulation:
                     self._sweep(t, h, ext, prev, cur, {}, need)
                     iters.append(1)
                 elif self.interface_jacobian:
-                    iters.append(self._linearly_implicit_step(t, h, ext, prev, cur, need, iterated))
+                    iters.append(self._linearly_implicit_step(t, h, ext, prev, cur, need, iterated, source))
                 else:
                     iters.append(self._implicit_step(t, h, ext, prev, cur, need, iterated, accel))
             except CoSimulationError as e:
@@ -555,7 +338,8 @@ class CoSimulation:
             rows.append(self._read(rec_by))
         columns = {name: np.array([r[name] for r in rows]) for name in record}
         messages = {k: list(inst.messages) for k, inst in self.instances.items()}
-        return Result(np.array(times), columns, _time.perf_counter() - wall0, stopped, messages, np.array(iters))
+        return Result(np.array(times), columns, _time.perf_counter() - wall0, stopped, messages, np.array(iters),
+                      source)
 
     def _implicit_step(self, t, h, ext, prev, cur, need, iterated, accel) -> int:
         """Repeat the sweep from saved FMU states until the iterated inputs equal what their
@@ -583,51 +367,6 @@ class CoSimulation:
                 f"(largest change of an iterated input {np.max(np.abs(r)):.3g} > {limit:.3g} = "
                 f"tolerance {self.tolerance:g} x {self._scale:.3g} + abs_tolerance {self.abs_tolerance:g})"
             )
-        finally:
-            for name, inst in self.instances.items():
-                inst.fmu.freeFMUstate(states[name])
-
-    def _coupling_jacobian(self, t, h, ext, prev, cur, need, iterated, x0, g0, restore) -> np.ndarray:
-        """J = dG/dx of the sweep map at x0 (G(x0) = g0 given), by forward differences, one sweep
-        from the saved states per iterated input. The place where FMU directional derivatives
-        (fmi2GetDirectionalDerivative of each FMU's outputs at t_c + H w.r.t. its held inputs,
-        chained through the sweep) would replace the differences."""
-        keys = [l.dst for l in iterated]
-        J = np.empty((len(x0), len(x0)))
-        for j in range(len(x0)):
-            d = self.fd_step * max(self._scale, float(np.max(np.abs(x0)))) + 100.0 * self.abs_tolerance
-            x = x0.copy()
-            x[j] += d
-            restore()
-            fresh = self._sweep(t, h, ext, prev, cur, dict(zip(keys, x)), need)
-            J[:, j] = (np.array([l.gain * fresh[l.src] for l in iterated]) - g0) / d
-        return J
-
-    def _linearly_implicit_step(self, t, h, ext, prev, cur, need, iterated) -> int:
-        """One linearly implicit step (module docstring): predictor x0 = the stale inputs, G(x0)
-        and J = dG/dx from the saved states, x = x0 + (I - J)^-1 (G(x0) - x0), the real sweep at
-        x. Returns the sweeps done (n + 2)."""
-        keys = [l.dst for l in iterated]
-        x0 = np.array([self._stale(l, h, prev, cur)[l.dst] for l in iterated])
-        states = {k: inst.fmu.getFMUstate() for k, inst in self.instances.items()}
-
-        def restore():
-            for name, inst in self.instances.items():
-                inst.fmu.setFMUstate(states[name])
-
-        try:
-            fresh = self._sweep(t, h, ext, prev, cur, dict(zip(keys, x0)), need)
-            g0 = np.array([l.gain * fresh[l.src] for l in iterated])
-            self._scale = max(self._scale, float(np.max(np.abs(g0))))
-            J = self._coupling_jacobian(t, h, ext, prev, cur, need, iterated, x0, g0, restore)
-            A = np.eye(len(x0)) - J
-            try:
-                x = x0 + np.linalg.solve(A, g0 - x0)
-            except np.linalg.LinAlgError:
-                raise CoSimulationError(f"interface Jacobian at t = {t:.6g} s: I - dG/dx is singular") from None
-            restore()
-            self._sweep(t, h, ext, prev, cur, dict(zip(keys, x)), need)
-            return len(x0) + 2
         finally:
             for name, inst in self.instances.items():
                 inst.fmu.freeFMUstate(states[name])
