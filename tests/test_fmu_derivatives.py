@@ -27,17 +27,17 @@ from ffrf_fmu.fmu.builder import BuildWarning, build_from_model, read_fmu_config
 from ffrf_fmu.fmu.variables import DIRECTIONAL_DERIVATIVES
 from ffrf_fmu.master import FmuInstance
 from ffrf_fmu.runtime.rotation import expm, skew
-from test_fmu import SMALL, _inputs_at, _started
+from test_fmu import _inputs_at, _started
 
 H = 0.02  # two internal steps of the scene's 10 ms: the derivative is propagated over both
 LOADS = {"tip.f[1]": 1.0, "tip.f[3]": 2.0, "tip.t[1]": 0.1}
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
+def small(tmp_path_factory, small_toml):
     d = tmp_path_factory.mktemp("deriv")
     path = d / "small.toml"
-    path.write_text(SMALL)
+    path.write_text(small_toml())
     return path
 
 
