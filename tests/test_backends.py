@@ -3,7 +3,7 @@ fallback when numba cannot serve.
 
 Both backends make the same Newton decisions on the same equations; their residuals differ by
 round-off only, so the runs agree to round-off amplified over the run: we require 1e-10 of each
-output field's largest value for the kinematic outputs (r, R, v, w; measured <= 6e-11). Reaction
+output field's largest value (over all ports) for the kinematic outputs (r, R, v, w; measured <= 6e-11). Reaction
 loads are residual rows at the Newton solution, differences of elastic forces of order K_bar q
 (stiffness ~1e7 N/m on a beam of 8 m), so their round-off is ~1e-8 of their own size (measured
 2e-9): 1e-7 for them.
@@ -30,6 +30,10 @@ RUNS = {  # a few hundred steps into each benchmark
     "B1-stiffening": ("models/haug_beam.toml", "spinup", ["superelements=2", "stiffening=true", "step=0.01", "duration=3.0"]),
     "B1-stiffening-gyroscopic": ("models/haug_beam.toml", "spinup", ["superelements=1", "stiffening=true", "terms=gyroscopic",
                                                                       "step=0.01", "duration=2.0"]),
+    "B1-compliant": ("models/haug_beam.toml", "spinup", [
+        'body.ports.hub.translation="compliant"', 'body.ports.hub.rotation="compliant"', "superelements=2",
+        'body.ports.hub.coupling={ stiffness = [1e5, 2e5, 3e5], damping = [400.0, 500.0, 600.0], '
+        'rotational_stiffness = [1e4, 2e4, 3e4], rotational_damping = [40.0, 50.0, 60.0] }', "step=0.01", "duration=2.0"]),
     "B2": ("models/spherical_beam.toml", "torque_then_tip", ["duration=3.0"]),
     "B4": ("models/free_beam.toml", "tumble", ["terms=gyroscopic", "duration=0.6"]),
 }
@@ -51,10 +55,12 @@ def test_numba_backend_matches_numpy(name):
     assert ref.summary["completed"] and fast.summary["completed"]
     assert ref.summary["steps"] >= 200
     np.testing.assert_array_equal(fast.columns["solver.newton_iterations"], ref.columns["solver.newton_iterations"])
-    for port in ref.body.ports:
-        for field in KINEMATIC + LOADS:
+    for field in KINEMATIC + LOADS:
+        # the field's scale over all ports: a port that barely moves (a compliant hub) differs at the
+        # round-off of the body's coordinates, not of its own tiny excursion
+        scale = max(np.abs(ref.port(port.name, field)).max() for port in ref.body.ports)
+        for port in ref.body.ports:
             a, b = ref.port(port.name, field), fast.port(port.name, field)
-            scale = np.abs(a).max()
             rtol = 1e-10 if field in KINEMATIC else 1e-7
             assert np.abs(a - b).max() <= rtol * max(scale, 1e-300), (port.name, field)
 

@@ -144,8 +144,6 @@ class BodySystem(GeneralizedAlpha):
         self._compiled, self.backend, self.backend_note = None, "numpy", None
         if backend == "numba":
             module, why = load_kernel(terms)
-            if self.compliant:  # the spring-damper of compliant ports (runtime/coupling.py) is not in the kernel
-                module, why = None, "the numba kernel does not cover compliant ports (runtime/coupling.py) yet"
             if module is None:
                 self.backend_note = f"numba backend not available ({why}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(self.backend_note)

@@ -119,6 +119,15 @@ class CompiledStep:
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
             i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
         )
+        # compliant ports (runtime/coupling.py), in the order `_read_inputs` lists them; their stiffness,
+        # damping and far-end inputs are copied in at every step (the compliance is settable)
+        ports = [p for p in system.data.ports if p.name in system.compliant]
+        ns = len(ports)
+        self.springs = (
+            i64([p.node for p in ports]), i64([p.translation == "compliant" for p in ports]),
+            i64([p.rotation == "compliant" for p in ports]), np.zeros((ns, 4, 3)), np.zeros((ns, 3)), np.zeros((ns, 3)),
+            np.repeat(np.eye(3)[None], ns, 0), np.zeros((ns, 3)), system._spring_loads,
+        )
         self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
         self.energy = np.zeros(2)  # work, power
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
@@ -188,10 +197,18 @@ class CompiledStep:
             raise StepFailure(system.t, f"step size must be positive and finite, got {h}")
         xN_p, RN_p, zN_p, f_in, t_in = system._read_inputs(t1, inputs(t1))
         self._adopt(system)
+        if system._springs:
+            _, _, _, KC, r_in, v_in, R_in, w_in, _ = self.springs
+            for i, (_, _, _, kc, (r, v, R, w)) in enumerate(system._springs):
+                KC[i] = kc
+                if r is not None:
+                    r_in[i], v_in[i] = r, v
+                if R is not None:
+                    R_in[i], w_in[i] = R, w
         s = self.state
         self.energy[0], self.energy[1] = system.work, system.power
         args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["yd_prev2"], s["a"],
-                s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, float(h), float(am), float(af),
+                s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, self.springs, float(h), float(am), float(af),
                 float(gamma), float(system.tol), int(system.max_iter), self.ydw, self.p, self.R, self.F, self.luT,
                 self.piv, self.lu_meta, self.info)
         if self.fn is None:

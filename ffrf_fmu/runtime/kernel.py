@@ -13,7 +13,8 @@ order; its LU (LAPACK getrf, the routine scipy's lu_factor calls, so the factors
 modified Newton with the factorization carried along the rotation of the first CM frame.
 
 Term sets covered: `linear`, `gyroscopic` (gyro = 1), each with or without the geometric stiffening
-of runtime/stiffening.py (stiff = 1). Anything else is refused by compiled.py.
+of runtime/stiffening.py (stiff = 1); the spring-dampers of compliant ports (runtime/coupling.py).
+Anything else is refused by compiled.py.
 """
 from __future__ import annotations
 
@@ -642,8 +643,96 @@ def _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg
 
 
 @jit
+def _logm(M, out):
+    """Rotation vector of M (rotation.logm: angle in [0, pi], the axis from the symmetric part near pi)."""
+    cos = min(1.0, max(-1.0, 0.5 * (M[0, 0] + M[1, 1] + M[2, 2] - 1.0)))
+    t = np.arccos(cos)
+    v0, v1, v2 = 0.5 * (M[2, 1] - M[1, 2]), 0.5 * (M[0, 2] - M[2, 0]), 0.5 * (M[1, 0] - M[0, 1])
+    factor = 1.0 + t * t / 6.0 if t < _EPS else t / np.sin(t)
+    out[0], out[1], out[2] = factor * v0, factor * v1, factor * v2
+    if t > np.pi - 1e-4:
+        k = 0
+        for i in range(3):
+            if M[i, i] - cos > M[k, k] - cos:
+                k = i
+        col = np.empty(3)
+        for i in range(3):
+            col[i] = 0.5 * (M[i, k] + M[k, i]) - (cos if i == k else 0.0)
+        nrm = np.sqrt(col[0] ** 2 + col[1] ** 2 + col[2] ** 2)
+        sign = -1.0 if col[0] * v0 + col[1] * v1 + col[2] * v2 < 0.0 else 1.0
+        for i in range(3):
+            out[i] = t * sign * col[i] / nrm
+
+
+@jit
+def _inv3(A, out):
+    """Inverse of a 3 x 3 matrix by cofactors."""
+    c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    d = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+    out[0, 0], out[1, 0], out[2, 0] = c00 / d, c01 / d, c02 / d
+    out[0, 1] = (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) / d
+    out[1, 1] = (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) / d
+    out[2, 1] = (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) / d
+    out[0, 2] = (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) / d
+    out[1, 2] = (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) / d
+    out[2, 2] = (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) / d
+
+
+@jit
+def _springs(springs, p, yd, R, T, jac, beta, newton_pos, F, JT):
+    """The spring-dampers of compliant ports (runtime/coupling.py add_springs, the same terms): -f on
+    the node translation rows, -m on the node rotation rows, their derivatives into JT (transposed
+    iteration matrix) when jac, and the loads (force, moment; world) into the springs' `loads`.
+    springs = (node, translation, rotation, KC (4, 3): K_t, C_t, K_r, C_r, r_in, v_in, R_in, w_in, loads)."""
+    node, trans, rot, KC, r_in, v_in, R_in, w_in, loads = springs
+    M, A, Ainv, S = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    phi, wb, m = np.empty(3), np.empty(3), np.empty(3)
+    for s in range(node.shape[0]):
+        k = node[s]
+        i0 = 6 * k
+        if trans[s]:
+            for a in range(3):  # f = K_t (r_in - x) + C_t (v_in - xdot)
+                f = KC[s, 0, a] * (r_in[s, a] - p[i0 + a]) + KC[s, 1, a] * (v_in[s, a] - yd[i0 + a])
+                F[i0 + a] -= f
+                loads[k, 0, a] = f
+                if jac:
+                    pos = newton_pos[i0 + a]
+                    JT[pos, pos] += beta * KC[s, 0, a] + KC[s, 1, a]
+        if rot[s]:
+            Rk = R[k]
+            for a in range(3):  # M = R^T R_in, wb = R^T w_in
+                wb[a] = Rk[0, a] * w_in[s, 0] + Rk[1, a] * w_in[s, 1] + Rk[2, a] * w_in[s, 2]
+                for b in range(3):
+                    M[a, b] = Rk[0, a] * R_in[s, 0, b] + Rk[1, a] * R_in[s, 1, b] + Rk[2, a] * R_in[s, 2, b]
+            _logm(M, phi)
+            for a in range(3):  # m = K_r phi + C_r (R^T w_in - W)
+                m[a] = KC[s, 2, a] * phi[a] + KC[s, 3, a] * (wb[a] - yd[i0 + 3 + a])
+                F[i0 + 3 + a] -= m[a]
+            for a in range(3):
+                loads[k, 1, a] = Rk[a, 0] * m[0] + Rk[a, 1] * m[1] + Rk[a, 2] * m[2]
+            if jac:  # dm/dTheta = -K_r T(-phi)^-1 + C_r skew(R^T w_in); J += -beta dm T + diag(C_r)
+                for a in range(3):
+                    phi[a] = -phi[a]
+                _tangent(phi, A)
+                _inv3(A, Ainv)
+                _skew(wb, S)
+                for a in range(3):
+                    for b in range(3):
+                        A[a, b] = -KC[s, 2, a] * Ainv[a, b] + KC[s, 3, a] * S[a, b]  # dm/dTheta
+                for a in range(3):
+                    pa = newton_pos[i0 + 3 + a]
+                    for b in range(3):
+                        v = -beta * (A[a, 0] * T[k, 0, b] + A[a, 1] * T[k, 1, b] + A[a, 2] * T[k, 2, b])
+                        if a == b:
+                            v += KC[s, 3, a]
+                        JT[newton_pos[i0 + 3 + b], pa] += v
+
+
+@jit
 def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, c, P0, Rn, f_load, t_load, beta, tol, max_iter, yd, p, R, F, luT, piv,
+                field_of, theta_refresh, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R, F, luT, piv,
                 lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
 
@@ -685,6 +774,7 @@ def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg,
                     R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
         _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
                   refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
+        _springs(springs, p, yd, R, T, refresh, beta, newton_pos, F, JT)
         s = 0.0
         for i in range(ny):
             s += F[i] * 0.0
@@ -783,7 +873,7 @@ def _lu_solve(luT, piv, b):
 def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
          field_of, theta_refresh, lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask,
          motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
-         xN_p, RN_p, zN_p, f_in, t_in, h, am, af, gamma, tol, max_iter,
+         xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter,
          ydw, p, R, F, luT, piv, lu_meta, info):
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
     body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
@@ -817,7 +907,7 @@ def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, g
     Rn[:N] = RN_p
     Rn[N:] = R0
     newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F, luT, piv,
+                field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv,
                 lu_meta, info)
     if info[0] != OK and info[0] != ROTATION_ALIAS:
         # one retry from the last step's rates with a fresh matrix (integrator `_step`)
@@ -827,7 +917,7 @@ def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, g
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
         newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
-                    newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, beta, tol, max_iter, ydw, p, R, F,
+                    newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F,
                     luT, piv, lu_meta, info)
         info[1] += max_iter  # the failed attempt's solves count
     if info[0] != OK:
@@ -847,14 +937,15 @@ def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, g
         yd[i] = ydw[i]
         a[i] = af_am * ydw[i] + A0[i]
     # port loads (body `_update_port_loads`) and the power of loads and gravity (`_external_power`)
+    spring_loads = springs[8]  # force, moment of compliant ports' springs (zero on other nodes)
     power = 0.0
     for n in range(N):
         for i in range(3):
-            fN[n, i] = f_in[n, i] + motion_parts[n, 0, i] * F[6 * n + i]
+            fN[n, i] = f_in[n, i] + motion_parts[n, 0, i] * F[6 * n + i] + spring_loads[n, 0, i]
             s = 0.0
             for j in range(3):
                 s += RN[n, i, j] * F[6 * n + 3 + j]
-            tN[n, i] = t_in[n, i] + motion_parts[n, 1, i] * s
+            tN[n, i] = t_in[n, i] + motion_parts[n, 1, i] * s + spring_loads[n, 1, i]
         for i in range(3):
             s = 0.0
             for j in range(3):
