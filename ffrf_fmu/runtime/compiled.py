@@ -26,7 +26,7 @@ import numpy as np
 
 from .ports import StepFailure
 
-KERNEL_TERM_SETS = ("linear", "gyroscopic")  # term sets runtime/kernel.py computes, each with or without stiffening
+KERNEL_TERM_SETS = ("linear", "gyroscopic", "full")  # term sets runtime/kernel.py computes, each with or without stiffening
 
 
 def _read_kernel_source() -> bytes | None:
@@ -110,8 +110,12 @@ class CompiledStep:
         nf = len(system._newton_idx)
         self.const = (
             1 if system.gyro else 0, f64(system.K), f64(system.M), f64(G),
-            *((1, f64(system.W1), f64(system.vk_a), f64(system.vk_B)) if system.stiffening else
-              (0, np.zeros((L.n_se, 0, 3, 3)), np.zeros((L.n_se, 0, 1)), np.zeros((L.n_se, 0, 1, 1)))),
+            # the deformation-dependent inertia (stiffening or `full`), its quadratic part, the membrane strain
+            1 if system.W1 is not None else 0,
+            f64(system.W1) if system.W1 is not None else np.zeros((L.n_se, 0, 3, 3)),
+            f64(system.W2) if system.W2 is not None else np.zeros((L.n_se, 0, 0, 3, 3)),
+            *((f64(system.vk_a), f64(system.vk_B)) if system.stiffening else
+              (np.zeros((L.n_se, 0, L.n)), np.zeros((L.n_se, 0, L.n, L.n)))),
             f64(system.mass), f64(system.J0),
             f64(system.X_B), i64(system.se_nodes), i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),

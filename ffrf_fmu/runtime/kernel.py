@@ -12,8 +12,10 @@ Jacobian blocks; the iteration matrix F_ydot + beta [F_y T, F_v] on the unknowns
 order; its LU (LAPACK getrf, the routine scipy's lu_factor calls, so the factors are identical);
 modified Newton with the factorization carried along the rotation of the first CM frame.
 
-Term sets covered: `linear`, `gyroscopic` (gyro = 1), each with or without the geometric stiffening
-of runtime/stiffening.py (stiff = 1); the spring-dampers of compliant ports (runtime/coupling.py).
+Term sets covered: `linear`, `gyroscopic` (gyro = 1), `full` (its switches: gyro, W1 possibly zero, W2
+possibly absent), each with or without the geometric stiffening of runtime/stiffening.py (stiff = 1:
+the deformation-dependent inertia W1 [W2] and, when vk_a has rows, the membrane strain); the
+spring-dampers of compliant ports (runtime/coupling.py).
 Anything else is refused by compiled.py.
 """
 from __future__ import annotations
@@ -35,11 +37,11 @@ OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS = 0, 1, 2, 3, 4
 jit = numba.njit(cache=True, nogil=True)
 
 _Work = namedtuple("_Work", "q qd g rho Q H alpha x0 W0 x0dot v vdot u c v3 v3b GW h torque Gq Gqd Gr Grd dsdq fa "
-                            "Dq Dqd dgz dgy S S2 B W0x C QC T1 Bq Nk Z Jq Jqd hs Kt eq")
+                            "Dq Dqd dgz dgy S S2 B W0x C QC T1 Bq Nk Z Jq Jqd hs Kt eq V Vd Kc HQ")
 
 
 @jit
-def _work(n, nb, nc, nv, r):
+def _work(n, nb, nc, nv, r, n2):
     """Work arrays of `_superelement` and `_jacobian`, allocated once per step."""
     ncv = nc + nv
     z3 = np.zeros
@@ -47,7 +49,8 @@ def _work(n, nb, nc, nv, r):
                  z3(nv), z3(nv), z3((nb, 3)), z3((nb, 3)), z3(3), z3(3), z3((n, n)), z3(3), z3(3), z3((3, n)),
                  z3((3, n)), z3((3, n)), z3((3, n)), z3((3, n)), z3((nb, 3)), z3((n, nc)), z3((n, nc)), z3((n, ncv)),
                  z3((n, ncv)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, 3)), z3((3, nc)),
-                 z3((r, n)), z3(r), z3((3, n)), z3((3, 3)), z3((3, 3)), z3(3), z3((n, n)), z3((3, n)))
+                 z3((r, n)), z3(r), z3((3, n)), z3((3, 3)), z3((3, 3)), z3(3), z3((n, n)), z3((3, n)), z3((n2, 3, 3)), z3((n2, 3, 3)),
+                 z3((n2, n2)), z3((3, n)))
 
 
 @jit
@@ -99,7 +102,7 @@ def _cross(a, b, out):
 
 
 @jit
-def _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, F, Fz, Fy, w):
+def _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, F, Fz, Fy, w):
     """Local residual rows F (nv + nc) of superelement e and, if jac, F_ydot (Fz) and F_y (Fy)
     (runtime/equations.py residual_and_jacobian, the same rows and columns). w: work arrays."""
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
@@ -212,7 +215,7 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nod
             torque[kk] += sd
     ex0, eT0, eeta = nv, nv + 3, nv + 6
     if stiff:  # geometric stiffening (runtime/stiffening.py elastic_force): g += f_vk(q) - f0(Omega0)
-        _stiff_force(e, W1, vk_a, vk_B, q, v[3:6], g, w)
+        _stiff_force(e, W1, W2, vk_a, vk_B, q, v[3:6], g, w)
     _cross(W0, h, w.v3)
     for i in range(3):
         F[eT0 + i] = torque[i] + w.v3[i]  # (77)
@@ -237,8 +240,9 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nod
             for j in range(3):
                 s += Q[k, i, j] * w.fa[k, j]
             F[eT0 + i] -= w.v3[i] + s
-    if stiff:  # stiffening.rotation_rows: W0 x ((W1 q) Omega0) + (W1 q) Omega0dot + (W1 qdot) Omega0
+    if stiff:  # stiffening.rotation_rows: W0 x (Jq Omega0) + Jq Omega0dot + Jqd Omega0, Jq = W1 q [+ q W2 q]
         Om, Omd = v[3:6], vdot[3:6]
+        Jq, Jqd, HQ = w.Jq, w.Jqd, w.HQ
         for a in range(3):
             for b in range(3):
                 s1 = 0.0
@@ -246,29 +250,57 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nod
                 for j in range(n):
                     s1 += q[j] * W1[e, j, a, b]
                     s2 += qd[j] * W1[e, j, a, b]
-                w.Jq[a, b] = s1
-                w.Jqd[a, b] = s2
+                Jq[a, b] = s1
+                Jqd[a, b] = s2
+            for j in range(n):
+                HQ[a, j] = w.Z[a, j]  # dh/dq = Z [+ V_j Omega0]
+        if W2.shape[1] > 0:  # V_j = sum_l q_l (W2_jl + W2_lj), Vd_j the same with qdot (deformed_inertia)
+            V, Vd = w.V, w.Vd
+            for j in range(n):
+                for a in range(3):
+                    for b in range(3):
+                        s1 = 0.0
+                        s2 = 0.0
+                        for l in range(n):
+                            wjl = W2[e, j, l, a, b] + W2[e, l, j, a, b]
+                            s1 += q[l] * wjl
+                            s2 += qd[l] * wjl
+                        V[j, a, b] = s1
+                        Vd[j, a, b] = s2
+            for a in range(3):
+                for b in range(3):
+                    s1 = 0.0
+                    s2 = 0.0
+                    for j in range(n):
+                        s1 += q[j] * V[j, a, b]
+                        s2 += qd[j] * V[j, a, b]
+                    Jq[a, b] += 0.5 * s1  # q W2 q = 1/2 sum_j q_j V_j
+                    Jqd[a, b] += s2
+                for j in range(n):
+                    s = 0.0
+                    for b in range(3):
+                        s += V[j, a, b] * Om[b]
+                    HQ[a, j] += s
         for a in range(3):
             s = 0.0
-            for j in range(n):
-                s += w.Z[a, j] * q[j]
+            for b in range(3):
+                s += Jq[a, b] * Om[b]
             w.hs[a] = s
         _cross(W0, w.hs, w.v3)
         for a in range(3):
             s = w.v3[a]
             for b in range(3):
-                s += w.Jq[a, b] * Omd[b]
-            for j in range(n):
-                s += w.Z[a, j] * qd[j]
+                s += Jq[a, b] * Omd[b] + Jqd[a, b] * Om[b]
             F[eT0 + a] += s
     if jac:
-        _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy)
+        _jacobian(e, gyro, Ke, Me, G, stiff, W1, W2, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy)
 
 
 @jit
-def _stiff_force(e, W1, vk_a, vk_B, q, Om, g, w):
-    """g += f_vk(q) - f0(Omega0) (stiffening.von_karman, deformed_inertia); keeps Bq, N = a q + sigma
-    and Z(Omega0) (Z[:, j] = W1_j Omega0) in w for the Jacobian and the rotation rows."""
+def _stiff_force(e, W1, W2, vk_a, vk_B, q, Om, g, w):
+    """g += f_vk(q) - f0(Omega0) [- Kc(Omega0) q] (stiffening.von_karman, deformed_inertia); keeps Bq,
+    N = a q + sigma, Z(Omega0) (Z[:, j] = W1_j Omega0) [and Kc] in w for the Jacobian and the rotation rows.
+    W2 (E, n, n, 3, 3), or (E, 0, 0, 3, 3) without the quadratic inertia term."""
     r, n = vk_a.shape[1], q.shape[0]
     Bq, Nk, Z = w.Bq, w.Nk, w.Z
     for k in range(r):
@@ -294,6 +326,18 @@ def _stiff_force(e, W1, vk_a, vk_B, q, Om, g, w):
             Z[a, j] = za
             s += za * Om[a]
         g[j] -= 0.5 * s
+    if W2.shape[1] > 0:  # the elastic centrifugal force -Kc(Omega0) q, Kc_jl = Omega0^T W2_jl Omega0
+        Kc = w.Kc
+        for j in range(n):
+            s = 0.0
+            for l in range(n):
+                kc = 0.0
+                for a in range(3):
+                    for b in range(3):
+                        kc += Om[a] * W2[e, j, l, a, b] * Om[b]
+                Kc[j, l] = kc
+                s += kc * q[l]
+            g[j] -= s
 
 
 @jit
@@ -310,7 +354,7 @@ def _stiff_tangent(e, vk_a, vk_B, n, w):
 
 
 @jit
-def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy):
+def _jacobian(e, gyro, Ke, Me, G, stiff, W1, W2, vk_a, vk_B, mass, Je, nb, nm, n, nc, nv, ncv, q, qd, r, rdot, g, h, W0, R0, w, Fz, Fy):
     """The local Jacobian blocks of `_superelement` (runtime/equations.py, same algebra)."""
     rho, Q, H, alpha = w.rho, w.Q, w.H, w.alpha
     Dq, Dqd, dgz, dgy = w.Dq, w.Dqd, w.dgz, w.dgy
@@ -464,9 +508,13 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc
                 for m in range(3):
                     s += W0x[i, m] * Gq[m, j]
                 Fy[eT0 + i, cr + j] += s
-    if stiff:  # d(f_vk - f0): Kt Dq on the configuration, -Z^T on the Omega0 columns
+    if stiff:  # d(f_vk - f0 [- Kc q]): (Kt [- Kc]) Dq on the configuration, -HQ^T on the Omega0 columns
         Kt = w.Kt
         _stiff_tangent(e, vk_a, vk_B, n, w)
+        if W2.shape[1] > 0:
+            for i in range(n):
+                for j in range(n):
+                    Kt[i, j] -= w.Kc[i, j]
         for i in range(n):
             for j in range(nc):
                 s = 0.0
@@ -474,7 +522,7 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc
                     s += Kt[i, m] * Dq[m, j]
                 dgy[i, j] += s
             for b in range(3):
-                dgy[i, cO0 + b] -= w.Z[b, i]
+                dgy[i, cO0 + b] -= w.HQ[b, i]
     for i in range(nm):
         for j in range(ncv):
             Fz[eeta + i, j] = dgz[6 * nb + i, j]
@@ -549,14 +597,16 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc
                     s += QC[i, m] * Q[k, j, m]
                 Fy[eT0 + i, 3 + j] += s
     if stiff:  # stiffening.rotation_rows derivatives
-        Z, Jq, Jqd, eq = w.Z, w.Jq, w.Jqd, w.eq
-        Omd = w.vdot[3:6]
+        Z, Jq, Jqd, eq = w.HQ, w.Jq, w.Jqd, w.eq  # Z: dh/dq = de/dqdot
+        Om, Omd = w.v[3:6], w.vdot[3:6]
         for a in range(3):
             for j in range(n):
                 s = 0.0
                 for b in range(3):
                     s += W1[e, j, a, b] * Omd[b]
-                eq[a, j] = s  # d((W1 q) Omd)/dq
+                    if W2.shape[1] > 0:
+                        s += w.V[j, a, b] * Omd[b] + w.Vd[j, a, b] * Om[b]
+                eq[a, j] = s  # de/dq: W1_j Omd [+ V_j Omd + Vd_j Om]
         _skew(w.hs, S)
         for i in range(3):
             for j in range(3):
@@ -580,7 +630,7 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, vk_a, vk_B, mass, Je, nb, nm, n, nc
 
 
 @jit
-def _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+def _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
               jac, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T):
     """Assembled residual F (ny) with the loads and, if jac, the iteration matrix
     J = F_ydot + beta [F_y T, F_v] on the unknowns in the Newton order, stored transposed (JT[col, row],
@@ -595,7 +645,7 @@ def _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg
             _tangent(theta[r], T[r])
     tmp = w.v3b
     for e in range(E):
-        _superelement(e, N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, Fl, Fz, Fy, w)
+        _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, p, yd, R, jac, Fl, Fz, Fy, w)
         for i in range(nv):
             F[vel[e, i]] += Fl[i]
         for i in range(nc):
@@ -731,7 +781,7 @@ def _springs(springs, p, yd, R, T, jac, beta, newton_pos, F, JT):
 
 
 @jit
-def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
                 field_of, theta_refresh, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R, F, luT, piv,
                 lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
@@ -747,7 +797,7 @@ def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg,
     N = NR - E
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
     ny, nf = yd.shape[0], newton_idx.shape[0]
-    w = _work(n, nb, nc, nv, vk_a.shape[1])
+    w = _work(n, nb, nc, nv, vk_a.shape[1], W2.shape[1])
     Fl, Fz, Fy = np.zeros(nv + nc), np.zeros((nv + nc, nc + nv)), np.zeros((nv + nc, nc + nv))
     theta, T, Rexp = np.zeros((NR, 3)), np.zeros((NR, 3, 3)), np.zeros((3, 3))
     JT = np.zeros((0, 0))  # the iteration matrix, allocated on the first refresh of the step
@@ -772,7 +822,7 @@ def newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg,
             for i in range(3):
                 for j in range(3):
                     R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
-        _evaluate(N, gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
+        _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
                   refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
         _springs(springs, p, yd, R, T, refresh, beta, newton_pos, F, JT)
         s = 0.0
@@ -870,7 +920,7 @@ def _lu_solve(luT, piv, b):
 
 
 @jit
-def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
          field_of, theta_refresh, lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask,
          motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
          xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter,
@@ -906,7 +956,7 @@ def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, g
     Rn = np.empty((N + E, 3, 3))
     Rn[:N] = RN_p
     Rn[N:] = R0
-    newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+    newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
                 field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv,
                 lu_meta, info)
     if info[0] != OK and info[0] != ROTATION_ALIAS:
@@ -916,7 +966,7 @@ def step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, g
         for i in fixed_idx:
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
-        newton_step(gyro, K, M, G, stiff, W1, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
+        newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
                     newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F,
                     luT, piv, lu_meta, info)
         info[1] += max_iter  # the failed attempt's solves count
