@@ -27,6 +27,11 @@ BLAS runs on one thread unless --blas-threads default: the target is one core, a
 OpenBLAS makes the LU of the iteration matrix (n ~ 170) hundreds of times slower when the other
 core is busy.
 
+The row `numba-run` is simulate.run's path on the numba backend: the window's steps in ONE kernel call
+(BodySystem.run_schedule), the scene's inputs evaluated and every step recorded inside the kernel;
+its step and step+record columns are the same figure (per step, recording included), best of the
+repeats of the whole window.
+
 If benchmarks/_baseline_system.py exists (a frozen copy of an earlier runtime, kept only while
 optimizing), the same figures are measured for it in the same run.
 """
@@ -171,6 +176,15 @@ def measure(make, record, body, scene, states, args):
         out["step+record"].append(
             best_per_call(lambda: (system.step(h, inputs), record(system)), args.steps, args.repeats, restore)
         )
+        if getattr(system, "backend", "numpy") == "numba":  # the many-step kernel call of simulate.run
+            schedule = sim.scene_schedule(body, scene)
+            rows, times = np.empty((args.steps, len(sim.column_names(body)))), np.empty(args.steps)
+            verified = lambda: (restore(), setattr(system._compiled, "verified", True))  # noqa: E731
+            verified()
+            system.run_schedule(h, schedule, rows[:1], times[:1])  # compiles (or loads) the run entry point
+            out.setdefault("run", []).append(
+                best_per_call(lambda: system.run_schedule(h, schedule, rows, times), 1, args.repeats, verified) / args.steps
+            )
     return out
 
 
@@ -205,6 +219,9 @@ def main(argv=None) -> int:
             mid = (body, scene, states[len(states) // 2], f"{n} SE x {modes} modes")
         rows = {label: measure(make, rec, body, scene, states, args) for label, make, rec in impls}
         base = rows["numpy"]
+        if "run" in rows["numba"]:  # simulate.run's path: chunks of steps in one kernel call, inputs and recording inside
+            rows["numba-run"] = {**rows["numba"], "step": rows["numba"]["run"], "step+record": rows["numba"]["run"]}
+            rows["numba-run"].pop("residual", None)
         for label, r in rows.items():
             step, rec = np.mean(r["step"]), np.mean(r["step+record"])
             ratio = f"  {np.mean(base['step']) / step:.1f}x, {np.mean(base['step+record']) / rec:.1f}x"

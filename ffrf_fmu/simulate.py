@@ -77,6 +77,40 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
     return inputs
 
 
+_PART_CODES = {"force": 0, "motion": 1, "compliant": 2}
+
+
+def scene_schedule(body: BodyData, scene: Scene) -> tuple:
+    """The inputs of `scene_inputs` as arrays, for the compiled run (runtime/kernel.py `run`, which
+    evaluates them at every step as scene_inputs does): per port its node, part causalities (0 force,
+    1 motion, 2 compliant), spring index among the compliant ports (-1: none), reference position,
+    drive time functions (code, parameters; -1: no drive) and direction / axis; per load its port,
+    time window, force and moment."""
+    drive_of = {d.port: d for d in scene.drives}
+    P = len(body.ports)
+    node, spring = np.zeros(P, dtype=np.int64), np.full(P, -1, dtype=np.int64)
+    mode, kind = np.zeros((P, 2), dtype=np.int64), np.full((P, 2), -1, dtype=np.int64)
+    r0, prm, axis = np.zeros((P, 3)), np.zeros((P, 2, 3)), np.zeros((P, 2, 3))
+    n_springs = 0
+    for j, p in enumerate(body.ports):
+        node[j], r0[j] = p.node, body.node_positions[p.node]
+        mode[j] = _PART_CODES[p.translation], _PART_CODES[p.rotation]
+        if "compliant" in (p.translation, p.rotation):
+            spring[j], n_springs = n_springs, n_springs + 1
+        d = drive_of.get(p.name)
+        for part, drive in ((0, d and d.translation), (1, d and d.rotation)):
+            if drive:
+                fn = drive.displacement if part == 0 else drive.angle
+                kind[j, part], prm[j, part] = drives.encode(fn.kind, dict(fn.params))
+                axis[j, part] = drive.direction if part == 0 else drive.axis
+    port_index = {p.name: j for j, p in enumerate(body.ports)}
+    loads = [ld for ld in scene.loads if ld.port in port_index]
+    load_port = np.array([port_index[ld.port] for ld in loads], dtype=np.int64)
+    load_window = np.array([[ld.t_start, ld.t_end] for ld in loads], dtype=float).reshape(-1, 2)
+    load_fm = np.array([[ld.force, ld.moment] for ld in loads], dtype=float).reshape(-1, 2, 3)
+    return node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm
+
+
 @dataclass
 class SimulationResult:
     t: np.ndarray
@@ -199,14 +233,30 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     bar = Progress(scene.duration, f"{body.name}/{scene.name}") if progress else None
     iterations = 0
     failure = None
+    # on the numba backend, after its first step (checked against numpy), chunks of steps run in one
+    # kernel call each with the scene's inputs and the recording inside (momenta, for a free body's
+    # metrics, are recorded in Python: such scenes step one by one)
+    schedule = scene_schedule(body, scene) if scene.metrics != "free" else None
     k = 0
-    for k in range(1, n_steps + 1):
+    while k < n_steps:
+        compiled = system._compiled
+        if schedule is not None and compiled is not None and compiled.verified:
+            m = min(n_steps - k, 500)  # a chunk: progress updates and a prompt return on failure
+            done, exc = system.run_schedule(scene.step, schedule, rows[k + 1 : k + 1 + m], times[k + 1 : k + 1 + m])
+            iterations += int(rows[k + 1 : k + 1 + done, -1].sum())
+            k += done
+            if exc is not None:
+                failure = str(exc)
+                break
+            if bar is not None:
+                bar.update(system.t)
+            continue
         try:
             iterations += system.step(scene.step, inputs)
         except StepFailure as exc:
             failure = str(exc)
-            k -= 1
             break
+        k += 1
         rows[k] = record(system)
         times[k] = system.t
         if scene.metrics == "free":

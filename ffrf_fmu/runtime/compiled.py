@@ -108,16 +108,18 @@ class CompiledStep:
         f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
         G = system.G if system.gyro else np.zeros((L.n_se, 3, 1, 1))  # not read by the linear set
         nf = len(system._newton_idx)
-        self.const = (
-            1 if system.gyro else 0, f64(system.K), f64(system.M), f64(G),
-            # the deformation-dependent inertia (stiffening or `full`), its quadratic part, the membrane strain
+        K, M, mass, J0, X_B, se_nodes = (f64(system.K), f64(system.M), f64(system.mass), f64(system.J0), f64(system.X_B),
+                                         i64(system.se_nodes))
+        # the deformation-dependent inertia (stiffening or `full`), its quadratic part, the membrane strain
+        inertia = (
             1 if system.W1 is not None else 0,
             f64(system.W1) if system.W1 is not None else np.zeros((L.n_se, 0, 3, 3)),
             f64(system.W2) if system.W2 is not None else np.zeros((L.n_se, 0, 0, 3, 3)),
             *((f64(system.vk_a), f64(system.vk_B)) if system.stiffening else
               (np.zeros((L.n_se, 0, L.n)), np.zeros((L.n_se, 0, L.n, L.n)))),
-            f64(system.mass), f64(system.J0),
-            f64(system.X_B), i64(system.se_nodes), i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
+        )
+        self.const = (
+            1 if system.gyro else 0, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
             i64(system._field_of), float(system.THETA_REFRESH),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
@@ -132,6 +134,11 @@ class CompiledStep:
             i64([p.rotation == "compliant" for p in ports]), np.zeros((ns, 4, 3)), np.zeros((ns, 3)), np.zeros((ns, 3)),
             np.repeat(np.eye(3)[None], ns, 0), np.zeros((ns, 3)), system._spring_loads,
         )
+        self.spring_ports = [p.name for p in ports]
+        N = L.n_nodes
+        self.inputs = (np.zeros((N, 3)), np.zeros((N, 3, 3)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros((N, 3)))
+        self.energy_data = (K, M, mass, J0, X_B, se_nodes, *inertia)
+        self.run_fn = None  # the compiled many-step entry point, once known
         self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
         self.energy = np.zeros(2)  # work, power
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
@@ -228,19 +235,58 @@ class CompiledStep:
             self.fn = self.module.step.overloads[self.module.step.signatures[0]].entry_point
         else:
             self.fn(*args)
-        status, it = int(self.info[0]), int(self.info[1])
-        m = self.lu_meta
+        failure = self._outcome(system, t1)
+        if failure is not None:
+            raise failure
+        system.t, system.iterations = t1, int(self.info[1])
+        system.work, system.power = float(self.energy[0]), float(self.energy[1])
+        return system.iterations
+
+    def _outcome(self, system, t1) -> StepFailure | None:
+        """The factorization back to the body; the failure of the step ending at t1, if it failed,
+        with the numpy path's messages."""
+        status, m = int(self.info[0]), self.lu_meta
         system._lu = (self.lu, self.piv, m[1], m[2:].reshape(3, 3).copy()) if m[0] else None
         if status == self.module.NOT_FINITE:
-            raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
+            return StepFailure(t1, "the residual is not finite (NaN or overflow)")
         if status == self.module.NOT_CONVERGED:
-            raise StepFailure(t1, f"Newton did not converge in {system.max_iter} iterations "
-                                  f"(last increment {m[1]:.3g} of the tolerance)")
+            return StepFailure(t1, f"Newton did not converge in {system.max_iter} iterations "
+                                   f"(last increment {m[1]:.3g} of the tolerance)")
         if status == self.module.ROTATION_ALIAS:
-            raise StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
-                                  "or an absurd input)")
+            return StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
+                                   "or an absurd input)")
         if status == self.module.NOT_FACTORED:
-            raise StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
-        system.t, system.iterations = t1, it
+            return StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
+        return None
+
+    def run(self, system, h, schedule, rows, times, am, af, gamma):
+        """len(rows) steps of h in ONE kernel call (runtime/kernel.py `run`), the inputs evaluated from the
+        scene's schedule (simulate.scene_schedule) and every step recorded into rows (simulate.record's
+        layout) and times. Returns (steps completed, StepFailure of the next step or None)."""
+        if not (h > 0.0 and np.isfinite(h)):
+            return 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        self._adopt(system)
+        KC = self.springs[3]
+        for i, name in enumerate(self.spring_ports):
+            KC[i] = system.compliance[name]
+        self.energy[0], self.energy[1] = system.work, system.power
+        state = tuple(self.state[k] for k in self.STATE) + (self.energy,)
+        work = (self.ydw, self.p, self.R, self.F, self.luT, self.piv, self.lu_meta, self.info)
+        args = (self.const, state, schedule, self.springs, self.inputs, self.energy_data, float(h), float(am), float(af),
+                float(gamma), float(system.tol), int(system.max_iter), work, float(system.t))
+        if self.run_fn is None:  # compile (or load from the disk cache) with no step to take
+            t0 = time.perf_counter()
+            try:
+                self.module.run(*args, rows[:0], times[:0])
+            except Exception as exc:  # a broken numba install: numpy from here on
+                system._compiled, system.backend = None, "numpy"
+                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
+                logging.getLogger("ffrf_fmu").warning(system.backend_note)
+                return 0, None
+            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
+            self.run_fn = self.module.run.overloads[self.module.run.signatures[0]].entry_point
+        done = self.run_fn(*args, rows, times)
+        if done:
+            system.t, system.iterations = float(times[done - 1]), int(rows[done - 1, -1])
         system.work, system.power = float(self.energy[0]), float(self.energy[1])
-        return it
+        return done, self._outcome(system, system.t + h) if done < len(rows) else None

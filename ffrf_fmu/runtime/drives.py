@@ -14,6 +14,16 @@ KINDS = {
     "sine": ("amplitude", "frequency_hz", "phase"),
 }
 
+CODES = {kind: i for i, kind in enumerate(KINDS)}  # the kind's number in the compiled twin (runtime/kernel.py)
+
+
+def encode(kind: str, params: dict) -> tuple[int, list[float]]:
+    """(code, parameters in KINDS order, padded to 3): a time function as the compiled kernel reads it."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown time function kind {kind!r}; known: {sorted(KINDS)}")
+    values = [float(params.get(k, 0.0)) for k in KINDS[kind]]
+    return CODES[kind], values + [0.0] * (3 - len(values))
+
 
 def evaluate(kind: str, params: dict, t: float) -> tuple[float, float, float]:
     """Return (s, ds/dt, d2s/dt2) at time t."""

@@ -113,6 +113,15 @@ class GeneralizedAlpha:
             return self._compiled.step(self, h, inputs, am, af, gamma)
         return self._step(h, inputs, am, af, gamma, commit_config=True)
 
+    def run_schedule(self, h: float, schedule: tuple, rows: np.ndarray, times: np.ndarray):
+        """len(rows) steps of h in one compiled call (backend numba only), with the inputs a scene's
+        schedule tabulates (simulate.scene_schedule) evaluated inside it and every step recorded in
+        rows (simulate.record's layout) and times. Returns (steps completed, StepFailure or None)."""
+        if self._compiled is None:
+            raise ValueError("run_schedule needs the numba backend (this body runs on numpy)")
+        am, af, gamma = self.coefficients
+        return self._compiled.run(self, h, schedule, rows, times, am, af, gamma)
+
     def newton_system(self, yd, h, values, coefficients=None, jacobian=True):
         """(F, J) restricted to the unknowns for rates yd at t + h (J = F_ydot + beta [F_y T, F_v])."""
         am, af, gamma = coefficients or self.coefficients

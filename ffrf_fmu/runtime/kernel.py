@@ -1006,3 +1006,175 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
             power += mass[e] * v[e, i] * gravity[i]
     energy[0] += 0.5 * h * (energy[1] + power)
     energy[1] = power
+
+
+# ------------------------------------------------------------------ many steps in one call
+# A standalone run whose inputs are known functions of time (a scene's drives and loads) takes its
+# steps here: the inputs evaluated and each step's output row recorded inside the compiled code, so
+# no Python runs between steps. The numpy twins: simulate.scene_inputs, BodySystem._read_inputs,
+# simulate.record (port_array, energies).
+
+
+@jit
+def _time_function(kind, prm, t, out):
+    """(s, ds/dt) of a time function into out (runtime/drives.py evaluate; kind codes drives.CODES)."""
+    if kind == 0:  # constant
+        out[0], out[1] = prm[0], 0.0
+    elif kind == 1:  # haug_spinup (omega, T)
+        w, T = prm[0], prm[1]
+        if t < T:
+            tau = t / T
+            two_pi = 2.0 * np.pi
+            out[0] = w * T * (tau**2 / 2.0 + (np.cos(two_pi * tau) - 1.0) / two_pi**2)
+            out[1] = w * (tau - np.sin(two_pi * tau) / two_pi)
+        else:
+            out[0], out[1] = w * T * (t / T - 0.5), w
+    elif kind == 2:  # ramp (rate, t_start)
+        dt = t - prm[1]
+        if dt > 0.0:
+            out[0], out[1] = prm[0] * dt, prm[0]
+        else:
+            out[0], out[1] = 0.0, 0.0
+    elif kind == 3:  # window (value, t_start, t_end)
+        out[0], out[1] = (prm[0] if prm[1] <= t < prm[2] else 0.0), 0.0
+    else:  # sine (amplitude, frequency_hz, phase)
+        w = 2.0 * np.pi * prm[1]
+        out[0], out[1] = prm[0] * np.sin(w * t + prm[2]), prm[0] * w * np.cos(w * t + prm[2])
+
+
+@jit
+def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
+    """The inputs of `step` at time t from a scene's schedule (simulate.scene_schedule): what
+    simulate.scene_inputs gives and BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
+    node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm = schedule
+    r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
+    xN_p[:] = xN
+    RN_p[:] = RN
+    zN_p[:] = 0.0
+    f_in[:] = 0.0
+    t_in[:] = 0.0
+    sv, th, Rd, wd = np.zeros(2), np.zeros(3), np.zeros((3, 3)), np.zeros(3)
+    for j in range(node.shape[0]):
+        k, s = node[j], spring[j]
+        if mode[j, 0] != 0:  # motion or the far end of a spring: r = r0 + u e, v = du e
+            sv[0], sv[1] = 0.0, 0.0
+            if kind[j, 0] >= 0:
+                _time_function(kind[j, 0], prm[j, 0], t, sv)
+            for i in range(3):
+                r, vv = r0[j, i] + sv[0] * axis[j, 0, i], sv[1] * axis[j, 0, i]
+                if mode[j, 0] == 1:
+                    xN_p[k, i], zN_p[k, i] = r, vv
+                else:
+                    r_in[s, i], v_in[s, i] = r, vv
+        if mode[j, 1] != 0:  # R = exp(phi a), w = dphi a (world)
+            sv[0], sv[1] = 0.0, 0.0
+            if kind[j, 1] >= 0:
+                _time_function(kind[j, 1], prm[j, 1], t, sv)
+            for i in range(3):
+                th[i], wd[i] = sv[0] * axis[j, 1, i], sv[1] * axis[j, 1, i]
+            _expm(th, Rd)
+            if mode[j, 1] == 1:
+                RN_p[k] = Rd
+                for i in range(3):  # body-axes rate R^T w
+                    zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
+            else:
+                R_in[s] = Rd
+                w_in[s] = wd
+    for ld in range(load_port.shape[0]):
+        if load_window[ld, 0] <= t < load_window[ld, 1]:
+            j = load_port[ld]
+            k = node[j]
+            for i in range(3):
+                if mode[j, 0] == 0:
+                    f_in[k, i] += load_fm[ld, 0, i]
+                if mode[j, 1] == 0:
+                    t_in[k, i] += load_fm[ld, 1, i]
+
+
+@jit
+def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, iterations):
+    """One row of simulate.record: per port r, R (row-major), v, w = R W, f, t (BodySystem.port_array);
+    the energies kinetic_rigid, kinetic_elastic, strain, work_external (BodySystem.energies); iterations."""
+    K, M, mass, J0, X_B, se_nodes, stiff, W1, W2, vk_a, vk_B = energy_data
+    col = 0
+    for j in range(node.shape[0]):
+        k = node[j]
+        for i in range(3):
+            row[col + i] = xN[k, i]
+            row[col + 12 + i] = yd[6 * k + i]
+            row[col + 15 + i] = RN[k, i, 0] * yd[6 * k + 3] + RN[k, i, 1] * yd[6 * k + 4] + RN[k, i, 2] * yd[6 * k + 5]
+            row[col + 18 + i] = fN[k, i]
+            row[col + 21 + i] = tN[k, i]
+            for m in range(3):
+                row[col + 3 + 3 * i + m] = RN[k, i, m]
+        col += 24
+    E, n, nb = K.shape[0], K.shape[1], X_B.shape[1]
+    nm = n - 6 * nb
+    q, Jq = np.zeros(n), np.zeros((3, 3))
+    kr, ke, st = 0.0, 0.0, 0.0
+    for e in range(E):
+        for p in range(nb):  # q_bar (89): d_P = R0^T (x_P - x0) - X_P, alpha_P = vect(R0^T R_P)
+            P = se_nodes[e, p]
+            Q = np.zeros((3, 3))
+            for i in range(3):
+                s = 0.0
+                for m in range(3):
+                    s += R0[e, m, i] * (xN[P, m] - x0[e, m])
+                    for l in range(3):
+                        Q[i, l] += R0[e, m, i] * RN[P, m, l]
+                q[6 * p + i] = s - X_B[e, p, i]
+            q[6 * p + 3] = 0.5 * (Q[2, 1] - Q[1, 2])
+            q[6 * p + 4] = 0.5 * (Q[0, 2] - Q[2, 0])
+            q[6 * p + 5] = 0.5 * (Q[1, 0] - Q[0, 1])
+        for i in range(nm):
+            q[6 * nb + i] = eta[e, i]
+        for i in range(3):
+            kr += 0.5 * mass[e] * v[e, i] * v[e, i]
+            for m in range(3):
+                kr += 0.5 * v[e, 3 + i] * J0[e, i, m] * v[e, 3 + m]
+        for i in range(n):
+            for m in range(n):
+                ke += 0.5 * v[e, 6 + i] * M[e, i, m] * v[e, 6 + m]
+                st += 0.5 * q[i] * K[e, i, m] * q[m]
+        for kk in range(vk_a.shape[1]):  # V2 = e.sigma + sigma.sigma / 2 (stiffening.von_karman)
+            ek, sk = 0.0, 0.0
+            for i in range(n):
+                ek += vk_a[e, kk, i] * q[i]
+                for m in range(n):
+                    sk += 0.5 * q[i] * vk_B[e, kk, i, m] * q[m]
+            st += (ek + 0.5 * sk) * sk
+        if stiff:  # 1/2 Omega0^T (W1 q [+ q W2 q]) Omega0 (stiffening.deformed_inertia)
+            for a in range(3):
+                for b in range(3):
+                    s = 0.0
+                    for i in range(n):
+                        s += q[i] * W1[e, i, a, b]
+                        for m in range(W2.shape[1]):
+                            s += q[i] * W2[e, i, m, a, b] * q[m]
+                    Jq[a, b] = s
+            for a in range(3):
+                for b in range(3):
+                    kr += 0.5 * v[e, 3 + a] * Jq[a, b] * v[e, 3 + b]
+    row[col], row[col + 1], row[col + 2], row[col + 3], row[col + 4] = kr, ke, st, work, iterations
+
+
+@jit
+def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, work, t, rows, times):
+    """Steps of h from time t, one per row of rows (simulate.record's layout) and times, with the
+    inputs of the scene's schedule: `step` with the inputs and the recording around it. Returns the
+    number of steps completed; a failed step leaves the state at the last completed one and its
+    status in work's info (as `step`)."""
+    xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
+        state[10], state[11], state[12]
+    xN_p, RN_p, zN_p, f_in, t_in = inputs
+    info = work[7]
+    for k in range(rows.shape[0]):
+        t1 = t + h
+        _scheduled_inputs(t1, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
+        step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, *work)
+        if info[0] != OK:
+            return k
+        t = t1
+        times[k] = t
+        _record(rows[k], schedule[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], info[1])
+    return rows.shape[0]
