@@ -411,7 +411,7 @@ class BodyCoSim:
         if msg:
             return StepReport(False, msg, status="discard")
         inputs = self.extrapolation(t_c, held)
-        saved = system.get_state()
+        saved = system.snapshot()  # the factorization shared, not copied
         worst = 0
         # n equal internal steps of at most solver.step (up to round-off in H / h). Never a sliver: a
         # step of 1e-11 s makes the iteration matrix nearly the singular F_ydot of the DAE and leaves
@@ -427,10 +427,10 @@ class BodyCoSim:
                 dst, out = self._output_values(worst)
             self._check_finite(system, out)
         except StepFailure as e:
-            system.set_state(saved)
+            system.restore(saved)
             return StepReport(False, f"t = {e.time:.6g} s: {e.cause}", status="discard")
         except Exception as e:  # noqa: BLE001 - a programming error, not a numerical failure: fmi2Error
-            system.set_state(saved)
+            system.restore(saved)
             return StepReport(False, f"t = {t_c:.6g} s: {type(e).__name__}: {e}", traceback.format_exc(),
                               status="error")
         self.last_step = LastStep(t_c, H, n, saved, self.values.copy())

@@ -175,12 +175,27 @@ class BodySystem(GeneralizedAlpha):
         """Flat copy of everything the next step depends on, the Newton iteration matrix included
         (modified Newton reuses it, so a restored state must continue with the same one to give
         bit-identical steps)."""
+        return self._flat_state(with_lu=True)
+
+    def _flat_state(self, with_lu: bool) -> np.ndarray:
         parts = [np.ravel(getattr(self, k)) for k in self._STATE_FIELDS]
-        scalars = np.array([self.t, self.work, self.power, self.iterations, self._lu is not None])
-        if self._lu is not None:
+        scalars = np.array([self.t, self.work, self.power, self.iterations, with_lu and self._lu is not None])
+        if with_lu and self._lu is not None:
             lu, piv, beta, R_ref = self._lu
             parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel()]
         return np.concatenate([scalars] + parts)
+
+    def snapshot(self):
+        """A rollback point for `restore` (an FMU's doStep): get_state without the iteration matrix,
+        copied, and the factorization by reference, which costs nothing: a factorization is never
+        modified in place (numpy's `_factor` and the kernel's refresh make new arrays)."""
+        return self._flat_state(with_lu=False), self._lu
+
+    def restore(self, snapshot) -> None:
+        """Back to a `snapshot` of this body."""
+        state, lu = snapshot
+        self.set_state(state)
+        self._lu = lu
 
     def set_state(self, state: np.ndarray) -> None:
         state = np.asarray(state, dtype=float)

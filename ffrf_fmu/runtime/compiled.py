@@ -142,9 +142,7 @@ class CompiledStep:
         self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
         self.energy = np.zeros(2)  # work, power
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
-        self.luT = np.zeros((nf, nf))
-        self.lu = self.luT.T  # Fortran-ordered view: the array scipy's lu_factor would return
-        self.piv = np.zeros(nf, dtype=np.int32)
+        self._set_lu(np.zeros((nf, nf)), np.zeros(nf, dtype=np.int32))
         self.lu_meta = np.zeros(11)
         self.info = np.zeros(2, dtype=np.int64)
         self.F = np.zeros(L.ny)
@@ -163,10 +161,14 @@ class CompiledStep:
         lu = system._lu
         if lu is None:
             self.lu_meta[0] = 0.0
-        elif lu[0] is not self.lu:  # a factorization from set_state or the numpy path: adopt it
-            self.lu[...] = lu[0]
-            self.piv[:] = lu[1]
+        elif lu[0] is not self.lu:  # a factorization from set_state, a snapshot or the numpy path: shared, not copied
+            self._set_lu(np.ascontiguousarray(lu[0].T), np.ascontiguousarray(lu[1], dtype=np.int32))
             self.lu_meta[0], self.lu_meta[1], self.lu_meta[2:] = 1.0, lu[2], np.ravel(lu[3])
+
+    def _set_lu(self, luT, piv):
+        """The factorization the kernel reads (it never writes into it: a refresh returns new arrays)."""
+        self.luT, self.piv = luT, piv
+        self.lu = luT.T  # Fortran-ordered view: the array scipy's lu_factor would return
 
     def step(self, system, h, inputs, am, af, gamma) -> int:
         """BodySystem.step on the compiled kernel; raises StepFailure with the numpy path's messages.
@@ -225,7 +227,7 @@ class CompiledStep:
         if self.fn is None:
             t0 = time.perf_counter()
             try:
-                self.module.step(*args)
+                self._set_lu(*self.module.step(*args))
             except Exception as exc:  # compilation failed (a broken numba install): numpy from here on
                 system._compiled, system.backend = None, "numpy"
                 system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
@@ -234,7 +236,7 @@ class CompiledStep:
             self.compile_seconds = time.perf_counter() - t0
             self.fn = self.module.step.overloads[self.module.step.signatures[0]].entry_point
         else:
-            self.fn(*args)
+            self._set_lu(*self.fn(*args))
         failure = self._outcome(system, t1)
         if failure is not None:
             raise failure
@@ -271,9 +273,10 @@ class CompiledStep:
             KC[i] = system.compliance[name]
         self.energy[0], self.energy[1] = system.work, system.power
         state = tuple(self.state[k] for k in self.STATE) + (self.energy,)
-        work = (self.ydw, self.p, self.R, self.F, self.luT, self.piv, self.lu_meta, self.info)
+        work = (self.ydw, self.p, self.R, self.F)
         args = (self.const, state, schedule, self.springs, self.inputs, self.energy_data, float(h), float(am), float(af),
-                float(gamma), float(system.tol), int(system.max_iter), work, float(system.t))
+                float(gamma), float(system.tol), int(system.max_iter), work, self.luT, self.piv, self.lu_meta, self.info,
+                float(system.t))
         if self.run_fn is None:  # compile (or load from the disk cache) with no step to take
             t0 = time.perf_counter()
             try:
@@ -285,7 +288,8 @@ class CompiledStep:
                 return 0, None
             self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
             self.run_fn = self.module.run.overloads[self.module.run.signatures[0]].entry_point
-        done = self.run_fn(*args, rows, times)
+        done, luT, piv = self.run_fn(*args, rows, times)
+        self._set_lu(luT, piv)
         if done:
             system.t, system.iterations = float(times[done - 1]), int(rows[done - 1, -1])
         system.work, system.power = float(self.energy[0]), float(self.energy[1])

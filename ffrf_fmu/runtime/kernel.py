@@ -789,7 +789,8 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
     predictor. Out: yd the accepted rates, p, R, F the configuration and residual there. luT, piv,
     lu_meta = [valid, beta, R_ref (9)] hold the LU of the iteration matrix across steps (transposed:
-    luT.T is scipy's lu_factor LU; piv 0-based). info = [status, iterations]; lu_meta[0] = 0 and
+    luT.T is scipy's lu_factor LU; piv 0-based); returns (luT, piv), new arrays after a refresh (the
+    arguments are only read). info = [status, iterations]; lu_meta[0] = 0 and
     a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED.
     Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted
     on the contraction estimate theta/(1 - theta) |dx|."""
@@ -831,26 +832,29 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         if s != 0.0 or s != s:  # NaN: some entry of F is not finite
             lu_meta[0] = 0.0
             info[0], info[1] = NOT_FINITE, it
-            return
+            return luT, piv
         if converged:
             break
         if it == max_iter:
             lu_meta[0], lu_meta[1] = 0.0, nrm_prev
             info[0], info[1] = NOT_CONVERGED, it
-            return
+            return luT, piv
         if refresh:
+            # factored in place of the new matrix, with new pivots: a factorization is never overwritten
+            # (a rollback snapshot shares it, BodySystem.snapshot); the next refresh builds a new matrix
             ok = True
             for i in range(nf):
                 for j in range(nf):
                     v = JT[i, j]
-                    luT[i, j] = v
                     if not (v - v == 0.0):
                         ok = False
+            luT, piv = JT, np.empty(nf, dtype=np.int32)
+            JT = np.zeros((0, 0))
             status = _getrf(_KIND, nf, nf, luT.ctypes, nf, piv.ctypes) if ok else -1
             if status != 0:
                 lu_meta[0] = 0.0
                 info[0], info[1] = NOT_FACTORED, it
-                return
+                return luT, piv
             for i in range(nf):
                 piv[i] -= 1
             lu_meta[0], lu_meta[1] = 1.0, beta
@@ -894,8 +898,9 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         if theta[r, 0] ** 2 + theta[r, 1] ** 2 + theta[r, 2] ** 2 > np.pi**2:
             lu_meta[0] = 0.0
             info[0], info[1] = ROTATION_ALIAS, it
-            return
+            return luT, piv
     info[0], info[1] = OK, it
+    return luT, piv
 
 
 @jit
@@ -928,7 +933,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
     body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
     are updated in place, and only if Newton succeeded (info[0] == OK). xN_p ... t_in: the inputs
-    read by `BodySystem._read_inputs` (current frames where no motion input)."""
+    read by `BodySystem._read_inputs` (current frames where no motion input). Returns the factorization
+    (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
     N, E, ny = xN.shape[0], x0.shape[0], yd.shape[0]
     beta = h * gamma * af / am
     # stage (integrator `_prepare_step`): a_{n+1} = (af/am) ydot + A0, p = beta ydot + P0
@@ -956,9 +962,9 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     Rn = np.empty((N + E, 3, 3))
     Rn[:N] = RN_p
     Rn[N:] = R0
-    newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv,
-                lu_meta, info)
+    luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
+                           newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p,
+                           R, F, luT, piv, lu_meta, info)
     if info[0] != OK and info[0] != ROTATION_ALIAS:
         # one retry from the last step's rates with a fresh matrix (integrator `_step`)
         for i in range(ny):
@@ -966,12 +972,12 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
         for i in fixed_idx:
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
-        newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
-                    newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F,
-                    luT, piv, lu_meta, info)
+        luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
+                               newton_idx, newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol,
+                               max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
         info[1] += max_iter  # the failed attempt's solves count
     if info[0] != OK:
-        return
+        return luT, piv
     # commit (integrator `_commit`)
     k = 0
     for arr in (xN.ravel(), x0.ravel(), eta.ravel(), v.ravel()):  # ravel of a C-contiguous array is a view
@@ -1006,6 +1012,7 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
             power += mass[e] * v[e, i] * gravity[i]
     energy[0] += 0.5 * h * (energy[1] + power)
     energy[1] = power
+    return luT, piv
 
 
 # ------------------------------------------------------------------ many steps in one call
@@ -1159,22 +1166,23 @@ def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, it
 
 
 @jit
-def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, work, t, rows, times):
+def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, work, luT, piv, lu_meta, info, t,
+        rows, times):
     """Steps of h from time t, one per row of rows (simulate.record's layout) and times, with the
     inputs of the scene's schedule: `step` with the inputs and the recording around it. Returns the
-    number of steps completed; a failed step leaves the state at the last completed one and its
-    status in work's info (as `step`)."""
+    (steps completed, luT, piv); a failed step leaves the state at the last completed one and its status
+    in info (as `step`). work = (ydw, p, R, F) of `step`."""
     xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
         state[10], state[11], state[12]
     xN_p, RN_p, zN_p, f_in, t_in = inputs
-    info = work[7]
     for k in range(rows.shape[0]):
         t1 = t + h
         _scheduled_inputs(t1, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
-        step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, *work)
+        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, *work, luT, piv,
+                        lu_meta, info)
         if info[0] != OK:
-            return k
+            return k, luT, piv
         t = t1
         times[k] = t
         _record(rows[k], schedule[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], info[1])
-    return rows.shape[0]
+    return rows.shape[0], luT, piv
