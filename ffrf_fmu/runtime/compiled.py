@@ -106,7 +106,8 @@ class CompiledStep:
         L = system.layout
         i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
         f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
-        G = system.G if system.gyro else np.zeros((L.n_se, 3, 1, 1))  # not read by the linear set
+        gyro = (module.CORIOLIS if system.coriolis else 0) | (module.COUPLING if system.coupling else 0)
+        G = system.G if gyro else np.zeros((L.n_se, 3, 1, 1))  # not read by the linear set
         nf = len(system._newton_idx)
         K, M, mass, J0, X_B, se_nodes = (f64(system.K), f64(system.M), f64(system.mass), f64(system.J0), f64(system.X_B),
                                          i64(system.se_nodes))
@@ -119,7 +120,7 @@ class CompiledStep:
               (np.zeros((L.n_se, 0, L.n)), np.zeros((L.n_se, 0, L.n, L.n)))),
         )
         self.const = (
-            1 if system.gyro else 0, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
+            gyro, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
             i64(system._field_of), float(system.THETA_REFRESH),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),

@@ -12,8 +12,8 @@ Jacobian blocks; the iteration matrix F_ydot + beta [F_y T, F_v] on the unknowns
 order; its LU (LAPACK getrf, the routine scipy's lu_factor calls, so the factors are identical);
 modified Newton with the factorization carried along the rotation of the first CM frame.
 
-Term sets covered: `linear`, `gyroscopic` (gyro = 1), `full` (its switches: gyro, W1 possibly zero, W2
-possibly absent), each with or without the geometric stiffening of runtime/stiffening.py (stiff = 1:
+Term sets covered: `linear`, `gyroscopic` (gyro = CORIOLIS | COUPLING), `full` (its switches: either part
+of gyro, W1 possibly zero, W2 possibly absent), each with or without the geometric stiffening of runtime/stiffening.py (stiff = 1:
 the deformation-dependent inertia W1 [W2] and, when vk_a has rows, the membrane strain); the
 spring-dampers of compliant ports (runtime/coupling.py).
 Anything else is refused by compiled.py.
@@ -30,6 +30,10 @@ ensure_lapack()
 _getrf = _LAPACK().numba_xxgetrf(numba.float64)  # numba's binding of LAPACK dgetrf (scipy's cython_lapack)
 _KIND = ord("d")
 _EPS = 1e-5  # runtime/rotation.py: below this angle the series of the tangent are exact to round-off
+
+# the gyroscopic terms' two parts (flag gyro, bits): the elastic Coriolis G(W0) (53) in (78)-(79), the
+# inertia coupling s = S(q) r (55) in (77) (BodySystem.coriolis, .coupling)
+CORIOLIS, COUPLING = 1, 2
 
 # status codes of `newton_step`
 OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS = 0, 1, 2, 3, 4
@@ -172,7 +176,7 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B,
         F[i] = x0dot[i] - v[i]  # (69b)
         F[3 + i] = W0[i] - v[3 + i]  # (69d)
     GW = w.GW
-    if gyro:
+    if gyro & CORIOLIS:
         for i in range(n):
             for j in range(n):
                 GW[i, j] = W0[0] * G[e, 0, i, j] + W0[1] * G[e, 1, i, j] + W0[2] * G[e, 2, i, j]
@@ -182,7 +186,7 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B,
         for j in range(n):
             s1 += Me[i, j] * (qd[j] - r[j])
             s2 += Ke[i, j] * q[j] + Me[i, j] * rdot[j]
-            if gyro:
+            if gyro & CORIOLIS:
                 s1 += GW[i, j] * q[j]
                 s2 += GW[i, j] * r[j]
         F[6 + i] = s1
@@ -196,7 +200,7 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B,
             s2 += Je[i, j] * vdot[3 + j]
         h[i] = s1
         torque[i] = s2
-    if gyro:  # s_k = r^T G_k q (55), sdot_k = rdot^T G_k q + r^T G_k qdot
+    if gyro:  # G_k q, G_k qdot; s_k = r^T G_k q (55), sdot_k = rdot^T G_k q + r^T G_k qdot
         for kk in range(3):
             for i in range(n):
                 s1 = 0.0
@@ -211,8 +215,9 @@ def _superelement(e, N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B,
             for i in range(n):
                 s += r[i] * w.Gq[kk, i]
                 sd += rdot[i] * w.Gq[kk, i] + r[i] * w.Gqd[kk, i]
-            h[kk] += s
-            torque[kk] += sd
+            if gyro & COUPLING:
+                h[kk] += s
+                torque[kk] += sd
     ex0, eT0, eeta = nv, nv + 3, nv + 6
     if stiff:  # geometric stiffening (runtime/stiffening.py elastic_force): g += f_vk(q) - f0(Omega0)
         _stiff_force(e, W1, W2, vk_a, vk_B, q, v[3:6], g, w)
@@ -469,7 +474,7 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, W2, vk_a, vk_B, mass, Je, nb, nm, n
                 Gr[kk, i] = s1
                 w.dsdq[kk, i] = s2
                 Grd[kk, i] = s3
-        for i in range(n):
+        for i in range(n if gyro & CORIOLIS else 0):
             for kk in range(3):
                 Fz[kq + i, 3 + kk] += Gq[kk, i]  # d(G(W0) q)/dW0
                 dgz[i, 3 + kk] += Gr[kk, i]
@@ -480,7 +485,8 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, W2, vk_a, vk_B, mass, Je, nb, nm, n
                 Fy[kq + i, j] += s
             for j in range(n):
                 dgy[i, cr + j] += GW[i, j]
-        # s and sdot: rows of ds/dq, ds/dr, dsdot/d...
+    if gyro & COUPLING:  # s and sdot: rows of ds/dq, ds/dr, dsdot/d...
+        GW, Gq, Gqd, Gr, Grd = w.GW, w.Gq, w.Gqd, w.Gr, w.Grd
         T1 = w.T1  # (3, nc): ds_dq Dq ; T2 = rdot^T G_k Dq ; T3 = ds_dq Dqd
         for kk in range(3):
             for j in range(nc):
