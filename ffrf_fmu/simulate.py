@@ -25,6 +25,7 @@ from .runtime.body import BodySystem
 from .fmu.variables import ENERGIES as VARIABLE_ENERGIES, field_shape, port_variables
 
 ENERGIES = tuple(VARIABLE_ENERGIES)
+assert ENERGIES == BodySystem.ENERGY_FIELDS  # the energies of BodySystem.output_row, in the variables' order
 
 
 def variable_names(port: str) -> list[str]:
@@ -190,8 +191,7 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
 
 def record(system: BodySystem) -> np.ndarray:
     """One row of the time series: every port's outputs (column_names order), energies, Newton iterations."""
-    e = system.energies()
-    return np.concatenate([system.port_array().ravel(), [e[k] for k in ENERGIES], [system.iterations]])
+    return system.output_row()
 
 
 def column_names(body: BodyData) -> list[str]:

@@ -534,8 +534,10 @@ class BodyCoSim:
                     col += ix.size
             self._output_map = (np.concatenate(dst), np.concatenate(src))
         pdst, psrc = self._output_map
-        rows = self.system.port_array()
-        energies = self.system.energies()
+        full = self.system.output_row()  # port_array raveled, the energies, iterations (the kernel's on numba)
+        n_ports, width = len(self.data.ports), BodySystem.OUTPUT_WIDTH
+        rows = full[: width * n_ports].reshape(n_ports, width)
+        energies = dict(zip(BodySystem.ENERGY_FIELDS, full[width * n_ports : width * n_ports + len(BodySystem.ENERGY_FIELDS)]))
         keys = [k for k in energies if ("energy", k) in self.index]
         dst = [pdst, *(self.index[("energy", k)] for k in keys), self.index[("solver", "newton_iterations")]]
         out = [rows.ravel()[psrc], [energies[k] for k in keys], [iterations]]

@@ -473,6 +473,8 @@ class BodySystem(GeneralizedAlpha):
 
     # ----------------------------------------------------------------- outputs
     OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")  # the columns of `port_array`, 3 or 9 each
+    OUTPUT_WIDTH = 24  # columns of `port_array` per port
+    ENERGY_FIELDS = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")  # the keys of `energies`
 
     def port_array(self) -> np.ndarray:
         """(n_ports, 24) port outputs, one row per port in data.ports order: r, R (row-major), v, w, f, t."""
@@ -481,6 +483,15 @@ class BodySystem(GeneralizedAlpha):
         R = self.RN[k]
         w = (zN[:, None, 3:6] @ np.swapaxes(R, -1, -2))[:, 0]  # R W
         return np.concatenate([self.xN[k], R.reshape(-1, 9), zN[:, 0:3], w, self.fN[k], self.tN[k]], axis=1)
+
+    def output_row(self) -> np.ndarray:
+        """One row of a time series (simulate.record's layout): port_array raveled, the energies in
+        `energies` order, the Newton iterations of the last step; on the numba backend computed by the
+        kernel (runtime/kernel.py `_record`, the compiled twin of port_array and energies)."""
+        if self._compiled is not None:
+            return self._compiled.record(self)
+        e = self.energies()
+        return np.concatenate([self.port_array().ravel(), [e[k] for k in self.ENERGY_FIELDS], [self.iterations]])
 
     def outputs(self) -> dict[str, PortValues]:
         rows = self.port_array()

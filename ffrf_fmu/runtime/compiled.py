@@ -140,6 +140,10 @@ class CompiledStep:
         self.inputs = (np.zeros((N, 3)), np.zeros((N, 3, 3)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros((N, 3)))
         self.energy_data = (K, M, mass, J0, X_B, se_nodes, *inertia)
         self.run_fn = None  # the compiled many-step entry point, once known
+        self.port_nodes = i64([p.node for p in system.data.ports])
+        # simulate.record's row: port_array raveled, the energies, iterations
+        self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
+        self.record_fn = None
         self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
         self.energy = np.zeros(2)  # work, power
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
@@ -261,6 +265,22 @@ class CompiledStep:
         if status == self.module.NOT_FACTORED:
             return StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
         return None
+
+    def record(self, system) -> np.ndarray:
+        """simulate.record's row at the current state (port_array, energies, iterations), computed by the
+        kernel's `_record` (the numpy twins: BodySystem.port_array, energies)."""
+        self._adopt(system)
+        s, row = self.state, np.empty(self.row_size)
+        args = (row, self.port_nodes, self.energy_data, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"],
+                s["fN"], s["tN"], float(system.work), int(system.iterations))
+        if self.record_fn is None:  # compiled (or loaded from the disk cache) on first use
+            t0 = time.perf_counter()
+            self.module._record(*args)
+            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
+            self.record_fn = self.module._record.overloads[self.module._record.signatures[-1]].entry_point
+        else:
+            self.record_fn(*args)
+        return row
 
     def run(self, system, h, schedule, rows, times, am, af, gamma):
         """len(rows) steps of h in ONE kernel call (runtime/kernel.py `run`), the inputs evaluated from the
