@@ -700,11 +700,14 @@ def _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes,
 
 @jit
 def _logm(M, out):
-    """Rotation vector of M (rotation.logm: angle in [0, pi], the axis from the symmetric part near pi)."""
-    cos = min(1.0, max(-1.0, 0.5 * (M[0, 0] + M[1, 1] + M[2, 2] - 1.0)))
-    t = np.arccos(cos)
+    """Rotation vector of M (rotation.logm: the angle atan2(sin t, cos t) of the skew part and the
+    trace, accurate at every angle; near pi the axis from the symmetric part)."""
     v0, v1, v2 = 0.5 * (M[2, 1] - M[1, 2]), 0.5 * (M[0, 2] - M[2, 0]), 0.5 * (M[1, 0] - M[0, 1])
-    factor = 1.0 + t * t / 6.0 if t < _EPS else t / np.sin(t)
+    cos = 0.5 * (M[0, 0] + M[1, 1] + M[2, 2]) - 0.5
+    sin = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    t = np.arctan2(sin, cos)
+    t2 = t * t
+    factor = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0 if t < 1e-2 else t / sin
     out[0], out[1], out[2] = factor * v0, factor * v1, factor * v2
     if t > np.pi - 1e-4:
         k = 0
