@@ -164,3 +164,21 @@ def test_snapshot_restore_repeats_the_steps_bit_for_bit(backend):
     for k in range(40):
         s.step(sc.step, inputs)
         np.testing.assert_array_equal(s.get_state(), first[k])
+
+
+def test_the_kernels_time_functions_are_the_drives():
+    """kernel._time_function (the drives of simulate.run's many-step kernel call) against
+    runtime/drives.py evaluate, every kind, on both sides of its switching times."""
+    from ffrf_fmu.runtime import drives
+
+    module, _ = compiled.load_kernel("linear")
+    cases = {"constant": {"value": 1.5}, "haug_spinup": {"omega": 4.0, "T": 15.0}, "ramp": {"rate": 2.0, "t_start": 0.3},
+             "window": {"value": 3.0, "t_start": 0.2, "t_end": 0.7}, "sine": {"amplitude": 0.1, "frequency_hz": 2.0, "phase": 0.4}}
+    assert set(cases) == set(drives.KINDS)
+    out = np.zeros(2)
+    for kind, params in cases.items():
+        code, prm = drives.encode(kind, params)
+        for t in (0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 14.9, 15.0, 20.0):
+            module._time_function(code, np.array(prm), t, out)
+            s, ds, _ = drives.evaluate(kind, params, t)
+            np.testing.assert_allclose(out, [s, ds], rtol=1e-14, atol=1e-15, err_msg=f"{kind} at t = {t}")
