@@ -236,7 +236,8 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     # on the numba backend, after its first step (checked against numpy), chunks of steps run in one
     # kernel call each with the scene's inputs and the recording inside (momenta, for a free body's
     # metrics, are recorded in Python: such scenes step one by one)
-    schedule = scene_schedule(body, scene) if scene.metrics != "free" else None
+    free = scene.metrics == "free"  # a free body's metrics read its momenta at every step
+    schedule = None if free else scene_schedule(body, scene)
     k = 0
     while k < n_steps:
         compiled = system._compiled
@@ -259,7 +260,7 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
         k += 1
         rows[k] = record(system)
         times[k] = system.t
-        if scene.metrics == "free":
+        if free:
             momenta.append(system.momenta())
         if bar is not None:
             bar.update(system.t)

@@ -67,6 +67,7 @@ def test_numba_backend_matches_numpy(name):
     assert fast.summary["backend"] == "numba" and ref.summary["backend"] == "numpy"
     assert ref.summary["completed"] and fast.summary["completed"]
     assert ref.summary["steps"] >= 200
+    assert set(fast.summary["metrics"]) == set(ref.summary["metrics"])  # e.g. a free body's momenta recorded on both
     np.testing.assert_array_equal(fast.columns["solver.newton_iterations"], ref.columns["solver.newton_iterations"])
     for field in KINEMATIC + LOADS:
         # the field's scale over all ports: a port that barely moves (a compliant hub) differs at the
