@@ -60,12 +60,13 @@ DATA_FILE = "body.npz"
 @dataclass(frozen=True)
 class LastStep:
     """What the directional derivatives of the last communication step need: its start, size and
-    internal steps, the body state at t_c and every variable value as set for it."""
+    internal steps, the body state at t_c (BodySystem.snapshot, for `restore`) and every variable value
+    as set for it."""
 
     t_c: float
     H: float
     n: int
-    state: np.ndarray
+    state: tuple
     values: np.ndarray
 
 
@@ -487,7 +488,7 @@ class BodyCoSim:
                         held, msg = self._held_inputs(rec.t_c, values, strict=False)
                         if msg:
                             return None, f"directional derivative: {msg}"
-                        system.set_state(rec.state)
+                        system.restore(rec.state)
                         inputs = self.extrapolation(rec.t_c, held)
                         for _ in range(rec.n):
                             system.step(rec.H / rec.n, inputs)
