@@ -1,6 +1,6 @@
 """Cost per step of geometric stiffening and of the term set `full`, as ratios to `linear` measured in
 the same run (issue 9). B1 (haug_beam spinup), 2 modes per superelement, h = 10 ms, the first 500
-steps (the spin-up, where Newton works), 1 and 4 superelements, and 1 stiffened against 8 linear; best of 3 repetitions per
+steps after one untimed step (the spin-up, where Newton works), 1 and 4 superelements, and 1 stiffened against 8 linear; best of 3 repetitions per
 configuration (CPU time of this process).
 
     python benchmarks/stiffening_cost.py
@@ -8,13 +8,10 @@ configuration (CPU time of this process).
 from __future__ import annotations
 
 import os
-import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from ffrf_fmu import simulate as sim  # noqa: E402
-from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.reduction import build_scene_body  # noqa: E402
+from _timing import cpu_per_step  # noqa: E402
 
 STEPS, REPEAT = 500, 3
 CONFIGS = {
@@ -27,17 +24,7 @@ CONFIGS = {
 
 
 def cost_per_step(overrides):
-    model = load_model("models/haug_beam.toml", overrides)
-    scene = model.scene("spinup")
-    body, _ = build_scene_body(model.body, scene)
-    best = float("inf")
-    for _ in range(REPEAT):
-        system, inputs = sim.build_system(body, scene)
-        t0 = time.process_time()
-        for _ in range(STEPS):
-            system.step(scene.step, inputs)
-        best = min(best, (time.process_time() - t0) / STEPS)
-    return best
+    return cpu_per_step("models/haug_beam.toml", "spinup", overrides, STEPS, REPEAT)
 
 
 def main():

@@ -9,31 +9,18 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from ffrf_fmu import simulate as sim  # noqa: E402
-from ffrf_fmu.model import load_model, scene_body  # noqa: E402
-from ffrf_fmu.reduction import build_body, reduction_options  # noqa: E402
+from _timing import cpu_per_step  # noqa: E402
 
 STEPS, REPEAT = 300, 3
 CONFIGS = [(1, "linear"), (2, "linear"), (4, "linear"), (8, "linear"), (1, "gyroscopic"), (1, "full"), (2, "full")]
 
 
 def cost_per_step(n_se: int, terms: str, backend: str) -> float:
-    model = load_model("models/disk_rotor.toml", [f"superelements={n_se}", f"terms={terms}"])
-    scene = model.scene("spinup")
-    body, _ = build_body(scene_body(model.body, scene), **reduction_options(scene))
-    best = float("inf")
-    for _ in range(REPEAT):
-        system, inputs = sim.build_system(body, scene, backend=backend)
-        system.step(scene.step, inputs)  # the numba kernel compiles or loads on the first step
-        t0 = time.process_time()
-        for _ in range(STEPS):
-            system.step(scene.step, inputs)
-        best = min(best, (time.process_time() - t0) / STEPS)
-    return best
+    return cpu_per_step("models/disk_rotor.toml", "spinup", [f"superelements={n_se}", f"terms={terms}"], STEPS, REPEAT,
+                        backend)
 
 
 def main():

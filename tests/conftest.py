@@ -149,3 +149,19 @@ rotation = "force"
 def small_toml():
     """small_toml(**body options of b1_beam_toml) -> the model file text of the small beam (SMALL_SCENES)."""
     return lambda **options: b1_beam_toml(SMALL_SCENES, **options)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory, small_toml):
+    """The small beam's model file (a fresh directory per test module)."""
+    path = tmp_path_factory.mktemp("small") / "small.toml"
+    path.write_text(small_toml())
+    return path
+
+
+@pytest.fixture(scope="module")
+def small_fmu(small):
+    """The small beam's FMU for its scene `spin`."""
+    from ffrf_fmu.fmu.builder import build_from_model
+
+    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin")

@@ -34,19 +34,6 @@ ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models"
 
 
-@pytest.fixture(scope="module")
-def small(tmp_path_factory, small_toml):
-    d = tmp_path_factory.mktemp("small")
-    path = d / "small.toml"
-    path.write_text(small_toml())
-    return path
-
-
-@pytest.fixture(scope="module")
-def small_fmu(small):
-    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin")
-
-
 def _inputs_at(inst: FmuInstance, values: dict, names=None):
     """Set every input of a body FMU instance from {port: PortValues}."""
     names = names or inst.names("input")

@@ -34,16 +34,8 @@ LOADS = {"tip.f[1]": 1.0, "tip.f[3]": 2.0, "tip.t[1]": 0.1}
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory, small_toml):
-    d = tmp_path_factory.mktemp("deriv")
-    path = d / "small.toml"
-    path.write_text(small_toml())
-    return path
-
-
-@pytest.fixture(scope="module")
-def fmu(small):
-    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin")
+def fmu(small_fmu):
+    return small_fmu
 
 
 def _run(inst, inputs, n):
