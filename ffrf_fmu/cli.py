@@ -265,7 +265,7 @@ def stability(args) -> int:
         try:
             sweep = st.SweepOptions(_scheduler(args), args.fresh, progress=True, log=log)
             if args.map == "spin":
-                scene = model.scene(args.scene or "spinup_fast").name
+                scene = model.scene(args.scene or st.SPIN_SCENE).name
                 s = st.SpinSettings(overrides=tuple(args.overrides))
                 if values:
                     s.omegas = values

@@ -26,7 +26,14 @@ from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 from .runtime.terms import FULL_TERMS, TERM_SETS
 
 PART_CAUSALITIES = ("motion", "force", "compliant")
-METRICS = ("haug", "spherical", "free", "")
+# metric kind -> the summary metrics it computes (simulate.metrics); "{coast_end_s}" is filled in
+METRIC_KINDS = {
+    "tip_deflection": ("tip_deflection_max_m", "tip_axial_at_max_m", "t_at_max_s", "oscillation_frequency_hz"),
+    "hub_rates": ("omega_z_at_{coast_end_s}s", "omega_y_mean_after_load", "tip_frequency_hz", "hub_rotation_vector_end",
+                  "t_end_s"),
+    "momentum": ("linear_momentum_drift_rel", "angular_momentum_drift_rel", "total_energy_drift_rel"),
+}
+OLD_METRIC_NAMES = {"haug": "tip_deflection", "spherical": "hub_rates", "free": "momentum"}
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
 
 
@@ -145,6 +152,24 @@ class Initial:
 
 
 @dataclass(frozen=True)
+class Metrics:
+    """The summary metrics of a scene ([scenes.NAME.metrics], docs/model-format.md): which kind
+    (METRIC_KINDS), the primary one (whose relative error charts report and advise budgets), and
+    the benchmark's own numbers (windows and frequency bands) that the kind needs."""
+
+    kind: str = ""  # "" (none) or a METRIC_KINDS key
+    primary: str = ""  # one of the kind's metrics, or "" (none)
+    band_hz: tuple[float, float] | None = None  # band searched for the dominant vibration frequency
+    min_window_s: float = 0.0  # the vibration fit needs at least this much time after its start
+    coast_end_s: float | None = None  # hub_rates: Omega_z averaged from the end of the hub torque to here
+
+    def names(self) -> tuple[str, ...]:
+        """The metrics this kind computes (their names)."""
+        end = f"{self.coast_end_s:g}" if self.coast_end_s is not None else "T"
+        return tuple(n.format(coast_end_s=end) for n in METRIC_KINDS.get(self.kind, ()))
+
+
+@dataclass(frozen=True)
 class Scene:
     name: str
     duration: float
@@ -156,7 +181,7 @@ class Scene:
     loads: tuple[Load, ...]
     initial: Initial
     causality: tuple[tuple[str, str, str], ...] = ()  # (port, translation, rotation) overrides
-    metrics: str = ""  # "haug" | "spherical" | "free" | "" : which summary metrics apply
+    metrics: Metrics = Metrics()  # which summary metrics apply (simulate.metrics)
     outputs: tuple[str, ...] = ()  # extra probes, e.g. "tip_from_hub"
     stiffening: bool = False  # geometric stiffening inside each superelement (docs/equations.md)
     full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in the term set `full`
@@ -231,7 +256,8 @@ SCENE_KEYS = {
     "stiffening": "true or false: geometric stiffening inside each superelement (default false)",
     "full_terms": f"an array of Witteveen's terms for terms = 'full', from {', '.join(FULL_TERMS)} (default all)",
     "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
-    "metrics": "one of haug, spherical, free or '' (default '')",
+    "metrics": f"a table [scenes.NAME.metrics] {{kind, primary, band_hz, min_window_s, coast_end_s}} or a kind "
+               f"({', '.join(METRIC_KINDS)}) (default: none)",
     "outputs": "an array of probe names '<port>_from_<port>' (eq. 92; FMU outputs probe.NAME[i]) (default [])",
     "drives": "a table of drives [scenes.NAME.drives.PORT]",
     "loads": "an array of tables [[scenes.NAME.loads]]",
@@ -247,6 +273,13 @@ LOAD_KEYS = {
     "moment": "3 numbers [N m], world axes (default [0, 0, 0])",
     "t_start": "a time [s] (default 0)",
     "t_end": "a time [s] after t_start (default inf)",
+}
+METRICS_KEYS = {
+    "kind": f"one of {', '.join(METRIC_KINDS)}",
+    "primary": "one of the kind's metrics: the one whose relative error charts report and advise budgets",
+    "band_hz": "2 frequencies 0 < low < high [Hz]: the band searched for the dominant vibration frequency",
+    "min_window_s": "a time >= 0 [s]: the vibration fit needs at least this much time after its start (default 0)",
+    "coast_end_s": "a positive time [s] (hub_rates): Omega_z is averaged from the end of the hub torque to here",
 }
 INITIAL_KEYS = {
     "velocity": "3 numbers [m/s] (default [0, 0, 0])",
@@ -502,11 +535,37 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         loads=tuple(loads),
         initial=initial,
         causality=tuple(causality),
-        metrics=r.string(t, sp, "metrics", SCENE_KEYS["metrics"], "", METRICS),
+        metrics=_metrics(r, t.get("metrics", ""), join(sp, "metrics")),
         outputs=tuple(outputs),
         stiffening=r.boolean(t, sp, "stiffening", SCENE_KEYS["stiffening"], False),
         full_terms=_full_terms(r, t, sp),
     )
+
+
+def _metrics(r: Reader, v: Any, path: str) -> Metrics:
+    """[scenes.NAME.metrics]: a table, or a kind alone (its primary metric: the first of the kind's
+    when that is the tip deflection, else none)."""
+    if isinstance(v, str) and v in OLD_METRIC_NAMES:
+        r.fail(path, f"{v!r} was a benchmark's name; write the table [{path}] with kind = "
+                     f"{OLD_METRIC_NAMES[v]!r} and the benchmark's windows and bands (docs/model-format.md)")
+    if isinstance(v, str):
+        if v and v not in METRIC_KINDS:
+            r.expected(path, SCENE_KEYS["metrics"], v)
+        return Metrics(v, "tip_deflection_max_m" if v == "tip_deflection" else "")
+    t = r.table(v, path, METRICS_KEYS, required=("kind",))
+    kind = r.string(t, path, "kind", METRICS_KEYS["kind"], choices=tuple(METRIC_KINDS))
+    band = None
+    if "band_hz" in t:
+        b = t["band_hz"]
+        if not (isinstance(b, list) and len(b) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                            for x in b) and 0 < b[0] < b[1] and math.isfinite(b[1])):
+            r.expected(join(path, "band_hz"), METRICS_KEYS["band_hz"], b)
+        band = (float(b[0]), float(b[1]))
+    m = Metrics(kind, "", band, r.real(t, path, "min_window_s", METRICS_KEYS["min_window_s"], 0.0, ok=nonnegative),
+                r.real(t, path, "coast_end_s", METRICS_KEYS["coast_end_s"], None, ok=positive)
+                if "coast_end_s" in t else None)
+    primary = r.string(t, path, "primary", METRICS_KEYS["primary"], "", m.names() + ("",))
+    return dataclasses.replace(m, primary=primary)
 
 
 def _full_terms(r: Reader, t: dict, sp: str) -> tuple[str, ...]:

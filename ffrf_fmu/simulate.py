@@ -236,7 +236,7 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     # on the numba backend, after its first step (checked against numpy), chunks of steps run in one
     # kernel call each with the scene's inputs and the recording inside (momenta, for a free body's
     # metrics, are recorded in Python: such scenes step one by one)
-    free = scene.metrics == "free"  # a free body's metrics read its momenta at every step
+    free = scene.metrics.kind == "momentum"  # these metrics read the momenta at every step
     schedule = None if free else scene_schedule(body, scene)
     k = 0
     while k < n_steps:
@@ -355,8 +355,19 @@ def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float)
 
 
 def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
-    t = result.t
-    if scene.metrics == "haug":
+    """The scene's summary metrics, by its [scenes.NAME.metrics] table (model.Metrics; the windows
+    and bands are the benchmark's, from the model file):
+
+    - tip_deflection: the maximum transverse elastic tip deflection (eq. 92, end ports), the axial
+      part and the time there; with band_hz, the tip's vibration frequency after the end of the
+      rotation drive's spin-up (its T), when the run lasts min_window_s longer;
+    - hub_rates: with coast_end_s, the mean Omega_z of the root from the end of its torque load to
+      coast_end_s; when the run lasts min_window_s past the end of the tip load: the mean Omega_y
+      after it and, with band_hz, the tip's vibration frequency; the root's final rotation vector;
+    - momentum: drifts of the linear and angular momentum and of the total energy (from `momenta`).
+    """
+    t, m = result.t, scene.metrics
+    if m.kind == "tip_deflection":
         hub, tip = end_ports(result.body)
         d = elastic_tip(result, hub, tip)
         axis = result.body.node_positions[-1] - result.body.node_positions[0]
@@ -366,34 +377,33 @@ def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
         i = int(np.argmax(transverse))
         out = {"tip_deflection_max_m": float(transverse[i]), "tip_axial_at_max_m": float(axial[i]), "t_at_max_s": float(t[i])}
         T_spin = next((dict(dr.rotation.angle.params).get("T") for dr in scene.drives if dr.rotation), None)
-        if T_spin is not None and t[-1] > T_spin + 2.0:
+        if m.band_hz and T_spin is not None and t[-1] > T_spin + m.min_window_s:
             after = t > T_spin
             signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
-            out["oscillation_frequency_hz"] = dominant_frequency(t[after], signed, 0.1, 2.0)
+            out["oscillation_frequency_hz"] = dominant_frequency(t[after], signed, *m.band_hz)
         return out
-    if scene.metrics == "spherical":
+    if m.kind == "hub_rates":
         root, tip = end_ports(result.body)
         w = result.port(root, "w")
         out = {}
         t_torque_end = max((ld.t_end for ld in scene.loads if ld.port == root), default=None)
-        if t_torque_end is not None and t[-1] >= 15.0 > t_torque_end:
-            # the paper's "rises linearly to 0.0295 rad/s" is a trend: average the 1.74 Hz vibration
-            # out over the coasting phase between the end of the torque and t = 15 s
-            coast = (t >= t_torque_end) & (t <= 15.0)
-            out["omega_z_at_15s"] = float(np.mean(w[coast, 2]))
+        if m.coast_end_s is not None and t_torque_end is not None and t[-1] >= m.coast_end_s > t_torque_end:
+            coast = (t >= t_torque_end) & (t <= m.coast_end_s)
+            out[f"omega_z_at_{m.coast_end_s:g}s"] = float(np.mean(w[coast, 2]))
         t_load_end = max((ld.t_end for ld in scene.loads if ld.port == tip), default=None)
-        if t_load_end is not None and t[-1] > t_load_end + 1.0:
+        if t_load_end is not None and t[-1] > t_load_end + m.min_window_s:
             after = t >= t_load_end
             out["omega_y_mean_after_load"] = float(np.mean(w[after, 1]))
-            d = elastic_tip(result, root, tip)
-            out["tip_frequency_hz"] = dominant_frequency(t[after], d[after, 2], 0.5, 5.0)
+            if m.band_hz:
+                d = elastic_tip(result, root, tip)
+                out["tip_frequency_hz"] = dominant_frequency(t[after], d[after, 2], *m.band_hz)
         R_end = result.port(root, "R")[-1]
         out["hub_rotation_vector_end"] = [float(x) for x in logm(R_end)]
         out["t_end_s"] = float(t[-1])
         return out
-    if scene.metrics == "free" and len(momenta) > 1:
-        p = np.array([m[0] for m in momenta])
-        h = np.array([m[1] for m in momenta])
+    if m.kind == "momentum" and len(momenta) > 1:
+        p = np.array([x[0] for x in momenta])
+        h = np.array([x[1] for x in momenta])
         return {
             "linear_momentum_drift_rel": float(np.max(np.linalg.norm(p - p[0], axis=1)) / max(np.linalg.norm(p[0]), 1e-300)),
             "angular_momentum_drift_rel": float(np.max(np.linalg.norm(h - h[0], axis=1)) / max(np.linalg.norm(h[0]), 1e-300)),
@@ -413,7 +423,7 @@ def plot(result: SimulationResult, scene: Scene, path) -> None:
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     t = result.t
     hub, tip = end_ports(result.body)
-    if scene.metrics == "spherical":
+    if scene.metrics.kind == "hub_rates":
         w = result.port(hub, "w")
         for i, c in enumerate("xyz"):
             ax1.plot(t, w[:, i], label=f"{hub} omega_{c}")

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from ffrf_fmu.model import ModelError, load_model, scene_body
+from ffrf_fmu.checked_toml import toml_text
+from ffrf_fmu.model import Metrics, ModelError, load_model, scene_body
 
 MODELS = Path(__file__).resolve().parent.parent / "models"
 
@@ -83,9 +84,40 @@ def test_bad_override_names_the_key():
 def test_minimal_model_defaults(tmp_path, minimal):
     m = load_model(write(tmp_path, minimal))
     s = m.scene()
-    assert (s.rho_inf, s.terms, s.gravity, s.metrics) == (0.8, "linear", (0.0, 0.0, 0.0), "")
+    assert (s.rho_inf, s.terms, s.gravity, s.metrics) == (0.8, "linear", (0.0, 0.0, 0.0), Metrics())
     assert m.body.name == "beam" and m.body.direction == (1.0, 0.0, 0.0)
     assert (m.body.ports[1].translation, m.body.ports[1].rotation) == ("force", "force")
+
+
+def test_metrics_table(tmp_path, minimal):
+    """[scenes.NAME.metrics]: the table, a kind alone, and a clear error for each mistake."""
+    table = minimal + '[scenes.run.metrics]\nkind = "hub_rates"\nprimary = "omega_z_at_15s"\ncoast_end_s = 15.0\n' \
+        'band_hz = [0.5, 5.0]\nmin_window_s = 1.0\n'
+    assert load_model(write(tmp_path, table)).scene().metrics == Metrics("hub_rates", "omega_z_at_15s", (0.5, 5.0), 1.0,
+                                                                          15.0)
+    alone = load_model(write(tmp_path, minimal + 'metrics = "tip_deflection"\n')).scene().metrics
+    assert alone == Metrics("tip_deflection", "tip_deflection_max_m")
+    assert "scenes.run.metrics: 'haug' was a benchmark's name; write the table [scenes.run.metrics] with kind = " \
+           "'tip_deflection'" in error(tmp_path, minimal + 'metrics = "haug"\n')
+    assert "scenes.run.metrics.primary: expected one of the kind's metrics" in error(
+        tmp_path, table.replace('primary = "omega_z_at_15s"', 'primary = "tip_deflection_max_m"'))
+    assert "scenes.run.metrics.band_hz: expected 2 frequencies 0 < low < high" in error(
+        tmp_path, table.replace("[0.5, 5.0]", "[5.0, 0.5]"))
+    assert "scenes.run.metrics.kind" in error(tmp_path, table.replace('"hub_rates"', '"rates"'))
+    assert "scenes.run.metrics.window" in error(tmp_path, table + "window = 2.0\n")
+
+
+def test_toml_text_round_trips(tmp_path, minimal):
+    """checked_toml.toml_text writes the raw tables load_model reads: the same model back."""
+    from ffrf_fmu.model import tomllib  # the standard library's, or tomli on Python 3.10
+
+    raw = tomllib.loads(minimal + '[scenes.run.metrics]\nkind = "tip_deflection"\nband_hz = [0.1, 2.0]\n'
+                        '[[scenes.run.loads]]\nport = "tip"\nforce = [0.0, 1.0, 0.0]\nt_end = 0.5\n')
+    text = toml_text(raw, "generated")
+    assert tomllib.loads(text) == raw and text.startswith("# generated\n")
+    assert load_model(write(tmp_path, text, "again.toml")).scene() == load_model(write(tmp_path, minimal + \
+        '[scenes.run.metrics]\nkind = "tip_deflection"\nband_hz = [0.1, 2.0]\n[[scenes.run.loads]]\nport = "tip"\n'
+        'force = [0.0, 1.0, 0.0]\nt_end = 0.5\n')).scene()
 
 
 def test_unreadable_file(tmp_path, minimal):

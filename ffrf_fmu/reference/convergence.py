@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Body, Drive, Initial, Port, RotationDrive, Scene, Section, TimeFunction
+from ..model import Body, Drive, Initial, Metrics, Port, RotationDrive, Scene, Section, TimeFunction
 from .solver import simulate_reference, tip_from_hub
 
 PUBLISHED = {"ODIN 16 el.": 0.5333, "Boer et al. 4 el.": 0.5388, "ODIN 4 el.": 0.5257}
@@ -48,7 +48,7 @@ def b1_scene(omega: float = 4.0, T: float = 15.0, duration: float = 20.0, step: 
     angle = TimeFunction("haug_spinup", (("T", T), ("omega", omega)))
     drive = Drive("hub", rotation=RotationDrive((0.0, 0.0, 1.0), angle))
     return Scene("b1", duration, step, rho_inf, "linear", (0.0, 0.0, 0.0), (drive,), (), Initial(),
-                 metrics="haug", outputs=("tip_from_hub",))
+                 metrics=Metrics("tip_deflection", "tip_deflection_max_m"), outputs=("tip_from_hub",))
 
 
 def b1_run(n_elements: int, step: float, m_rot: float = 22.7e-6, duration: float = 20.0, **kw):

@@ -258,7 +258,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
                      > 1e-6):
         warn.append("spin axis not normal to the beam: the stiffening law was checked for a normal axis only")
     if primary_metric(scene) is None:
-        warn.append("the scene has no primary metric (chart.primary_metric): the tolerance is read as one on the "
+        warn.append("the scene has no primary metric ([scenes.NAME.metrics] primary): the tolerance is read as one on the "
                     "elastic deflection, and --check reports the trajectory's RMS error")
     if n_se >= MAX_SUPERELEMENTS:
         warn.append(f"capped at {MAX_SUPERELEMENTS} superelements: the predicted chain error {e_n:.2%} may exceed the "

@@ -50,8 +50,6 @@ from .sweep import Scheduler, connect, parse_scheduler, run_sweep
 from .table import read_rows, write_rows
 from .task import code_version, make_task
 
-# scene.metrics -> the metric whose relative error the chart reports
-PRIMARY_METRIC = {"haug": "tip_deflection_max_m", "spherical": "omega_y_mean_after_load"}
 # the keys every row shows (resolved from the model when not swept), in label order
 SHOWN_KEYS = ("superelements", "modes", "terms", "step")
 
@@ -61,8 +59,9 @@ class ChartError(GridError):
 
 
 def primary_metric(scene) -> str | None:
-    """The metric of the scene whose relative error charts report and advise budgets, or None."""
-    return PRIMARY_METRIC.get(scene.metrics)
+    """The metric of the scene whose relative error charts report and advise budgets (its model
+    file's [scenes.NAME.metrics] primary), or None."""
+    return scene.metrics.primary or None
 
 
 def fmt_step(h: float) -> str:

@@ -9,9 +9,10 @@ and explains every boundary.
 
 - spin.py: final spin rate against (superelements, term set), and the steady-spin check;
 - integrator.py: step size against rho_inf;
-- cosim.py: communication step against coupling scheme (split.py cuts the beam in two,
-  compliant_b5.py puts the B5 shaft into the beam FMU);
-- plots.py: the figures from the tables.
+- cosim.py: communication step against coupling scheme, over the coupled systems of case.py
+  (split.py cuts the beam in two, compliant_b5.py puts the B5 shaft into the beam FMU);
+- plots.py: the figures from the tables;
+- benchmarks.py: the bundled benchmarks' scenes, ports and sweeps the maps use by default.
 
 Definitions used by every map
 -----------------------------
@@ -24,12 +25,14 @@ error     the relative error of the quantity of interest against the reference o
           (nonlinear full-order beam, converged small-step run, monolithic run); defined per map.
 """
 from .common import SweepOptions, read_map
-from .cosim import DRIVE, CosimCase, CosimRun, CosimSettings, cosim_map
-from .integrator import INTEGRATOR_DEFAULTS, IntegratorSettings, integrator_map, integrator_run
+from .case import DRIVE, CosimCase, CosimRun, CosimSettings
+from .cosim import cosim_map
+from .benchmarks import B5, INTEGRATOR_DEFAULTS, SPIN_SCENE, CoupledBeam
+from .integrator import IntegratorSettings, integrator_map, integrator_run
 from .plots import PLOTS
 from .spin import SpinSettings, reference_step, spin_map, spin_overrides, spin_scene, steady_spin
 from .split import split_models
 
-__all__ = ["SweepOptions", "read_map", "DRIVE", "CosimCase", "CosimRun", "CosimSettings", "cosim_map",
+__all__ = ["B5", "SPIN_SCENE", "CoupledBeam", "SweepOptions", "read_map", "DRIVE", "CosimCase", "CosimRun", "CosimSettings", "cosim_map",
            "INTEGRATOR_DEFAULTS", "IntegratorSettings", "integrator_map", "integrator_run", "PLOTS", "SpinSettings",
            "reference_step", "spin_map", "spin_overrides", "spin_scene", "steady_spin", "split_models"]

@@ -21,15 +21,16 @@ from pathlib import Path
 import numpy as np
 
 from ...fmu.variables import port_variables
-from .cosim import CosimRun, CosimSettings, _vec, tip_deflection
+from .case import CosimRun, CosimSettings, _vec, tip_deflection
 
 SHAFT_K = 300.0
 
 
 def beam_overrides(settings: CosimSettings, k: float = SHAFT_K, c: float = 0.0) -> list[str]:
-    return [*settings.overrides, "scenes.hub_free.causality.hub.rotation=\"compliant\"",
-            f"body.ports.hub.coupling={{ rotational_stiffness = [0.0, 0.0, {k!r}], rotational_damping = [0.0, 0.0, {c!r}] }}",
-            f"scenes.hub_free.duration={settings.duration!r}"]
+    sc, hub = settings.beam.free_scene, settings.beam.hub
+    return [*settings.overrides, f"scenes.{sc}.causality.{hub}.rotation=\"compliant\"",
+            f"body.ports.{hub}.coupling={{ rotational_stiffness = [0.0, 0.0, {k!r}], rotational_damping = [0.0, 0.0, {c!r}] }}",
+            f"scenes.{sc}.duration={settings.duration!r}"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,7 +50,7 @@ def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantB5:
     fmu_dir.mkdir(parents=True, exist_ok=True)
     body = load_model(model_path, beam_overrides(settings)).body
     e = np.asarray(body.direction, float)
-    return CompliantB5({"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene="hub_free",
+    return CompliantB5({"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene=settings.beam.free_scene,
                                                  overrides=beam_overrides(settings)),
                         "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")},
                        tuple(float(x) for x in body.length * e / np.linalg.norm(e)))

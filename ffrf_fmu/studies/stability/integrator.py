@@ -29,17 +29,6 @@ class IntegratorSettings:
     overrides: tuple[str, ...] = ()
 
 
-#: per benchmark scene: B1 spin-up halved like the spin map (T = 7.5 s, 10 s), B2 cut after 20 s
-#: (torque 0-10 s, tip load 15-15.2 s, 4.8 s of the 1.74 Hz vibration after it)
-INTEGRATOR_DEFAULTS = {
-    ("haug_beam", "spinup"): IntegratorSettings(steps=(1e-3, 2e-3, 5e-3, 0.01, 0.02, 0.05, 0.1, 0.2),
-                                                converged_step=5e-4, duration=10.0,
-                                                overrides=("scenes.spinup.drives.hub.rotation.angle.T=7.5",)),
-    ("spherical_beam", "torque_then_tip"): IntegratorSettings(steps=(5e-3, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5),
-                                                               converged_step=1e-3, duration=20.0),
-}
-
-
 def integrator_overrides(scene: str, step: float, rho: float, settings: IntegratorSettings) -> list[str]:
     ov = [*settings.overrides, f"scenes.{scene}.step={step!r}", f"scenes.{scene}.rho_inf={rho!r}"]
     if settings.duration is not None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from .common import is_true
-from .cosim import COMPLIANT, COSIM_SCHEMES, DRIVE, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE
+from .case import COSIM_SCHEMES, DRIVE
+from .cosim import COMPLIANT, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE
 
 
 def _plt():

@@ -7,17 +7,19 @@ from pathlib import Path
 from typing import Sequence
 
 from ...model import load_model, write_model
+from .benchmarks import B5
 
 SECTION_KEYS = ("EA", "GA2", "GA3", "GJ", "EI2", "EI3", "m", "m22", "m33", "m11")
 
 
 def split_models(model_path, out_dir, overrides: Sequence[str] = (), coupling: dict | None = None,
-                 scene: str = "spinup") -> tuple[Path, Path]:
+                 scene: str = B5.driven_scene, ports: tuple[str, str] = (B5.hub, B5.tip)) -> tuple[Path, Path]:
     """Two model files for the beam of `model_path` cut at its middle boundary node (its number
     of superelements must be even): A from the hub (motion-driven) to the cut (force-driven), B from
     the cut (motion-driven) to the tip (free). Same section, superelements and modes as the one
     body, so the split system has the same superelements as the one-body model; each half has one
-    scene `run` with the step, rho_inf and term set of the model's `scene`.
+    scene `run` with the step, rho_inf and term set of the model's `scene`; `ports` names the hub
+    and the tip (the halves keep those names, the cut is `cut`).
     coupling: None (rigid joint: B's cut motion-driven) or a coupling table for a compliant cut
     (docs/cosim.md, e.g. {"step": H}): A's cut compliant with it, B's cut force-driven."""
     model = load_model(model_path, overrides)
@@ -35,8 +37,8 @@ def split_models(model_path, out_dir, overrides: Sequence[str] = (), coupling: d
 
     out = []
     for name, x0, (p0, c0), (p1, c1) in (
-            ("half_a", [float(x) for x in b.origin], ("hub", "motion"), ("cut", cut_a)),
-            ("half_b", [float(o + half * e) for o, e in zip(b.origin, d)], ("cut", cut_b), ("tip", "force"))):
+            ("half_a", [float(x) for x in b.origin], (ports[0], "motion"), ("cut", cut_a)),
+            ("half_b", [float(o + half * e) for o, e in zip(b.origin, d)], ("cut", cut_b), (ports[1], "force"))):
         raw = {"body": {"name": f"{b.name}_{name}", "length": half, "origin": x0, "direction": d,
                         "superelements": b.superelements // 2,
                         "elements_per_superelement": b.elements_per_superelement, "modes": b.modes,
