@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -52,7 +51,6 @@ from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_
                           SPIN_RATIO_CHECKED, STEP_ERROR_FACTOR, STEPS_PER_DRIVE_TIME, STIFFENED_ERROR,
                           STIFFENING_SIGMA)
 from .chart import label, primary_metric
-from .store import RUNS, ResultStore
 from .task import make_task
 from .indicators import (excitation, drive_time_scale, first_frequency, free_free_frequencies, largest_step,
                          nice_step, period_error, rechain, reduced, southwell_coefficient, spin_history, step_cost,
@@ -276,8 +274,7 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
     configuration that meets the tolerance."""
     from .chart import errors, read_csv
     from .grid import value_overrides
-    from .stability.common import SweepOptions, run_tasks
-    from .sweep import Scheduler
+    from .sweep import Scheduler, SweepOptions, sweep_into
 
     model = load_model(model_path, overrides)
     scene = model.scene(scene_name)
@@ -286,11 +283,10 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
     runner = advice.indicators.get("runner", "standalone")
     ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements)
     run_task = make_task(model_path, [*overrides, *value_overrides(values)], scene.name, runner, backend)
-    stored = ResultStore(out_dir) if Path(out_dir, RUNS).exists() and not fresh else None
-    cached = stored is not None and stored.finished(ref_task.key)
     sweep = SweepOptions(scheduler or Scheduler(), fresh, progress)
-    results = run_tasks([ref_task, run_task], out_dir, f"advise --check {model.body.name}/{scene.name}",
-                        {ref_task.key: "reference", run_task.key: advice.label}, sweep)
+    outcome = sweep_into(out_dir, [ref_task, run_task], f"advise --check {model.body.name}/{scene.name}",
+                         {ref_task.key: "reference", run_task.key: advice.label}, sweep)
+    results, cached = outcome.results, ref_task.key in outcome.from_store
     ref, run = results[ref_task.key], results[run_task.key]
     if not ref["completed"]:
         raise RuntimeError(f"the reference run failed: {ref['failure']}")

@@ -43,10 +43,8 @@ import numpy as np
 from ..model import Model, load_model
 from .chart_plot import COSTS, PEER_NAMES, plot_chart
 from .grid import GridError, combinations, value_overrides
-from .progress import Bar
 from .runners import resolved
-from .store import ResultStore
-from .sweep import Scheduler, connect, parse_scheduler, run_sweep
+from .sweep import Scheduler, SweepOptions, parse_scheduler, sweep_into
 from .table import read_rows, write_rows
 from .task import code_version, make_task
 
@@ -232,32 +230,16 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements,
                          step=reference_step)
     notes = {ref_task.key: "reference", **{t.key: f"{note_of(*job)} ({job[1]})" for job, t in tasks.items()}}
-    bar = Bar(len(notes), f"chart {model.body.name}/{scene.name}") if progress else None
     t0 = time.perf_counter()
-    done, stored = 0, set()
-
-    def on_result(t, result, from_store) -> None:
-        nonlocal done
-        done += 1
-        if from_store:
-            stored.add(t.key)
-        if bar:
-            bar.update(done, notes[t.key] + (" (stored)" if from_store else ""))
-    with connect(sched) as runner:  # an unreachable scheduler fails here, before DIR is written
-        out_dir.mkdir(parents=True, exist_ok=True)
-        store = ResultStore(out_dir)  # DIR/runs.jsonl: a line per finished run; a rerun skips them
-        if fresh:
-            store.discard()
-        outcome = run_sweep([ref_task, *tasks.values()], runner, store=store, on_result=on_result)
-    if bar:
-        bar.close()
+    outcome = sweep_into(out_dir, [ref_task, *tasks.values()], f"chart {model.body.name}/{scene.name}", notes,
+                         SweepOptions(sched, fresh, progress))
     ref = outcome.results[ref_task.key]
     if not ref["completed"]:
         if ref.get("error_type") == "SetupError":  # a set-up error (mesh incompatible with the model)
             raise ChartError(ref["failure"].partition(": ")[2])
         ref = _failed_reference(ref["failure"], reference_elements, reference_step, scene)  # runs keep their costs
     else:
-        ref["cached"] = ref_task.key in stored  # from the store: not run by this chart
+        ref["cached"] = ref_task.key in outcome.from_store  # not run by this chart
     results = {job: outcome.results[t.key] for job, t in tasks.items()}
 
     metric_name = primary_metric(scene)
@@ -313,7 +295,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "failure",
                                               "energy_error", "warning")}
         | {"metrics": ref["metrics"]},
-        "code_version": code_version(), "scheduler": runner.description,
+        "code_version": code_version(), "scheduler": outcome.where,
         "runs_stored": outcome.stored, "runs_ran": outcome.ran, "runs_retried": outcome.retried,
         "failures": {f"{rows[j]['label']} ({r})": results[(i, r)].get("traceback") or rows[j]["failure"]
                      for j, (i, r) in enumerate(row_keys) if not rows[j]["completed"]},

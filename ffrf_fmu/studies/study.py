@@ -22,9 +22,7 @@ from typing import Sequence
 
 from ..model import load_model
 from .grid import GridError, combinations, value_overrides
-from .progress import Bar
-from .store import ResultStore
-from .sweep import Scheduler, connect, run_sweep
+from .sweep import Scheduler, SweepOptions, sweep_into
 from .table import read_rows, replace_text, write_rows
 from .task import code_version, make_task
 
@@ -68,27 +66,14 @@ def study(model_path, scene_name: str | None, vary: dict[str, list[str]], *, ove
         load_model(model_path, [*overrides, *value_overrides(c)]).scene(scene.name)
     tasks = [make_task(model_path, [*overrides, *value_overrides(c)], scene.name, backend=backend) for c in combos]
     out_dir = Path(out_dir)
-    bar = Bar(len({t.key for t in tasks}), f"study {model.body.name}/{scene.name}") if progress else None
-    done = 0
-
-    def on_result(t, result, from_store) -> None:
-        nonlocal done
-        done += 1
-        if bar:
-            bar.update(done, ("stored " if from_store else "") + ("ok" if result.get("completed") else "FAILED"))
-    with connect(scheduler) as runner:  # an unreachable scheduler fails here, before DIR is written
-        out_dir.mkdir(parents=True, exist_ok=True)
-        store = ResultStore(out_dir)
-        if fresh:
-            store.discard()
-        outcome = run_sweep(tasks, runner, store=store, on_result=on_result)
-    if bar:
-        bar.close()
+    outcome = sweep_into(out_dir, tasks, f"study {model.body.name}/{scene.name}",
+                         {t.key: ", ".join(f"{k}={v}" for k, v in c.items()) for c, t in zip(combos, tasks)},
+                         SweepOptions(scheduler, fresh, progress))
     rows = [row_of(c, outcome.results[t.key]) for c, t in zip(combos, tasks)]
     paths = {k: out_dir / f"study.{k}" for k in ("csv", "png", "json")}
     write_table(rows, list(vary), paths["csv"])
     meta = {"model": str(model_path), "scene": scene.name, "overrides": list(overrides), "vary": vary, "backend": backend,
-            "scheduler": runner.description, "code_version": code_version(), "runs": len(rows),
+            "scheduler": outcome.where, "code_version": code_version(), "runs": len(rows),
             "runs_stored": outcome.stored, "runs_ran": outcome.ran, "runs_retried": outcome.retried,
             "runs_failed": sum(not r["completed"] for r in rows), "cpu_count": os.cpu_count()}
     replace_text(paths["json"], json.dumps(meta, indent=2) + "\n")

@@ -205,14 +205,17 @@ def connect(scheduler: Scheduler, timeout: float = CONNECT_TIMEOUT_S):
 # ------------------------------------------------------------------------------ the sweep
 @dataclasses.dataclass
 class Outcome:
-    """results: {task key: result}; stored: runs taken from the store; ran: runs done now;
-    retried: runs tried more than once; lost: runs lost with their worker on every attempt."""
+    """results: {task key: result}; stored: runs taken from the store (their keys: from_store);
+    ran: runs done now; retried: runs tried more than once; lost: runs lost with their worker on
+    every attempt; where: the runner's description."""
 
     results: dict
     stored: int = 0
     ran: int = 0
     retried: int = 0
     lost: int = 0
+    from_store: set = dataclasses.field(default_factory=set)
+    where: str = ""
 
 
 def run_sweep(tasks: Sequence[Task], runner, *, store=None, on_result: Callable | None = None,
@@ -231,6 +234,7 @@ def run_sweep(tasks: Sequence[Task], runner, *, store=None, on_result: Callable 
             if store.finished(t.key):
                 out.results[t.key] = store.result(t.key)
                 out.stored += 1
+                out.from_store.add(t.key)
                 if on_result:
                     on_result(t, out.results[t.key], True)
     todo = [t for t in unique if t.key not in out.results]
@@ -249,3 +253,53 @@ def run_sweep(tasks: Sequence[Task], runner, *, store=None, on_result: Callable 
         if on_result:
             on_result(t, r, False)
     return out
+
+
+# ------------------------------------------------------------------------------ a sweep into a directory
+@dataclasses.dataclass(frozen=True)
+class SweepOptions:
+    """Where a study's runs go and how it reports: scheduler (default: this process), fresh
+    (discard the stored results first), progress (the bar on a terminal), log (one line per run
+    done now, e.g. print)."""
+
+    scheduler: Scheduler = Scheduler()
+    fresh: bool = False
+    progress: bool = True
+    log: Callable[[str], None] | None = None
+
+
+def sweep_into(out_dir, tasks: Sequence[Task], name: str, notes: dict[str, str], options: SweepOptions) -> Outcome:
+    """The one way a study runs its tasks: connect to the scheduler (an unreachable one fails
+    here, before out_dir is written), keep the results in out_dir's store (store.py: finished runs
+    are taken from it), show the progress bar. notes: a short text per task key for the bar and
+    the log."""
+    from pathlib import Path
+
+    from .progress import Bar
+    from .store import ResultStore
+
+    out_dir = Path(out_dir)
+    bar = Bar(len({t.key for t in tasks}), name) if options.progress else None
+    done = 0
+
+    def on_result(t, result, from_store) -> None:
+        nonlocal done
+        done += 1
+        note = notes.get(t.key, t.runner)
+        if bar:
+            bar.update(done, note + (" (stored)" if from_store else ""))
+        if options.log and not from_store:
+            status = "" if result.get("completed") else f": {result.get('failure')}"
+            options.log(f"{note}{status} ({result.get('wall_time_s') or 0.0:.0f} s)")
+
+    with connect(options.scheduler) as runner:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        store = ResultStore(out_dir)
+        if options.fresh:
+            store.discard()
+        outcome = run_sweep(list(tasks), runner, store=store, on_result=on_result)
+        outcome.where = runner.description
+    if bar:
+        bar.close()
+    return outcome
+

@@ -24,7 +24,8 @@ unstable  the run did not reach its end time in a meaningful state: the body int
 error     the relative error of the quantity of interest against the reference of the map
           (nonlinear full-order beam, converged small-step run, monolithic run); defined per map.
 """
-from .common import SweepOptions, read_map
+from ..sweep import SweepOptions
+from .common import read_map
 from .case import DRIVE, CosimCase, CosimRun, CosimSettings
 from .cosim import cosim_map
 from .benchmarks import B5, INTEGRATOR_DEFAULTS, SPIN_SCENE, CoupledBeam

@@ -22,10 +22,11 @@ from typing import Sequence
 
 import numpy as np
 
+from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
 from .benchmarks import CoupledBeam
 from .case import COSIM_SCHEMES, RUN_SETTINGS, CosimCase, CosimRun, CosimSettings
-from .common import SweepOptions, run_tasks, write_map
+from .common import write_map
 
 IMPLICIT = ("gauss-seidel implicit", "gauss-seidel", False, "fwd")
 #: motor case with the shaft in the beam's compliant hub (compliant_b5.py, docs/cosim.md)
@@ -141,7 +142,7 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
                     continue
                 runs.append((kind, H, H_ref, label, t := task(kind, H, label)))
                 notes[t.key] = f"{kind} H = {H:g} s {label}"
-    results = run_tasks([*refs.values(), *(r[-1] for r in runs)], out_dir, "co-simulation map", notes, sweep)
+    results = sweep_into(out_dir, [*refs.values(), *(r[-1] for r in runs)], "co-simulation map", notes, sweep).results
     rows, series = [], {}
     for (kind, H_ref), t in refs.items():
         r = results[t.key]

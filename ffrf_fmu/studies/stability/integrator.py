@@ -10,8 +10,9 @@ import numpy as np
 
 from ...model import Model, load_model
 from ..runners import BeamRun, beam_run_of, run_beam
+from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
-from .common import SweepOptions, run_tasks, write_map
+from .common import write_map
 
 RHO_INFS = (0.0, 0.5, 0.8, 1.0)
 ENERGY_GROWTH = 0.05  # unstable: the integrator created more than 5 % of the energy level
@@ -54,7 +55,7 @@ def integrator_map(model_path, scene: str, settings: IntegratorSettings, out_dir
              for rho in s.rhos for h in s.steps}
     notes = {conv_task.key: f"{name}/{scene}: converged run h = {s.converged_step:g} s",
              **{t.key: f"{name}/{scene} h = {h:g} s rho_inf {rho:g}" for (rho, h), t in tasks.items()}}
-    results = run_tasks([conv_task, *tasks.values()], out_dir, f"integrator map {name}/{scene}", notes, sweep)
+    results = sweep_into(out_dir, [conv_task, *tasks.values()], f"integrator map {name}/{scene}", notes, sweep).results
     c = results[conv_task.key]
     if not c.get("completed"):
         raise RuntimeError(f"{name}/{scene}: the converged run failed: {c['failure']}")

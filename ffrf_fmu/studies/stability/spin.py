@@ -18,8 +18,9 @@ import numpy as np
 from ...model import Model, Scene, load_model
 from ...reference.solver import ENERGY_ERROR_SUSPECT
 from ..runners import beam_run_of, run_beam, transverse
+from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
-from .common import SweepOptions, run_tasks, write_map
+from .common import write_map
 
 SPIN_RATES = (1.0, 2.0, 2.5, 3.0, 3.5, 4.0, 6.0, 8.0, 10.0, 12.0)
 SPIN_MODELS = tuple((n, terms) for terms in ("linear", "gyroscopic") for n in (1, 2, 4))
@@ -71,7 +72,7 @@ def spin_map(model_path, scene: str, settings: SpinSettings, out_dir, sweep: Swe
     """Sweep the final spin rate against (superelements, term set); one CSV row per run:
     max transverse tip deflection of the model and of the nonlinear reference, the relative
     error, and `unstable` (StepFailure or deflection > L). The runs go through the sweep layer
-    (common.run_tasks): a rerun takes the finished ones from DIR's store."""
+    (sweep.sweep_into): a rerun takes the finished ones from DIR's store."""
     s = settings
     ref_tasks, model_tasks, notes = {}, {}, {}
     for omega in s.omegas:
@@ -83,7 +84,7 @@ def spin_map(model_path, scene: str, settings: SpinSettings, out_dir, sweep: Swe
             ov = spin_overrides(scene, omega, T=s.T, duration=s.duration, n_se=n_se, terms=terms, extra=s.overrides)
             model_tasks[omega, n_se, terms] = t = make_task(model_path, ov, scene, "beam", record_every=RECORD_EVERY)
             notes[t.key] = f"omega {omega:g}: {n_se}SE-{terms}"
-    results = run_tasks([*ref_tasks.values(), *model_tasks.values()], out_dir, f"spin map {scene}", notes, sweep)
+    results = sweep_into(out_dir, [*ref_tasks.values(), *model_tasks.values()], f"spin map {scene}", notes, sweep).results
     from ..advise import first_frequency
 
     model = load_model(model_path, list(s.overrides))
