@@ -178,3 +178,23 @@ def test_killed_dask_worker_is_retried(tmp_path):
     assert out.results[tasks[1].key]["pid"] != killed[0]
     here = sw.InProcess().run([tasks[1]], 0).__next__()[1]
     assert out.results[tasks[1].key]["metrics"]["tip_deflection_max_m"] == here["metrics"]["tip_deflection_max_m"]
+
+
+def test_pool_workers_skip_the_pythonfmu_of_an_fmu_run_here(tmp_path):
+    """An FMU run in this process leaves its resources directory, with pythonfmu's copy inside, on
+    sys.path, which spawned workers inherit. A worker must not import that copy (it has no FMU
+    binaries: the FMUs it built could not be loaded). Here the copy raises on import: the FMU
+    runner on a two-process pool still builds and runs B1's FMU over 40 ms."""
+    fmu_resources = tmp_path / "resources"
+    (fmu_resources / "pythonfmu").mkdir(parents=True)
+    (fmu_resources / "slavemodule.txt").write_text("ffrf_slave_x\n")
+    (fmu_resources / "pythonfmu" / "__init__.py").write_text("raise ImportError('the copy inside an FMU')\n")
+    sys.path.insert(0, str(fmu_resources))
+    try:
+        task = make_task(B1, [*LEAN, "duration=0.04"], "spinup", "fmu")
+        out = sw.run_sweep([task, make_task(B1, [*LEAN, "duration=0.02"], "spinup", "fmu")], sw.Pool(2, "spawn"))
+    finally:
+        sys.path.remove(str(fmu_resources))
+    assert all(r["completed"] for r in out.results.values()), [r.get("failure") for r in out.results.values()]
+    assert out.results[task.key]["t_end_s"] == pytest.approx(0.04)
+

@@ -20,7 +20,9 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import multiprocessing
 import os
+import sys
 import tempfile
 import traceback
 from functools import lru_cache
@@ -86,6 +88,8 @@ def code_version() -> str:
 def execute(task: Task) -> dict:
     """Run one task in this process. Never raises for a run that fails: the result says why
     (`completed` False, `failure`, `traceback`). Always carries `key` and `code_version`."""
+    if multiprocessing.parent_process() is not None:  # a worker process (pool or dask)
+        forget_fmu_resources()
     out: dict[str, Any] = {"completed": False, "failure": None}
     try:
         with tempfile.TemporaryDirectory(prefix="ffrf_task_") as tmp:
@@ -99,6 +103,16 @@ def execute(task: Task) -> dict:
     out["code_version"] = code_version()
     out["pid"] = os.getpid()
     return out
+
+
+def forget_fmu_resources() -> None:
+    """Drop from sys.path the resources directories of FMUs (they hold pythonfmu's slavemodule.txt).
+
+    A worker started by multiprocessing inherits its parent's sys.path, and pythonfmu's loader puts
+    the resources directory of every FMU the parent ran in-process there. Such a directory carries
+    its own copy of pythonfmu, without the FMU binaries: imported first, it builds FMUs without
+    them (fmpy then fails: "Cannot find shared library"). A worker runs no FMU of its parent's."""
+    sys.path[:] = [p for p in sys.path if not os.path.isfile(os.path.join(p or ".", "slavemodule.txt"))]
 
 
 def _run(task: Task, model_path: str) -> dict:
