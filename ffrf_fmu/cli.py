@@ -274,8 +274,8 @@ def stability(args) -> int:
                 st.spin_map(args.model, scene, s, out, sweep)
             elif args.map == "integrator":
                 scene = model.scene(args.scene).name
-                s = dataclasses.replace(st.INTEGRATOR_DEFAULTS.get((model.body.name, scene), st.IntegratorSettings(
-                    steps=(model.scene(scene).step * k for k in (0.5, 1, 2, 5, 10)))))
+                s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS.get(
+                    (model.body.name, scene), {"steps": tuple(model.scene(scene).step * k for k in (0.5, 1, 2, 5, 10))}))
                 s.steps, s.overrides = tuple(s.steps), (*s.overrides, *args.overrides)
                 if values:
                     s.steps = values

@@ -82,8 +82,6 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 # names its runner, which lives in the map's module.
 KNOWN_DEFERRED_CIRCLES = [
     ["ffrf_fmu.invariants", "ffrf_fmu.reduction"],
-    ["ffrf_fmu.studies.stability.common", "ffrf_fmu.studies.stability.compliant_b5", "ffrf_fmu.studies.stability.cosim",
-     "ffrf_fmu.studies.sweep", "ffrf_fmu.studies.task"],
 ]
 
 

@@ -264,7 +264,7 @@ def test_b1_newton_fails_between_50_and_100_ms():
     Newton (per-field convergence, refresh when 3 more iterations would not do; before, Newton
     failed at t = 4.4 s), max deflection 0.96 % above the converged run (bound 1.5 %: the error is
     the step's, second order); h = 100 ms loses Newton convergence at t = 6.7 s."""
-    s = st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")]
+    s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")])
     ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(10.0)
     assert ok.max_deflection == pytest.approx(1.1014, rel=2e-3)  # converged (h = 0.5 ms): 1.10140 m
@@ -278,7 +278,7 @@ def test_b2_trapezoidal_rule_fails_at_200_ms_where_dissipation_survives():
     """B2 (20 s): at h = 0.2 s the trapezoidal rule (rho_inf = 1) loses Newton convergence after
     the tip load (t = 17.2 s before issue 10's Newton changes, 19.4 s after) while rho_inf = 0.8 damps
     the unresolved modes and runs through."""
-    s = st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")]
+    s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")])
     ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(20.0)
     bad, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 1.0, s)

@@ -12,7 +12,7 @@ version than its own (sweep.py).
 Runners (RUNNERS): `standalone` (simulate.run) and `fmu` (the body's FMU under fmpy) through
 runners.run_configuration; `reference` (the full-order beam, runners.run_reference; options
 elements, step); `beam` (runners.run_beam, the stability maps' standalone run; option
-record_every); `cosim` (a coupled run of the co-simulation map, stability/cosim.py; options case,
+record_every); `cosim` (a coupled run of the co-simulation map, stability/tasks.py; options case,
 H, scheme, settings); `peer:NAME` (ffrf_fmu.peers; options elements, step).
 """
 from __future__ import annotations
@@ -133,7 +133,7 @@ def _run(task: Task, model_path: str) -> dict:
         model = load_model(model_path, list(task.overrides))
         return run_beam(model, model.scene(task.scene), **opts).as_result()
     if task.runner == "cosim":
-        from .stability.cosim import run_task
+        from .stability.tasks import run_task
 
         return run_task(model_path, list(task.overrides), opts)
     if task.runner.startswith("peer:"):

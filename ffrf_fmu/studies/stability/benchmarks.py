@@ -10,21 +10,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .integrator import IntegratorSettings
-
 #: B3: the spin map's default scene (models/haug_beam.toml: the Wu-Haug spin-up whose final rate
 #: the map sweeps, drive port "hub", rotation.angle parameters omega and T)
 SPIN_SCENE = "spinup_fast"
 
-#: the integrator map's sweep per (body, scene): B1 spin-up halved like the spin map (T = 7.5 s,
-#: 10 s), B2 cut after 20 s (torque 0-10 s, tip load 15-15.2 s, 4.8 s of the 1.74 Hz vibration after
-#: it); converged steps 0.5 ms and 1 ms (docs/stability.md, section 2)
+#: the integrator map's sweep per (body, scene), integrator.IntegratorSettings keywords: B1 spin-up
+#: halved like the spin map (T = 7.5 s, 10 s), B2 cut after 20 s (torque 0-10 s, tip load 15-15.2 s,
+#: 4.8 s of the 1.74 Hz vibration after it); converged steps 0.5 ms and 1 ms (docs/stability.md, section 2)
 INTEGRATOR_DEFAULTS = {
-    ("haug_beam", "spinup"): IntegratorSettings(steps=(1e-3, 2e-3, 5e-3, 0.01, 0.02, 0.05, 0.1, 0.2),
-                                                converged_step=5e-4, duration=10.0,
-                                                overrides=("scenes.spinup.drives.hub.rotation.angle.T=7.5",)),
-    ("spherical_beam", "torque_then_tip"): IntegratorSettings(steps=(5e-3, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5),
-                                                               converged_step=1e-3, duration=20.0),
+    ("haug_beam", "spinup"): dict(steps=(1e-3, 2e-3, 5e-3, 0.01, 0.02, 0.05, 0.1, 0.2), converged_step=5e-4,
+                                  duration=10.0, overrides=("scenes.spinup.drives.hub.rotation.angle.T=7.5",)),
+    ("spherical_beam", "torque_then_tip"): dict(steps=(5e-3, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5), converged_step=1e-3,
+                                                duration=20.0),
 }
 
 

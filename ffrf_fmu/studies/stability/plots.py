@@ -5,7 +5,7 @@ import numpy as np
 
 from .common import is_true
 from .case import COSIM_SCHEMES, DRIVE
-from .cosim import COMPLIANT, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE
+from .tasks import COMPLIANT, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE
 
 
 def _plt():
