@@ -10,7 +10,8 @@ and explains every boundary.
 - spin.py: final spin rate against (superelements, term set), and the steady-spin check;
 - integrator.py: step size against rho_inf;
 - cosim.py: communication step against coupling scheme, over the coupled systems of case.py
-  (split.py cuts the beam in two, compliant_b5.py puts the B5 shaft into the beam FMU);
+  (split.py cuts the beam in two, compliant_b5.py puts the B5 shaft into the beam FMU; tasks.py
+  is what a worker runs of it);
 - plots.py: the figures from the tables;
 - benchmarks.py: the bundled benchmarks' scenes, ports and sweeps the maps use by default.
 
