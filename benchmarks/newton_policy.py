@@ -1,14 +1,16 @@
 """Newton on B1 (Haug's rotating beam spin-up): iterations and factorizations per step against the
-step size and the Jacobian-reuse threshold (runtime/integrator.py THETA_REFRESH).
+step size and the Jacobian-reuse rules (runtime/integrator.py THETA_REFRESH, REFRESH_AFTER).
 
     python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
-                                       [--duration 20]
+                                       [--refresh-after 2:3] [--duration 20]
 
 Each run is the whole scene on the numpy backend (the numba backend makes the same decisions):
-Newton iterations (solves) per step, factorizations of the iteration matrix per step, and the
-failure if Newton gave up. The threshold is the contraction theta of successive increments beyond
-which the stored factorization is dropped (modified Newton keeps it otherwise; theta = 0 would be
-full Newton). Iteration counts, not times: they do not depend on the machine.
+Newton iterations (residual evaluations, each with one solve) per step, factorizations of the
+iteration matrix per step, and the failure if Newton gave up. The threshold is the contraction theta
+of successive increments beyond which the stored factorization is dropped within a step (modified
+Newton keeps it otherwise; theta = 0 would be full Newton); REFRESH_AFTER = lo:hi drops it before a
+step that follows one of lo to hi iterations. Iteration counts, not times: they do not depend on the
+machine (benchmarks/newton_iterations.py measures times, against a baseline revision).
 """
 from __future__ import annotations
 
@@ -33,12 +35,13 @@ from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 MODEL = HERE.parent / "models" / "haug_beam.toml"
 
 
-def run(h: float, n_se: int, modes: int, theta: float, duration: float):
+def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float):
     model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
     scene = model.scene("spinup")
     body, _ = build_body(model.body)
     system, inputs = sim.build_system(body, scene)
-    system.THETA_REFRESH = theta  # an instance attribute: this body only
+    system.THETA_REFRESH = theta  # instance attributes: this body only (the numpy path reads them per step)
+    system.REFRESH_AFTER = refresh_after
     factorizations = [0]
     factor = system._factor
 
@@ -63,16 +66,17 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", default="0.002,0.02,0.05")
     ap.add_argument("--configs", default="1x2,4x2", help="superelements x modes")
     ap.add_argument("--thetas", default="0.1,0.25,0.5,0.9")
+    ap.add_argument("--refresh-after", default="2:3")
     ap.add_argument("--duration", type=float, default=20.0)
     args = ap.parse_args(argv)
-    print(f"B1 spin-up, {args.duration:g} s; Newton iterations / factorizations per step")
+    print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}; Newton iterations / factorizations per step")
     print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{'theta ' + t:>17}" for t in args.thetas.split(",")))
     for h in (float(x) for x in args.steps.split(",")):
         for cfg in args.configs.split(","):
             n_se, modes = (int(v) for v in cfg.split("x"))
             cells, notes = [], []
             for theta in (float(t) for t in args.thetas.split(",")):
-                it, fac, failure = run(h, n_se, modes, theta, args.duration)
+                it, fac, failure = run(h, n_se, modes, theta, tuple(int(k) for k in args.refresh_after.split(":")), args.duration)
                 cells.append(f"{it:8.2f} / {fac:5.2f}{'*' if failure else ' '}")
                 if failure:
                     notes.append(f"theta {theta:g}: {failure}")

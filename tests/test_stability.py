@@ -258,31 +258,37 @@ def test_spin_map_row_on_the_pool_equals_the_direct_run(tmp_path):
 
 # ------------------------------------------------------------------------------------ integrator map
 
-def test_b1_newton_fails_between_50_and_100_ms():
+def test_b1_newton_fails_between_100_and_200_ms():
     """B1 as in the map (T = 7.5 s, 10 s, rho_inf 0.8): h = 20 ms runs through (max deflection
     within 0.2 % of the converged run, measured 0.15 %); h = 50 ms runs through since issue 10's
     Newton (per-field convergence, refresh when 3 more iterations would not do; before, Newton
     failed at t = 4.4 s), max deflection 0.96 % above the converged run (bound 1.5 %: the error is
-    the step's, second order); h = 100 ms loses Newton convergence at t = 6.7 s."""
+    the step's, second order); h = 100 ms runs through since issue 10 item 2 (co-rotated predictor,
+    matrix rebuilt at the predictor; before, Newton failed at t = 6.7 s), max deflection 4.0 % above
+    (bound 5 %); h = 200 ms loses Newton convergence at t = 5 s."""
     s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")])
     ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(10.0)
     assert ok.max_deflection == pytest.approx(1.1014, rel=2e-3)  # converged (h = 0.5 ms): 1.10140 m
     coarse, _ = st.integrator_run(HAUG, "spinup", 0.05, 0.8, s)
     assert coarse.completed and coarse.max_deflection == pytest.approx(1.1014, rel=1.5e-2)
-    bad, _ = st.integrator_run(HAUG, "spinup", 0.1, 0.8, s)
-    assert bad.unstable and "Newton" in bad.failure and 5.0 < bad.t[-1] < 8.0
+    coarser, _ = st.integrator_run(HAUG, "spinup", 0.1, 0.8, s)
+    assert coarser.completed and coarser.max_deflection == pytest.approx(1.1014, rel=5e-2)
+    bad, _ = st.integrator_run(HAUG, "spinup", 0.2, 0.8, s)
+    assert bad.unstable and "Newton" in bad.failure and 4.0 < bad.t[-1] < 6.0
 
 
-def test_b2_trapezoidal_rule_fails_at_200_ms_where_dissipation_survives():
-    """B2 (20 s): at h = 0.2 s the trapezoidal rule (rho_inf = 1) loses Newton convergence after
-    the tip load (t = 17.2 s before issue 10's Newton changes, 19.4 s after) while rho_inf = 0.8 damps
-    the unresolved modes and runs through."""
+def test_b2_runs_through_at_200_ms_and_fails_at_500_ms():
+    """B2 (20 s): at h = 0.2 s both rho_inf = 0.8 and the trapezoidal rule (rho_inf = 1) run through
+    (the trapezoidal rule lost Newton convergence after the tip load before issue 10 item 2: at
+    t = 17.2 s before issue 10, 19.4 s after its first Newton changes); at h = 0.5 s, one step longer
+    than the 0.2 s tip-load window, both lose it after the load (t = 16 s)."""
     s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")])
-    ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 0.8, s)
-    assert ok.completed and ok.t[-1] == pytest.approx(20.0)
-    bad, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 1.0, s)
-    assert bad.unstable and "Newton" in bad.failure and 15.2 < bad.t[-1] < 20.0
+    for rho_inf in (0.8, 1.0):
+        ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, rho_inf, s)
+        assert ok.completed and ok.t[-1] == pytest.approx(20.0)
+        bad, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.5, rho_inf, s)
+        assert bad.unstable and "Newton" in bad.failure and 15.0 < bad.t[-1] < 17.0
 
 
 # ------------------------------------------------------------------------------------ established engine
@@ -342,12 +348,12 @@ def test_motor_gauss_seidel_with_extrapolation_boundary_between_2_and_10_ms(moto
 
 
 def test_motor_implicit_coupling_is_stable_where_explicit_jacobi_is_not(motor, motor_monolithic):
-    """At H = 40 ms explicit Jacobi with extrapolation diverges within 2.2 s; implicit
+    """At H = 40 ms explicit Jacobi with extrapolation diverges within 2.4 s; implicit
     Gauss-Seidel (rollback, IQN-ILS) runs through. 3 s: past the explicit failure. Its error is
     the 40 ms sampling of the coupled signals: map 0.95 % from the monolithic run over 10 s,
     measured 0.945 % over these 3 s; bound 1.1 %."""
-    bad = motor.run(0.04, "jacobi", extrapolation=True, duration=3.0)
-    assert "Newton" in bad.stopped_early and bad.t[-1] < 3.0
+    bad = motor.run(0.04, "jacobi", extrapolation=True, duration=3.0)  # the body's step fails: Newton, or
+    assert ("Newton" in bad.stopped_early or "exceeds pi" in bad.stopped_early) and bad.t[-1] < 3.0  # an alias root
     ok = motor.run(0.04, "gauss-seidel", iterations=50, duration=3.0)
     assert ok.stopped_early == ""
     assert _deflection_error(ok, motor_monolithic) < 0.011

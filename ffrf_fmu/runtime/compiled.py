@@ -122,7 +122,7 @@ class CompiledStep:
         self.const = (
             gyro, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
-            i64(system._field_of), float(system.THETA_REFRESH),
+            i64(system._field_of), float(system.THETA_REFRESH), *(int(k) for k in system.REFRESH_AFTER), i64(system._world_idx),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
             i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
         )
@@ -227,7 +227,7 @@ class CompiledStep:
         self.energy[0], self.energy[1] = system.work, system.power
         args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["yd_prev2"], s["a"],
                 s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, self.springs, float(h), float(am), float(af),
-                float(gamma), float(system.tol), int(system.max_iter), self.ydw, self.p, self.R, self.F, self.luT,
+                float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), self.ydw, self.p, self.R, self.F, self.luT,
                 self.piv, self.lu_meta, self.info)
         if self.fn is None:
             t0 = time.perf_counter()
@@ -296,7 +296,7 @@ class CompiledStep:
         state = tuple(self.state[k] for k in self.STATE) + (self.energy,)
         work = (self.ydw, self.p, self.R, self.F)
         args = (self.const, state, schedule, self.springs, self.inputs, self.energy_data, float(h), float(am), float(af),
-                float(gamma), float(system.tol), int(system.max_iter), work, self.luT, self.piv, self.lu_meta, self.info,
+                float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), work, self.luT, self.piv, self.lu_meta, self.info,
                 float(system.t))
         if self.run_fn is None:  # compile (or load from the disk cache) with no step to take
             t0 = time.perf_counter()

@@ -9,7 +9,9 @@ equations enforced at t_{n+1}:
     F(ydot_{n+1}, y_{n+1}, t_{n+1}) = 0
 am = (3 - rho)/(2 (1 + rho)), af = 1/(1 + rho), gamma = 1/2 + am - af. Newton on ydot_{n+1} with
 the analytic iteration matrix F_ydot + beta [F_y T, F_v], beta = h gamma af / am, T the SO(3)
-tangent operator; the factorization is kept across iterations and steps while Newton contracts.
+tangent operator; the factorization is kept across iterations and steps while Newton contracts and
+the predictor hits, and rebuilt at the predictor after a step that needed two or three iterations.
+The predictor extrapolates the rates with their world-axes triplets carried along with the body.
 
 Within a step, a_{n+1} and the configuration are affine in ydot_{n+1}: p = beta ydot + P0 for
 positions, eta and v, R = R_n exp(beta W + ...) for rotations (`_prepare_step` computes P0 and R_n
@@ -69,6 +71,7 @@ class GeneralizedAlpha:
         pos = np.cumsum(L.free) - 1  # index of each unknown among the free ones
         trip = pos[np.flatnonzero(world & L.free)].reshape(-1, 3)
         self._world_free = trip
+        self._world_idx = np.flatnonzero(world).reshape(-1, 3)  # every world triplet of ydot (predictor)
         # Newton unknowns ordered world triplets first, so that the frame rotation of `_solve` acts on
         # one contiguous block; the stored factorization uses this order
         rest = np.setdiff1d(np.arange(self._free_idx.size), trip.ravel())
@@ -138,19 +141,24 @@ class GeneralizedAlpha:
         if not (h > 0.0 and np.isfinite(h)):
             raise StepFailure(self.t, f"step size must be positive and finite, got {h}")
         zN_p, f_in, t_in = self._prepare_step(t1, h, inputs(t1), am, af, gamma)
-        # predictor: rates extrapolated quadratically from the last three steps (the rates are smooth
-        # on the step scale; at 20 ms on B1 this predicts 12x closer than a linear extrapolation, at
-        # 2 ms 100x). Newton iterates on the rates slot of the source vector, which the evaluation reads
+        # predictor: rates extrapolated quadratically from the last three steps, world triplets carried
+        # along with the body (`_commit` keeps the history co-rotated; `_predicted_rotation`): in world
+        # axes a vector turning with the body is missed by (omega h)^3 |v|, on B1 at 20 ms 1000x the
+        # rest of the miss (docs/equations.md, "Integrator"). Newton iterates on the rates slot of the
+        # source vector, which the evaluation reads
         yd = self.fused.buf.yd
+        beta = h * gamma * af / am
         if commit_config:
             np.subtract(self.yd, self.yd_prev, out=yd)
             yd *= 3.0
             yd += self.yd_prev2
+            self._rotate_world(yd, self._predicted_rotation(yd, beta))
         else:
             yd[:] = self.yd
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
-        beta = h * gamma * af / am
+        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1]:
+            self._lu = None  # (REFRESH_AFTER)
         try:
             F, it = self._newton(yd, beta, t1)
         except StepFailure:
@@ -163,7 +171,7 @@ class GeneralizedAlpha:
             yd[fixed] = zN_p.ravel()[fixed]
             self._lu = None
             F, it = self._newton(yd, beta, t1)
-            it += self.max_iter  # the failed attempt's solves count
+            it += self.max_iter  # the failed attempt's iterations count
         self._check_rotation_increments(t1)
         if not commit_config:
             return yd.copy()
@@ -176,8 +184,9 @@ class GeneralizedAlpha:
         return it
 
     def _newton(self, yd, beta, t1):
-        """Newton on the rates yd (updated in place) of the prepared step; returns the residual at the
-        accepted rates and the iterations (solves). runtime/kernel.py `newton_step` is its compiled twin.
+        """Newton on the rates yd (updated in place) of the prepared step; returns the residual of the
+        last evaluation and the iterations (residual evaluations, each followed by one solve).
+        runtime/kernel.py `newton_step` is its compiled twin.
 
         Increments are measured per field (`_field_scale`): |dx_i| / (tol/beta + tol S_f), S_f the
         largest rate of the field of unknown i, so that a modal acceleration and a node velocity
@@ -185,12 +194,14 @@ class GeneralizedAlpha:
         the iterate after increment k is accepted when the error it leaves, estimated as
         theta/(1 - theta) |dx_k| (the increments shrink geometrically), is within the tolerance, or
         when the increment itself is 10x below it; the first increment is accepted when it is within
-        the tolerance. The factorization is kept while theta <= THETA_REFRESH and the contraction would
-        reach the tolerance within 3 more iterations (theta^4/(1 - theta) |dx_k| <= 1)."""
+        the tolerance. The accepted iterate is not evaluated again: its configuration is staged
+        (`_stage_at`) and the residual of the last evaluation, one increment within the tolerance,
+        serves for the reactions. Within the step, the factorization is kept while theta <= THETA_REFRESH
+        and the contraction would reach the tolerance within 3 more iterations (theta^4/(1 - theta)
+        |dx_k| <= 1); `_step` drops it before the step by the rule REFRESH_AFTER."""
         order = self._newton_idx
         nrm_prev = np.inf
-        converged = False
-        for it in range(0, self.max_iter + 1):
+        for it in range(1, self.max_iter + 1):
             # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
             # communication grid repeats its step only up to round-off
             refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
@@ -201,35 +212,37 @@ class GeneralizedAlpha:
             if zero_or_nan(F, self._zeros_ny) != 0.0:
                 self._lu = None
                 raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
-            if converged:
-                break  # F is the residual at the accepted rates, reused by the caller
-            if it == self.max_iter:
-                self._lu = None
-                raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
-                                      f"(last increment {nrm_prev:.3g} of the tolerance)")
             R_now = self._R[self.layout.n_nodes]  # first CM frame
             if refresh:
                 self._factor(J, beta, t1, R_now)
             dx = self._solve(F, R_now)
             yd[order] -= dx
             nrm = float(np.max(np.abs(dx) / self._field_scale(yd, beta)))
-            if it == 0:
-                converged = nrm <= 1.0
-            else:
-                theta = nrm / nrm_prev
-                converged = nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
-                # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-                if not converged and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0):
-                    self._lu = None
+            theta = nrm / nrm_prev
+            if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0):
+                self._stage_at(yd)
+                return F, it
+            # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
+            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0):
+                self._lu = None
             nrm_prev = nrm
-        return F, it
+        self._lu = None
+        raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
+                              f"(last increment {nrm_prev:.3g} of the tolerance)")
 
-    # contraction beyond which the iteration matrix is rebuilt (besides: when the contraction would not reach
-    # the tolerance within 3 more iterations). Measured on B1 with benchmarks/newton_policy.py: with the
-    # 3-iteration rule, 0.25, 0.5 and 0.9 give the same iterations and factorizations at 20 and 50 ms
-    # (2.94 / 0.83 per step at 20 ms, 1 SE 2 modes); at 2 ms (4 SE, 6 modes) 0.9 costs iterations
-    # (1.91 against 1.85)
+    # contraction beyond which the kept iteration matrix is rebuilt (besides: when the contraction would not
+    # reach the tolerance within 3 more iterations). Measured on B1 with benchmarks/newton_policy.py before
+    # REFRESH_AFTER: 0.25, 0.5 and 0.9 gave the same iterations and factorizations at 20 and 50 ms; at 2 ms
+    # (4 SE, 6 modes) 0.9 cost iterations (1.91 against 1.85 solves)
     THETA_REFRESH = 0.5
+    # the matrix is rebuilt at the predictor when the last step took REFRESH_AFTER[0] to REFRESH_AFTER[1]
+    # iterations: the predictor misses at this step size, and a matrix built at it converges in two increments
+    # where a kept one needs three (B1 at 20 ms: 2.00 against 2.4-2.9 iterations; benchmarks/
+    # newton_iterations.py). Not after a harder step: there the predictor is far off (unresolved modes ringing
+    # undamped), a matrix built at it is a poor one, and the kept matrix with the in-step rules does better
+    # (B4 at h = 10 ms, rho_inf = 1: 4-6 iterations per step; rebuilt after every step of 2 or more, Newton
+    # failed at t = 0.16 s)
+    REFRESH_AFTER = (2, 3)
 
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's
@@ -245,15 +258,32 @@ class GeneralizedAlpha:
         S = np.maximum.reduceat(np.abs(yd[self._field_perm]), self._field_starts)
         return self.tol / beta + self.tol * S[self._field_of]
 
+    def _predicted_rotation(self, yd, beta):
+        """World rotation of the first CM frame over the step, from the predicted rates yd:
+        R_n exp(h Delta) R_n^T with h Delta = beta ydot + D0 (the stage of `_prepare_step`)."""
+        _, P0, _, _, _ = self._stage
+        slot = self.fused.rot_slots[self.layout.n_nodes]
+        R = self.R0[0]
+        return R @ expm((beta * yd[slot] + P0[slot])[None])[0] @ R.T
+
+    def _rotate_world(self, y, Q):
+        """Every world-axes triplet of the ydot-layout vector y rotated by Q, in place."""
+        w = y[self._world_idx]
+        y[self._world_idx] = w @ Q.T
+
     def _commit(self, yd):
         """The configuration of the last residual evaluation and the rates yd become the state."""
         L, R = self.layout, self._R
         _, _, _, af_am, A0 = self._stage
         lin = self.fused.buf.p[self.fused.lin_slots]
         self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self.fused.lin_views)
+        Q = R[L.n_nodes] @ self.R0[0].T  # rotation of the first CM frame over the step
         self.RN, self.R0 = R[: L.n_nodes], R[L.n_nodes :]
+        # the history of the rates, world triplets carried along with the body (predictor, `_step`)
         self.yd_prev2 = self.yd_prev
-        self.yd_prev = self.yd
+        self._rotate_world(self.yd_prev2, Q)
+        self.yd_prev = self.yd.copy()
+        self._rotate_world(self.yd_prev, Q)
         self.a = af_am * yd + A0
         self.yd = yd
 
@@ -326,9 +356,9 @@ class GeneralizedAlpha:
         np.multiply(self._minus_mass, self.gravity, out=b.weight)
         return zN_p, f_in, t_in
 
-    def _residual_at(self, yd, jacobian: bool = False, beta: float | None = None):
-        """F (ny,) at the rates ydot_{n+1} = yd of the prepared step [and J = F_ydot + beta [F_y T, F_v]].
-        Leaves the configuration in the source vector and `self._R` (for `_commit`)."""
+    def _stage_at(self, yd):
+        """The configuration at the rates ydot_{n+1} = yd of the prepared step, into the source vector
+        (p, and the rates) and `self._R`: p = c yd + P0, R = R_n exp(h Delta)."""
         c, P0, Rn, _, _ = self._stage
         b = self.fused.buf
         if yd is not b.yd:
@@ -337,6 +367,12 @@ class GeneralizedAlpha:
         p += P0
         theta = p[self.fused.rot_slots]  # h Delta on every rotation (nodes then SEs)
         self._R = R = Rn @ expm(theta)
+        return p, theta, R
+
+    def _residual_at(self, yd, jacobian: bool = False, beta: float | None = None):
+        """F (ny,) at the rates ydot_{n+1} = yd of the prepared step [and J = F_ydot + beta [F_y T, F_v]].
+        Leaves the configuration in the source vector and `self._R` (for `_commit`)."""
+        p, theta, R = self._stage_at(yd)
         F, s = self.fused.evaluate(R, jacobian)
         if not jacobian:
             if self._springs:

@@ -790,13 +790,29 @@ def _springs(springs, p, yd, R, T, jac, beta, newton_pos, F, JT):
 
 
 @jit
+def _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp):
+    """The configuration at the rates yd (integrator `_stage_at`): p = c yd + P0, theta = p at the
+    rotation slots (h Delta), R = Rn exp(theta)."""
+    for i in range(yd.shape[0]):
+        p[i] = yd[i] * c[i] + P0[i]
+    for r in range(Rn.shape[0]):
+        for i in range(3):
+            theta[r, i] = p[rot_slots[r, i]]
+        _expm(theta[r], Rexp)
+        for i in range(3):
+            for j in range(3):
+                R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
+
+
+@jit
 def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
                 field_of, theta_refresh, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R, F, luT, piv,
                 lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
 
     In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
-    predictor. Out: yd the accepted rates, p, R, F the configuration and residual there. luT, piv,
+    predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
+    evaluation (the accepted iterate is not evaluated again). luT, piv,
     lu_meta = [valid, beta, R_ref (9)] hold the LU of the iteration matrix across steps (transposed:
     luT.T is scipy's lu_factor LU; piv 0-based); returns (luT, piv), new arrays after a refresh (the
     arguments are only read). info = [status, iterations]; lu_meta[0] = 0 and
@@ -819,19 +835,11 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     nrm_prev = np.inf
     converged = False
     it = 0
-    for it in range(max_iter + 1):
+    for it in range(1, max_iter + 1):
         refresh = lu_meta[0] == 0.0 or abs(lu_meta[1] - beta) > 1e-6 * beta
         if refresh and JT.shape[0] != nf:
             JT = np.zeros((nf, nf))
-        for i in range(ny):
-            p[i] = yd[i] * c[i] + P0[i]
-        for r in range(NR):
-            for i in range(3):
-                theta[r, i] = p[rot_slots[r, i]]
-            _expm(theta[r], Rexp)
-            for i in range(3):
-                for j in range(3):
-                    R[r, i, j] = Rn[r, i, 0] * Rexp[0, j] + Rn[r, i, 1] * Rexp[1, j] + Rn[r, i, 2] * Rexp[2, j]
+        _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp)
         _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
                   refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
         _springs(springs, p, yd, R, T, refresh, beta, newton_pos, F, JT)
@@ -841,12 +849,6 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         if s != 0.0 or s != s:  # NaN: some entry of F is not finite
             lu_meta[0] = 0.0
             info[0], info[1] = NOT_FINITE, it
-            return luT, piv
-        if converged:
-            break
-        if it == max_iter:
-            lu_meta[0], lu_meta[1] = 0.0, nrm_prev
-            info[0], info[1] = NOT_CONVERGED, it
             return luT, piv
         if refresh:
             # factored in place of the new matrix, with new pivots: a factorization is never overwritten
@@ -894,15 +896,19 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         nrm = 0.0
         for i in range(nf):
             nrm = max(nrm, abs(b[i]) / (tol / beta + tol * S[field_of[i]]))
-        if it == 0:
-            converged = nrm <= 1.0
-        else:
-            rate = nrm / nrm_prev  # the contraction theta of integrator `_newton`
-            converged = nrm <= 0.1 or (rate < 1.0 and rate / (1.0 - rate) * nrm <= 1.0)
-            # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-            if not converged and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0):
-                lu_meta[0] = 0.0
+        rate = nrm / nrm_prev  # the contraction theta of integrator `_newton`
+        if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (rate < 1.0 and rate / (1.0 - rate) * nrm <= 1.0):
+            converged = True  # the accepted iterate's configuration, not evaluated again
+            _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp)
+            break
+        # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
+        if it > 1 and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0):
+            lu_meta[0] = 0.0
         nrm_prev = nrm
+    if not converged:
+        lu_meta[0], lu_meta[1] = 0.0, nrm_prev
+        info[0], info[1] = NOT_CONVERGED, it
+        return luT, piv
     for r in range(NR):  # integrator `_check_rotation_increments`
         if theta[r, 0] ** 2 + theta[r, 1] ** 2 + theta[r, 2] ** 2 > np.pi**2:
             lu_meta[0] = 0.0
@@ -910,6 +916,27 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
             return luT, piv
     info[0], info[1] = OK, it
     return luT, piv
+
+
+@jit
+def _conjugate(A, B, out):
+    """out = A B A^T (3 x 3)."""
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                for m in range(3):
+                    s += A[i, k] * B[k, m] * A[j, m]
+            out[i, j] = s
+
+
+@jit
+def _rotate_world(world_idx, Q, y):
+    """Every world triplet of the ydot-layout vector y rotated by Q, in place (integrator `_rotate_world`)."""
+    for t in range(world_idx.shape[0]):
+        x0, x1, x2 = y[world_idx[t, 0]], y[world_idx[t, 1]], y[world_idx[t, 2]]
+        for i in range(3):
+            y[world_idx[t, i]] = Q[i, 0] * x0 + Q[i, 1] * x1 + Q[i, 2] * x2
 
 
 @jit
@@ -935,15 +962,16 @@ def _lu_solve(luT, piv, b):
 
 @jit
 def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-         field_of, theta_refresh, lin_slots, fixed_idx, motion_x, motion_x_slots, motion_T_slots, stage_mask,
-         motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
-         xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter,
+         field_of, theta_refresh, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
+         motion_T_slots, stage_mask, motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
+         xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it,
          ydw, p, R, F, luT, piv, lu_meta, info):
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
     body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
     are updated in place, and only if Newton succeeded (info[0] == OK). xN_p ... t_in: the inputs
-    read by `BodySystem._read_inputs` (current frames where no motion input). Returns the factorization
-    (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
+    read by `BodySystem._read_inputs` (current frames where no motion input); last_it the iterations
+    of the last step (the refresh rule `REFRESH_AFTER` = (refresh_min, refresh_max)). Returns the
+    factorization (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
     N, E, ny = xN.shape[0], x0.shape[0], yd.shape[0]
     beta = h * gamma * af / am
     # stage (integrator `_prepare_step`): a_{n+1} = (af/am) ydot + A0, p = beta ydot + P0
@@ -955,6 +983,13 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
         P0[i] = d1 * yd[i] + d2 * a[i]
         c[i] = beta * stage_mask[i]
         ydw[i] = (yd[i] - yd_prev[i]) * 3.0 + yd_prev2[i]  # predictor: quadratic extrapolation of the rates
+    # ... its world triplets rotated with the first CM frame over the step (integrator `_predicted_rotation`)
+    Q, Rexp, th = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    for i in range(3):
+        th[i] = beta * ydw[rot_slots[N, i]] + P0[rot_slots[N, i]]
+    _expm(th, Rexp)
+    _conjugate(R0[0], Rexp, Q)
+    _rotate_world(world_idx, Q, ydw)
     k = 0
     for arr in (xN.ravel(), x0.ravel(), eta.ravel(), v.ravel()):
         for i in range(arr.shape[0]):
@@ -971,6 +1006,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     Rn = np.empty((N + E, 3, 3))
     Rn[:N] = RN_p
     Rn[N:] = R0
+    if refresh_min <= last_it <= refresh_max:  # the predictor missed at the last step: a fresh matrix (integrator `_step`)
+        lu_meta[0] = 0.0
     luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
                            newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p,
                            R, F, luT, piv, lu_meta, info)
@@ -984,7 +1021,7 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
         luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
                                newton_idx, newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol,
                                max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
-        info[1] += max_iter  # the failed attempt's solves count
+        info[1] += max_iter  # the failed attempt's iterations count
     if info[0] != OK:
         return luT, piv
     # commit (integrator `_commit`)
@@ -993,6 +1030,9 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
         for i in range(arr.shape[0]):
             arr[i] = p[lin_slots[k]]
             k += 1
+    for i in range(3):  # the rotation of the first CM frame over the step, R_{n+1} R_n^T
+        for j in range(3):
+            Q[i, j] = R[N, i, 0] * R0[0, j, 0] + R[N, i, 1] * R0[0, j, 1] + R[N, i, 2] * R0[0, j, 2]
     RN[:] = R[:N]
     R0[:] = R[N:]
     af_am = af / am
@@ -1001,6 +1041,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
         yd_prev[i] = yd[i]
         yd[i] = ydw[i]
         a[i] = af_am * ydw[i] + A0[i]
+    _rotate_world(world_idx, Q, yd_prev2)  # the history carried along with the body (integrator `_commit`)
+    _rotate_world(world_idx, Q, yd_prev)
     # port loads (body `_update_port_loads`) and the power of loads and gravity (`_external_power`)
     spring_loads = springs[8]  # force, moment of compliant ports' springs (zero on other nodes)
     power = 0.0
@@ -1175,22 +1217,23 @@ def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, it
 
 
 @jit
-def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, work, luT, piv, lu_meta, info, t,
-        rows, times):
+def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv, lu_meta,
+        info, t, rows, times):
     """Steps of h from time t, one per row of rows (simulate.record's layout) and times, with the
     inputs of the scene's schedule: `step` with the inputs and the recording around it. Returns the
     (steps completed, luT, piv); a failed step leaves the state at the last completed one and its status
-    in info (as `step`). work = (ydw, p, R, F) of `step`."""
+    in info (as `step`). work = (ydw, p, R, F) of `step`; last_it the iterations of the step before t."""
     xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
         state[10], state[11], state[12]
     xN_p, RN_p, zN_p, f_in, t_in = inputs
     for k in range(rows.shape[0]):
         t1 = t + h
         _scheduled_inputs(t1, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
-        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, *work, luT, piv,
-                        lu_meta, info)
+        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it, *work,
+                        luT, piv, lu_meta, info)
         if info[0] != OK:
             return k, luT, piv
+        last_it = info[1]
         t = t1
         times[k] = t
         _record(rows[k], schedule[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], info[1])

@@ -1,0 +1,78 @@
+"""Newton of the integrator on B1 (runtime/integrator.py `_step`, `_newton`): iterations per step at
+the step the issue names (20 ms), the accuracy they buy, and the 50 ms step that used to fail.
+
+An iteration is one residual evaluation followed by one solve; the counts here are the calls of
+`_residual_at` themselves (wrapped), so they hold whatever `step` reports. Counts, not times.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffrf_fmu import simulate as sim
+from ffrf_fmu.model import load_model
+from ffrf_fmu.reduction import build_body
+
+HAUG = "models/haug_beam.toml"
+# B1's max tip deflection before issue 10 item 2 (585668d, benchmarks/newton_iterations.py, 1 SE x 2
+# modes, 20 ms; 4 SE x 6 modes, 50 ms)
+BASELINE_20MS_1x2, BASELINE_50MS_4x6 = 0.602011240, 0.540429819
+
+
+def _b1(h, n_se, modes, duration=20.0, tol=None):
+    """Step B1's spin-up on numpy; returns (evaluations per step, reported iterations per step,
+    max transverse tip deflection in the hub frame, steps completed)."""
+    model = load_model(HAUG, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
+    body, _ = build_body(model.body)
+    system, inputs = sim.build_system(body, model.scene("spinup"), backend="numpy")
+    if tol is not None:
+        system.tol = tol
+    evaluations = [0]
+    residual_at = system._residual_at
+
+    def counted(*args, **kwargs):
+        evaluations[0] += 1
+        return residual_at(*args, **kwargs)
+
+    system._residual_at = counted
+    X = system.xN[-1] - system.xN[0]
+    n, reported, deflection = round(duration / h), 0, 0.0
+    for _ in range(n):
+        reported += system.step(h, inputs)
+        d = system.RN[0].T @ (system.xN[-1] - system.xN[0]) - X  # eq. (92), hub frame
+        deflection = max(deflection, float(np.hypot(d[1], d[2])))
+    return evaluations[0] / n, reported / n, deflection, n
+
+
+@pytest.mark.parametrize("n_se, modes", [(1, 2), (4, 6)])
+def test_b1_20ms_takes_at_most_two_iterations_per_step(n_se, modes):
+    """Issue 10 item 2: at most 2 Newton iterations per step on average on B1 at h = 20 ms (measured
+    2.00 for both; before, 3.94 and 3.95 evaluations: 2.94 and 2.95 solves and one evaluation of the
+    accepted iterate).
+    The co-rotated predictor misses by 1e-7..1e-6 of each field's scale, the iteration matrix built at
+    the predictor takes it to the tolerance in one increment, the second increment confirms it."""
+    evals, reported, _, _ = _b1(0.02, n_se, modes)
+    assert evals == pytest.approx(reported, abs=1e-12)  # the reported count is the evaluations
+    assert evals <= 2.0
+
+
+def test_b1_20ms_deflection_is_the_tightly_converged_one():
+    """The fewer iterations cost no accuracy: B1's max tip deflection at h = 20 ms equals the run with
+    the Newton tolerance 100x tighter (1e-11) to 1e-10 relative (measured: identical, 0.602011238154 m)
+    and the value before issue 10 item 2 (0.602011240 m) to 1e-8 (measured -2.9e-9, the baseline's
+    own Newton error)."""
+    _, _, d, _ = _b1(0.02, 1, 2)
+    _, _, d_tight, _ = _b1(0.02, 1, 2, tol=1e-11)
+    assert d == pytest.approx(d_tight, rel=1e-10)
+    assert d == pytest.approx(BASELINE_20MS_1x2, rel=1e-8)
+
+
+def test_b1_50ms_runs_through():
+    """h = 50 ms on B1 (4 SE, 6 modes, the 20 s spin-up) failed before issue 10 (Newton gave up at
+    t = 10.9 s, docs/stability.md); it completes in 2 iterations per step (before item 2: 5.52
+    evaluations), with the deflection of before to 1e-6 (measured +8.7e-8) and within 1 % of the
+    2 ms run (0.536620 m; measured +0.71 %: the step's own error)."""
+    evals, _, d, n = _b1(0.05, 4, 6)
+    assert n == 400 and evals <= 2.0
+    assert d == pytest.approx(BASELINE_50MS_4x6, rel=1e-6)
+    assert d == pytest.approx(0.536620, rel=1e-2)
