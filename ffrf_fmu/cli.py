@@ -424,6 +424,7 @@ def _fraction(text: str) -> float:
     arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
         "(a chart's directory: its reference run is not repeated)"),
+    BACKEND_ARG,
     arg("--json", action="store_true", help="print a JSON object instead of text"),
     *SWEEP_ARGS,
 )
@@ -437,7 +438,7 @@ def advise(args) -> int:
     if not 0.0 < args.tolerance < 1.0:
         print(f"{PROG}: error: --tolerance must be between 0 and 100 %, got {args.tolerance:g}", file=sys.stderr)
         return 2
-    advice = ad.advise(model, scene.name, args.tolerance, fmu=args.fmu)
+    advice = ad.advise(model, scene.name, args.tolerance, fmu=args.fmu, backend=args.backend)
     out = advice.as_dict()
     if not args.json:
         print(ad.format_advice(advice, model.body.name, scene.name))

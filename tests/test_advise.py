@@ -133,5 +133,6 @@ def test_check_runs_on_the_sweep_layer_and_reuses_the_charts_reference(tmp_path)
     assert res["metric_reference"] == chart["reference"]["metrics"]["tip_deflection_max_m"]
     run = run_configuration(B1, "spinup", ov, {"superelements": str(a.superelements), "modes": str(a.modes),
                                                "terms": a.terms, "step": f"{a.step:g}",
-                                               "stiffening": "true" if a.stiffening else "false"})
+                                               "stiffening": "true" if a.stiffening else "false"},
+                            backend=a.backend)
     assert res["metric"] == run["metrics"]["tip_deflection_max_m"]  # the same run, here and through the sweep

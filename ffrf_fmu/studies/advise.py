@@ -28,8 +28,9 @@ what no rule estimates (modal truncation, interactions).
    TERM_SHARE x tolerance, else the cheapest set within that of `full`. The other fix of what one
    superelement misses is more linear superelements (their frames carry the terms between them): the
    smallest such chain within TERM_SHARE x tolerance of full is taken when its predicted cost per step
-   (`step_cost`, measured) is lower. Measured on disk_rotor, where the terms matter: it is
-   (docs/inertia-terms.md).
+   (`step_cost`, measured per backend) is lower. Measured on disk_rotor, where the terms matter: on numpy
+   3 linear superelements are cheaper than 1 with `full` (1.26 against 2.71), on numba 1 with `full`
+   is (1.09 against 1.20): the advice depends on the backend that runs the body (docs/inertia-terms.md).
 4. Step, from the highest relevant (kept and excited) frequency and the drive's time scale: the
    integrator's period error (`period_error`, from its amplification matrix) times
    STEP_ERROR_FACTOR (+ FMU_INPUT_FACTOR through the FMU) within the budget the chain leaves, and
@@ -39,6 +40,8 @@ what no rule estimates (modal truncation, interactions).
 """
 
 from __future__ import annotations
+
+import importlib.util
 
 import math
 from dataclasses import dataclass, field
@@ -70,6 +73,7 @@ class Advice:
     reasons: dict = field(default_factory=dict)  # choice -> text
     warnings: list = field(default_factory=list)  # where the advice leaves the range its rules were checked on
     stiffening: bool = False
+    backend: str = "numba"  # the backend the costs were priced on, and the one --check runs
 
     @property
     def overrides(self) -> list[str]:
@@ -85,18 +89,30 @@ class Advice:
         return {"configuration": {"superelements": self.superelements, "modes": self.modes, "terms": self.terms,
                                   "step": self.step, "stiffening": self.stiffening}, "label": self.label, "overrides": self.overrides,
                 "tolerance": self.tolerance, "predicted": self.predicted, "indicators": self.indicators,
-                "reasons": self.reasons, "warnings": self.warnings}
+                "reasons": self.reasons, "warnings": self.warnings, "backend": self.backend}
+
+
+def pricing_backend(backend: str) -> str:
+    """The backend whose measured costs price a configuration: numba runs the body when it is installed
+    (the kernel covers every term set), else numpy runs it."""
+    if backend not in ("numba", "numpy"):
+        raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
+    if backend == "numba" and importlib.util.find_spec("numba") is None:
+        return "numpy"
+    return backend
 
 
 def advise(model: Model | str, scene_name: str | None = None, tolerance: float = 0.01,
-           overrides: Sequence[str] = (), fmu: bool = False) -> Advice:
+           overrides: Sequence[str] = (), fmu: bool = False, backend: str = "numba") -> Advice:
     """The configuration for `scene_name` at `tolerance` (relative error of the scene's primary
     metric); module doc for the rules. fmu: the body will run as an FMU with communication step =
-    internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR)."""
+    internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR). backend: the one that
+    will run the body; costs per step are priced on it (numpy where numba is not installed)."""
     from ..term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 
     if not 0.0 < tolerance < 1.0:
         raise ValueError(f"tolerance must be in (0, 1), got {tolerance}")
+    price_on = pricing_backend(backend)
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
@@ -206,11 +222,11 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
                 alt = (n_alt, e_alt["to_full"]["linear"])
                 break
         if alt is not None:
-            c_terms, c_alt = step_cost(n_se, terms), step_cost(alt[0], "linear")
+            c_terms, c_alt = step_cost(n_se, terms, price_on), step_cost(alt[0], "linear", price_on)
             cheaper = c_alt <= c_terms
             why["terms"] += (
                 f"; the other fix, linear with more superelements: N = {alt[0]} is within {alt[1]:.2%} of full; "
-                f"cost per step against 1 SE linear (step_cost: LINEAR_COST_PER_SE, TERM_COST from benchmarks/term_cost.py) {c_alt:.2f} against {c_terms:.2f} for {terms} "
+                f"cost per step against 1 SE linear on {price_on} (step_cost: LINEAR_COST_PER_SE, TERM_COST from benchmarks/term_cost.py) {c_alt:.2f} against {c_terms:.2f} for {terms} "
                 f"with N = {n_se} -> " + (f"more superelements are cheaper: linear, N = {alt[0]}" if cheaper
                                            else f"{terms} is cheaper"))
             if cheaper:
@@ -261,17 +277,17 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     if n_se >= MAX_SUPERELEMENTS:
         warn.append(f"capped at {MAX_SUPERELEMENTS} superelements: the predicted chain error {e_n:.2%} may exceed the "
                     "tolerance")
-    return Advice(n_se, modes, terms, h, tolerance, predicted, ind, why, warn, stiff)
+    return Advice(n_se, modes, terms, h, tolerance, predicted, ind, why, warn, stiff, price_on)
 
 
 def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequence[str] = (),
           reference_elements: int | None = None, out_dir="chart", chart_csv=None, scheduler=None,
-          fresh: bool = False, backend: str = "numpy", progress: bool = False) -> dict:
+          fresh: bool = False, backend: str | None = None, progress: bool = False) -> dict:
     """Run the advised configuration (standalone, or through its FMU when advice.indicators["runner"]
     says so) and the reference as two tasks of the sweep layer (sweep.py; scheduler as chart's),
     results in out_dir's store (a chart's directory holds the same reference run: it is not
     repeated); the achieved errors and cost. With chart_csv, compare with the cheapest chart
-    configuration that meets the tolerance."""
+    configuration that meets the tolerance. backend: the advice's own unless given."""
     from .chart import errors, read_csv
     from .grid import value_overrides
     from .sweep import Scheduler, SweepOptions, sweep_into
@@ -281,6 +297,7 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
     values = {"superelements": str(advice.superelements), "modes": str(advice.modes), "terms": advice.terms,
               "step": f"{advice.step:g}", "stiffening": "true" if advice.stiffening else "false"}
     runner = advice.indicators.get("runner", "standalone")
+    backend = backend or advice.backend
     ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements)
     run_task = make_task(model_path, [*overrides, *value_overrides(values)], scene.name, runner, backend)
     sweep = SweepOptions(scheduler or Scheduler(), fresh, progress)

@@ -58,10 +58,14 @@ MAX_SUPERELEMENTS = 32  # the chain search stops here (a cap, with a warning in 
 # beam: -1.2 % at theta = 5.2 % (docs/inertia-terms.md), i.e. 4.4 (the softening's amplification
 # 1.9 included). Checked: 0.3 deg cone, theta = 0.53 %: predicted 1.2e-4, measured 8e-5.
 NONLINEAR_ERROR = 4.4
-# Per-step cost against 1 superelement `linear` (numpy path, benchmarks/term_cost.py on disk_rotor,
-# CPU, best of 3, same run): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8 superelements, i.e.
-# LINEAR_COST_PER_SE = 0.13 per added superelement up to 4 (the step's fixed Python and LU overhead
-# dominates a short chain); gyroscopic x 1.35 and full x 2.71 at 1 SE (full x 2.95 at 2 SE). With numba,
-# linear x 1.18 / 1.49 / 1.59 and full x 6.7 (the kernel does not cover full yet: numpy fallback).
-LINEAR_COST_PER_SE = 0.13
-TERM_COST = {"linear": 1.0, "gyroscopic": 1.35, "full": 2.71}
+# Per-step cost against 1 superelement `linear`, per backend (benchmarks/term_cost.py on disk_rotor, 2 modes,
+# h = 10 ms, CPU, best of 3, ratios within one run). The advisor prices with the backend that will run.
+# numpy (2026-11-25, before the kernel covered full): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8
+# superelements, i.e. 0.13 per added superelement up to 4 (the step's fixed Python and LU overhead dominates
+# a short chain); gyroscopic x 1.35 and full x 2.71 at 1 SE (full x 2.95 at 2 SE).
+# numba (2026-11-25, kernel with full, many steps per call, machine under load): linear x 1.08 / 1.31 / 1.91,
+# i.e. 0.10 per added superelement up to 4; gyroscopic x 0.99, full x 1.09 at 1 SE (x 1.31 at 2 SE): in the
+# compiled step the extra inertia products cost little next to the factorization, which grows with the chain.
+LINEAR_COST_PER_SE = {"numpy": 0.13, "numba": 0.10}
+TERM_COST = {"numpy": {"linear": 1.0, "gyroscopic": 1.35, "full": 2.71},
+             "numba": {"linear": 1.0, "gyroscopic": 0.99, "full": 1.09}}

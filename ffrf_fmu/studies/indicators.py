@@ -160,11 +160,14 @@ def valid_count(body: Body, n_min: int) -> int:
     return max(step, step * math.ceil(n_min / step))
 
 
-def step_cost(n_se: int, terms: str) -> float:
-    """Predicted cost per step against 1 superelement `linear` (calibration.LINEAR_COST_PER_SE, TERM_COST)."""
+def step_cost(n_se: int, terms: str, backend: str = "numba") -> float:
+    """Predicted cost per step against 1 superelement `linear` on `backend` (calibration.LINEAR_COST_PER_SE,
+    TERM_COST, both measured per backend)."""
     from .calibration import LINEAR_COST_PER_SE, TERM_COST
 
-    return (1.0 + LINEAR_COST_PER_SE * (n_se - 1)) * TERM_COST[terms]
+    if backend not in TERM_COST:
+        raise ValueError(f"backend must be one of {sorted(TERM_COST)}, got {backend!r}")
+    return (1.0 + LINEAR_COST_PER_SE[backend] * (n_se - 1)) * TERM_COST[backend][terms]
 
 
 def first_frequency(body: Body) -> float:
