@@ -66,10 +66,10 @@ METRIC = "tip_deflection_max_m"  # B1's primary metric (models/haug_beam.toml [s
 def warm_up(model_path, scene, overrides, backend) -> None:
     """A short run of each code first (not timed): the numba kernel is compiled or loaded from its disk
     cache, Exudyn and the modules imported, so no configuration pays that in its time."""
-    from ffrf_fmu.peers.exudyn_beam import run_configuration
+    from ffrf_fmu.peers.exudyn_beam import run_configuration as run_peer
 
     run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {}, "standalone", backend)
-    run_configuration(model_path, scene, list(overrides) + ["duration=0.04"], {"elements": 2, "step": 0.02})
+    run_peer(model_path, scene, list(overrides) + ["duration=0.04"], {"elements": 2, "step": 0.02})
 
 
 def front(rows, runner, cost_key):
