@@ -19,7 +19,7 @@ Integrals, not lumped sums. For a displacement field u = N q (N: beam section-po
 interpolation, fe.beam) with X the undeformed position from the CM, rho the density:
     M     = int N^T N rho                         (geradin 49)
     M_k   = int N^T e~_k N rho                    (translational kernel, geradin 53)
-    T_ab  = int N_a^T N_b rho   (a, b = 1..3)     (full tensor kernel, Shabana's S_ab; `tensor_kernel`)
+    T_ab  = int N_a^T N_b rho   (a, b = 1..3)     (full tensor kernel, Shabana's S_ab; fe.beam.tensor_kernel)
 and the rigid rotation field theta x X = N U_r theta is represented exactly (U_r = rotation
 columns of the rigid modes about the CM, eq. 11). The invariants (Witteveen's names, Shabana's
 notation, Geradin's equations) are then exact for the FE interpolation:
@@ -44,48 +44,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .fe import FEModel, lumped_kernels, node_dofs
-from .runtime.rotation import skew
-from .fe.beam import local_frame, local_interpolation
-from .model import Body, Scene, Section
+from .fe import FEModel
+from .fe.beam import tensor_kernel
+from .model import Body, Scene
 from .runtime.drives import evaluate
 
 DEFLECTION = 0.01  # characteristic amplitude: largest elastic displacement = 1 % of the superelement length
 NEGLIGIBLE = 0.01  # an indicator below 1 % means the term changes what it is compared with by < 1 %
 SLOW_SPIN = 0.1  # w / w_1 below this is "considerably lower than 1" (his guideline IV)
-
-
-def tensor_kernel(section: Section, direction, length: float, n_elements: int, lumped=()) -> np.ndarray:
-    """T[a, b] = int N_a^T N_b rho (3, 3, n_dof, n_dof), model axes, for the beam_model mesh and the
-    rigid bodies `lumped` at its nodes ((node, mass, J) as fe.with_lumped_masses, fe.lumped_kernels).
-
-    Section-point displacement N_c q + theta x y (fe.beam): int over the section gives
-    m N_c,a^T N_c,b + N_t^T E_a^T S E_b N_t, S = int rho y y^T = R diag(0, m33, m22) R^T, E_a = e_a~.
-    Consistent with the FE model: sum_a T_aa = M (m11 = m22 + m33) and -eps_kab T_ab = M_k.
-    """
-    R = local_frame(direction)
-    L = np.full(n_elements, length / n_elements)
-    Nc, Nt, _ = local_interpolation(section, L)  # (n_el, ng, 3, 12), local axes and dofs
-    w = 0.5 * np.polynomial.legendre.leggauss(Nc.shape[1])[1]  # same Gauss rule as fe.beam
-    Tq = np.kron(np.eye(4), R.T)  # local dofs = Tq @ model dofs
-    Nc = np.einsum("ij,egjk,kl->egil", R, Nc, Tq)
-    Nt = np.einsum("ij,egjk,kl->egil", R, Nt, Tq)
-    S = R @ np.diag([0.0, section.m33, section.m22]) @ R.T
-    E = skew(np.eye(3))
-    ESE = np.einsum("aji,jk,bkl->abil", E, S, E)  # E_a^T S E_b
-    wL = w[None, :] * L[:, None]
-    Te = section.m * np.einsum("eg,egai,egbj->abeij", wL, Nc, Nc) + np.einsum(
-        "eg,egpi,abpr,egrj->abeij", wL, Nt, ESE, Nt, optimize=True
-    )
-    idx = node_dofs(np.arange(n_elements + 1)).reshape(-1, 6)
-    idx = np.concatenate([idx[:-1], idx[1:]], axis=1)  # (n_el, 12) element dofs
-    n = 6 * (n_elements + 1)
-    T = np.zeros((3, 3, n, n))
-    np.add.at(T, (slice(None), slice(None), idx[:, :, None], idx[:, None, :]), Te)
-    for node, mass, J in lumped:
-        i = node_dofs([node])
-        T[:, :, i[:, None], i[None, :]] += lumped_kernels(mass, J)[2]
-    return T
 
 
 @dataclass(frozen=True, eq=False)

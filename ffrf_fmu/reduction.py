@@ -16,8 +16,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
-from .fe.beam import beam_model, local_frame, strain_kernels
-from .invariants import tensor_kernel
+from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
 from .model import Body, ModelError, PART_CAUSALITIES, scene_body
 from .runtime.data import BodyData, PortData, SuperelementData
 
@@ -169,7 +168,7 @@ def stiffening_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, strain) -> dict:
 def inertia_data(fe: FEModel, U: np.ndarray, Y: np.ndarray, T: np.ndarray) -> dict:
     """Witteveen's W1 (n, 3, 3) and W2 (n, n, 3, 3) on the basis Y (docs/inertia-terms.md), for the
     term set `full`: W1_j = C_j + C_j^T, C_j[:, k] = U_r^T M_k Y_j; W2_jl = tr(P_jl) I - P_jl^T,
-    P_jl[a, b] = Y_j^T T_ab Y_l with T the full tensor kernel (invariants.tensor_kernel)."""
+    P_jl[a, b] = Y_j^T T_ab Y_l with T the full tensor kernel (fe.beam.tensor_kernel)."""
     C = np.einsum("ia,kij,jm->mak", U[:, 3:], fe.M_kernel, Y, optimize=True)
     P = np.einsum("ij,abik,kl->jlab", Y, T, Y, optimize=True)
     W2 = np.einsum("jlaa->jl", P)[:, :, None, None] * np.eye(3) - P.transpose(0, 1, 3, 2)
@@ -281,7 +280,7 @@ def build_scene_body(body: Body, scene) -> tuple[BodyData, tuple[Reduction, ...]
 
 def superelement_models(body: Body, e: int, strain: bool = False, tensor: bool = False):
     """The FE model of superelement e of `body` (its segment of the beam, the point masses on its nodes),
-    and on request its strain kernels (fe.beam.strain_kernels) and tensor kernel (invariants.tensor_kernel):
+    and on request its strain kernels (fe.beam.strain_kernels) and tensor kernel (fe.beam.tensor_kernel):
     (fe, strain | None, tensor | None). A point mass on a node shared by two superelements belongs to the
     one nearer the origin."""
     n_se, n_el = body.superelements, body.elements_per_superelement

@@ -15,7 +15,7 @@ import pytest
 
 from ffrf_fmu import invariants as iv
 from ffrf_fmu.runtime.rotation import skew
-from ffrf_fmu.fe.beam import beam_model, local_frame, local_interpolation
+from ffrf_fmu.fe.beam import beam_model, local_frame, local_interpolation, tensor_kernel
 from ffrf_fmu.model import Section, load_model
 from ffrf_fmu.reduction import reduce_superelement
 
@@ -30,7 +30,7 @@ def unit(d):
 def segment(section, L, n_el=8, direction=(1.0, 0.0, 0.0), modes=6):
     fe = beam_model(section, (0.3, -0.2, 0.1), direction, L, n_el)
     red = reduce_superelement(fe, (0, n_el), modes, (0, 1))
-    return fe, iv.tensor_kernel(section, direction, L, n_el), red
+    return fe, tensor_kernel(section, direction, L, n_el), red
 
 
 @pytest.mark.parametrize("direction", DIRECTIONS)

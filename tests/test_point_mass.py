@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 from ffrf_fmu import linear
 from ffrf_fmu.fe import lumped_kernels, rigid_modes, skew, with_lumped_masses
 from ffrf_fmu.fe.beam import beam_model
-from ffrf_fmu.invariants import tensor_kernel
+from ffrf_fmu.fe.beam import tensor_kernel
 from ffrf_fmu.model import ModelError, PointMass, load_model
 from ffrf_fmu.reduction import build_body
 from ffrf_fmu.reference import static_reference

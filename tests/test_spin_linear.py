@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.fe.beam import beam_model
-from ffrf_fmu.invariants import tensor_kernel
+from ffrf_fmu.fe.beam import tensor_kernel
 from ffrf_fmu.linear import spin_modes
 from ffrf_fmu.model import Body, Port
 from ffrf_fmu.reduction import build_body

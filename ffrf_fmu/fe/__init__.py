@@ -57,7 +57,7 @@ def lumped_kernels(mass: float, J: np.ndarray):
     """The 6 x 6 nodal blocks of M, M_k (k = 1..3) and T_ab (a, b = 1..3) of a rigid body lumped at a
     node: mass at the node, inertia J (3, 3, model axes) about it. Its points move as
     u = u_node + theta x y (y from the node, int rho y = 0), so with S = int rho y y^T = tr(J)/2 I - J
-    the blocks are those of the beam section (fe.beam.element_matrices, invariants.tensor_kernel):
+    the blocks are those of the beam section (fe.beam.element_matrices, fe.beam.tensor_kernel):
         M = diag(m I, J),  M_k = diag(m e_k~, skew(S e_k)),  T_ab = diag(m e_a e_b^T, e_a~^T S e_b~).
     Returns (M (6, 6), M_k (3, 6, 6), T (3, 3, 6, 6))."""
     J = np.asarray(J, dtype=float)

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..model import Section
 from ..runtime.rotation import skew
-from . import FEModel
+from . import FEModel, lumped_kernels, node_dofs
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(4)
 _XI = 0.5 * (_GAUSS_X + 1.0)  # points on [0, 1]
@@ -230,3 +230,36 @@ def strain_kernels(section: Section, direction, length: float, n_elements: int):
 
     w = (section.EA * _W[None, :] * L[:, None]).ravel()
     return w, scatter(A), scatter(C), scatter(D)
+
+
+def tensor_kernel(section: Section, direction, length: float, n_elements: int, lumped=()) -> np.ndarray:
+    """T[a, b] = int N_a^T N_b rho (3, 3, n_dof, n_dof), model axes, for the beam_model mesh and the
+    rigid bodies `lumped` at its nodes ((node, mass, J) as fe.with_lumped_masses, fe.lumped_kernels).
+
+    Section-point displacement N_c q + theta x y (fe.beam): int over the section gives
+    m N_c,a^T N_c,b + N_t^T E_a^T S E_b N_t, S = int rho y y^T = R diag(0, m33, m22) R^T, E_a = e_a~.
+    Consistent with the FE model: sum_a T_aa = M (m11 = m22 + m33) and -eps_kab T_ab = M_k.
+    """
+    R = local_frame(direction)
+    L = np.full(n_elements, length / n_elements)
+    Nc, Nt, _ = local_interpolation(section, L)  # (n_el, ng, 3, 12), local axes and dofs
+    w = 0.5 * np.polynomial.legendre.leggauss(Nc.shape[1])[1]  # same Gauss rule as fe.beam
+    Tq = np.kron(np.eye(4), R.T)  # local dofs = Tq @ model dofs
+    Nc = np.einsum("ij,egjk,kl->egil", R, Nc, Tq)
+    Nt = np.einsum("ij,egjk,kl->egil", R, Nt, Tq)
+    S = R @ np.diag([0.0, section.m33, section.m22]) @ R.T
+    E = skew(np.eye(3))
+    ESE = np.einsum("aji,jk,bkl->abil", E, S, E)  # E_a^T S E_b
+    wL = w[None, :] * L[:, None]
+    Te = section.m * np.einsum("eg,egai,egbj->abeij", wL, Nc, Nc) + np.einsum(
+        "eg,egpi,abpr,egrj->abeij", wL, Nt, ESE, Nt, optimize=True
+    )
+    idx = node_dofs(np.arange(n_elements + 1)).reshape(-1, 6)
+    idx = np.concatenate([idx[:-1], idx[1:]], axis=1)  # (n_el, 12) element dofs
+    n = 6 * (n_elements + 1)
+    T = np.zeros((3, 3, n, n))
+    np.add.at(T, (slice(None), slice(None), idx[:, :, None], idx[:, None, :]), Te)
+    for node, mass, J in lumped:
+        i = node_dofs([node])
+        T[:, :, i[:, None], i[None, :]] += lumped_kernels(mass, J)[2]
+    return T
