@@ -1,7 +1,7 @@
 """Standalone runs: a scene's drives and loads as port inputs, the body stepped to the end,
 time series under the FMU's variable names, the benchmark metrics and a summary.
 
-About 400 lines: the run, its result type and what is computed from a result (metrics, plot,
+Over 400 lines: the run, its result type and what is computed from a result (metrics, plot,
 the reference run as a result) belong to one idea, the standalone run."""
 from __future__ import annotations
 
