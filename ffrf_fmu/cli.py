@@ -422,6 +422,7 @@ def _fraction(text: str) -> float:
     arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
         "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
     arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
+    arg("--reference-step", type=float, metavar="H", help="step of the reference (with --check; default: the scene's)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
         "(a chart's directory: its reference run is not repeated)"),
     BACKEND_ARG,
@@ -445,7 +446,8 @@ def advise(args) -> int:
     if args.check:
         try:
             res = ad.check(args.model, scene.name, advice, overrides=args.overrides,
-                           reference_elements=args.reference_elements, out_dir=args.output, chart_csv=args.chart,
+                           reference_elements=args.reference_elements, reference_step=args.reference_step,
+                           out_dir=args.output, chart_csv=args.chart,
                            scheduler=_scheduler(args), fresh=args.fresh, progress=not args.json)
         except (SweepError, StoreVersionError) as e:
             print(f"{PROG}: error: {e}", file=sys.stderr)

@@ -42,7 +42,8 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
             if rate > 0 and (best is None or rate > best[0]):
                 best = (rate, np.asarray(d.rotation.axis, dtype=float), d.port)
     if best is None:
-        return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on"}
+        return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on",
+                "free_axial_rotation": free_axial_rotation(body, scene)}
     rate, axis, port = best
     axis = axis / np.linalg.norm(axis)
     data, _ = build_body(body, stiffening=stiffening, inertia=True)
@@ -73,6 +74,30 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     }
 
 
+def free_axial_rotation(body: Body, scene: Scene) -> dict | None:
+    """The body's rotation about its own axis when no port holds it (every port's rotation is force-driven:
+    a spherical joint, free ends) and the scene sets the body moving (loads, gravity, initial velocity or
+    deformation, drives), else None. That rotation is a rigid-body motion whose only inertia is the polar
+    one, J_p = m11 L, a small fraction of the transverse J_t = m L^3 / 12 on a beam. The elastic motion's
+    angular momentum about the axis (a bending vibration in two planes whirls) is balanced against J_p
+    alone, and only the inertia coupling S(q) (eq. 55) puts it into the frame's angular momentum: `linear`
+    drops it and the body spins about its axis by that momentum / J_p (B2, one superelement: a mean axial
+    spin of -0.0066 rad/s after the tip load, where the full-order beam and S(q) keep it at 0 as Euler's
+    equations of a symmetric body do; docs/accuracy.md)."""
+    if any(p.rotation != "force" for p in body.ports):
+        return None
+    ini = scene.initial
+    moving = (scene.loads or scene.drives or any(scene.gravity) or any(ini.velocity) or any(ini.angular_velocity)
+              or ini.port_displacements)
+    if not moving:
+        return None
+    sec = body.section
+    m11 = sec.m11 if sec.m11 is not None else sec.m22 + sec.m33
+    L = body.length
+    return {"polar_inertia": m11 * L, "transverse_inertia": sec.m * L**3 / 12.0,
+            "ratio": m11 * L / (sec.m * L**3 / 12.0)}
+
+
 def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
     """THE term-set rule (info and advise): (term set, reason) from `steady_term_effects`.
     `linear` when the complete set `full` changes the steady response by at most TERM_SHARE x tolerance;
@@ -81,6 +106,14 @@ def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
     the rigid-body inertia exactly, and Witteveen's flags are reported as flags (measured: gyroscopic and
     full were no closer to the full-order beam on B1 and coned_beam, docs/inertia-terms.md)."""
     budget = TERM_SHARE * tolerance
+    free = effects.get("free_axial_rotation")
+    if effects.get("status") != "ok" and free:
+        return "gyroscopic", (
+            f"{effects.get('status')}; but no port holds the body's rotation about its own axis and the scene "
+            f"moves the body: that rotation's only inertia is the polar one, J_p = {free['polar_inertia']:.3g} "
+            f"({free['ratio']:.2g} x the transverse J_t), which the elastic motion's angular momentum about the "
+            "axis drives unless the inertia coupling S(q) (eq. 55) is in the equations: gyroscopic, the cheapest "
+            "set with it (term_rule.free_axial_rotation; B2: linear spins the body, docs/accuracy.md)")
     if effects.get("status") != "ok":
         return "linear", (f"{effects.get('status')}; linear: the CM frames carry the rigid-body inertia exactly, "
                           "and no term set was measured closer to the full-order beam without a steady spin "

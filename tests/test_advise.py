@@ -47,6 +47,32 @@ def test_no_spin_one_superelement_linear_terms():
     assert a.predicted["chain"] == 0.0
 
 
+def test_free_axial_rotation_needs_the_inertia_coupling():
+    """B2 (spherical joint, free tip): no port holds the beam's rotation about its own axis, whose only
+    inertia is the polar one. A symmetric body under loads through its axis keeps its axial spin (Euler):
+    0. One superelement with the linear terms spins the beam about its axis after the tip load (the elastic
+    whirl's axial angular momentum goes nowhere else); the inertia coupling S(q) (gyroscopic) keeps it at 0.
+    The advisor asks for it there, and not where nothing moves (hub_free: the hub's rotation is free too)."""
+    from ffrf_fmu.simulate import run_scene
+
+    b2 = str(ROOT / "models" / "spherical_beam.toml")
+    a = ad.advise(b2, "torque_then_tip", 0.01)
+    assert a.terms == "gyroscopic" and "rotation about its own axis" in a.reasons["terms"]
+    assert ad.advise(B1, "hub_free", 0.01).terms == "linear"
+    spin = {}
+    for terms in ("linear", "gyroscopic"):  # shortened: 3 s after the tip load, 20 ms steps
+        m = load_model(b2, ["body.superelements=1", "body.modes=2", f"scenes.torque_then_tip.terms={terms}",
+                            "scenes.torque_then_tip.duration=18", "scenes.torque_then_tip.step=0.02"])
+        res = run_scene(m, "torque_then_tip")
+        R, w = res.port("root", "R"), res.port("root", "w")
+        axial = np.einsum("ni,ni->n", w, R[:, :, 0])  # about the root section's axis
+        after = res.t >= 15.2
+        spin[terms] = float(np.mean(axial[after]))
+        swing = float(np.mean(np.linalg.norm(w[after] - axial[after, None] * R[after, :, 0], axis=1)))
+    assert abs(spin["gyroscopic"]) < 1e-3 * swing  # measured 9e-6 against 0.095 rad/s
+    assert abs(spin["linear"]) > 1e-2 * swing  # measured -0.0031 rad/s: what the rule is for
+
+
 def test_stiffened_rule_structure():
     """B1: the spin (sigma = 1.88) turns stiffening on; the predicted error of a stiffened chain falls as
     (Omega/omega_se)^2 ~ N^-4 (omega_se of a free-free superelement of length L/N ~ N^2); a tolerance

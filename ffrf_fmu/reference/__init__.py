@@ -53,8 +53,11 @@ rho_inf 0.5) while h = 10 ms is within 0.12 %. Keep the rotation per step (spin 
 ~0.12 rad; `info["energy_error"]` (that energy error / energy level, ~0.2 % for B1 at
 20 ms, O(h^2)) is reported and a RuntimeWarning is issued above 2 %.
 
-Limits: relative rotation across one element below pi (always true on sane meshes);
-Initial.port_displacements (initially deformed body) raises NotImplementedError.
+Initially deformed body (Initial.port_displacements): `relaxed_shape`, the static equilibrium the runtime
+relaxes to (every port's translation held, displaced ones at X + u; undisplaced ports' rotations held),
+then released with the rigid velocity field on that shape (predictor "constant" by default then).
+
+Limits: relative rotation across one element below pi (always true on sane meshes).
 
 Entry points: `simulate_reference`, `static_reference`, `tip_from_hub`; convergence study on B1:
 `ffrf-fmu convergence`.

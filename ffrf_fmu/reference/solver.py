@@ -417,7 +417,7 @@ def simulate_reference(
     duration: float | None = None,
     newton: str = "modified",
     jacobian_age: int = 100,
-    predictor: str = "linear",
+    predictor: str | None = None,
 ) -> ReferenceResult:
     """Run `scene` on the full-order geometrically exact beam model of `body`.
 
@@ -434,15 +434,15 @@ def simulate_reference(
     transverse directions. Both converge to the same solution (to tol).
     predictor: guess of vdot_{n+1}: "constant" (vdot_n), "linear" (2 vdot_n - vdot_{n-1}; amplifies
     near-Nyquist components) or "corotated" (vdot_n with its translational part turned by the
-    last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation).
+    last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation). Default
+    "linear", but "constant" for an initially deformed body (scene.initial.port_displacements): its
+    release rings the axial modes near Nyquist, and the linear guess made Newton fail at the second
+    step of B4 (h = 2 ms, full or modified Newton alike).
     """
     t_wall = time.perf_counter()
     t_cpu = time.process_time()
-    if scene.initial.port_displacements:
-        raise NotImplementedError(
-            "reference: Initial.port_displacements (an initially deformed body) is not supported by the "
-            "full-order reference yet; start from the undeformed reference configuration"
-        )
+    if predictor is None:
+        predictor = "constant" if scene.initial.port_displacements else "linear"
     mesh = Mesh(body, n_elements)
     sc = _Scene(mesh, body, scene)
     T_end = float(scene.duration if duration is None else duration)
@@ -464,13 +464,13 @@ def simulate_reference(
     el = mesh.elements
     tol_x = tol * mesh.length
 
-    # ---------------- initial state: reference configuration, rigid velocity field, drives at t=0
-    x = mesh.X.copy()
-    R = np.repeat(mesh.Lam0[None], nn, axis=0)
+    # ---------------- initial state: reference (or relaxed deformed) configuration, rigid velocity field,
+    # drives at t=0
+    x, R = relaxed_shape(mesh, scene_body(body, scene), dict(scene.initial.port_displacements))
     v = np.zeros((nn, 6))
     v0 = np.asarray(scene.initial.velocity, float)
     w0 = np.asarray(scene.initial.angular_velocity, float)
-    v[:, :3] = v0 + cross(w0, mesh.X - mesh.origin)
+    v[:, :3] = v0 + cross(w0, x - mesh.origin)
     v[:, 3:] = np.einsum("nji,j->ni", R, w0)
     vd = np.zeros((nn, 6))
     sc.impose(0.0, x, R, v, vd)
@@ -658,6 +658,49 @@ def simulate_reference(
 
 
 # ============================================================================ statics
+def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: int = 5, tol: float = 1e-10,
+                  max_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """The initially deformed body (scene.initial.port_displacements {port: u}), as the runtime makes it
+    (BodySystem._relax): static equilibrium without loads or inertia with every port's translation held,
+    the displaced ports' at X + u, and the rotation of every port that was not displaced (or is
+    motion-driven) held: for a free beam with its far end displaced, the cantilever shape. Nodal (x, R)
+    with R including the section frame Lam0; the reference configuration when nothing is displaced."""
+    nn = mesh.nn
+    x = mesh.X.copy()
+    R = np.repeat(mesh.Lam0[None], nn, axis=0)
+    if not displacements:
+        return x, R
+    presc = np.zeros((nn, 6), bool)
+    u = np.zeros((nn, 3))
+    for p in body.ports:
+        k = mesh.port_node[p.name]
+        presc[k, :3] = True
+        if p.name in displacements:
+            u[k] = np.asarray(displacements[p.name], float)
+        if p.name not in displacements or p.rotation == "motion":
+            presc[k, 3:] = True
+    unknown = set(displacements) - {p.name for p in body.ports}
+    if unknown:
+        raise ValueError(f"reference: initial displacements of unknown ports {sorted(unknown)}")
+    band = _Banded(mesh, (~presc).ravel(), with_mass=False)
+    d = np.zeros((nn, 6))
+    for step in range(1, load_steps + 1):
+        x = np.where(presc[:, :3], mesh.X + (step / load_steps) * u, x)
+        for _ in range(max_iterations):
+            fint, st = _internal(mesh, x, R)
+            d = band.solve(band.factor(mesh.elements.tangent_from(st), None), -fint.ravel()).reshape(nn, 6)
+            x = x + d[:, :3]
+            R = R @ expm(d[:, 3:])
+            if np.abs(d[:, :3]).max() < tol * mesh.length and np.abs(d[:, 3:]).max() < tol:
+                break
+        else:
+            raise RuntimeError(f"reference: initial port displacements {sorted(displacements)}: no static equilibrium "
+                               f"of the deformed body ({max_iterations} Newton iterations, last correction "
+                               f"{np.abs(d).max():.3g}); smaller displacements, or ports whose displacements the body "
+                               "can hold")
+    return x, R
+
+
 def static_reference(
     body: Body,
     loads: dict,

@@ -281,10 +281,11 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
 
 
 def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequence[str] = (),
-          reference_elements: int | None = None, out_dir="chart", chart_csv=None, scheduler=None,
-          fresh: bool = False, backend: str | None = None, progress: bool = False) -> dict:
+          reference_elements: int | None = None, reference_step: float | None = None, out_dir="chart",
+          chart_csv=None, scheduler=None, fresh: bool = False, backend: str | None = None,
+          progress: bool = False) -> dict:
     """Run the advised configuration (standalone, or through its FMU when advice.indicators["runner"]
-    says so) and the reference as two tasks of the sweep layer (sweep.py; scheduler as chart's),
+    says so) and the reference (reference_elements, reference_step: default the scene's) as two tasks of the sweep layer (sweep.py; scheduler as chart's),
     results in out_dir's store (a chart's directory holds the same reference run: it is not
     repeated); the achieved errors and cost. With chart_csv, compare with the cheapest chart
     configuration that meets the tolerance. backend: the advice's own unless given."""
@@ -298,7 +299,7 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
               "step": f"{advice.step:g}", "stiffening": "true" if advice.stiffening else "false"}
     runner = advice.indicators.get("runner", "standalone")
     backend = backend or advice.backend
-    ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements)
+    ref_task = make_task(model_path, overrides, scene.name, "reference", elements=reference_elements, step=reference_step)
     run_task = make_task(model_path, [*overrides, *value_overrides(values)], scene.name, runner, backend)
     sweep = SweepOptions(scheduler or Scheduler(), fresh, progress)
     outcome = sweep_into(out_dir, [ref_task, run_task], f"advise --check {model.body.name}/{scene.name}",
