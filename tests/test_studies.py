@@ -60,10 +60,12 @@ def test_store_refuses_another_code_version_and_skips_torn_lines(tmp_path):
 
 
 def test_killed_worker_is_retried(tmp_path):
-    """Four runs on a two-process pool; when the first (short) run returns, the worker still busy
-    with the second is killed (SIGKILL). The pool breaks, the lost run is tried again on a new pool
-    and the sweep completes: every run completed, the lost one on its second attempt, with the
-    same tip deflection as a run in this process (same code, same inputs: bit-identical)."""
+    """Four runs on a two-process pool; when the first run returns, the other worker is killed
+    (SIGKILL). The pool breaks, the run(s) in flight are tried again on a new pool and the sweep
+    completes: every run completed, each retried one on its second attempt in another process,
+    with the same tip deflection as a run in this process (same code, same inputs: bit-identical).
+    Which run was in flight on the killed worker depends on the scheduling (spawned workers import
+    at different speeds on a loaded machine), so the test finds it from the attempts, not by index."""
     tasks = [make_task(B1, [*LEAN, f"duration={d}"], "spinup") for d in (0.1, 1.2, 0.3, 0.4)]
     killed = []
 
@@ -77,11 +79,15 @@ def test_killed_worker_is_retried(tmp_path):
     out = sw.run_sweep(tasks, sw.Pool(2, "spawn"), store=st.ResultStore(tmp_path), on_result=on_result)
     assert killed and out.ran == 4 and out.lost == 0
     assert all(r["completed"] for r in out.results.values())
-    lost = out.results[tasks[1].key]
-    assert lost["attempts"] == 2 and lost["pid"] != killed[0] and out.retried >= 1
-    here = sw.InProcess().run([tasks[1]], 0).__next__()[1]
-    assert lost["metrics"]["tip_deflection_max_m"] == here["metrics"]["tip_deflection_max_m"]
-    assert st.ResultStore(tmp_path).entry(tasks[1].key)["attempts"] == 2
+    retried = [t for t in tasks if out.results[t.key]["attempts"] == 2]
+    assert retried and out.retried == len(retried)
+    assert all(out.results[t.key]["attempts"] == 1 for t in tasks if t not in retried)
+    stored = st.ResultStore(tmp_path)
+    for t in retried:
+        lost = out.results[t.key]
+        assert lost["pid"] != killed[0] and stored.entry(t.key)["attempts"] == 2
+        here = sw.InProcess().run([t], 0).__next__()[1]
+        assert lost["metrics"]["tip_deflection_max_m"] == here["metrics"]["tip_deflection_max_m"]
 
 
 def test_killed_sweep_resumes_with_the_missing_runs_only(tmp_path):
