@@ -480,6 +480,7 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
         "failure": None, "t_end": float(ref.t[-1]), "wall_time_s": ref.wall_time_s, "steps": len(ref.t) - 1,
         "real_time_factor": float(ref.t[-1] / ref.wall_time_s) if ref.wall_time_s > 0 else None,
         "newton_iterations_mean": ref.newton_iterations_mean, "energy_balance_max_rel": energy_balance(columns),
+        "energy_error": float((ref.info or {}).get("energy_error", np.nan)),
     }
     result = SimulationResult(ref.t, columns, summary, shell)
     summary["metrics"] = metrics(result, scene)

@@ -21,7 +21,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..model import Model, Scene, load_model, scene_body
+from ..model import Model, Scene, load_model
 from .grid import value_overrides
 
 
@@ -132,30 +132,18 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
     the scene's). Returns {"t", "d" (eq. 92 tip trajectory), "metrics", "wall_time_s",
     "n_elements", "step", "energy_error", "warning"}; the solver's energy warning is returned in
     "warning" (in a worker process a Python warning would be lost)."""
-    from ..reference import simulate_reference
-    from ..simulate import SimulationResult, metrics, variable_names
+    from ..simulate import run_reference as reference_result
 
     model = load_model(model_path, base_overrides)
     sc = model.scene(scene_name)
     n_el = reference_elements(model, n_elements)
     h = float(step) if step else sc.step
-    ref_body = scene_body(model.body, sc)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="reference: energy error", category=RuntimeWarning)
-        res = simulate_reference(ref_body, sc, n_elements=n_el, step=h)
-    t = np.asarray(res.t)
-    energy_error = float(res.info["energy_error"])
-    cols = {}
-    body = body_data(model, sc)
-    for p in (p.name for p in body.ports):
-        names = iter(variable_names(p))
-        for fld in ("r", "R", "v", "w", "f", "t"):
-            arr = np.asarray(res.ports[p][fld]).reshape(len(t), -1)
-            for j in range(arr.shape[1]):
-                cols[next(names)] = arr[:, j]
-    result = SimulationResult(t, cols, {}, body)
-    return {"t": t, "d": tip_trajectory(result), "metrics": metrics(result, sc), "wall_time_s": float(res.wall_time_s),
-            "n_elements": n_el, "step": h, "energy_error": energy_error,
+        result = reference_result(model, sc, n_elements=n_el, step=h)
+    energy_error = result.summary["energy_error"]
+    return {"t": result.t, "d": tip_trajectory(result), "metrics": result.summary["metrics"],
+            "wall_time_s": result.summary["wall_time_s"], "n_elements": n_el, "step": h, "energy_error": energy_error,
             "warning": reference_warning(energy_error, h)}
 
 
