@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import doctest
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -137,3 +138,17 @@ def test_long_modules_say_why():
         if len(text.splitlines()) > 400 and "400 lines" not in doc:
             long.append(f"{name} ({len(text.splitlines())} lines)")
     assert long == [], f"split by idea or give the reason in the module docstring: {long}"
+
+
+def test_one_blas_thread_for_blas_loaded_after_import():
+    """`import ffrf_fmu` after numpy, then scipy.linalg (which loads scipy's own OpenBLAS): every BLAS
+    runs one thread. With threadpoolctl's limit alone, scipy's OpenBLAS started one thread per core
+    and a spinning worker doubled a short run's CPU time (docs/benchmarks.md, CPU above wall)."""
+    code = ("import numpy, ffrf_fmu, scipy.linalg\n"
+            "from threadpoolctl import threadpool_info\n"
+            "print(sorted({i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'}))")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                         cwd=ROOT)
+    assert out.stdout.strip() == "[1]", out.stdout

@@ -39,3 +39,20 @@ def test_fmu_of_another_model_fails(tmp_path, small_toml):
     same = build_from_model(model, tmp_path / "same.fmu", scene="spin")
     rep = validate(same, model=model, scene="spin", plots=False)
     assert rep["fmu_matches_model"] and rep["passed"]
+
+
+def test_report_keeps_the_kernel_apart(tmp_path, small_toml):
+    """The standalone reference runs on the FMU's backend and before it: its kernel compilation or
+    disk-cache load is reported apart from its run time (seconds, compiled or loaded), and the report
+    says whether the FMU's kernel is the same source (then it loads the same cache entry)."""
+    model = tmp_path / "small.toml"
+    model.write_text(small_toml())
+    fmu = build_from_model(model, tmp_path / "small.fmu", scene="spin")  # backend numba (the default)
+    rep = validate(fmu, model=model, scene="spin", plots=False)
+    assert rep["passed"]
+    assert rep["backend"] == {"fmu": "numba", "standalone": "numba"}
+    k = rep["kernel"]
+    assert k["seconds"] > 0.0 and isinstance(k["compiled"], bool) and k["fmu_kernel_is_standalone_kernel"]
+    numpy_fmu = build_from_model(model, tmp_path / "small_numpy.fmu", scene="spin", backend="numpy")
+    rep = validate(numpy_fmu, model=model, scene="spin", plots=False)
+    assert rep["backend"] == {"fmu": "numpy", "standalone": "numpy"} and rep["kernel"]["seconds"] is None

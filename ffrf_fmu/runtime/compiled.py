@@ -10,9 +10,17 @@ cache=True next to it. A second process or FMU instantiation (an FMU's resources
 fresh directory each time, so a cache keyed by the file's path would miss) loads the machine code
 instead of compiling. <cache> is $FFRF_FMU_CACHE_DIR, else $XDG_CACHE_HOME/ffrf-fmu, else
 ~/.cache/ffrf-fmu; if it cannot be written, a temporary directory (compiled once per process).
+
+numba's cache keys an entry by the source file's content hash, the signature, the CPU and numba's
+version, so the copy in an FMU's resources, a spawned worker or a second checkout of the same source
+all load the same entry. What it does not do is coordinate processes: two that start on an empty
+cache both compile (minutes each on a busy machine). The first call of each entry point therefore
+holds an exclusive lock on <cache>/kernels/<sha256 prefix>/.compile.lock (released by the OS if the
+process dies): a second process waits for the first one's compilation and then loads it from disk.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import logging
@@ -38,7 +46,7 @@ def _read_kernel_source() -> bytes | None:
 
 # read at import: an FMU's unpacked resources may be deleted while its package stays imported
 # (a second instance of the same FMU then reuses the module)
-_KERNEL_SOURCE = _read_kernel_source()
+KERNEL_SOURCE = _read_kernel_source()
 _LOADED: dict[str, object] = {}  # kernel modules by content hash: compiled code, no body state
 
 
@@ -51,20 +59,63 @@ def cache_root() -> Path:
 
 
 def _kernel_file(src: bytes, digest: str) -> Path:
-    """kernel.py at its content-keyed place, written atomically if absent."""
+    """The source at its content-keyed place, created if absent and never replaced while intact: numba
+    before 0.68 stamped its cache with the file's mtime, which a racing rewrite would change."""
     for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
         d = root / "kernels" / digest
         f = d / f"ffrf_kernel_{digest}.py"
         try:
-            if not f.exists() or f.read_bytes() != src:
-                d.mkdir(parents=True, exist_ok=True)
-                tmp = d / f".{f.name}.{os.getpid()}.tmp"
-                tmp.write_bytes(src)
-                os.replace(tmp, f)
-            return f
+            if f.exists() and f.read_bytes() == src:
+                return f
+            d.mkdir(parents=True, exist_ok=True)
+            tmp = d / f".{f.name}.{os.getpid()}.tmp"
+            tmp.write_bytes(src)
+            try:
+                if f.exists():  # damaged: replaced
+                    os.replace(tmp, f)
+                else:
+                    os.link(tmp, f)  # atomic create-if-absent: a process that lost the race keeps the winner's file
+            except FileExistsError:
+                pass
+            finally:
+                tmp.unlink(missing_ok=True)
+            if f.read_bytes() == src:
+                return f
         except OSError:
             continue
     raise OSError("no writable cache directory for the compiled kernel")
+
+
+def import_by_content(src: bytes):
+    """The module of source `src`, imported from its content-keyed file (once per process)."""
+    digest = hashlib.sha256(src).hexdigest()[:16]
+    if digest not in _LOADED:
+        path = _kernel_file(src, digest)
+        name = f"ffrf_kernel_{digest}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # numba's cache locator looks the module up by name
+        spec.loader.exec_module(module)
+        _LOADED[digest] = module
+    return _LOADED[digest]
+
+
+@contextlib.contextmanager
+def compile_lock(kernel_file: Path):
+    """Exclusive lock on the kernel's cache directory while a first call compiles or loads it.
+    Without fcntl (Windows) or a writable lock file, no lock: each process may then compile."""
+    try:
+        import fcntl
+        fh = open(Path(kernel_file).parent / ".compile.lock", "ab")
+    except (ImportError, OSError):
+        yield
+        return
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)  # blocks while another process compiles this kernel
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def load_kernel(terms: str):
@@ -75,23 +126,13 @@ def load_kernel(terms: str):
         import numba  # noqa: F401
     except ImportError:
         return None, "numba is not installed"
-    src = _KERNEL_SOURCE
+    src = KERNEL_SOURCE
     if src is None:
         return None, f"{Path(__file__).resolve().parent / 'kernel.py'} could not be read"
-    digest = hashlib.sha256(src).hexdigest()[:16]
-    if digest in _LOADED:
-        return _LOADED[digest], None
     try:
-        path = _kernel_file(src, digest)
-        name = f"ffrf_kernel_{digest}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module  # numba's cache locator looks the module up by name
-        spec.loader.exec_module(module)
+        return import_by_content(src), None
     except Exception as exc:  # a broken numba install must not take the body down: numpy still works
         return None, f"the numba kernel could not be loaded ({type(exc).__name__}: {exc})"
-    _LOADED[digest] = module
-    return module, None
 
 
 class CompiledStep:
@@ -153,8 +194,21 @@ class CompiledStep:
         self.F = np.zeros(L.ny)
         self.R = np.zeros((L.n_nodes + L.n_se, 3, 3))
         self.fn = None  # the compiled entry point, once known (calling it skips numba's type dispatch)
-        self.compile_seconds = None  # seconds of the first call in this process (compilation or cache load)
+        self.compile_seconds = None  # seconds of the first calls in this process (compilation or cache load)
+        self.compile_cpu_seconds = None  # this process's CPU seconds in them
+        self.compiled = None  # True: a first call compiled (empty cache); False: every one loaded from disk
         self.verified = False  # the first step is checked against the numpy path (`step`)
+
+    def _first_call(self, dispatcher, args):
+        """dispatcher(*args) compiled or loaded from the disk cache, under the kernel's compile lock; its
+        seconds added to compile_seconds (CPU: compile_cpu_seconds), and whether it compiled (numba's dispatcher statistics)."""
+        t0, c0 = time.perf_counter(), time.process_time()
+        with compile_lock(self.module.__file__):
+            out = dispatcher(*args)
+        self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
+        self.compile_cpu_seconds = (self.compile_cpu_seconds or 0.0) + time.process_time() - c0
+        self.compiled = bool(self.compiled) or bool(sum(dispatcher.stats.cache_misses.values()))
+        return out
 
     def _adopt(self, system):
         """The body's state in the kernel's buffers (after set_state, initialize or a numpy step)."""
@@ -230,15 +284,13 @@ class CompiledStep:
                 float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), self.ydw, self.p, self.R, self.F, self.luT,
                 self.piv, self.lu_meta, self.info)
         if self.fn is None:
-            t0 = time.perf_counter()
             try:
-                self._set_lu(*self.module.step(*args))
+                self._set_lu(*self._first_call(self.module.step, args))
             except Exception as exc:  # compilation failed (a broken numba install): numpy from here on
                 system._compiled, system.backend = None, "numpy"
                 system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(system.backend_note)
                 return system._step(h, inputs, am, af, gamma, commit_config=True)
-            self.compile_seconds = time.perf_counter() - t0
             self.fn = self.module.step.overloads[self.module.step.signatures[0]].entry_point
         else:
             self._set_lu(*self.fn(*args))
@@ -274,9 +326,7 @@ class CompiledStep:
         args = (row, self.port_nodes, self.energy_data, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"],
                 s["fN"], s["tN"], float(system.work), int(system.iterations))
         if self.record_fn is None:  # compiled (or loaded from the disk cache) on first use
-            t0 = time.perf_counter()
-            self.module._record(*args)
-            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
+            self._first_call(self.module._record, args)
             self.record_fn = self.module._record.overloads[self.module._record.signatures[-1]].entry_point
         else:
             self.record_fn(*args)
@@ -299,15 +349,13 @@ class CompiledStep:
                 float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), work, self.luT, self.piv, self.lu_meta, self.info,
                 float(system.t))
         if self.run_fn is None:  # compile (or load from the disk cache) with no step to take
-            t0 = time.perf_counter()
             try:
-                self.module.run(*args, rows[:0], times[:0])
+                self._first_call(self.module.run, (*args, rows[:0], times[:0]))
             except Exception as exc:  # a broken numba install: numpy from here on
                 system._compiled, system.backend = None, "numpy"
                 system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(system.backend_note)
                 return 0, None
-            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
             self.run_fn = self.module.run.overloads[self.module.run.signatures[0]].entry_point
         done, luT, piv = self.run_fn(*args, rows, times)
         self._set_lu(luT, piv)
