@@ -19,6 +19,7 @@ import numpy as np
 from .model import Model, Scene, load_model, scene_body
 from .runtime import drives
 from .runtime.data import BodyData
+from .runtime.held import port_codes
 from .runtime.ports import PortValues, StepFailure
 from .runtime.rotation import expm, logm
 from .runtime.body import BodySystem
@@ -78,9 +79,6 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
     return inputs
 
 
-_PART_CODES = {"force": 0, "motion": 1, "compliant": 2}
-
-
 def scene_schedule(body: BodyData, scene: Scene) -> tuple:
     """The inputs of `scene_inputs` as arrays, for the compiled run (runtime/kernel.py `run`, which
     evaluates them at every step as scene_inputs does): per port its node, part causalities (0 force,
@@ -89,15 +87,11 @@ def scene_schedule(body: BodyData, scene: Scene) -> tuple:
     time window, force and moment."""
     drive_of = {d.port: d for d in scene.drives}
     P = len(body.ports)
-    node, spring = np.zeros(P, dtype=np.int64), np.full(P, -1, dtype=np.int64)
-    mode, kind = np.zeros((P, 2), dtype=np.int64), np.full((P, 2), -1, dtype=np.int64)
+    node, mode, spring = port_codes(body.ports)
+    kind = np.full((P, 2), -1, dtype=np.int64)
     r0, prm, axis = np.zeros((P, 3)), np.zeros((P, 2, 3)), np.zeros((P, 2, 3))
-    n_springs = 0
     for j, p in enumerate(body.ports):
-        node[j], r0[j] = p.node, body.node_positions[p.node]
-        mode[j] = _PART_CODES[p.translation], _PART_CODES[p.rotation]
-        if "compliant" in (p.translation, p.rotation):
-            spring[j], n_springs = n_springs, n_springs + 1
+        r0[j] = body.node_positions[p.node]
         d = drive_of.get(p.name)
         for part, drive in ((0, d and d.translation), (1, d and d.rotation)):
             if drive:

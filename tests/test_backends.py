@@ -27,7 +27,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import build_body, build_scene_body
-from ffrf_fmu.runtime import compiled
+from ffrf_fmu.runtime import compiled, held
 from ffrf_fmu.runtime.body import BodySystem
 
 pytest.importorskip("numba")  # a declared dependency (CI checks it imports); the kernel's tests need it
@@ -85,6 +85,61 @@ def test_numba_backend_matches_numpy(name):
     peak = max(np.abs(ref.columns[f"energy.{k}"]).max() for k in sim.ENERGIES)
     for k in sim.ENERGIES:
         assert np.abs(fast.columns[f"energy.{k}"] - ref.columns[f"energy.{k}"]).max() <= 1e-9 * peak, k
+
+
+HELD_RUNS = {k: RUNS[k] for k in ("B1", "B1-compliant", "B1-full-stiffening-W2")}
+
+
+def _held_values(ports, values):
+    """The rows of runtime/held.py for {port: PortValues} at t_c (what an FMU gathers from its inputs)."""
+    rows = np.zeros((len(ports), held.WIDTH))
+    for j, p in enumerate(ports):
+        for f, cols in held.COLUMNS.items():
+            x = getattr(values[p.name], f)
+            if x is not None:
+                rows[j, cols] = np.ravel(x)
+    return rows
+
+
+@pytest.mark.parametrize("name", list(HELD_RUNS))
+def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
+    """An FMU's communication step in ONE kernel call (BodySystem.run_held on numba: the inputs
+    extrapolated from the held values inside the kernel, kernel._held_inputs) against one step call per
+    internal step with their numpy twin runtime/held.inputs (numpy backend): 1e-10 of the kinematic
+    outputs, 2e-6 of the loads (module docstring), equal iterations; 5 internal steps per
+    communication step, so that the extrapolation spans several steps, over 1 s of the scene. The
+    factorization of the last step is handed back to the body (the next call starts from it)."""
+    path, scene, overrides = HELD_RUNS[name]
+    model = load_model(path, overrides)
+    sc = model.scene(scene)
+    body, _ = build_scene_body(model.body, sc)
+    n, h = 5, sc.step
+    runs = {}
+    for backend in ("numpy", "numba"):
+        s, inputs = sim.build_system(body, sc, model.body.origin, backend)
+        rows, worst = [], []
+        for k in range(int(round(1.0 / (n * h)))):
+            t_c = k * n * h
+            row = np.empty(sim.record(s).size)
+            worst.append(s.run_held(h, n, t_c, _held_values(body.ports, inputs(t_c)), row))
+            s.t = t_c + n * h  # the master's clock (fmu/core.py)
+            rows.append(row)
+        assert s.backend == backend
+        if backend == "numba":
+            assert s._compiled.verified and s._lu[0] is s._compiled.lu
+        runs[backend] = (np.array(rows), worst)
+    (ref, w_ref), (fast, w_fast) = runs["numpy"], runs["numba"]
+    assert w_fast == w_ref
+    np.testing.assert_array_equal(fast[:, -1], ref[:, -1])
+    P = len(body.ports)
+    for field, cols in (("r", slice(0, 3)), ("R", slice(3, 12)), ("v", slice(12, 15)), ("w", slice(15, 18)),
+                        ("f", slice(18, 21)), ("t", slice(21, 24))):
+        a = ref[:, : 24 * P].reshape(len(ref), P, 24)[:, :, cols]
+        b = fast[:, : 24 * P].reshape(len(fast), P, 24)[:, :, cols]
+        rtol = 1e-10 if field in KINEMATIC else 2e-6
+        assert np.abs(a - b).max() <= rtol * max(np.abs(a).max(), 1e-300), field
+    peak = np.abs(ref[:, 24 * P : 24 * P + 4]).max()
+    assert np.abs(fast[:, 24 * P : 24 * P + 4] - ref[:, 24 * P : 24 * P + 4]).max() <= 1e-9 * peak
 
 
 def test_state_round_trips_between_backends():

@@ -26,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..runtime import held as held_inputs
 from ..runtime.data import BodyData
-from ..runtime.ports import PortValues, StepFailure
-from ..runtime.rotation import ROTATION_TOL, expm
+from ..runtime.ports import StepFailure
+from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
 from .variables import Variable, body_variables
@@ -125,7 +126,18 @@ class BodyCoSim:
         self._blas = ThreadpoolController() if ThreadpoolController is not None else None
         self.backend_note = None  # why the numba backend is not used, when it was asked for
         self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
-        self._output_map: tuple[np.ndarray, np.ndarray] | None = None  # see _output_values
+        self._output_map: tuple | None = None  # see _output_values
+        self._row = np.empty(BodySystem.OUTPUT_WIDTH * len(data.ports) + len(BodySystem.ENERGY_FIELDS) + 1)  # output_row
+        # `_held_inputs`: per port and column of runtime/held.py, the value reference it reads (unused: 0)
+        P, cols = len(data.ports), held_inputs.COLUMNS
+        ix, used = np.zeros((P, held_inputs.WIDTH), dtype=int), np.zeros((P, held_inputs.WIDTH), dtype=bool)
+        for j, p in enumerate(data.ports):
+            fields = (("r", "v", "a") if p.translation != "force" else ("f",)) + \
+                     (("R", "w", "dw") if p.rotation != "force" else ("t",))
+            for f in fields:
+                ix[j, cols[f]], used[j, cols[f]] = self.index[(p.name, f)], True
+        turns = np.array([j for j, p in enumerate(data.ports) if p.rotation != "force"], dtype=int)
+        self._held_map = (ix, used, turns)
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
         self.last_step: LastStep | None = None  # the last successful doStep (directional derivatives)
 
@@ -253,65 +265,35 @@ class BodyCoSim:
         return self.system
 
     # ------------------------------------------------------------------ inputs
-    def _held_inputs(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[dict, str]:
-        """The input values set for t_c (or those of `values`), checked: ({port: PortValues at t_c},
-        failure text). strict=False projects a rotation input onto the nearest rotation however far
-        it is (the perturbed inputs of the directional derivatives: the projection is what the FMU
-        does within ROTATION_TOL, and its derivative is the FMU's)."""
+    def _held_inputs(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[np.ndarray, str]:
+        """The input values set for t_c (or those of `values`), checked: (one row per port, the columns of
+        runtime/held.py, failure text). strict=False projects a rotation input onto the nearest rotation
+        however far it is (the perturbed inputs of the directional derivatives: the projection is what the
+        FMU does within ROTATION_TOL, and its derivative is the FMU's)."""
         values = self.values if values is None else values
         if not np.isfinite(values[self.input_ix]).all():  # one vectorized test; names only on failure
             bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(values[i])]
             shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
-            return {}, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
-        held = {}
-        vec = lambda port, field: values[self.index[(port, field)]]  # noqa: E731 - copies (fancy indexing)
-        for p in self.data.ports:
-            pv = PortValues()
-            if p.translation in ("motion", "compliant"):
-                pv.r, pv.v, pv.a = vec(p.name, "r"), vec(p.name, "v"), vec(p.name, "a")
-            else:
-                pv.f = vec(p.name, "f")
-            if p.rotation in ("motion", "compliant"):
-                R = vec(p.name, "R").reshape(3, 3)
-                dev = float(np.abs(R.T @ R - _I3).max())
-                (a, b, c), (d, e, f), (g, h, i) = R.tolist()
-                det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)  # np.linalg.det: 10x slower
-                if dev > ROTATION_TOL and strict:
-                    return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix "
-                                f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
-                if det <= 0.0:
-                    return {}, (f"t = {t_c:.6g} s: input {p.name}.R is not a rotation matrix (a reflection: "
-                                f"det = {det:.6g}, a rotation has det = +1)")
-                if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
-                    U, _, Vt = np.linalg.svd(R)
-                    R = U @ Vt
-                pv.R, pv.w, pv.dw = R, vec(p.name, "w"), vec(p.name, "dw")
-            else:
-                pv.t = vec(p.name, "t")
-            held[p.name] = pv
+            return None, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
+        ix, used, turns = self._held_map
+        held = np.where(used, values[ix], 0.0)  # one gather (fields a port does not read stay 0)
+        if turns.size:
+            R = held[turns, 9:18].reshape(-1, 3, 3)
+            dev = np.abs(np.swapaxes(R, 1, 2) @ R - _I3).reshape(-1, 9).max(axis=1)
+            a, b, c, d, e, f, g, h, i = held[turns, 9:18].T  # np.linalg.det, np.cross: slower on 3 x 3
+            det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+            for j, k in enumerate(turns):
+                name = self.data.ports[k].name
+                if dev[j] > ROTATION_TOL and strict:
+                    return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix "
+                                  f"(not orthonormal: max |R^T R - I| = {dev[j]:.3g} > {ROTATION_TOL:g})")
+                if det[j] <= 0.0:
+                    return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix (a reflection: "
+                                  f"det = {det[j]:.6g}, a rotation has det = +1)")
+                if dev[j] > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
+                    U, _, Vt = np.linalg.svd(R[j])
+                    held[k, 9:18] = (U @ Vt).ravel()
         return held, ""
-
-    @staticmethod
-    def extrapolation(t_c: float, held: dict):
-        """inputs(t) over the communication step from the values held at t_c, second order in
-        s = t - t_c (variables.INPUTS_BETWEEN_COMMUNICATION_POINTS). The rotation expm(skew(w s +
-        dw s^2/2)) R_c is exact for a fixed axis; otherwise it misses (w x dw) s^3/12: third order."""
-
-        def inputs(t: float) -> dict:
-            dt = t - t_c
-            out = {}
-            for name, pv in held.items():
-                q = PortValues(f=pv.f, t=pv.t)
-                if pv.r is not None:
-                    q.r = pv.r + pv.v * dt + (0.5 * dt * dt) * pv.a
-                    q.v = pv.v + dt * pv.a
-                if pv.R is not None:
-                    q.R = expm(pv.w * dt + (0.5 * dt * dt) * pv.dw) @ pv.R
-                    q.w = pv.w + dt * pv.dw
-                out[name] = q
-            return out
-
-        return inputs
 
     # ------------------------------------------------------------------ modes
     def setup_experiment(self, start_time: float, stop_time: float | None = None) -> None:
@@ -337,7 +319,7 @@ class BodyCoSim:
             with self.one_blas_thread():
                 self._make_system().initialize(
                     self.start_time,
-                    self.extrapolation(self.start_time, held),
+                    held_inputs.inputs(self.data.ports, held, self.start_time),
                     velocity=p["initial_velocity"],
                     angular_velocity=p["initial_angular_velocity"],
                     port_displacements=p["port_displacements"] or None,
@@ -411,9 +393,7 @@ class BodyCoSim:
         held, msg = self._held_inputs(t_c)
         if msg:
             return StepReport(False, msg, status="discard")
-        inputs = self.extrapolation(t_c, held)
         saved = system.snapshot()  # the factorization shared, not copied
-        worst = 0
         # n equal internal steps of at most solver.step (up to round-off in H / h). Never a sliver: a
         # step of 1e-11 s makes the iteration matrix nearly the singular F_ydot of the DAE and leaves
         # a lasting high-frequency error in the reactions.
@@ -422,10 +402,9 @@ class BodyCoSim:
         hh = H / n
         try:
             with self.one_blas_thread():
-                for _ in range(n):
-                    worst = max(worst, system.step(hh, inputs))
+                worst = system.run_held(hh, n, t_c, held, self._row)  # one kernel call on numba
                 system.t = t_end  # the master's clock, not the sum of n rounded steps
-                dst, out = self._output_values(worst)
+                dst, out = self._output_values(worst, self._row)
             self._check_finite(system, out)
         except StepFailure as e:
             system.restore(saved)
@@ -489,10 +468,8 @@ class BodyCoSim:
                         if msg:
                             return None, f"directional derivative: {msg}"
                         system.restore(rec.state)
-                        inputs = self.extrapolation(rec.t_c, held)
-                        for _ in range(rec.n):
-                            system.step(rec.H / rec.n, inputs)
-                        dst, out = self._output_values(0)
+                        system.run_held(rec.H / rec.n, rec.n, rec.t_c, held, self._row)  # as doStep steps
+                        dst, out = self._output_values(0, self._row)
                         full = np.zeros(n)
                         full[dst] = out
                         sides.append(full[unknowns])
@@ -512,45 +489,60 @@ class BodyCoSim:
         if not (np.isfinite(outputs).all() and np.isfinite(system.yd).all()):
             raise StepFailure(system.t, "the state is not finite (NaN or overflow)")
 
-    def _output_values(self, iterations: int) -> tuple[np.ndarray, np.ndarray]:
-        """(value references, values) of every output at the current state, not yet written.
+    def _output_values(self, iterations: int, row: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(value references, values) of every output at the current state, not yet written; row: the
+        body's output_row at this state if already computed (BodySystem.run_held fills one), else computed.
 
-        Port fields come from the body's port_array (one row per port, columns OUTPUT_FIELDS, 3 or
-        9 each, R row-major as the variables): one gather with a map built on first use."""
+        Port fields come from the row's port_array part (one row per port, columns OUTPUT_FIELDS, 3 or
+        9 each, R row-major as the variables), then the energies, the iterations and the probes: one
+        gather with a map built on first use."""
         if self._output_map is None:
-            dst, src = [], []
-            width = sum(self.index[(self.data.ports[0].name, f)].size for f in BodySystem.OUTPUT_FIELDS)
-            for j, p in enumerate(self.data.ports):
-                col = 0
-                for field in BodySystem.OUTPUT_FIELDS:
-                    ix = self.index[(p.name, field)]
-                    cols = j * width + col + np.arange(ix.size)
-                    if self.causality[ix[0]] == "output":
-                        dst.append(ix)
-                        src.append(cols)
-                    node = self.index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
-                    if node is not None:
-                        dst.append(node)
-                        src.append(cols)
-                    col += ix.size
-            self._output_map = (np.concatenate(dst), np.concatenate(src))
-        pdst, psrc = self._output_map
-        full = self.system.output_row()  # port_array raveled, the energies, iterations (the kernel's on numba)
+            self._output_map = self._build_output_map()
+        dst, src, seen, frame, dX = self._output_map
+        row = self.system.output_row() if row is None else row
+        row[-1] = iterations  # the most of the communication step's internal steps, not the last one's
+        if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f)
+            pr = row[: BodySystem.OUTPUT_WIDTH * len(self.data.ports)].reshape(len(self.data.ports), -1)
+            d = np.einsum("pji,pj->pi", pr[frame, 3:12].reshape(-1, 3, 3), pr[seen, 0:3] - pr[frame, 0:3]) - dX
+            row = np.concatenate([row, d.ravel()])
+        return dst, row[src]
+
+    def _build_output_map(self) -> tuple:
+        """(value references, positions in [output_row, probes], then per probe the rows of its seen and
+        frame ports and X_s - X_f) of `_output_values`."""
+        dst, src = [], []
         n_ports, width = len(self.data.ports), BodySystem.OUTPUT_WIDTH
-        rows = full[: width * n_ports].reshape(n_ports, width)
-        energies = dict(zip(BodySystem.ENERGY_FIELDS, full[width * n_ports : width * n_ports + len(BodySystem.ENERGY_FIELDS)]))
-        keys = [k for k in energies if ("energy", k) in self.index]
-        dst = [pdst, *(self.index[("energy", k)] for k in keys), self.index[("solver", "newton_iterations")]]
-        out = [rows.ravel()[psrc], [energies[k] for k in keys], [iterations]]
-        X = self.data.node_positions
+        for j, p in enumerate(self.data.ports):
+            col = 0
+            for field in BodySystem.OUTPUT_FIELDS:
+                ix = self.index[(p.name, field)]
+                cols = j * width + col + np.arange(ix.size)
+                if self.causality[ix[0]] == "output":
+                    dst.append(ix)
+                    src.append(cols)
+                node = self.index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
+                if node is not None:
+                    dst.append(node)
+                    src.append(cols)
+                col += ix.size
+        for i, k in enumerate(BodySystem.ENERGY_FIELDS):
+            if ("energy", k) in self.index:
+                dst.append(self.index[("energy", k)])
+                src.append([width * n_ports + i])
+        size = width * n_ports + len(BodySystem.ENERGY_FIELDS) + 1  # output_row's length, iterations last
+        dst.append(self.index[("solver", "newton_iterations")])
+        src.append([size - 1])
         row_of = {p.name: j for j, p in enumerate(self.data.ports)}
-        for name in self.config["parameters"].get("probes", ()):  # eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f)
-            seen, _, frame = name.partition("_from_")
-            rs, rf = rows[row_of[seen]], rows[row_of[frame]]
+        X, seen, frame, dX = self.data.node_positions, [], [], []
+        for i, name in enumerate(self.config["parameters"].get("probes", ())):
+            s, _, f = name.partition("_from_")
+            seen.append(row_of[s])
+            frame.append(row_of[f])
+            dX.append(X[self.data.port(s).node] - X[self.data.port(f).node])
             dst.append(self.index[("probe", name)])
-            out.append(rf[3:12].reshape(3, 3).T @ (rs[0:3] - rf[0:3])
-                       - (X[self.data.port(seen).node] - X[self.data.port(frame).node]))
-        return np.concatenate(dst), np.concatenate(out)
+            src.append(size + 3 * i + np.arange(3))
+        return (np.concatenate(dst), np.concatenate(src).astype(int), np.array(seen, dtype=int),
+                np.array(frame, dtype=int), np.array(dX, dtype=float).reshape(-1, 3))
 
     def _write_outputs(self, iterations: int) -> None:
         dst, out = self._output_values(iterations)

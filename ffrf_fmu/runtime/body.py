@@ -15,6 +15,7 @@ from .compiled import CompiledStep, load_kernel
 from .data import BodyData
 from . import stiffening
 from .fused import FusedResidual
+from .held import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
 from .coupling import add_springs
@@ -124,6 +125,7 @@ class BodySystem(GeneralizedAlpha):
         self._minus_mass = -self.mass[:, None]
         self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
         self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
+        self._held_codes = port_codes(data.ports)  # (node, mode, spring) of `run_held`
         # energies: [v0, Omega0, r, q] of each SE with blockdiag(m I, J0, M, K), then 1/2 the sums per part
         self._energy_op = np.zeros((E, nv + n, nv + n))
         for e in range(E):
@@ -178,7 +180,7 @@ class BodySystem(GeneralizedAlpha):
         return self._flat_state(with_lu=True)
 
     def _flat_state(self, with_lu: bool) -> np.ndarray:
-        parts = [np.ravel(getattr(self, k)) for k in self._STATE_FIELDS]
+        parts = [getattr(self, k).ravel() for k in self._STATE_FIELDS]  # (the method: np.ravel costs 1 us more each)
         scalars = np.array([self.t, self.work, self.power, self.iterations, with_lu and self._lu is not None])
         if with_lu and self._lu is not None:
             lu, piv, beta, R_ref = self._lu

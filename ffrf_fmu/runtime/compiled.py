@@ -181,6 +181,7 @@ class CompiledStep:
         self.inputs = (np.zeros((N, 3)), np.zeros((N, 3, 3)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros((N, 3)))
         self.energy_data = (K, M, mass, J0, X_B, se_nodes, *inertia)
         self.run_fn = None  # the compiled many-step entry point, once known
+        self.run_held_fn, self.held_args = None, None  # the same for an FMU's communication step (`run_held`)
         self.port_nodes = i64([p.node for p in system.data.ports])
         # simulate.record's row: port_array raveled, the energies, iterations
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
@@ -362,4 +363,45 @@ class CompiledStep:
         if done:
             system.t, system.iterations = float(times[done - 1]), int(rows[done - 1, -1])
         system.work, system.power = float(self.energy[0]), float(self.energy[1])
-        return done, self._outcome(system, system.t + h) if done < len(rows) else None
+        return done, self._outcome(system, system.t + h)  # (also hands the factorization back to the body)
+
+    def run_held(self, system, h, n, t_c, held, row, am, af, gamma):
+        """n steps of h in ONE kernel call (runtime/kernel.py `run_held`), the inputs extrapolated from the
+        values held at t_c (runtime/held.py; held = (node, mode, spring, values)), the output row of the
+        last step into row (simulate.record's layout). Returns (steps completed, the most Newton iterations
+        of a step, StepFailure of the next step or None)."""
+        if not (h > 0.0 and np.isfinite(h)):
+            return 0, 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        self._adopt(system)
+        KC = self.springs[3]
+        for i, name in enumerate(self.spring_ports):
+            KC[i] = system.compliance[name]
+        self.energy[0], self.energy[1] = system.work, system.power
+        if self.held_args is None:  # the arguments that are the same objects at every call, built once
+            self.held_args = (self.const, tuple(self.state[k] for k in self.STATE) + (self.energy,))
+            self.held_rest = (self.springs, self.inputs, self.energy_data)
+            self.held_work = (self.ydw, self.p, self.R, self.F)
+        const, state = self.held_args
+        springs, inputs, energy_data = self.held_rest
+        args = (const, state, held, springs, inputs, energy_data, float(h), float(am), float(af), float(gamma),
+                float(system.tol), int(system.max_iter), int(system.iterations), self.held_work, self.luT, self.piv,
+                self.lu_meta, self.info, float(system.t), float(t_c))
+        if self.run_held_fn is None:  # compile (or load from the disk cache) with no step to take
+            t0 = time.perf_counter()
+            try:
+                self.module.run_held(*args, 0, row)
+            except Exception as exc:  # a broken numba install: numpy from here on
+                system._compiled, system.backend = None, "numpy"
+                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
+                logging.getLogger("ffrf_fmu").warning(system.backend_note)
+                return 0, 0, None
+            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
+            self.run_held_fn = self.module.run_held.overloads[self.module.run_held.signatures[0]].entry_point
+        done, worst, last_it, luT, piv = self.run_held_fn(*args, int(n), row)
+        self._set_lu(luT, piv)
+        t = system.t
+        for _ in range(done):  # the clock of `step`, one addition per step
+            t += h
+        system.t, system.iterations = t, int(last_it)
+        system.work, system.power = float(self.energy[0]), float(self.energy[1])
+        return done, int(worst), self._outcome(system, system.t + h)  # (also hands the factorization back)

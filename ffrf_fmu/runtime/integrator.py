@@ -29,6 +29,7 @@ import scipy.linalg as sla
 from scipy.linalg.lapack import dgetrs as getrs
 
 from .coupling import add_springs
+from .held import inputs as held_inputs
 from .ports import PortValues, StepFailure
 from .rotation import expm, skew, tangent
 
@@ -124,6 +125,30 @@ class GeneralizedAlpha:
             raise ValueError("run_schedule needs the numba backend (this body runs on numpy)")
         am, af, gamma = self.coefficients
         return self._compiled.run(self, h, schedule, rows, times, am, af, gamma)
+
+    def run_held(self, h: float, n: int, t_c: float, values: np.ndarray, row: np.ndarray | None = None) -> int:
+        """n steps of h with the inputs extrapolated from the values held at t_c (runtime/held.py; one row of
+        `values` per port, held.COLUMNS): an FMU's communication step. On numba (after its first step,
+        checked against numpy) in ONE kernel call with the extrapolation inside; otherwise one `step` call
+        per step with held.inputs, its numpy twin. Returns the most Newton iterations of a step; raises
+        StepFailure (the state then is that of the last completed step). row, if given, receives
+        `output_row` at the end."""
+        compiled = self._compiled
+        if compiled is not None and compiled.verified:
+            am, af, gamma = self.coefficients
+            held = (*self._held_codes, values)
+            buf = row if row is not None else np.empty(compiled.row_size)
+            done, worst, exc = compiled.run_held(self, h, n, t_c, held, buf, am, af, gamma)
+            if exc is not None:
+                raise exc
+            if self._compiled is not None:  # (None: the kernel failed to compile, nothing was stepped)
+                return worst
+        inputs, worst = held_inputs(self.data.ports, values, t_c), 0
+        for _ in range(n):
+            worst = max(worst, self.step(h, inputs))
+        if row is not None:
+            row[:] = self.output_row()
+        return worst
 
     def newton_system(self, yd, h, values, coefficients=None, jacobian=True):
         """(F, J) restricted to the unknowns for rates yd at t + h (J = F_ydot + beta [F_y T, F_v])."""

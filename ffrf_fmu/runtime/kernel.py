@@ -1238,3 +1238,82 @@ def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, 
         times[k] = t
         _record(rows[k], schedule[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], info[1])
     return rows.shape[0], luT, piv
+
+
+# ------------------------------------------------------------------ an FMU's communication step in one call
+# The inputs extrapolated from the values held at the communication point t_c (runtime/held.py, whose
+# `inputs` is the numpy twin of `_held_inputs`), evaluated at every internal step inside the compiled
+# code; the output row recorded once, at the end.
+
+
+@jit
+def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
+    """The inputs of `step` at time t extrapolated from the held values (runtime/held.py `inputs`, read by
+    BodySystem._read_inputs): held = (node, mode, spring, values) per port, mode 0 force, 1 motion,
+    2 compliant, values' columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27)."""
+    node, mode, spring, values = held
+    r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
+    xN_p[:] = xN
+    RN_p[:] = RN
+    zN_p[:] = 0.0
+    f_in[:] = 0.0
+    t_in[:] = 0.0
+    dt = t - t_c
+    half = 0.5 * dt * dt
+    th, E, Rd, wd = np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    for j in range(node.shape[0]):
+        k, s, row = node[j], spring[j], values[j]
+        if mode[j, 0] == 0:
+            for i in range(3):
+                f_in[k, i] = row[24 + i]
+        else:
+            for i in range(3):
+                r, vv = row[i] + row[3 + i] * dt + half * row[6 + i], row[3 + i] + dt * row[6 + i]
+                if mode[j, 0] == 1:
+                    xN_p[k, i], zN_p[k, i] = r, vv
+                else:
+                    r_in[s, i], v_in[s, i] = r, vv
+        if mode[j, 1] == 0:
+            for i in range(3):
+                t_in[k, i] = row[27 + i]
+        else:
+            for i in range(3):
+                th[i], wd[i] = row[18 + i] * dt + half * row[21 + i], row[18 + i] + dt * row[21 + i]
+            _expm(th, E)
+            for i in range(3):
+                for m in range(3):
+                    Rd[i, m] = E[i, 0] * row[9 + m] + E[i, 1] * row[12 + m] + E[i, 2] * row[15 + m]
+            if mode[j, 1] == 1:
+                RN_p[k] = Rd
+                for i in range(3):  # body-axes rate R^T w
+                    zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
+            else:
+                R_in[s] = Rd
+                w_in[s] = wd
+
+
+@jit
+def run_held(const, state, held, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv,
+             lu_meta, info, t, t_c, n, row):
+    """n steps of h from time t with the inputs extrapolated from the values held at t_c (`_held_inputs`):
+    `step` with the inputs around it, then the output row of the last step (`_record`, simulate.record's
+    layout) into row. Returns (steps completed, the most Newton iterations of a step, the iterations of the
+    last completed step (last_it if none), luT, piv); a failed
+    step leaves the state at the last completed one, its status in info (as `step`), row untouched."""
+    xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
+        state[10], state[11], state[12]
+    xN_p, RN_p, zN_p, f_in, t_in = inputs
+    worst = 0
+    for k in range(n):
+        t1 = t + h
+        _held_inputs(t1, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
+        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it, *work,
+                        luT, piv, lu_meta, info)
+        if info[0] != OK:
+            return k, worst, last_it, luT, piv
+        last_it = info[1]
+        worst = max(worst, last_it)
+        t = t1
+    if n > 0:
+        _record(row, held[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
+    return n, worst, last_it, luT, piv

@@ -1,0 +1,69 @@
+"""Inputs over a communication step extrapolated from the values held at its start t_c (an FMU's input
+rule, fmu/variables.py INPUTS_BETWEEN_COMMUNICATION_POINTS): second order in s = t - t_c,
+
+    r(t) = r_c + v_c s + a_c s^2/2,   v(t) = v_c + a_c s,
+    R(t) = expm(skew(w_c s + dw_c s^2/2)) R_c,   w(t) = w_c + dw_c s,   f, t held,
+
+the rotation exact for a fixed axis, otherwise missing (w x dw) s^3/12 (third order).
+
+The held values are one array per port (`COLUMNS`), so that the compiled kernel evaluates them at every
+internal step of the communication step in one call (runtime/kernel.py `_held_inputs`, `run_held`);
+`inputs` here is its numpy twin and the oracle (tests/test_backends.py).
+Runtime module: numpy only.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .ports import PortValues
+from .rotation import expm
+
+PART_CODES = {"force": 0, "motion": 1, "compliant": 2}  # a port part's causality as the kernel reads it
+
+# columns of a port's row of held values: position, velocity, acceleration, R (row-major), angular
+# velocity, angular acceleration (world axes), force, moment
+COLUMNS = {"r": slice(0, 3), "v": slice(3, 6), "a": slice(6, 9), "R": slice(9, 18), "w": slice(18, 21),
+           "dw": slice(21, 24), "f": slice(24, 27), "t": slice(27, 30)}
+WIDTH = 30
+
+
+def port_codes(ports) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(node, mode, spring) per port in `ports` order: the boundary node, the causality codes of
+    (translation, rotation) (PART_CODES), the index among the compliant ports (-1: not compliant;
+    the order of BodySystem.compliant and of the kernel's spring arrays)."""
+    node = np.array([p.node for p in ports], dtype=np.int64)
+    mode = np.array([[PART_CODES[p.translation], PART_CODES[p.rotation]] for p in ports], dtype=np.int64).reshape(-1, 2)
+    spring, k = np.full(len(ports), -1, dtype=np.int64), 0
+    for j, p in enumerate(ports):
+        if "compliant" in (p.translation, p.rotation):
+            spring[j], k = k, k + 1
+    return node, mode, spring
+
+
+def inputs(ports, values: np.ndarray, t_c: float) -> Callable[[float], dict[str, PortValues]]:
+    """inputs(t) -> {port: PortValues} extrapolated from the held `values` (one row per port, COLUMNS):
+    motion and compliant parts give r, v (R, w), force parts f (t)."""
+    c = COLUMNS
+    parts = [(p.name, p.translation != "force", p.rotation != "force", row) for p, row in zip(ports, values)]
+
+    def at(t: float) -> dict[str, PortValues]:
+        dt = t - t_c
+        out = {}
+        for name, moves, turns, row in parts:
+            q = PortValues()
+            if moves:
+                q.r = row[c["r"]] + row[c["v"]] * dt + (0.5 * dt * dt) * row[c["a"]]
+                q.v = row[c["v"]] + dt * row[c["a"]]
+            else:
+                q.f = row[c["f"]]
+            if turns:
+                q.R = expm(row[c["w"]] * dt + (0.5 * dt * dt) * row[c["dw"]]) @ row[c["R"]].reshape(3, 3)
+                q.w = row[c["w"]] + dt * row[c["dw"]]
+            else:
+                q.t = row[c["t"]]
+            out[name] = q
+        return out
+
+    return at
