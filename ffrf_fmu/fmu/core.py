@@ -128,16 +128,16 @@ class BodyCoSim:
         self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
         self._output_map: tuple | None = None  # see _output_values
         self._row = np.empty(BodySystem.OUTPUT_WIDTH * len(data.ports) + len(BodySystem.ENERGY_FIELDS) + 1)  # output_row
-        # `_held_inputs`: per port and column of runtime/held.py, the value reference it reads (unused: 0)
+        # `_held_inputs`: per port and column of runtime/held.py, the value reference it reads (0 where the
+        # port's causality reads no such input), and the ports with a rotation input
         P, cols = len(data.ports), held_inputs.COLUMNS
-        ix, used = np.zeros((P, held_inputs.WIDTH), dtype=int), np.zeros((P, held_inputs.WIDTH), dtype=bool)
+        ix = np.zeros((P, held_inputs.WIDTH), dtype=int)
         for j, p in enumerate(data.ports):
             fields = (("r", "v", "a") if p.translation != "force" else ("f",)) + \
                      (("R", "w", "dw") if p.rotation != "force" else ("t",))
             for f in fields:
-                ix[j, cols[f]], used[j, cols[f]] = self.index[(p.name, f)], True
-        turns = np.array([j for j, p in enumerate(data.ports) if p.rotation != "force"], dtype=int)
-        self._held_map = (ix, used, turns)
+                ix[j, cols[f]] = self.index[(p.name, f)]
+        self._held_map = (ix, [j for j, p in enumerate(data.ports) if p.rotation != "force"])
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
         self.last_step: LastStep | None = None  # the last successful doStep (directional derivatives)
 
@@ -275,24 +275,24 @@ class BodyCoSim:
             bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(values[i])]
             shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
             return None, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
-        ix, used, turns = self._held_map
-        held = np.where(used, values[ix], 0.0)  # one gather (fields a port does not read stay 0)
-        if turns.size:
-            R = held[turns, 9:18].reshape(-1, 3, 3)
-            dev = np.abs(np.swapaxes(R, 1, 2) @ R - _I3).reshape(-1, 9).max(axis=1)
-            a, b, c, d, e, f, g, h, i = held[turns, 9:18].T  # np.linalg.det, np.cross: slower on 3 x 3
+        ix, turns = self._held_map
+        held = values[ix]  # one gather (a column a port does not read holds some other value: never read)
+        for k in turns:  # per rotation input, on Python floats: numpy calls on 3 x 3 cost more than they save
+            name = self.data.ports[k].name
+            R = held[k, 9:18].tolist()
+            a, b, c, d, e, f, g, h, i = R
+            dev = max(abs(R[m] * R[n] + R[3 + m] * R[3 + n] + R[6 + m] * R[6 + n] - (m == n))
+                      for m in range(3) for n in range(m, 3))  # max |R^T R - I|
             det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-            for j, k in enumerate(turns):
-                name = self.data.ports[k].name
-                if dev[j] > ROTATION_TOL and strict:
-                    return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix "
-                                  f"(not orthonormal: max |R^T R - I| = {dev[j]:.3g} > {ROTATION_TOL:g})")
-                if det[j] <= 0.0:
-                    return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix (a reflection: "
-                                  f"det = {det[j]:.6g}, a rotation has det = +1)")
-                if dev[j] > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
-                    U, _, Vt = np.linalg.svd(R[j])
-                    held[k, 9:18] = (U @ Vt).ravel()
+            if dev > ROTATION_TOL and strict:
+                return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix "
+                              f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
+            if det <= 0.0:
+                return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix (a reflection: "
+                              f"det = {det:.6g}, a rotation has det = +1)")
+            if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
+                U, _, Vt = np.linalg.svd(held[k, 9:18].reshape(3, 3))
+                held[k, 9:18] = (U @ Vt).ravel()
         return held, ""
 
     # ------------------------------------------------------------------ modes
