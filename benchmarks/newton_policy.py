@@ -2,7 +2,7 @@
 step size and the Jacobian-reuse rules (runtime/integrator.py THETA_REFRESH, REFRESH_AFTER).
 
     python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
-                                       [--refresh-after 2:3] [--duration 20]
+                                       [--refresh-after 2:3] [--duration 20] [--held 1,5,10]
 
 Each run is the whole scene on the numpy backend (the numba backend makes the same decisions):
 Newton iterations (residual evaluations, each with one solve) per step, factorizations of the
@@ -11,6 +11,9 @@ of successive increments beyond which the stored factorization is dropped within
 Newton keeps it otherwise; theta = 0 would be full Newton); REFRESH_AFTER = lo:hi drops it before a
 step that follows one of lo to hi iterations. Iteration counts, not times: they do not depend on the
 machine (benchmarks/newton_iterations.py measures times, against a baseline revision).
+--held N1,N2,...: the FMU's input rule instead of the exact drive: the inputs extrapolated from the
+values held at each communication point t_c = k N h (runtime/held.py, BodySystem.run_held), N internal
+steps per communication step; one column per N (the thetas then take the first value only).
 """
 from __future__ import annotations
 
@@ -30,12 +33,13 @@ sys.path.insert(0, str(HERE.parent))
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.runtime import held  # noqa: E402
 from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
 
 
-def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float):
+def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float, held_n: int = 0):
     model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
     scene = model.scene("spinup")
     body, _ = build_body(model.body)
@@ -52,9 +56,22 @@ def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int,
     system._factor = counting
     iterations, failure = [], None
     n = round(duration / h)
+    step = system.step
+
+    def counting_step(*args):  # BodySystem.run_held steps through this on the numpy backend
+        iterations.append(step(*args))
+        return iterations[-1]
+
     try:
-        for _ in range(n):
-            iterations.append(system.step(h, inputs))
+        if held_n:
+            system.step = counting_step
+            for k in range(n // held_n):
+                t_c = k * held_n * h
+                system.run_held(h, held_n, t_c, held.rows(body.ports, inputs(t_c)))
+                system.t = t_c + held_n * h  # the master's clock, as an FMU's doStep
+        else:
+            for _ in range(n):
+                iterations.append(system.step(h, inputs))
     except StepFailure as e:
         failure = str(e)
     k = max(len(iterations), 1)
@@ -68,7 +85,10 @@ def main(argv=None) -> int:
     ap.add_argument("--thetas", default="0.1,0.25,0.5,0.9")
     ap.add_argument("--refresh-after", default="2:3")
     ap.add_argument("--duration", type=float, default=20.0)
+    ap.add_argument("--held", default="", help="internal steps per communication step of the FMU's input rule")
     args = ap.parse_args(argv)
+    if args.held:
+        return held_table(args)
     print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}; Newton iterations / factorizations per step")
     print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{'theta ' + t:>17}" for t in args.thetas.split(",")))
     for h in (float(x) for x in args.steps.split(",")):
@@ -83,6 +103,25 @@ def main(argv=None) -> int:
             print(f"{1e3 * h:7g} {cfg:>10} " + " ".join(cells))
             for note in notes:
                 print(f"{'':19}* {note}")
+    return 0
+
+
+def held_table(args) -> int:
+    """--held: one column per number of internal steps per communication step."""
+    ns = [int(x) for x in args.held.split(",")]
+    theta = float(args.thetas.split(",")[0])
+    print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}, theta {theta:g}, the FMU's input rule; "
+          "Newton iterations / factorizations per internal step")
+    print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{f'H = {n} h':>17}" for n in ns))
+    for h in (float(x) for x in args.steps.split(",")):
+        for cfg in args.configs.split(","):
+            n_se, modes = (int(v) for v in cfg.split("x"))
+            cells = []
+            for n in ns:
+                it, fac, failure = run(h, n_se, modes, theta, tuple(int(k) for k in args.refresh_after.split(":")),
+                                       args.duration, n)
+                cells.append(f"{it:8.2f} / {fac:5.2f}{'*' if failure else ' '}")
+            print(f"{1e3 * h:7g} {cfg:>10} " + " ".join(cells))
     return 0
 
 

@@ -90,17 +90,6 @@ def test_numba_backend_matches_numpy(name):
 HELD_RUNS = {k: RUNS[k] for k in ("B1", "B1-compliant", "B1-full-stiffening-W2")}
 
 
-def _held_values(ports, values):
-    """The rows of runtime/held.py for {port: PortValues} at t_c (what an FMU gathers from its inputs)."""
-    rows = np.zeros((len(ports), held.WIDTH))
-    for j, p in enumerate(ports):
-        for f, cols in held.COLUMNS.items():
-            x = getattr(values[p.name], f)
-            if x is not None:
-                rows[j, cols] = np.ravel(x)
-    return rows
-
-
 @pytest.mark.parametrize("name", list(HELD_RUNS))
 def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
     """An FMU's communication step in ONE kernel call (BodySystem.run_held on numba: the inputs
@@ -121,7 +110,7 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
         for k in range(int(round(1.0 / (n * h)))):
             t_c = k * n * h
             row = np.empty(sim.record(s).size)
-            worst.append(s.run_held(h, n, t_c, _held_values(body.ports, inputs(t_c)), row))
+            worst.append(s.run_held(h, n, t_c, held.rows(body.ports, inputs(t_c)), row))
             s.t = t_c + n * h  # the master's clock (fmu/core.py)
             rows.append(row)
         assert s.backend == backend

@@ -67,3 +67,15 @@ def inputs(ports, values: np.ndarray, t_c: float) -> Callable[[float], dict[str,
         return out
 
     return at
+
+
+def rows(ports, values: dict[str, PortValues]) -> np.ndarray:
+    """The held values (one row per port, COLUMNS) of the port inputs {port: PortValues} at t_c, as an FMU
+    gathers them from its input variables; fields a port does not give stay 0."""
+    out = np.zeros((len(ports), WIDTH))
+    for j, p in enumerate(ports):
+        for f, cols in COLUMNS.items():
+            x = getattr(values[p.name], f)
+            if x is not None:
+                out[j, cols] = np.ravel(x)
+    return out
