@@ -31,7 +31,8 @@ METRIC_KINDS = {
     "tip_deflection": ("tip_deflection_max_m", "tip_axial_at_max_m", "t_at_max_s", "oscillation_frequency_hz"),
     "hub_rates": ("omega_z_at_{coast_end_s}s", "omega_y_mean_after_load", "tip_frequency_hz", "hub_rotation_vector_end",
                   "t_end_s"),
-    "momentum": ("linear_momentum_drift_rel", "angular_momentum_drift_rel", "total_energy_drift_rel"),
+    "momentum": ("linear_momentum_drift_rel", "angular_momentum_drift_rel", "total_energy_drift_rel", "tip_from_cm_max_m",
+                 "tip_from_cm_rms_m", "tip_from_cm_frequency_hz"),
 }
 OLD_METRIC_NAMES = {"haug": "tip_deflection", "spherical": "hub_rates", "free": "momentum"}
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs

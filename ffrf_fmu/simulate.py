@@ -223,14 +223,14 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     rows[0] = record(system)
     times = np.empty(n_steps + 1)
     times[0] = 0.0
-    momenta = [system.momenta()]
+    free = scene.metrics.kind == "momentum"  # these metrics read the mass properties at every step
+    masses = [free_body_state(system)] if free else []
     bar = Progress(scene.duration, f"{body.name}/{scene.name}") if progress else None
     iterations = 0
     failure = None
     # on the numba backend, after its first step (checked against numpy), chunks of steps run in one
     # kernel call each with the scene's inputs and the recording inside (momenta, for a free body's
     # metrics, are recorded in Python: such scenes step one by one)
-    free = scene.metrics.kind == "momentum"  # these metrics read the momenta at every step
     schedule = None if free else scene_schedule(body, scene)
     k = 0
     while k < n_steps:
@@ -255,7 +255,7 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
         rows[k] = record(system)
         times[k] = system.t
         if free:
-            momenta.append(system.momenta())
+            masses.append(free_body_state(system))
         if bar is not None:
             bar.update(system.t)
     if bar is not None:
@@ -268,6 +268,8 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     wall = time.perf_counter() - start - (compile_s or 0.0)
     cpu = time.process_time() - cpu_start - ((kernel.compile_cpu_seconds or 0.0) if kernel is not None else 0.0)
     columns = dict(zip(column_names(body), rows.T))
+    if free:
+        columns |= free_body_columns(*(np.array(x) for x in zip(*masses)))
     summary = {
         "body": body.name,
         "scene": scene.name,
@@ -291,7 +293,7 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
         "energy_balance_max_rel": energy_balance(columns),
     }
     result = SimulationResult(times, columns, summary, body)
-    summary["metrics"] = metrics(result, scene, momenta)
+    summary["metrics"] = metrics(result, scene)
     return result
 
 
@@ -351,7 +353,68 @@ def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float)
     return float(minimize_scalar(misfit, bounds=(lo, hi), method="bounded").x)
 
 
-def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
+# a free body's state beyond its ports (metrics kind "momentum"): CM, inertia about it, momenta; the
+# runtime (free_body_state) and the full-order reference (reference.solver.mass_properties) record it
+FREE_BODY_FIELDS = {"cm": (3,), "J_cm": (3, 3), "p": (3,), "h_cm": (3,)}
+
+
+def free_body_state(system: BodySystem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(CM, inertia tensor about the CM, linear momentum, angular momentum about the CM) of the body,
+    world axes, as its equations hold them (BodySystem.mass_properties, momenta)."""
+    _, c, J = system.mass_properties()
+    p, h = system.momenta()
+    return c, J, p, h - np.cross(c, p)
+
+
+def free_body_keys(name: str) -> list[str]:
+    """Column names of one FREE_BODY_FIELDS series: body.cm[1..3], body.J_cm[1,1..3,3], ..."""
+    if FREE_BODY_FIELDS[name] == (3,):
+        return [f"body.{name}[{i + 1}]" for i in range(3)]
+    return [f"body.{name}[{i + 1},{j + 1}]" for i in range(3) for j in range(3)]
+
+
+def free_body_columns(cm, J_cm, p, h_cm) -> dict[str, np.ndarray]:
+    """The columns of the series cm, J_cm, p, h_cm ((nt, 3) or (nt, 3, 3)), named by free_body_keys."""
+    out = {}
+    for name, series in zip(FREE_BODY_FIELDS, (cm, J_cm, p, h_cm)):
+        out |= dict(zip(free_body_keys(name), np.asarray(series).reshape(len(series), -1).T))
+    return out
+
+
+def free_body_series(result: SimulationResult, name: str) -> np.ndarray:
+    """One FREE_BODY_FIELDS series of a result, (nt, 3) or (nt, 3, 3); a clear error when the run did
+    not record it (standalone runs of scenes with metrics kind 'momentum' and the reference do; an FMU
+    has no such outputs)."""
+    keys = free_body_keys(name)
+    if any(k not in result.columns for k in keys):
+        raise KeyError(f"the free-body metrics need body.{name}, which this run did not record (standalone runs "
+                       "of scenes with metrics kind 'momentum' and the reference record it; an FMU does not)")
+    return np.stack([result.columns[k] for k in keys], -1).reshape((len(result.t),) + FREE_BODY_FIELDS[name])
+
+
+def tip_from_cm(result: SimulationResult) -> np.ndarray:
+    """The elastic deflection of the tip (the port at the last boundary node) seen from the body's CM frame,
+    (nt, 3) = (0, along e2, along e3): e1 the body's axis of least inertia about its CM (for a beam, the
+    line that fits its mass best; turned towards the tip), e3 the part of the angular momentum direction
+    n = h_cm(0)/|h_cm(0)| normal to e1, e2 = e3 x e1 (for a tumbling beam: e2 in the plane the axis sweeps,
+    e3 out of it). The frame comes from the whole mass (CM and inertia), not from one section: the bending
+    modes' slopes at an end, which the reduced body truncates, do not turn it. The axial part (stretch,
+    the axial modes) is left out (0): it is not bending. Same definition for every model; each computes CM,
+    inertia and momenta from its own mass (runtime: free_body_state; reference: mass_properties)."""
+    _, tip = end_ports(result.body)
+    c, J, h = (free_body_series(result, k) for k in ("cm", "J_cm", "h_cm"))
+    _, vec = np.linalg.eigh(J)
+    e1 = vec[:, :, 0]  # eigh sorts ascending: the axis of least inertia
+    r = result.port(tip, "r") - c
+    e1 = e1 * np.sign(np.einsum("ni,ni->n", e1, r))[:, None]
+    n = h[0] / np.linalg.norm(h[0])
+    e3 = n - (e1 @ n)[:, None] * e1
+    e3 = e3 / np.linalg.norm(e3, axis=1)[:, None]
+    e2 = np.cross(e3, e1)
+    return np.column_stack([np.zeros(len(r)), np.einsum("ni,ni->n", r, e2), np.einsum("ni,ni->n", r, e3)])
+
+
+def metrics(result: SimulationResult, scene: Scene) -> dict:
     """The scene's summary metrics, by its [scenes.NAME.metrics] table (model.Metrics; the windows
     and bands are the benchmark's, from the model file):
 
@@ -361,7 +424,10 @@ def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
     - hub_rates: with coast_end_s, the mean Omega_z of the root from the end of its torque load to
       coast_end_s; when the run lasts min_window_s past the end of the tip load: the mean Omega_y
       after it and, with band_hz, the tip's vibration frequency; the root's final rotation vector;
-    - momentum: drifts of the linear and angular momentum and of the total energy (from `momenta`).
+    - momentum (a free body): drifts of the linear and angular momentum (about the CM) and of the total
+      energy; the tip's deflection seen from the CM frame (tip_from_cm): its maximum, its RMS over the run
+      and, with band_hz, its dominant frequency out of the plane the axis sweeps (e3), when the run lasts
+      min_window_s.
     """
     t, m = result.t, scene.metrics
     if m.kind == "tip_deflection":
@@ -398,14 +464,22 @@ def metrics(result: SimulationResult, scene: Scene, momenta=()) -> dict:
         out["hub_rotation_vector_end"] = [float(x) for x in logm(R_end)]
         out["t_end_s"] = float(t[-1])
         return out
-    if m.kind == "momentum" and len(momenta) > 1:
-        p = np.array([x[0] for x in momenta])
-        h = np.array([x[1] for x in momenta])
-        return {
+    if m.kind == "momentum":
+        if free_body_keys("p")[0] not in result.columns:  # an FMU's run: no free-body state recorded
+            return {}
+        p, h = free_body_series(result, "p"), free_body_series(result, "h_cm")
+        d = tip_from_cm(result)
+        transverse = np.linalg.norm(d, axis=1)
+        out = {
             "linear_momentum_drift_rel": float(np.max(np.linalg.norm(p - p[0], axis=1)) / max(np.linalg.norm(p[0]), 1e-300)),
             "angular_momentum_drift_rel": float(np.max(np.linalg.norm(h - h[0], axis=1)) / max(np.linalg.norm(h[0]), 1e-300)),
             "total_energy_drift_rel": energy_balance(result.columns),
+            "tip_from_cm_max_m": float(np.max(transverse)),
+            "tip_from_cm_rms_m": float(np.sqrt(np.mean(transverse**2))),
         }
+        if m.band_hz and t[-1] - t[0] >= m.min_window_s:
+            out["tip_from_cm_frequency_hz"] = dominant_frequency(t, d[:, 2], *m.band_hz)
+        return out
     return {}
 
 
@@ -471,6 +545,7 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
             columns.update(zip(port_variables(p.name, fld), arr.T))
     for k in ("kinetic", "strain", "work_external"):
         columns[f"energy.{k}"] = ref.energy[k]
+    columns |= free_body_columns(*(ref.mass[k] for k in FREE_BODY_FIELDS))
     summary = {
         "body": body.name, "scene": scene.name, "solver": "reference", "elements": n,
         "step": (ref.info or {}).get("step", step or scene.step), "completed": bool(ref.t[-1] >= scene.duration - 1e-9),

@@ -290,7 +290,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
         out |= {"wall_time_s": res.wall_time_s, "cpu_time_s": res.cpu_time_s, "completed": res.completed,
                 "failure": res.failure, "t_end_s": float(res.t[-1]),
                 "newton_iterations_mean": res.newton_iterations_mean, "metrics": sim.metrics(result, sc),
-                "t": np.asarray(res.t), "d": tip_trajectory(result)}
+                "t": np.asarray(res.t), "d": tip_trajectory(result, sc)}
     except Exception as e:  # noqa: BLE001 - a configuration that cannot run is a chart row, not a crash
         out["failure"] = f"{type(e).__name__}: {e}"
         out["traceback"] = traceback.format_exc(limit=4)

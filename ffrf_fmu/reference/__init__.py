@@ -54,8 +54,12 @@ rho_inf 0.5) while h = 10 ms is within 0.12 %. Keep the rotation per step (spin 
 20 ms, O(h^2)) is reported and a RuntimeWarning is issued above 2 %.
 
 Initially deformed body (Initial.port_displacements): `relaxed_shape`, the static equilibrium the runtime
-relaxes to (every port's translation held, displaced ones at X + u; undisplaced ports' rotations held),
-then released with the rigid velocity field on that shape (predictor "constant" by default then).
+relaxes to (undisplaced ports held, translation and rotation; a displaced port held along its u only, at
+u.(x - X) = |u|: pulled by u, free across it), then released with the rigid velocity field on that shape
+(predictor "constant" by default then).
+
+Free bodies: `mass_properties` (CM, inertia about it, linear and angular momentum) is recorded at every
+step (ReferenceResult.mass); the free-body metrics (ffrf_fmu.simulate, kind "momentum") read it.
 
 Limits: relative rotation across one element below pi (always true on sane meshes).
 

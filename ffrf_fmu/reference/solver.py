@@ -168,6 +168,24 @@ class Mesh:
 
 
 # ============================================================================ banded assembly
+def mass_properties(mesh: Mesh, x: np.ndarray, R: np.ndarray, v: np.ndarray):
+    """(CM (3,), inertia tensor about the CM (3, 3), linear momentum (3,), angular momentum about the CM
+    (3,)) of the beam at nodal positions x (nn, 3), rotations R (nn, 3, 3) (section frames) and velocities
+    v (nn, 6) (world translational, section-axes angular), world axes: the consistent translational mass
+    (exact for the linear interpolation of positions and velocities along each element), the rotary
+    inertia lumped at the nodes in section axes (R J R^T), point masses on their nodes."""
+    md, mo, vt = mesh.md, mesh.mo, v[:, :3]
+    c = (md @ x + mo @ (x[:-1] + x[1:])) / mesh.mass
+    y = x - c
+    p = md @ vt + mo @ (vt[:-1] + vt[1:])
+    h = md @ cross(y, vt) + mo @ (cross(y[:-1], vt[1:]) + cross(y[1:], vt[:-1]))
+    h = h + np.einsum("nij,nj->i", R, mesh.J * v[:, 3:])
+    S = np.einsum("n,ni,nj->ij", md, y, y) + np.einsum("n,ni,nj->ij", mo, y[:-1], y[1:])
+    S = S + S.T - np.einsum("n,ni,nj->ij", md, y, y)  # md y y^T once, the mo pairs both ways
+    J_cm = np.trace(S) * np.eye(3) - S + np.einsum("nik,nk,njk->ij", R, mesh.J, R)
+    return c, J_cm, p, h
+
+
 class _Banded:
     """Scatter indices of the element and nodal blocks into LAPACK band storage (gbtrf layout).
 
@@ -362,6 +380,7 @@ class ReferenceResult:
     newton_iterations_mean: float
     port_reference: dict | None = None  # port -> reference position (3,), world
     info: dict | None = None  # n_elements, step, rho_inf, ...
+    mass: dict | None = None  # `mass_properties` per step: "cm" (nt, 3), "J_cm" (nt, 3, 3), "p" (nt, 3), "h_cm" (nt, 3)
 
 
 class StaticResult(NamedTuple):
@@ -436,8 +455,9 @@ def simulate_reference(
     near-Nyquist components) or "corotated" (vdot_n with its translational part turned by the
     last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation). Default
     "linear", but "constant" for an initially deformed body (scene.initial.port_displacements): its
-    release rings the axial modes near Nyquist, and the linear guess made Newton fail at the second
-    step of B4 (h = 2 ms, full or modified Newton alike).
+    release excites the mesh's high bending modes near Nyquist, and the linear guess makes Newton fail on
+    B4 (h = 2 ms: at t = 0.81 s; at the second step while the start was taut, `relaxed_shape`), where
+    "constant" runs the 10 s (energy error 4.3e-6).
     """
     t_wall = time.perf_counter()
     t_cpu = time.process_time()
@@ -493,6 +513,7 @@ def simulate_reference(
     V_hist = np.empty((nt, nn, 6))
     Rp_hist = np.empty((nt, len(pnodes), 3, 3))
     res_hist = np.empty((nt, len(pnodes), 6))
+    mass_hist = {"cm": np.empty((nt, 3)), "J_cm": np.empty((nt, 3, 3)), "p": np.empty((nt, 3)), "h_cm": np.empty((nt, 3))}
     e_str = np.empty(nt)
     work = np.empty(nt)
     presc = ~free
@@ -502,6 +523,8 @@ def simulate_reference(
         V_hist[i] = v
         Rp_hist[i] = R[pnodes]
         res_hist[i] = r[pnodes]
+        for key, value in zip(("cm", "J_cm", "p", "h_cm"), mass_properties(mesh, x, R, v)):
+            mass_hist[key][i] = value
         e_str[i] = el.energy_from(st).sum()
         return ((fa + presc * r) * v).sum()  # external power (applied loads, gravity, reactions)
 
@@ -654,6 +677,7 @@ def simulate_reference(
         info={"n_elements": mesh.ne, "step": h, "rho_inf": rho, "n_steps": nsteps, "tol": tol,
               "factorizations": n_factor, "newton": newton, "cpu_time_s": time.process_time() - t_cpu,
               "energy_error": energy_error},
+        mass=mass_hist,
     )
 
 
@@ -661,43 +685,62 @@ def simulate_reference(
 def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: int = 5, tol: float = 1e-10,
                   max_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
     """The initially deformed body (scene.initial.port_displacements {port: u}), as the runtime makes it
-    (BodySystem._relax): static equilibrium without loads or inertia with every port's translation held,
-    the displaced ports' at X + u, and the rotation of every port that was not displaced (or is
-    motion-driven) held: for a free beam with its far end displaced, the cantilever shape. Nodal (x, R)
-    with R including the section frame Lam0; the reference configuration when nothing is displaced."""
+    (BodySystem._relax): static equilibrium without loads or inertia with every undisplaced port's
+    translation and rotation held, each displaced port held only along its u (at u.(x - X) = |u|, free
+    across u: a force along u moved it there) and its rotation free unless motion-driven: for a free beam
+    with its far end displaced, the cantilever shape. The constraints enter as Lagrange multipliers: two
+    banded solves per constraint and iteration (bordered system). Nodal (x, R) with R including the section
+    frame Lam0; the reference configuration when nothing is displaced."""
     nn = mesh.nn
     x = mesh.X.copy()
     R = np.repeat(mesh.Lam0[None], nn, axis=0)
     if not displacements:
         return x, R
-    presc = np.zeros((nn, 6), bool)
-    u = np.zeros((nn, 3))
-    for p in body.ports:
-        k = mesh.port_node[p.name]
-        presc[k, :3] = True
-        if p.name in displacements:
-            u[k] = np.asarray(displacements[p.name], float)
-        if p.name not in displacements or p.rotation == "motion":
-            presc[k, 3:] = True
     unknown = set(displacements) - {p.name for p in body.ports}
     if unknown:
         raise ValueError(f"reference: initial displacements of unknown ports {sorted(unknown)}")
+    presc = np.zeros((nn, 6), bool)
+    held = []  # (node, unit direction, |u|) of the displaced ports
+    for p in body.ports:
+        k = mesh.port_node[p.name]
+        u = np.asarray(displacements.get(p.name, np.zeros(3)), float)
+        if np.linalg.norm(u) == 0.0:
+            presc[k, :3] = True
+        else:
+            held.append((k, u / np.linalg.norm(u), float(np.linalg.norm(u))))
+        if p.name not in displacements or p.rotation == "motion":
+            presc[k, 3:] = True
     band = _Banded(mesh, (~presc).ravel(), with_mass=False)
+    C = np.zeros((len(held), nn, 6))
+    for j, (k, e, _) in enumerate(held):
+        C[j, k, :3] = e
+    C = C.reshape(len(held), -1)
     d = np.zeros((nn, 6))
     for step in range(1, load_steps + 1):
-        x = np.where(presc[:, :3], mesh.X + (step / load_steps) * u, x)
         for _ in range(max_iterations):
             fint, st = _internal(mesh, x, R)
-            d = band.solve(band.factor(mesh.elements.tangent_from(st), None), -fint.ravel()).reshape(nn, 6)
+            try:
+                fac = band.factor(mesh.elements.tangent_from(st), None)
+            except np.linalg.LinAlgError:  # the held parts leave the body a mechanism: no unique shape
+                d[:] = np.inf
+                break
+            y1 = band.solve(fac, -fint.ravel())
+            Y2 = np.column_stack([band.solve(fac, c) for c in C] or [np.zeros(len(y1))])[:, : len(C)]
+            gap = np.array([step / load_steps * size - e @ (x[k] - mesh.X[k]) for k, e, size in held])
+            lam = np.linalg.solve(C @ Y2, gap - C @ y1)
+            d = (y1 + Y2 @ lam).reshape(nn, 6)
+            if not np.all(np.isfinite(d)):
+                break
             x = x + d[:, :3]
             R = R @ expm(d[:, 3:])
             if np.abs(d[:, :3]).max() < tol * mesh.length and np.abs(d[:, 3:]).max() < tol:
                 break
         else:
+            d[:] = np.inf
+        if not np.all(np.isfinite(d)):
             raise RuntimeError(f"reference: initial port displacements {sorted(displacements)}: no static equilibrium "
-                               f"of the deformed body ({max_iterations} Newton iterations, last correction "
-                               f"{np.abs(d).max():.3g}); smaller displacements, or ports whose displacements the body "
-                               "can hold")
+                               f"of the deformed body ({max_iterations} Newton iterations); smaller displacements, or "
+                               "ports whose displacements the body can hold")
     return x, R
 
 

@@ -373,7 +373,7 @@ class BodySystem(GeneralizedAlpha):
         for name, u in (port_displacements or {}).items():
             self.xN[self.data.port(name).node] += np.asarray(u, float)
         if port_displacements:
-            self._relax(set(port_displacements))
+            self._relax({name: np.asarray(u, float) for name, u in port_displacements.items()})
         vel = lambda x: v_lin + cross(w, x - o)
         zN, zS, v = self.split_rates(self.yd)  # views into self.yd
         zN[:, 0:3] = vel(self.xN)
@@ -416,27 +416,46 @@ class BodySystem(GeneralizedAlpha):
         self.work = 0.0
         self._lu = None
 
-    def _relax(self, displaced: set[str], tol: float = 1e-12, max_iter: int = 30) -> None:
-        """Static equilibrium (no inertia, no loads) with every port's translation held and the rotation
-        of every port that was not displaced: the smooth deformed shape through displaced ports (for a
-        free beam with its far end displaced, the cantilever shape), instead of a kink of the
-        attachment modes at the displaced node."""
+    def _relax(self, displaced: dict[str, np.ndarray], tol: float = 1e-12, max_iter: int = 30) -> None:
+        """Static equilibrium (no inertia, no loads) with every undisplaced port's translation and rotation
+        held, and each displaced port held only along its displacement u (a force along u moved it by
+        |u|; across u it is free): the smooth deformed shape through displaced ports (for a free beam with
+        its far end displaced, the cantilever shape), instead of a kink of the attachment modes at the
+        displaced node. Holding a displaced port's whole translation would keep its distance to the other
+        ports: a sideways u then stretches the body (B4, 1 SE: 0.0151 J of strain energy, the cantilever's
+        bending being 0.0048 J), and the stretch rings the axial modes after the release.
+        The constraints u.(x - x_start) = 0 enter as Lagrange multipliers (a bordered Newton system)."""
         L = self.layout
         relax = np.zeros(L.ny, dtype=bool)
         relax[: 6 * L.n_nodes + L.n_se * (6 + L.nm)] = True
+        rows = []  # one constraint row per displaced port: its displacement direction
         for p in self.data.ports:
-            relax[6 * p.node : 6 * p.node + 3] = False
+            u = np.asarray(displaced.get(p.name, np.zeros(3)), float)
+            if np.linalg.norm(u) == 0.0:
+                relax[6 * p.node : 6 * p.node + 3] = False
+            else:
+                c = np.zeros(L.ny)
+                c[6 * p.node : 6 * p.node + 3] = u / np.linalg.norm(u)
+                rows.append(c)
             if p.name not in displaced or p.rotation == "motion":
                 relax[6 * p.node + 3 : 6 * p.node + 6] = False
         idx = np.flatnonzero(relax)
+        C = np.array(rows).reshape(len(rows), L.ny)[:, idx]
         zero_v, zero_yd = np.zeros_like(self.v), np.zeros(L.ny)
         gravity, self.gravity = self.gravity, np.zeros(3)
+        delta = np.zeros(L.ny)
         try:
             for _ in range(max_iter):
                 F, _, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, zero_v, zero_yd, True)
                 J = np.bincount(self._flat_idx, Fy.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
+                A = np.block([[J[np.ix_(idx, idx)], C.T], [C, np.zeros((len(C), len(C)))]])
                 delta = np.zeros(L.ny)
-                delta[idx] = np.linalg.solve(J[np.ix_(idx, idx)], -F[idx])
+                try:
+                    delta[idx] = np.linalg.solve(A, np.concatenate([-F[idx], np.zeros(len(C))]))[: len(idx)]
+                except np.linalg.LinAlgError:  # the held parts leave the body a mechanism: no unique shape
+                    delta[:] = np.inf
+                if not np.all(np.isfinite(delta)):
+                    break
                 self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
                 if np.max(np.abs(delta)) < tol:
                     return
@@ -520,6 +539,20 @@ class BodySystem(GeneralizedAlpha):
         if self.W1 is not None:  # 1/2 Omega0^T (W1 q [+ q W2 q]) Omega0: J0 -> J(q)
             kr += float(stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False, W2=self.W2)[3].sum())
         return {"kinetic_rigid": float(kr), "kinetic_elastic": float(ke), "strain": float(st), "work_external": float(self.work)}
+
+    def mass_properties(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """(mass, CM position (3,), inertia tensor about the CM (3, 3)) of the body as its equations
+        hold it, world axes: every superelement's mass at its CM x0 and its inertia R0 J R0^T, with
+        J = J0 + W1 q [+ q W2 q] when it carries the deformation-dependent inertia (stiffening), J0 else."""
+        J = self.J0
+        if self.W1 is not None:
+            J = J + stiffening.inertia_change(self.elastic_coordinates(), self.W1, self.W2)
+        m = float(self.mass.sum())
+        c = self.mass @ self.x0 / m
+        y = self.x0 - c
+        J_cm = np.einsum("eij,ejk,elk->il", self.R0, J, self.R0) + np.einsum("e,eij->ij", self.mass, np.einsum(
+            "ek,ek->e", y, y)[:, None, None] * np.eye(3) - y[:, :, None] * y[:, None, :])
+        return m, c, J_cm
 
     def momenta(self) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular momentum (about the world origin) of the rigid + elastic fields, world axes.

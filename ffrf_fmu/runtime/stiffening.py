@@ -51,6 +51,16 @@ def von_karman(q: np.ndarray, a: np.ndarray, B: np.ndarray, tangent: bool = True
     return V2, f, Kt
 
 
+def inertia_change(q, W1, W2=None) -> np.ndarray:
+    """J(q) - J0 = W1 q [+ q W2 q] (E, 3, 3), in superelement axes: Witteveen's change of the
+    superelement's inertia tensor about its CM with its deformation (q (E, n), W1 (E, n, 3, 3),
+    W2 (E, n, n, 3, 3) or None)."""
+    Jq = np.einsum("ej,ejab->eab", q, W1)
+    if W2 is not None:
+        Jq = Jq + np.einsum("ej,ejlab,el->eab", q, W2, q)
+    return Jq
+
+
 def deformed_inertia(q, qd, Om, Omd, W1, jacobian: bool = True, W2=None):
     """Witteveen's deformation-dependent inertia J(q) = J0 + W1 q [+ q W2 q] in the two-field
     equations: the terms of T = 1/2 Om^T (W1 q [+ q W2 q]) Om beyond 1/2 Om^T J0 Om.
@@ -68,13 +78,12 @@ def deformed_inertia(q, qd, Om, Omd, W1, jacobian: bool = True, W2=None):
     "e_Omd"} (E, rows, cols) or None.
     """
     Z = np.einsum("ejab,eb->eaj", W1, Om)  # (E, 3, n)
-    Jq = np.einsum("ej,ejab->eab", q, W1)  # (E, 3, 3), symmetric
+    Jq = inertia_change(q, W1, W2)  # (E, 3, 3), symmetric
     Jqd = np.einsum("ej,ejab->eab", qd, W1)
     g = -0.5 * np.einsum("eaj,ea->ej", Z, Om)
     if W2 is not None:
         W2q = np.einsum("ejlab,el->ejab", W2, q)  # sum_l q_l W2_jl
         V = W2q + np.einsum("eljab,el->ejab", W2, q)  # sum_l q_l (W2_jl + W2_lj), symmetric 3 x 3
-        Jq = Jq + np.einsum("ej,ejab->eab", q, W2q)
         Jqd = Jqd + np.einsum("ej,ejab->eab", qd, V)
         Kc = np.einsum("ea,ejlab,eb->ejl", Om, W2, Om)
         g = g - np.einsum("ejl,el->ej", Kc, q)

@@ -43,10 +43,14 @@ def body_data(model: Model, scene: Scene):
     return build_scene_body(model.body, scene)[0]
 
 
-def tip_trajectory(result) -> np.ndarray:
-    """Elastic tip displacement seen from the hub (eq. 92) between the body's end ports, (n, 3)."""
-    from ..simulate import elastic_tip, end_ports
+def tip_trajectory(result, scene: Scene) -> np.ndarray:
+    """The elastic tip trajectory a chart compares, (n, 3): for a free body (metrics kind 'momentum') the
+    tip seen from the body's CM frame (simulate.tip_from_cm), else the tip seen from the hub section
+    (eq. 92) between the body's end ports."""
+    from ..simulate import elastic_tip, end_ports, tip_from_cm
 
+    if scene.metrics.kind == "momentum":
+        return tip_from_cm(result)
     hub, tip = end_ports(result.body)
     return elastic_tip(result, hub, tip)
 
@@ -90,7 +94,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
             raise SetupError(f"unknown runner {runner!r}")
         out["metrics"] = sim.metrics(res, sc)
         out["t"] = np.asarray(res.t)
-        out["d"] = tip_trajectory(res)
+        out["d"] = tip_trajectory(res, sc)
     except Exception as e:  # noqa: BLE001 - a configuration that cannot run is a row, not a crash
         out["failure"] = f"{type(e).__name__}: {e}"
         out["traceback"] = traceback.format_exc(limit=4)
@@ -129,7 +133,7 @@ def reference_elements(model: Model, n_elements: int | None) -> int:
 def run_reference(model_path: str, scene_name: str | None, base_overrides: Sequence[str], n_elements: int | None,
                   step: float | None) -> dict:
     """The reference run of the scene (full-order beam, `reference_elements` elements, step h or
-    the scene's). Returns {"t", "d" (eq. 92 tip trajectory), "metrics", "wall_time_s",
+    the scene's). Returns {"t", "d" (tip_trajectory), "metrics", "wall_time_s",
     "n_elements", "step", "energy_error", "warning"}; the solver's energy warning is returned in
     "warning" (in a worker process a Python warning would be lost)."""
     from ..simulate import run_reference as reference_result
@@ -142,7 +146,7 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
         warnings.filterwarnings("ignore", message="reference: energy error", category=RuntimeWarning)
         result = reference_result(model, sc, n_elements=n_el, step=h)
     energy_error = result.summary["energy_error"]
-    return {"t": result.t, "d": tip_trajectory(result), "metrics": result.summary["metrics"],
+    return {"t": result.t, "d": tip_trajectory(result, sc), "metrics": result.summary["metrics"],
             "wall_time_s": result.summary["wall_time_s"], "n_elements": n_el, "step": h, "energy_error": energy_error,
             "warning": reference_warning(energy_error, h)}
 
