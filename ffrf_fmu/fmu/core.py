@@ -11,8 +11,8 @@ H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run tends t
 run (which evaluates the exact signals at every internal step).
 
 Over 400 lines: one class, the FMU's state machine (values, initialization, communication steps,
-saved states, directional derivatives of the last step); its invariants hold across all of its
-methods, so it stays in one file.
+saved states); its invariants hold across all of its methods, so it stays in one file. The directional
+derivatives of the last step (re-runs of it) are in fmu/derivatives.py.
 """
 from __future__ import annotations
 
@@ -32,6 +32,7 @@ from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
+from .derivatives import LastStep, directional_derivative
 from .variables import Variable, body_variables
 
 try:  # optional: one BLAS thread during the FMU's own calls only (docs/fmu.md, BLAS threads)
@@ -42,33 +43,9 @@ except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before 
 ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
 _I3 = np.eye(3)
 STATE_VERSION = 1
-# steps of the central differences of the directional derivatives, per kind of input: round-off and
-# truncation put the two kinds at opposite ends (B1-like beam, tests/test_fmu_derivatives.py):
-# - loads (f, t): a reaction is the small difference of world-axes node forces (stiffness x positions),
-#   ~1e-9 N of round-off, so a 0.014 N/N derivative to 1e-5 needs a large step; the response to loads
-#   is nearly linear (steps 0.1 and 0.01 N agree to 1e-7). Step: 1e-2 max(1, largest |load|).
-# - motions: a jump of the prescribed frame strains the stiff axial field at once (central differences
-#   1.4e-4 off at 1e-3 m, so 1.4e-8 at 1e-5 m), and the external work, a sum of reaction x velocity
-#   products, carries ~1e-5 relative round-off at 1e-6 m. Step: the largest displacement the
-#   perturbation makes over the step, 1e-5 max(1, largest |r|) m or rad: r, R move the frame by their
-#   change, v, w by H times it, a, dw by H^2/2 times it.
-DERIVATIVE_STEPS = {"load": 1e-2, "motion": 1e-5}
 
 CONFIG_FILE = "ffrf_fmu.json"
 DATA_FILE = "body.npz"
-
-
-@dataclass(frozen=True)
-class LastStep:
-    """What the directional derivatives of the last communication step need: its start, size and
-    internal steps, the body state at t_c (BodySystem.snapshot, for `restore`) and every variable value
-    as set for it."""
-
-    t_c: float
-    H: float
-    n: int
-    state: tuple
-    values: np.ndarray
 
 
 @dataclass
@@ -419,67 +396,9 @@ class BodyCoSim:
 
     # ------------------------------------------------------------------ directional derivatives
     def directional_derivative(self, knowns, seeds, unknowns) -> tuple[np.ndarray | None, str]:
-        """Derivative of the outputs `unknowns` at the end of the last doStep(t_c, H) with respect to
-        the inputs `knowns` as set for that step, along `seeds`, the state at t_c fixed
-        (variables.DIRECTIONAL_DERIVATIVES): (values, '') or (None, why not). Central differences of
-        two runs of the step from the saved state at t_c per kind of input (DERIVATIVE_STEPS), the
-        same step the FMU takes (the body's Newton with its iteration matrix, predictor and stopping
-        rule): the derivative of what the FMU computes, which is what finite differences of its runs
-        see. Then the FMU is back at the end of the step exactly as it was."""
-        n = len(self.variables)
-        knowns, unknowns = np.asarray(knowns, dtype=int).ravel(), np.asarray(unknowns, dtype=int).ravel()
-        seeds = np.asarray(seeds, dtype=float).ravel()
-        name = lambda vr: self.variables[vr].name if 0 <= vr < n else f"value reference {vr}"  # noqa: E731
-        bad = [name(vr) for vr in knowns if not (0 <= vr < n and self.causality[vr] == "input")]
-        if bad:
-            return None, (f"directional derivative: {', '.join(bad[:6])} not input(s): the derivatives are those "
-                          "of outputs with respect to inputs")
-        bad = [name(vr) for vr in unknowns if not (0 <= vr < n and self._is_output[vr] and not self.is_integer[vr])]
-        if bad:
-            return None, f"directional derivative: {', '.join(bad[:6])} not Real output(s)"
-        if not np.isfinite(seeds).all():
-            return None, "directional derivative: the seed vector is not finite"
-        rec, system = self.last_step, self.system
-        if rec is None or system is None:
-            return None, ("directional derivative: no communication step to differentiate (they are the "
-                          "derivatives of the last successful doStep; none since initialization, a failed doStep "
-                          "or fmi2SetFMUstate)")
-        if not seeds.any():
-            return np.zeros(unknowns.size), ""
-        field = [self.variables[vr].field for vr in knowns]
-        is_load = np.array([f in ("f", "t") for f in field])
-        H = rec.H  # displacement over the step per unit change (DERIVATIVE_STEPS)
-        weight = np.array([{"v": H, "w": H, "a": 0.5 * H * H, "dw": 0.5 * H * H}.get(f, 1.0) for f in field])
-        end = system.get_state()
-        total = np.zeros(unknowns.size)
-        try:
-            with self.one_blas_thread():
-                for kind, part in (("load", is_load), ("motion", ~is_load)):
-                    s = np.where(part, seeds, 0.0)
-                    if not s.any():
-                        continue  # the derivative is linear in the seeds: each kind with its own step
-                    size = max(1.0, float(np.max(np.abs(rec.values[knowns[part]] * weight[part]))))
-                    eps = DERIVATIVE_STEPS[kind] * size / float(np.max(np.abs(s * weight)))
-                    sides = []
-                    for step in (eps, -eps):
-                        values = rec.values.copy()
-                        np.add.at(values, knowns, step * s)
-                        held, msg = self._held_inputs(rec.t_c, values, strict=False)
-                        if msg:
-                            return None, f"directional derivative: {msg}"
-                        system.restore(rec.state)
-                        system.run_held(rec.H / rec.n, rec.n, rec.t_c, held, self._row)  # as doStep steps
-                        dst, out = self._output_values(0, self._row)
-                        full = np.zeros(n)
-                        full[dst] = out
-                        sides.append(full[unknowns])
-                    total += (sides[0] - sides[1]) / (2.0 * eps)
-        except StepFailure as e:
-            return None, (f"directional derivative of the step from t = {rec.t_c:.6g} s failed at t = {e.time:.6g} s: "
-                          f"{e.cause}")
-        finally:
-            system.set_state(end)
-        return total, ""
+        """Derivative of the outputs `unknowns` at the end of the last doStep with respect to the inputs
+        `knowns` along `seeds` (fmu/derivatives.py): (values, '') or (None, why not)."""
+        return directional_derivative(self, knowns, seeds, unknowns)
 
     @staticmethod
     def _check_finite(system: BodySystem, outputs: np.ndarray) -> None:
