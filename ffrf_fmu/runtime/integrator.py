@@ -266,7 +266,10 @@ class GeneralizedAlpha:
     # newton_iterations.py). Not after a harder step: there the predictor is far off (unresolved modes ringing
     # undamped), a matrix built at it is a poor one, and the kept matrix with the in-step rules does better
     # (B4 at h = 10 ms, rho_inf = 1: 4-6 iterations per step; rebuilt after every step of 2 or more, Newton
-    # failed at t = 0.16 s)
+    # failed at t = 0.16 s). An FMU at H > h pays for it: its extrapolated inputs jump back onto the signal at
+    # every communication point, every internal step then takes 2 iterations whatever the matrix (B1 at
+    # h = 2 ms, H = 5 h: second increments ~1e-6 of the first with a kept matrix) and this rule rebuilds it at
+    # every one (docs/benchmarks.md, "FMU against the standalone run as a function of the communication step")
     REFRESH_AFTER = (2, 3)
 
     def _check_rotation_increments(self, t1):
