@@ -177,6 +177,7 @@ def test_b4_free_tumble_check_holds_for_the_right_reason(tmp_path):
     ov = ["scenes.tumble.duration=3"]
     a = ad.advise(b4, "tumble", 0.01, overrides=ov)
     assert a.stiffening and a.terms == "gyroscopic" and not any("primary metric" in w for w in a.warnings)
+    assert any("FMU does not output" in w for w in ad.advise(b4, "tumble", 0.01, overrides=ov, fmu=True).warnings)
     res = ad.check(b4, "tumble", a, overrides=ov, reference_elements=32, reference_step=0.001, out_dir=tmp_path)
     assert res["metric_name"] == "tip_from_cm_frequency_hz" and res["completed"]
     assert res["within_tolerance"] and res["metric_error_rel"] <= 0.0075

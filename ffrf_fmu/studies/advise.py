@@ -274,6 +274,9 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     if primary_metric(scene) is None:
         warn.append("the scene has no primary metric ([scenes.NAME.metrics] primary): the tolerance is read as one on the "
                     "elastic deflection, and --check reports the trajectory's RMS error")
+    if fmu and scene.metrics.kind == "momentum":
+        warn.append("the free-body metrics (kind 'momentum') read the body's CM, inertia and momenta, which a standalone "
+                    "run records and an FMU does not output: --check through the FMU cannot measure them; check standalone")
     if n_se >= MAX_SUPERELEMENTS:
         warn.append(f"capped at {MAX_SUPERELEMENTS} superelements: the predicted chain error {e_n:.2%} may exceed the "
                     "tolerance")
