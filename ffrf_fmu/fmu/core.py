@@ -32,6 +32,7 @@ from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
+from ..runtime.compiled import kernel_report
 from .derivatives import LastStep, directional_derivative
 from .variables import Variable, body_variables
 
@@ -502,6 +503,10 @@ class BodyCoSim:
             self._system_params = None
         else:
             self._make_system().set_state(np.asarray(state["system"], dtype=float))
+
+    def kernel_report(self) -> str | None:
+        """The numba kernel's first-call time of this instance, for the log (compiled.kernel_report)."""
+        return kernel_report(self.system._compiled if self.system is not None else None)
 
     @staticmethod
     def state_to_bytes(state: dict) -> bytes:

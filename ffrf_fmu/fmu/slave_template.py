@@ -250,7 +250,9 @@ class {cls}(Fmi2Slave):
 
     @_guarded(lambda *a: None)
     def terminate(self):
-        pass
+        report = self.core.kernel_report()  # compile or disk-cache load time, apart from stepping (validate reads it)
+        if report:
+            self.log(report)
 
     @_guarded(lambda *a: {{"invalid": "fmi2GetFMUstate failed (see the log)"}})
     def _get_fmu_state(self):

@@ -25,6 +25,7 @@ import hashlib
 import importlib.util
 import logging
 import os
+import re
 import sys
 import tempfile
 import time
@@ -133,6 +134,27 @@ def load_kernel(terms: str):
         return import_by_content(src), None
     except Exception as exc:  # a broken numba install must not take the body down: numpy still works
         return None, f"the numba kernel could not be loaded ({type(exc).__name__}: {exc})"
+
+
+_REPORT = "numba kernel: {seconds:.3f} s in this body's first kernel calls ({how})"
+_REPORT_RE = re.compile(r"numba kernel: ([0-9.]+) s in this body's first kernel calls \((compiled|loaded from the disk cache)\)")
+
+
+def kernel_report(step: "CompiledStep | None") -> str | None:
+    """One line for a log (an FMU logs it at fmi2Terminate): the seconds of the body's first kernel
+    calls and whether they compiled or loaded from the disk cache; None before any kernel call."""
+    if step is None or step.compile_seconds is None:
+        return None
+    return _REPORT.format(seconds=step.compile_seconds, how="compiled" if step.compiled else "loaded from the disk cache")
+
+
+def parse_kernel_report(lines) -> tuple[float, bool] | None:
+    """(seconds, compiled) of the last kernel_report line among `lines`, None if there is none."""
+    for line in reversed(list(lines)):
+        m = _REPORT_RE.search(line)
+        if m:
+            return float(m.group(1)), m.group(2) == "compiled"
+    return None
 
 
 class CompiledStep:
@@ -387,15 +409,13 @@ class CompiledStep:
                 float(system.tol), int(system.max_iter), int(system.iterations), self.held_work, self.luT, self.piv,
                 self.lu_meta, self.info, float(system.t), float(t_c))
         if self.run_held_fn is None:  # compile (or load from the disk cache) with no step to take
-            t0 = time.perf_counter()
             try:
-                self.module.run_held(*args, 0, row)
+                self._first_call(self.module.run_held, (*args, 0, row))
             except Exception as exc:  # a broken numba install: numpy from here on
                 system._compiled, system.backend = None, "numpy"
                 system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(system.backend_note)
                 return 0, 0, None
-            self.compile_seconds = (self.compile_seconds or 0.0) + time.perf_counter() - t0
             self.run_held_fn = self.module.run_held.overloads[self.module.run_held.signatures[0]].entry_point
         done, worst, last_it, luT, piv = self.run_held_fn(*args, int(n), row)
         self._set_lu(luT, piv)
