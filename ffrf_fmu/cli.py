@@ -308,8 +308,9 @@ def stability(args) -> int:
     arg("--fmu", action="store_true", help="also run every configuration through its FMU under fmpy "
         "(communication step = internal step)"),
     arg("--reference-elements", type=int, metavar="N", help="elements of the full-order reference beam "
-        "(default max(16, 4 x superelements of the model))"),
-    arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's)"),
+        "(default: the scene's [reference] elements, else max(16, 4 x superelements of the model))"),
+    arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's [reference] "
+        "step, else the scene's step)"),
     *SWEEP_ARGS,
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
         "chart.json and the result store of every run, the reference's included (runs.jsonl: a rerun skips finished runs)"),
@@ -423,8 +424,10 @@ def _fraction(text: str) -> float:
         "this chart that meets the tolerance"),
     arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
         "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
-    arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check)"),
-    arg("--reference-step", type=float, metavar="H", help="step of the reference (with --check; default: the scene's)"),
+    arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check; "
+        "default: the scene's [reference] elements, else max(16, 4 x superelements))"),
+    arg("--reference-step", type=float, metavar="H", help="step of the reference (with --check; default: the scene's "
+        "[reference] step, else the scene's step)"),
     arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
         "(a chart's directory: its reference run is not repeated)"),
     BACKEND_ARG,

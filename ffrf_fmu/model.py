@@ -171,6 +171,16 @@ class Metrics:
 
 
 @dataclass(frozen=True)
+class ReferenceOptions:
+    """[scenes.NAME.reference]: the full-order reference that resolves the scene's primary metric, the
+    default of `chart`, `advise --check` and `stability` (their --reference-elements/--reference-step
+    override it). None: the tools' own default (elements max(16, 4 x superelements), the scene's step)."""
+
+    elements: int | None = None
+    step: float | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     name: str
     duration: float
@@ -186,6 +196,7 @@ class Scene:
     outputs: tuple[str, ...] = ()  # extra probes, e.g. "tip_from_hub"
     stiffening: bool = False  # geometric stiffening inside each superelement (docs/equations.md)
     full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in the term set `full`
+    reference: ReferenceOptions = ReferenceOptions()  # the reference that resolves the primary metric
 
 
 @dataclass(frozen=True)
@@ -264,6 +275,12 @@ SCENE_KEYS = {
     "loads": "an array of tables [[scenes.NAME.loads]]",
     "initial": "a table [scenes.NAME.initial]",
     "causality": "a table of causality overrides [scenes.NAME.causality.PORT]",
+    "reference": "a table [scenes.NAME.reference] {elements, step}: the full-order reference that resolves "
+                 "the primary metric",
+}
+REFERENCE_KEYS = {
+    "elements": "a positive integer: elements of the reference beam, a multiple of the superelements",
+    "step": "a positive time step [s] of the reference",
 }
 DRIVE_KEYS = {"rotation": "a table {axis, angle}", "translation": "a table {direction, displacement}"}
 ROTATION_DRIVE_KEYS = {"axis": "3 numbers, not all zero", "angle": "a time function [rad]"}
@@ -540,7 +557,17 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         outputs=tuple(outputs),
         stiffening=r.boolean(t, sp, "stiffening", SCENE_KEYS["stiffening"], False),
         full_terms=_full_terms(r, t, sp),
+        reference=_reference(r, t, sp),
     )
+
+
+def _reference(r: Reader, t: dict, sp: str) -> ReferenceOptions:
+    if "reference" not in t:
+        return ReferenceOptions()
+    path = join(sp, "reference")
+    rt = r.table(t["reference"], path, REFERENCE_KEYS)
+    return ReferenceOptions(r.integer(rt, path, "elements", REFERENCE_KEYS["elements"], None, low=1),
+                            r.real(rt, path, "step", REFERENCE_KEYS["step"], None, ok=positive))
 
 
 def _metrics(r: Reader, v: Any, path: str) -> Metrics:

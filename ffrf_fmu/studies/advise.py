@@ -288,7 +288,7 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
           chart_csv=None, scheduler=None, fresh: bool = False, backend: str | None = None,
           progress: bool = False) -> dict:
     """Run the advised configuration (standalone, or through its FMU when advice.indicators["runner"]
-    says so) and the reference (reference_elements, reference_step: default the scene's) as two tasks of the sweep layer (sweep.py; scheduler as chart's),
+    says so) and the reference (reference_elements, reference_step: default the scene's [reference]) as two tasks of the sweep layer (sweep.py; scheduler as chart's),
     results in out_dir's store (a chart's directory holds the same reference run: it is not
     repeated); the achieved errors and cost. With chart_csv, compare with the cheapest chart
     configuration that meets the tolerance. backend: the advice's own unless given."""

@@ -78,7 +78,8 @@ def label(values: dict[str, Any], extra: dict[str, Any] | None = None) -> str:
 
 def _failed_reference(failure: str, n_elements, step, scene) -> dict:
     return {"metrics": {}, "failure": failure, "wall_time_s": None,
-            "n_elements": n_elements, "step": step or scene.step, "cached": False,
+            "n_elements": n_elements or scene.reference.elements, "step": step or scene.reference.step or scene.step,
+            "cached": False,
             "energy_error": None, "warning": ""}
 
 

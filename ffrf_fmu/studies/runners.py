@@ -119,11 +119,12 @@ def run_fmu_configuration(model_path, model: Model, sc: Scene, overrides, body, 
 
 
 # ------------------------------------------------------------------------------ reference
-def reference_elements(model: Model, n_elements: int | None) -> int:
-    """The reference mesh: n_elements, default max(16, 4 x superelements) (the reference's own
-    default); a multiple of the model's superelements (its ports sit on their boundary nodes)."""
+def reference_elements(model: Model, scene: Scene, n_elements: int | None) -> int:
+    """The reference mesh: n_elements, default the scene's [reference] elements, else max(16, 4 x
+    superelements) (the reference's own default); a multiple of the model's superelements (its ports
+    sit on their boundary nodes)."""
     n_se = model.body.superelements
-    n_el = int(n_elements) if n_elements else max(16, 4 * n_se)
+    n_el = int(n_elements or scene.reference.elements or max(16, 4 * n_se))
     if n_el % n_se:
         raise SetupError(f"--reference-elements {n_el}: must be a multiple of the model's {n_se} superelements "
                          "(the ports sit on superelement boundary nodes)")
@@ -132,16 +133,16 @@ def reference_elements(model: Model, n_elements: int | None) -> int:
 
 def run_reference(model_path: str, scene_name: str | None, base_overrides: Sequence[str], n_elements: int | None,
                   step: float | None) -> dict:
-    """The reference run of the scene (full-order beam, `reference_elements` elements, step h or
-    the scene's). Returns {"t", "d" (tip_trajectory), "metrics", "wall_time_s",
+    """The reference run of the scene (full-order beam, `reference_elements` elements, step h, else
+    the scene's [reference] step, else the scene's step). Returns {"t", "d" (tip_trajectory), "metrics", "wall_time_s",
     "n_elements", "step", "energy_error", "warning"}; the solver's energy warning is returned in
     "warning" (in a worker process a Python warning would be lost)."""
     from ..simulate import run_reference as reference_result
 
     model = load_model(model_path, base_overrides)
     sc = model.scene(scene_name)
-    n_el = reference_elements(model, n_elements)
-    h = float(step) if step else sc.step
+    n_el = reference_elements(model, sc, n_elements)
+    h = float(step or sc.reference.step or sc.step)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="reference: energy error", category=RuntimeWarning)
         result = reference_result(model, sc, n_elements=n_el, step=h)
