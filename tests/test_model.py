@@ -204,17 +204,17 @@ def test_unknown_term_set(tmp_path, minimal):
 
 def test_scene_reference_table_is_read_and_checked(tmp_path):
     """[scenes.NAME.reference] names the reference that resolves the primary metric (B4: 32 elements,
-    1 ms); the study runners take it as their default, an explicit value wins; a bad value is an error
+    2 ms); the study runners take it as their default, an explicit value wins; a bad value is an error
     naming the key."""
     from ffrf_fmu.studies.runners import reference_elements
 
     b4 = load_model(MODELS / "free_beam.toml")
     sc = b4.scene("tumble")
-    assert (sc.reference.elements, sc.reference.step) == (32, 1e-3)
+    assert (sc.reference.elements, sc.reference.step) == (32, 2e-3)
     assert reference_elements(b4, sc, None) == 32 and reference_elements(b4, sc, 64) == 64
     b1 = load_model(MODELS / "haug_beam.toml")
     assert b1.scene().reference.elements is None and reference_elements(b1, b1.scene(), None) == 16
     bad = tmp_path / "bad.toml"
-    bad.write_text((MODELS / "free_beam.toml").read_text().replace("step = 1e-3", "step = -1"))
+    bad.write_text((MODELS / "free_beam.toml").read_text().replace("elements = 32\nstep = 2e-3", "elements = 32\nstep = -1"))
     with pytest.raises(ModelError, match=r"scenes\.tumble\.reference\.step: expected a positive time step"):
         load_model(bad)

@@ -56,7 +56,7 @@ rho_inf 0.5) while h = 10 ms is within 0.12 %. Keep the rotation per step (spin 
 Initially deformed body (Initial.port_displacements): `relaxed_shape`, the static equilibrium the runtime
 relaxes to (undisplaced ports held, translation and rotation; a displaced port held along its u only, at
 u.(x - X) = |u|: pulled by u, free across it), then released with the rigid velocity field on that shape
-(predictor "constant" by default then).
+(predictor "velocity" by default then: the release rings the mesh's top mode, `simulate_reference`).
 
 Free bodies: `mass_properties` (CM, inertia about it, linear and angular momentum) is recorded at every
 step (ReferenceResult.mass); the free-body metrics (ffrf_fmu.simulate, kind "momentum") read it.

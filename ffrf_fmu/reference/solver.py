@@ -452,17 +452,29 @@ def simulate_reference(
     the rigid rotation turns the axial stiffness, which dwarfs the bending one, into the
     transverse directions. Both converge to the same solution (to tol).
     predictor: guess of vdot_{n+1}: "constant" (vdot_n), "linear" (2 vdot_n - vdot_{n-1}; amplifies
-    near-Nyquist components) or "corotated" (vdot_n with its translational part turned by the
-    last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation). Default
-    "linear", but "constant" for an initially deformed body (scene.initial.port_displacements): its
-    release excites the mesh's high bending modes near Nyquist, and the linear guess makes Newton fail on
-    B4 (h = 2 ms: at t = 0.81 s; at the second step while the start was taut, `relaxed_shape`), where
-    "constant" runs the 10 s (energy error 4.3e-6).
+    near-Nyquist components), "corotated" (vdot_n with its translational part turned by the
+    last step's rotation of the mid node: exact for a steady spin, the B1/B3 situation) or "velocity"
+    (a_{n+1} such that the increment h (1/2 - beta) a_n + h beta a_{n+1} of the acceleration is zero:
+    the configuration is guessed as q_n o exp(h v_n); for rho_inf = 1, vdot_{n+1} = -vdot_n). Default
+    "linear", but "velocity" for an initially deformed body (scene.initial.port_displacements). Why: its
+    release drops the held end's reaction moment on a node whose rotary inertia is half an element's
+    (B4, 32 el.: 4.7e5 rad/s^2), which rings the mesh's top mode (omega h >> 1) and, with rho_inf = 1,
+    keeps ringing. There generalized-alpha gives a_{n+1} ~ -a_n, so the acceleration part of the increment
+    nearly cancels: a guess that carries a_n over puts that node h^2/4 |a_n + a_{n+1}| = 0.4-0.9 rad off
+    (constant: h^2/2 |a_n|; linear, which guesses ~3 a_n: h^2 |a_n|), and the damped Newton (0.1 rad per correction) spends
+    10-20 iterations walking back, running out of its 25 at B4 32 el./2 ms (t = 0.936 s with constant; linear:
+    0.81 s with 16 el.). Not the convergence test: the failing step's corrections were still shrinking ~11x
+    per iteration, 94x above it. The velocity guess is exact for that ringing and off by O(h^2 a) for the smooth
+    motion, which Newton removes in one or two corrections: B4 32 el./2 ms 5.4 iterations per step over
+    the 10 s (constant: ~13 until it fails), 64 el./2 ms runs (constant fails at the first step), 32 el./1 ms
+    4.0 (constant 5.8), the same solution (metric 5e-11 apart; docs/accuracy.md, B4).
     """
     t_wall = time.perf_counter()
     t_cpu = time.process_time()
     if predictor is None:
-        predictor = "constant" if scene.initial.port_displacements else "linear"
+        predictor = "velocity" if scene.initial.port_displacements else "linear"
+    if predictor not in ("constant", "linear", "corotated", "velocity"):
+        raise ValueError(f"reference: unknown predictor {predictor!r} (constant, linear, corotated, velocity)")
     mesh = Mesh(body, n_elements)
     sc = _Scene(mesh, body, scene)
     T_end = float(scene.duration if duration is None else duration)
@@ -550,6 +562,9 @@ def simulate_reference(
         base_a = (af * vd0 - am * a0) / (1 - am)
         if predictor == "linear":
             vd1 = 2.0 * vd0 - vd_prev
+        elif predictor == "velocity":
+            # a_{n+1} = -(1/2 - beta)/beta a_n: no acceleration part in the guessed increment
+            vd1 = (-(0.5 - bet) / bet * a0 - base_a) / ca
         else:
             vd1 = vd0.copy()
             if predictor == "corotated" and R_prev is not None:
