@@ -92,6 +92,16 @@ def _tangent(th, out):
 
 
 @jit
+def _copy(dst, d0, src, s0, n):
+    """dst.flat[d0:d0 + n] = src.flat[s0:s0 + n], dst C-contiguous (a kernel buffer). A loop on purpose:
+    numba's array-to-array assignment (a[:k] = b, a[i] = b) compiles its shape-mismatch message with
+    numba's string functions, which the kernel otherwise never needs (docs/benchmarks.md, compile times)."""
+    d, s = dst.reshape(dst.size), src.ravel()  # a view, and a view of a C-contiguous source (else a copy)
+    for i in range(n):
+        d[d0 + i] = s[s0 + i]
+
+
+@jit
 def _skew(a, out):
     out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
     out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
@@ -1004,8 +1014,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     for i in fixed_idx:
         ydw[i] = zflat[i]
     Rn = np.empty((N + E, 3, 3))
-    Rn[:N] = RN_p
-    Rn[N:] = R0
+    _copy(Rn, 0, RN_p, 0, 9 * N)
+    _copy(Rn, 9 * N, R0, 0, 9 * E)
     if refresh_min <= last_it <= refresh_max:  # the predictor missed at the last step: a fresh matrix (integrator `_step`)
         lu_meta[0] = 0.0
     luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
@@ -1033,8 +1043,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     for i in range(3):  # the rotation of the first CM frame over the step, R_{n+1} R_n^T
         for j in range(3):
             Q[i, j] = R[N, i, 0] * R0[0, j, 0] + R[N, i, 1] * R0[0, j, 1] + R[N, i, 2] * R0[0, j, 2]
-    RN[:] = R[:N]
-    R0[:] = R[N:]
+    _copy(RN, 0, R, 0, 9 * N)
+    _copy(R0, 0, R, 9 * N, 9 * E)
     af_am = af / am
     for i in range(ny):
         yd_prev2[i] = yd_prev[i]
@@ -1106,8 +1116,8 @@ def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs
     simulate.scene_inputs gives and BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
     node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm = schedule
     r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
-    xN_p[:] = xN
-    RN_p[:] = RN
+    _copy(xN_p, 0, xN, 0, xN.size)
+    _copy(RN_p, 0, RN, 0, RN.size)
     zN_p[:] = 0.0
     f_in[:] = 0.0
     t_in[:] = 0.0
@@ -1132,12 +1142,12 @@ def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs
                 th[i], wd[i] = sv[0] * axis[j, 1, i], sv[1] * axis[j, 1, i]
             _expm(th, Rd)
             if mode[j, 1] == 1:
-                RN_p[k] = Rd
+                _copy(RN_p, 9 * k, Rd, 0, 9)
                 for i in range(3):  # body-axes rate R^T w
                     zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
             else:
-                R_in[s] = Rd
-                w_in[s] = wd
+                _copy(R_in, 9 * s, Rd, 0, 9)
+                _copy(w_in, 3 * s, wd, 0, 3)
     for ld in range(load_port.shape[0]):
         if load_window[ld, 0] <= t < load_window[ld, 1]:
             j = load_port[ld]
@@ -1253,8 +1263,8 @@ def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
     2 compliant, values' columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27)."""
     node, mode, spring, values = held
     r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
-    xN_p[:] = xN
-    RN_p[:] = RN
+    _copy(xN_p, 0, xN, 0, xN.size)
+    _copy(RN_p, 0, RN, 0, RN.size)
     zN_p[:] = 0.0
     f_in[:] = 0.0
     t_in[:] = 0.0
@@ -1284,12 +1294,12 @@ def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
                 for m in range(3):
                     Rd[i, m] = E[i, 0] * row[9 + m] + E[i, 1] * row[12 + m] + E[i, 2] * row[15 + m]
             if mode[j, 1] == 1:
-                RN_p[k] = Rd
+                _copy(RN_p, 9 * k, Rd, 0, 9)
                 for i in range(3):  # body-axes rate R^T w
                     zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
             else:
-                R_in[s] = Rd
-                w_in[s] = wd
+                _copy(R_in, 9 * s, Rd, 0, 9)
+                _copy(w_in, 3 * s, wd, 0, 3)
 
 
 @jit
