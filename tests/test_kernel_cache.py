@@ -105,3 +105,28 @@ def test_kernel_file_is_created_once(tmp_path, monkeypatch):
     assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
     f.write_bytes(b"damaged")
     assert compiled._kernel_file(src, "d1").read_bytes() == src
+
+
+def test_stale_kernel_versions_are_pruned_when_a_new_one_is_cached(tmp_path):
+    """Caching a kernel version removes the versions unused for STALE_AFTER_DAYS (8-10 MB of machine
+    code each), keeps the recent ones, the one being cached, and one whose compile lock another
+    process holds (it is compiling or loading it)."""
+    import fcntl
+    import time
+
+    from ffrf_fmu.runtime import compiled
+
+    kernels = tmp_path / "kernels"
+    old = time.time() - (compiled.STALE_AFTER_DAYS + 1) * 86400.0
+    for name in ("stale", "recent", "current", "busy", "stamped"):
+        (kernels / name).mkdir(parents=True)
+        (kernels / name / "code.nbc").write_bytes(b"x")
+    (kernels / "stamped" / ".last-used").touch()  # used recently though the directory is old
+    with open(kernels / "busy" / ".compile.lock", "ab") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        for name in ("stale", "current", "busy", "stamped"):  # after the files: creating one stamps its directory
+            os.utime(kernels / name, (old, old))
+        # the lock is per open file description: prune_stale's own open conflicts with it
+        removed = compiled.prune_stale(kernels, keep="current")
+    assert removed == ["stale"]
+    assert sorted(p.name for p in kernels.iterdir()) == ["busy", "current", "recent", "stamped"]

@@ -17,6 +17,10 @@ all load the same entry. What it does not do is coordinate processes: two that s
 cache both compile (minutes each on a busy machine). The first call of each entry point therefore
 holds an exclusive lock on <cache>/kernels/<sha256 prefix>/.compile.lock (released by the OS if the
 process dies): a second process waits for the first one's compilation and then loads it from disk.
+
+Each kernel version's directory holds 8-10 MB of machine code. Loading a version marks it used
+(`.last-used`); caching a new version removes the versions unused for STALE_AFTER_DAYS, skipping
+any whose compile lock another process holds.
 """
 from __future__ import annotations
 
@@ -59,6 +63,49 @@ def cache_root() -> Path:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "ffrf-fmu"
 
 
+STALE_AFTER_DAYS = 30.0  # an installed FMU of an older version loads its kernel at least this often, or recompiles
+
+
+def prune_stale(kernels: Path, keep: str, now: float | None = None) -> list[str]:
+    """Remove kernel version directories under `kernels` not used for STALE_AFTER_DAYS (their
+    `.last-used` stamp, else the directory's mtime), except `keep` and any whose compile lock is held.
+    Returns the removed digests; a directory that cannot be removed is left."""
+    import shutil
+
+    now = time.time() if now is None else now
+    removed = []
+    for d in kernels.iterdir() if kernels.is_dir() else ():
+        if d.name == keep or not d.is_dir():
+            continue
+        stamp = d / ".last-used"
+        try:
+            used = (stamp if stamp.exists() else d).stat().st_mtime
+        except OSError:
+            continue
+        if now - used < STALE_AFTER_DAYS * 86400.0 or _locked(d):
+            continue
+        shutil.rmtree(d, ignore_errors=True)
+        if not d.exists():
+            removed.append(d.name)
+    if removed:
+        logging.getLogger("ffrf_fmu").info("kernel cache %s: removed %d version(s) unused for %g days", kernels, len(removed), STALE_AFTER_DAYS)
+    return removed
+
+
+def _locked(d: Path) -> bool:
+    """Whether another process holds d's compile lock (it is compiling or loading that version)."""
+    try:
+        import fcntl
+        with open(d / ".compile.lock", "ab") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh, fcntl.LOCK_UN)
+        return False
+    except BlockingIOError:
+        return True
+    except (ImportError, OSError):
+        return False
+
+
 def _kernel_file(src: bytes, digest: str) -> Path:
     """The source at its content-keyed place, created if absent and never replaced while intact: numba
     before 0.68 stamped its cache with the file's mtime, which a racing rewrite would change."""
@@ -67,8 +114,11 @@ def _kernel_file(src: bytes, digest: str) -> Path:
         f = d / f"ffrf_kernel_{digest}.py"
         try:
             if f.exists() and f.read_bytes() == src:
+                (d / ".last-used").touch()
                 return f
             d.mkdir(parents=True, exist_ok=True)
+            (d / ".last-used").touch()
+            prune_stale(d.parent, digest)
             tmp = d / f".{f.name}.{os.getpid()}.tmp"
             tmp.write_bytes(src)
             try:
