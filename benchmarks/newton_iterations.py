@@ -55,7 +55,12 @@ def worker(tree: str, h: float, cfg: str, refresh_after: tuple[int, int] | None,
     model = load_model(str(Path(tree) / "models" / "haug_beam.toml"),
                        [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
     scene = model.scene("spinup")
-    body, _ = build_body(dataclasses.replace(model.body, ports=sim.effective_ports(model, scene)), **reduction_options(scene))
+    try:  # the scene's causality on the ports: model.scene_body now, simulate.effective_ports in older trees
+        from ffrf_fmu.model import scene_body
+        scened = scene_body(model.body, scene)
+    except ImportError:
+        scened = dataclasses.replace(model.body, ports=sim.effective_ports(model, scene))
+    body, _ = build_body(scened, **reduction_options(scene))
     counts = {"evaluations": 0, "jacobians": 0, "factorizations": 0}
     residual_at, factor = GeneralizedAlpha._residual_at, GeneralizedAlpha._factor
 

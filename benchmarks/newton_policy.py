@@ -11,9 +11,10 @@ of successive increments beyond which the stored factorization is dropped within
 Newton keeps it otherwise; theta = 0 would be full Newton); REFRESH_AFTER = lo:hi drops it before a
 step that follows one of lo to hi iterations. Iteration counts, not times: they do not depend on the
 machine (benchmarks/newton_iterations.py measures times, against a baseline revision).
---held N1,N2,...: the FMU's input rule instead of the exact drive: the inputs extrapolated from the
+--held N1,N2,...: the FMU's input rule beside the exact drive: the inputs extrapolated from the
 values held at each communication point t_c = k N h (runtime/held.py, BodySystem.run_held), N internal
-steps per communication step; one column per N (the thetas then take the first value only).
+steps per communication step; the standalone column, then one per N (the thetas then take the first value
+only).
 """
 from __future__ import annotations
 
@@ -107,12 +108,13 @@ def main(argv=None) -> int:
 
 
 def held_table(args) -> int:
-    """--held: one column per number of internal steps per communication step."""
-    ns = [int(x) for x in args.held.split(",")]
+    """--held: the standalone run (exact drive), then one column per number of internal steps per
+    communication step."""
+    ns = [0] + [int(x) for x in args.held.split(",")]
     theta = float(args.thetas.split(",")[0])
-    print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}, theta {theta:g}, the FMU's input rule; "
-          "Newton iterations / factorizations per internal step")
-    print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{f'H = {n} h':>17}" for n in ns))
+    print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}, theta {theta:g}; standalone (exact "
+          "drive), then the FMU's input rule; Newton iterations / factorizations per internal step")
+    print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{f'H = {n} h' if n else 'standalone':>17}" for n in ns))
     for h in (float(x) for x in args.steps.split(",")):
         for cfg in args.configs.split(","):
             n_se, modes = (int(v) for v in cfg.split("x"))
@@ -120,7 +122,7 @@ def held_table(args) -> int:
             for n in ns:
                 it, fac, failure = run(h, n_se, modes, theta, tuple(int(k) for k in args.refresh_after.split(":")),
                                        args.duration, n)
-                cells.append(f"{it:8.2f} / {fac:5.2f}{'*' if failure else ' '}")
+                cells.append(f"{it:7.3f} / {fac:6.3f}{'*' if failure else ' '}")
             print(f"{1e3 * h:7g} {cfg:>10} " + " ".join(cells))
     return 0
 

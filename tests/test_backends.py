@@ -97,13 +97,15 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
     internal step with their numpy twin runtime/held.inputs (numpy backend): 1e-10 of the kinematic
     outputs, 2e-6 of the loads (module docstring), equal iterations; 5 internal steps per
     communication step, so that the extrapolation spans several steps, over 1 s of the scene. The
-    factorization of the last step is handed back to the body (the next call starts from it)."""
+    factorization of the last step is handed back to the body (the next call starts from it), built at
+    the same step as numpy's (the first CM frame it was built at, to 1e-10: a step apart they differ by
+    ~1e-5) and with the same verdict whether it serves the next step (integrator `_newton`)."""
     path, scene, overrides = HELD_RUNS[name]
     model = load_model(path, overrides)
     sc = model.scene(scene)
     body, _ = build_scene_body(model.body, sc)
     n, h = 5, sc.step
-    runs = {}
+    runs, lus = {}, {}
     for backend in ("numpy", "numba"):
         s, inputs = sim.build_system(body, sc, model.body.origin, backend)
         rows, worst = [], []
@@ -117,8 +119,11 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
         if backend == "numba":
             assert s._compiled.verified and s._lu[0] is s._compiled.lu
         runs[backend] = (np.array(rows), worst)
+        lus[backend] = s._lu
     (ref, w_ref), (fast, w_fast) = runs["numpy"], runs["numba"]
     assert w_fast == w_ref
+    np.testing.assert_allclose(lus["numba"][3], lus["numpy"][3], rtol=0, atol=1e-10)
+    assert lus["numba"][4] == lus["numpy"][4]
     np.testing.assert_array_equal(fast[:, -1], ref[:, -1])
     P = len(body.ports)
     for field, cols in (("r", slice(0, 3)), ("R", slice(3, 12)), ("v", slice(12, 15)), ("w", slice(15, 18)),

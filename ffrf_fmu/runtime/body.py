@@ -183,8 +183,8 @@ class BodySystem(GeneralizedAlpha):
         parts = [getattr(self, k).ravel() for k in self._STATE_FIELDS]  # (the method: np.ravel costs 1 us more each)
         scalars = np.array([self.t, self.work, self.power, self.iterations, with_lu and self._lu is not None])
         if with_lu and self._lu is not None:
-            lu, piv, beta, R_ref = self._lu
-            parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel()]
+            lu, piv, beta, R_ref, serves = self._lu
+            parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel(), [serves]]
         return np.concatenate([scalars] + parts)
 
     def snapshot(self):
@@ -203,7 +203,7 @@ class BodySystem(GeneralizedAlpha):
         state = np.asarray(state, dtype=float)
         n = self._free_idx.size
         sizes = [getattr(self, k).size for k in self._STATE_FIELDS]
-        expected = 5 + sum(sizes) + (n * n + n + 10 if state.size > 4 and state[4] else 0)
+        expected = 5 + sum(sizes) + (n * n + n + 11 if state.size > 4 and state[4] else 0)
         if state.size != expected:
             raise ValueError(f"state has {state.size} entries, this body needs {expected}")
         self.t, self.work, self.power = state[0], state[1], state[2]
@@ -216,8 +216,8 @@ class BodySystem(GeneralizedAlpha):
         if has_lu:
             lu = np.asfortranarray(state[i : i + n * n].reshape(n, n))
             piv = state[i + n * n : i + n * n + n].astype(np.int32)
-            beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 :].reshape(3, 3).copy()
-            self._lu = (lu, piv, beta, R_ref)
+            beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 : i + n * n + n + 10].reshape(3, 3).copy()
+            self._lu = (lu, piv, beta, R_ref, bool(state[i + n * n + n + 10]))
 
     # ------------------------------------------------------------- equations
     def split_rates(self, yd):

@@ -235,7 +235,7 @@ class CompiledStep:
         self.const = (
             gyro, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
-            i64(system._field_of), float(system.THETA_REFRESH), *(int(k) for k in system.REFRESH_AFTER), i64(system._world_idx),
+            i64(system._field_of), float(system.THETA_REFRESH), float(system.KEEP_CONTRACTION), *(int(k) for k in system.REFRESH_AFTER), i64(system._world_idx),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
             i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
         )
@@ -262,7 +262,7 @@ class CompiledStep:
         self.energy = np.zeros(2)  # work, power
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
         self._set_lu(np.zeros((nf, nf)), np.zeros(nf, dtype=np.int32))
-        self.lu_meta = np.zeros(11)
+        self.lu_meta = np.zeros(12)  # [valid, beta, R_ref (9), serves]: the numpy path's `_lu` after the arrays
         self.info = np.zeros(2, dtype=np.int64)
         self.F = np.zeros(L.ny)
         self.R = np.zeros((L.n_nodes + L.n_se, 3, 3))
@@ -290,12 +290,16 @@ class CompiledStep:
             if arr is not buf:
                 buf[...] = arr
                 setattr(system, k, buf)
-        lu = system._lu
+        lu, m = system._lu, self.lu_meta
         if lu is None:
-            self.lu_meta[0] = 0.0
-        elif lu[0] is not self.lu:  # a factorization from set_state, a snapshot or the numpy path: shared, not copied
+            m[0] = 0.0
+            return
+        if lu[0] is not self.lu:  # a factorization from set_state, a snapshot or the numpy path: shared, not copied
             self._set_lu(np.ascontiguousarray(lu[0].T), np.ascontiguousarray(lu[1], dtype=np.int32))
-            self.lu_meta[0], self.lu_meta[1], self.lu_meta[2:] = 1.0, lu[2], np.ravel(lu[3])
+            m[2:11] = np.ravel(lu[3])
+        # the scalars also for the kernel's own matrix: a restored snapshot may hold it with another serves flag,
+        # or valid where a failed step had dropped it (and put its last increment into m[1])
+        m[0], m[1], m[11] = 1.0, lu[2], lu[4]
 
     def _set_lu(self, luT, piv):
         """The factorization the kernel reads (it never writes into it: a refresh returns new arrays)."""
@@ -378,7 +382,7 @@ class CompiledStep:
         """The factorization back to the body; the failure of the step ending at t1, if it failed,
         with the numpy path's messages."""
         status, m = int(self.info[0]), self.lu_meta
-        system._lu = (self.lu, self.piv, m[1], m[2:].reshape(3, 3).copy()) if m[0] else None
+        system._lu = (self.lu, self.piv, m[1], m[2:11].reshape(3, 3).copy(), bool(m[11])) if m[0] else None
         if status == self.module.NOT_FINITE:
             return StepFailure(t1, "the residual is not finite (NaN or overflow)")
         if status == self.module.NOT_CONVERGED:

@@ -182,10 +182,14 @@ class GeneralizedAlpha:
             yd[:] = self.yd
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
-        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1]:
-            self._lu = None  # (REFRESH_AFTER)
+        stale, trusted = None, False  # (REFRESH_AFTER)
+        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
+            if self._lu[4]:
+                trusted = True
+            else:
+                stale, self._lu = self._lu, None
         try:
-            F, it = self._newton(yd, beta, t1)
+            F, it = self._newton(yd, beta, t1, stale, trusted)
         except StepFailure:
             if not commit_config:
                 raise
@@ -208,7 +212,7 @@ class GeneralizedAlpha:
         self.power = p_new
         return it
 
-    def _newton(self, yd, beta, t1):
+    def _newton(self, yd, beta, t1, stale=None, trusted=False):
         """Newton on the rates yd (updated in place) of the prepared step; returns the residual of the
         last evaluation and the iterations (residual evaluations, each followed by one solve).
         runtime/kernel.py `newton_step` is its compiled twin.
@@ -223,15 +227,25 @@ class GeneralizedAlpha:
         (`_stage_at`) and the residual of the last evaluation, one increment within the tolerance,
         serves for the reactions. Within the step, the factorization is kept while theta <= THETA_REFRESH
         and the contraction would reach the tolerance within 3 more iterations (theta^4/(1 - theta)
-        |dx_k| <= 1); `_step` drops it before the step by the rule REFRESH_AFTER."""
+        |dx_k| <= 1); `_step` drops it before the step by the rule REFRESH_AFTER.
+
+        The step also records on the factorization whether it serves the next step as it is (its fifth
+        entry, read by REFRESH_AFTER): a matrix kept through the step that converged in two increments,
+        the second contracted by theta <= KEEP_CONTRACTION; or one built at the predictor, replacing `stale` (the matrix
+        REFRESH_AFTER dropped, one step older), when `stale` would have given the same first increment
+        to KEEP_CONTRACTION of it (the matrix ages by less than that per step; one more solve). A matrix
+        that REFRESH_AFTER kept on that verdict (`trusted`) and that needs a third increment serves no more:
+        it is rebuilt at the second iterate (an FMU's matrix kept 950 steps took 5-6 iterations otherwise)."""
         order = self._newton_idx
         nrm_prev = np.inf
+        kept, serves = True, False  # kept: no matrix built in this step (yet)
         for it in range(1, self.max_iter + 1):
             # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
             # communication grid repeats its step only up to round-off
             refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
             if refresh:
                 F, J = self._residual_at(yd, jacobian=True, beta=beta)
+                kept = False
             else:
                 F = self._residual_at(yd)
             if zero_or_nan(F, self._zeros_ny) != 0.0:
@@ -242,14 +256,20 @@ class GeneralizedAlpha:
                 self._factor(J, beta, t1, R_now)
             dx = self._solve(F, R_now)
             yd[order] -= dx
-            nrm = float(np.max(np.abs(dx) / self._field_scale(yd, beta)))
+            scale = self._field_scale(yd, beta)
+            nrm = float(np.max(np.abs(dx) / scale))
             theta = nrm / nrm_prev
+            if it == 1 and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
+                serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
             if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0):
                 self._stage_at(yd)
+                if kept:  # (two increments: as many as a matrix built at the predictor needs)
+                    serves = it == 2 and theta <= self.KEEP_CONTRACTION
+                self._lu = (*self._lu[:4], serves)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0):
-                self._lu = None
+            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
+                self._lu, serves = None, False
             nrm_prev = nrm
         self._lu = None
         raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
@@ -266,11 +286,22 @@ class GeneralizedAlpha:
     # newton_iterations.py). Not after a harder step: there the predictor is far off (unresolved modes ringing
     # undamped), a matrix built at it is a poor one, and the kept matrix with the in-step rules does better
     # (B4 at h = 10 ms, rho_inf = 1: 4-6 iterations per step; rebuilt after every step of 2 or more, Newton
-    # failed at t = 0.16 s). An FMU at H > h pays for it: its extrapolated inputs jump back onto the signal at
-    # every communication point, every internal step then takes 2 iterations whatever the matrix (B1 at
-    # h = 2 ms, H = 5 h: second increments ~1e-6 of the first with a kept matrix) and this rule rebuilds it at
-    # every one (docs/benchmarks.md, "FMU against the standalone run as a function of the communication step")
+    # failed at t = 0.16 s). Nor when the last step showed that the matrix serves as it is (`_newton`: it ages
+    # by less than KEEP_CONTRACTION per step): a predictor can miss by far more than the tolerance while the
+    # matrix stays good. An FMU's inputs do that: the held extrapolation jumps back onto the signal at every
+    # communication point (acceleration by ~jerk H), which sets the beam's elastic modes vibrating; their
+    # accelerations are 1e4-1e8 tolerances (tol/beta) at B1's h = 2 ms, H = 5-100 h, a quadratic rate predictor
+    # cannot follow them, and every internal step takes 2 iterations whatever the matrix (a kept one contracts
+    # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.003-0.004
+    # (docs/benchmarks.md, "Held inputs: why every internal step takes 2 Newton iterations")
     REFRESH_AFTER = (2, 3)
+    # contraction (a kept matrix's second increment over its first, or the dropped matrix's first increment
+    # against the new one's, each per step) up to which a matrix serves the next step as it is. On B1 an FMU
+    # at h = 2 ms, H = 5 h ages its matrix by 1e-7 per step (median, p90 5e-7), the standalone run at 20 ms by
+    # 0.4 (p10 0.02). In a first version of this rule (without the two-increment condition) 1e-4, 1e-3 and
+    # 1e-2 all kept the FMU's matrix (0.010 / 0.004 / 0.003 factorizations per internal step), and 1e-2 cost
+    # the standalone run iterations (50 ms: 2.01 per step; 2 ms, 4 SE x 6 modes, 2 s: 1.22 against 1.12)
+    KEEP_CONTRACTION = 1e-3
 
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's
@@ -317,23 +348,23 @@ class GeneralizedAlpha:
 
     def _factor(self, J, beta, t, R_ref):
         """LU of the iteration matrix (unknowns in the Newton order), with the rotation of the first CM
-        frame it was built at."""
+        frame it was built at; not yet known to serve the next step (`_newton`)."""
         try:
             lu, piv = sla.lu_factor(J, overwrite_a=True, check_finite=True)  # J is not used afterwards
         except (ValueError, np.linalg.LinAlgError) as exc:
             self._lu = None
             raise StepFailure(t, f"iteration matrix cannot be factored: {exc}")
-        self._lu = (lu, piv, beta, R_ref.copy())
+        self._lu = (lu, piv, beta, R_ref.copy(), False)
 
-    def _solve(self, F, R_now):
+    def _solve(self, F, R_now, factorization=None):
         """J^-1 F on the unknowns in the Newton order (the increment is minus this), with the stored
-        factorization carried along the rigid rotation.
+        factorization (or the given one) carried along the rigid rotation; F is not modified.
 
         The equations are frame-indifferent: rotating every world-axes vector (node and CM positions,
         CM velocities, forces) by a rigid rotation P maps J to P J P^T. So the matrix factored at the
         orientation R_ref serves at R_now through P = R_now R_ref^T, and modified Newton keeps its
         contraction while the body spins."""
-        lu, piv, _, R_ref = self._lu
+        lu, piv, _, R_ref, _ = factorization or self._lu
         P = R_now @ R_ref.T
         k3 = 3 * len(self._world_free)
         F = F[self._newton_idx]  # world triplets first

@@ -816,19 +816,21 @@ def _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp):
 
 @jit
 def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R, F, luT, piv,
-                lu_meta, info):
+                field_of, theta_refresh, keep, stale, trusted, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R,
+                F, luT, piv, lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
 
     In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
     predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
     evaluation (the accepted iterate is not evaluated again). luT, piv,
-    lu_meta = [valid, beta, R_ref (9)] hold the LU of the iteration matrix across steps (transposed:
+    lu_meta = [valid, beta, R_ref (9), serves] hold the LU of the iteration matrix across steps (transposed:
     luT.T is scipy's lu_factor LU; piv 0-based); returns (luT, piv), new arrays after a refresh (the
     arguments are only read). info = [status, iterations]; lu_meta[0] = 0 and
     a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED.
     Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted
-    on the contraction estimate theta/(1 - theta) |dx|."""
+    on the contraction estimate theta/(1 - theta) |dx|; serves as there (keep = KEEP_CONTRACTION; stale:
+    luT, piv, lu_meta hold the matrix REFRESH_AFTER dropped, which the first refresh compares; trusted:
+    REFRESH_AFTER kept it on its serves verdict)."""
     NR, E = Rn.shape[0], K.shape[0]
     N = NR - E
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
@@ -838,6 +840,8 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     theta, T, Rexp = np.zeros((NR, 3)), np.zeros((NR, 3, 3)), np.zeros((3, 3))
     JT = np.zeros((0, 0))  # the iteration matrix, allocated on the first refresh of the step
     b, P = np.zeros(nf), np.zeros((3, 3))
+    b_stale, ref_stale, luT_stale, piv_stale = np.zeros(nf), np.zeros(9), luT, piv
+    kept, serves, use_stale = True, False, False  # kept: no matrix built in this step (yet)
     n_fields = 0
     for i in range(nf):
         n_fields = max(n_fields, field_of[i] + 1)
@@ -861,6 +865,12 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
             info[0], info[1] = NOT_FINITE, it
             return luT, piv
         if refresh:
+            kept = False
+            use_stale = stale and it == 1 and abs(lu_meta[1] - beta) <= 1e-6 * beta
+            if use_stale:  # the dropped matrix, compared with the new one after the solve
+                luT_stale, piv_stale = luT, piv
+                for i in range(9):
+                    ref_stale[i] = lu_meta[2 + i]
             # factored in place of the new matrix, with new pivots: a factorization is never overwritten
             # (a rollback snapshot shares it, BodySystem.snapshot); the next refresh builds a new matrix
             ok = True
@@ -882,22 +892,9 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
             for i in range(3):
                 for j in range(3):
                     lu_meta[2 + 3 * i + j] = R[N, i, j]
-        # P = R_now R_ref^T carries the factorization along the rigid rotation (integrator `_solve`)
-        for i in range(3):
-            for j in range(3):
-                P[i, j] = (R[N, i, 0] * lu_meta[2 + 3 * j] + R[N, i, 1] * lu_meta[3 + 3 * j]
-                           + R[N, i, 2] * lu_meta[4 + 3 * j])
-        for i in range(nf):
-            b[i] = F[newton_idx[i]]
-        for t3 in range(0, k3, 3):  # P^T F on each world triplet
-            x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
-            for i in range(3):
-                b[t3 + i] = P[0, i] * x + P[1, i] * y + P[2, i] * z
-        _lu_solve(luT, piv, b)
-        for t3 in range(0, k3, 3):  # P J_ref^-1 P^T F
-            x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
-            for i in range(3):
-                b[t3 + i] = P[i, 0] * x + P[i, 1] * y + P[i, 2] * z
+        _corotated_solve(luT, piv, lu_meta[2:11], R[N], F, newton_idx, k3, P, b)
+        if use_stale:
+            _corotated_solve(luT_stale, piv_stale, ref_stale, R[N], F, newton_idx, k3, P, b_stale)
         for i in range(nf):
             yd[newton_idx[i]] -= b[i]
         S[:] = 0.0  # the largest rate of each field, at the new iterate
@@ -907,13 +904,20 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         for i in range(nf):
             nrm = max(nrm, abs(b[i]) / (tol / beta + tol * S[field_of[i]]))
         rate = nrm / nrm_prev  # the contraction theta of integrator `_newton`
+        if use_stale:  # the dropped matrix's first increment against the new one's (integrator `_newton`)
+            dev = 0.0
+            for i in range(nf):
+                dev = max(dev, abs(b_stale[i] - b[i]) / (tol / beta + tol * S[field_of[i]]))
+            serves, use_stale = dev <= keep * nrm, False
         if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (rate < 1.0 and rate / (1.0 - rate) * nrm <= 1.0):
             converged = True  # the accepted iterate's configuration, not evaluated again
             _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp)
+            if kept:
+                serves = it == 2 and rate <= keep
             break
         # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-        if it > 1 and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0):
-            lu_meta[0] = 0.0
+        if it > 1 and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0 or (trusted and kept)):
+            lu_meta[0], serves = 0.0, False
         nrm_prev = nrm
     if not converged:
         lu_meta[0], lu_meta[1] = 0.0, nrm_prev
@@ -925,7 +929,29 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
             info[0], info[1] = ROTATION_ALIAS, it
             return luT, piv
     info[0], info[1] = OK, it
+    lu_meta[11] = 1.0 if serves else 0.0
     return luT, piv
+
+
+@jit
+def _corotated_solve(luT, piv, ref, R_now, F, newton_idx, k3, P, b):
+    """b = J^-1 F on the unknowns in the Newton order from the factorization (luT, piv) built at the first
+    CM frame's rotation ref (9, row-major), carried along the rigid rotation P = R_now ref^T (integrator
+    `_solve`); P is work space."""
+    for i in range(3):
+        for j in range(3):
+            P[i, j] = R_now[i, 0] * ref[3 * j] + R_now[i, 1] * ref[3 * j + 1] + R_now[i, 2] * ref[3 * j + 2]
+    for i in range(b.shape[0]):
+        b[i] = F[newton_idx[i]]
+    for t3 in range(0, k3, 3):  # P^T F on each world triplet
+        x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
+        for i in range(3):
+            b[t3 + i] = P[0, i] * x + P[1, i] * y + P[2, i] * z
+    _lu_solve(luT, piv, b)
+    for t3 in range(0, k3, 3):  # P J_ref^-1 P^T F
+        x, y, z = b[t3], b[t3 + 1], b[t3 + 2]
+        for i in range(3):
+            b[t3 + i] = P[i, 0] * x + P[i, 1] * y + P[i, 2] * z
 
 
 @jit
@@ -972,7 +998,7 @@ def _lu_solve(luT, piv, b):
 
 @jit
 def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-         field_of, theta_refresh, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
+         field_of, theta_refresh, keep, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
          motion_T_slots, stage_mask, motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
          xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it,
          ydw, p, R, F, luT, piv, lu_meta, info):
@@ -980,7 +1006,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
     are updated in place, and only if Newton succeeded (info[0] == OK). xN_p ... t_in: the inputs
     read by `BodySystem._read_inputs` (current frames where no motion input); last_it the iterations
-    of the last step (the refresh rule `REFRESH_AFTER` = (refresh_min, refresh_max)). Returns the
+    of the last step (the refresh rule `REFRESH_AFTER` = (refresh_min, refresh_max); keep its
+    KEEP_CONTRACTION). Returns the
     factorization (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
     N, E, ny = xN.shape[0], x0.shape[0], yd.shape[0]
     beta = h * gamma * af / am
@@ -1016,11 +1043,14 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     Rn = np.empty((N + E, 3, 3))
     _copy(Rn, 0, RN_p, 0, 9 * N)
     _copy(Rn, 9 * N, R0, 0, 9 * E)
-    if refresh_min <= last_it <= refresh_max:  # the predictor missed at the last step: a fresh matrix (integrator `_step`)
+    # the predictor missed at the last step and the matrix is not known to serve: a fresh one (integrator `_step`)
+    after = refresh_min <= last_it <= refresh_max and lu_meta[0] != 0.0
+    stale, trusted = after and lu_meta[11] == 0.0, after and lu_meta[11] != 0.0
+    if stale:
         lu_meta[0] = 0.0
     luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
-                           newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p,
-                           R, F, luT, piv, lu_meta, info)
+                           newton_pos, k3, field_of, theta_refresh, keep, stale, trusted, c, P0, Rn, f_in, t_in, springs, beta, tol,
+                           max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
     if info[0] != OK and info[0] != ROTATION_ALIAS:
         # one retry from the last step's rates with a fresh matrix (integrator `_step`)
         for i in range(ny):
@@ -1029,8 +1059,8 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
         luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
-                               newton_idx, newton_pos, k3, field_of, theta_refresh, c, P0, Rn, f_in, t_in, springs, beta, tol,
-                               max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
+                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, False, False, c, P0, Rn, f_in, t_in,
+                               springs, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
         info[1] += max_iter  # the failed attempt's iterations count
     if info[0] != OK:
         return luT, piv
