@@ -235,7 +235,8 @@ class CompiledStep:
         self.const = (
             gyro, K, M, f64(G), *inertia, mass, J0, X_B, se_nodes, i64(L.cfg_map), i64(L.vel_map), f64(system.gravity),
             i64(system.fused.rot_slots), i64(system._newton_idx), i64(system._newton_pos), 3 * len(system._world_free),
-            i64(system._field_of), float(system.THETA_REFRESH), float(system.KEEP_CONTRACTION), *(int(k) for k in system.REFRESH_AFTER), i64(system._world_idx),
+            i64(system._field_of), float(system.THETA_REFRESH),
+            float(system.KEEP_CONTRACTION), float(system.KEEP_MISS), *(int(k) for k in system.REFRESH_AFTER), i64(system._world_idx),
             i64(system.fused.lin_slots), i64(system._fixed_idx), i64(system._motion_x), i64(system._motion_x_slots),
             i64(system._motion_T_slots), f64(system._stage_mask), f64(system._motion_parts),
         )

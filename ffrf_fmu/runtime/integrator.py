@@ -230,7 +230,8 @@ class GeneralizedAlpha:
         |dx_k| <= 1); `_step` drops it before the step by the rule REFRESH_AFTER.
 
         The step also records on the factorization whether it serves the next step as it is (its fifth
-        entry, read by REFRESH_AFTER): a matrix kept through the step that converged in two increments,
+        entry, read by REFRESH_AFTER), if its first increment was more than KEEP_MISS/tol tolerances: a matrix kept
+        through the step that converged in two increments,
         the second contracted by theta <= KEEP_CONTRACTION; or one built at the predictor, replacing `stale` (the matrix
         REFRESH_AFTER dropped, one step older), when `stale` would have given the same first increment
         to KEEP_CONTRACTION of it (the matrix ages by less than that per step; one more solve). A matrix
@@ -259,12 +260,14 @@ class GeneralizedAlpha:
             scale = self._field_scale(yd, beta)
             nrm = float(np.max(np.abs(dx) / scale))
             theta = nrm / nrm_prev
-            if it == 1 and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
-                serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
+            if it == 1:
+                far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
+                if far and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
+                    serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
             if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0):
                 self._stage_at(yd)
                 if kept:  # (two increments: as many as a matrix built at the predictor needs)
-                    serves = it == 2 and theta <= self.KEEP_CONTRACTION
+                    serves = it == 2 and far and theta <= self.KEEP_CONTRACTION
                 self._lu = (*self._lu[:4], serves)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
@@ -292,7 +295,7 @@ class GeneralizedAlpha:
     # communication point (acceleration by ~jerk H), which sets the beam's elastic modes vibrating; their
     # accelerations are 1e4-1e8 tolerances (tol/beta) at B1's h = 2 ms, H = 5-100 h, a quadratic rate predictor
     # cannot follow them, and every internal step takes 2 iterations whatever the matrix (a kept one contracts
-    # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.003-0.004
+    # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.007-0.013
     # (docs/benchmarks.md, "Held inputs: why every internal step takes 2 Newton iterations")
     REFRESH_AFTER = (2, 3)
     # contraction (a kept matrix's second increment over its first, or the dropped matrix's first increment
@@ -302,6 +305,14 @@ class GeneralizedAlpha:
     # 1e-2 all kept the FMU's matrix (0.010 / 0.004 / 0.003 factorizations per internal step), and 1e-2 cost
     # the standalone run iterations (50 ms: 2.01 per step; 2 ms, 4 SE x 6 modes, 2 s: 1.22 against 1.12)
     KEEP_CONTRACTION = 1e-3
+    # ... and only after a first increment of more than KEEP_MISS in the per-field scale (KEEP_MISS/tol
+    # tolerances, 1e3 at tol = 1e-9; a bound of its own, so that a tighter tolerance keeps its super-converged
+    # fresh matrices), where a second increment follows whatever the matrix (an FMU's held inputs: 1e4-1e8
+    # tolerances; B1's standalone run at 20 ms: ~130). Near the tolerance the iteration count hinges on the
+    # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s, numba) fell into a run of 2-iteration steps on
+    # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved
+    # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it)
+    KEEP_MISS = 1e-6
 
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's

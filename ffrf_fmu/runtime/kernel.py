@@ -816,7 +816,7 @@ def _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp):
 
 @jit
 def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, keep, stale, trusted, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R,
+                field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R,
                 F, luT, piv, lu_meta, info):
     """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
 
@@ -828,7 +828,8 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     arguments are only read). info = [status, iterations]; lu_meta[0] = 0 and
     a status != OK on failure, with the last increment in lu_meta[1] for NOT_CONVERGED.
     Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted
-    on the contraction estimate theta/(1 - theta) |dx|; serves as there (keep = KEEP_CONTRACTION; stale:
+    on the contraction estimate theta/(1 - theta) |dx|; serves as there (keep = KEEP_CONTRACTION, keep_miss =
+    KEEP_MISS; stale:
     luT, piv, lu_meta hold the matrix REFRESH_AFTER dropped, which the first refresh compares; trusted:
     REFRESH_AFTER kept it on its serves verdict)."""
     NR, E = Rn.shape[0], K.shape[0]
@@ -841,7 +842,7 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     JT = np.zeros((0, 0))  # the iteration matrix, allocated on the first refresh of the step
     b, P = np.zeros(nf), np.zeros((3, 3))
     b_stale, ref_stale, luT_stale, piv_stale = np.zeros(nf), np.zeros(9), luT, piv
-    kept, serves, use_stale = True, False, False  # kept: no matrix built in this step (yet)
+    kept, serves, use_stale, far = True, False, False, False  # kept: no matrix built in this step (yet)
     n_fields = 0
     for i in range(nf):
         n_fields = max(n_fields, field_of[i] + 1)
@@ -904,16 +905,19 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         for i in range(nf):
             nrm = max(nrm, abs(b[i]) / (tol / beta + tol * S[field_of[i]]))
         rate = nrm / nrm_prev  # the contraction theta of integrator `_newton`
-        if use_stale:  # the dropped matrix's first increment against the new one's (integrator `_newton`)
+        if it == 1:
+            far = nrm * tol > keep_miss
+        if use_stale and far:  # the dropped matrix's first increment against the new one's (integrator `_newton`)
             dev = 0.0
             for i in range(nf):
                 dev = max(dev, abs(b_stale[i] - b[i]) / (tol / beta + tol * S[field_of[i]]))
-            serves, use_stale = dev <= keep * nrm, False
+            serves = dev <= keep * nrm
+        use_stale = False
         if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (rate < 1.0 and rate / (1.0 - rate) * nrm <= 1.0):
             converged = True  # the accepted iterate's configuration, not evaluated again
             _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp)
             if kept:
-                serves = it == 2 and rate <= keep
+                serves = it == 2 and far and rate <= keep
             break
         # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
         if it > 1 and (rate > theta_refresh or rate**4 / (1.0 - rate) * nrm > 1.0 or (trusted and kept)):
@@ -998,7 +1002,7 @@ def _lu_solve(luT, piv, b):
 
 @jit
 def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-         field_of, theta_refresh, keep, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
+         field_of, theta_refresh, keep, keep_miss, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
          motion_T_slots, stage_mask, motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
          xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it,
          ydw, p, R, F, luT, piv, lu_meta, info):
@@ -1049,7 +1053,7 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     if stale:
         lu_meta[0] = 0.0
     luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
-                           newton_pos, k3, field_of, theta_refresh, keep, stale, trusted, c, P0, Rn, f_in, t_in, springs, beta, tol,
+                           newton_pos, k3, field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_in, t_in, springs, beta, tol,
                            max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
     if info[0] != OK and info[0] != ROTATION_ALIAS:
         # one retry from the last step's rates with a fresh matrix (integrator `_step`)
@@ -1059,7 +1063,7 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
         luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
-                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, False, False, c, P0, Rn, f_in, t_in,
+                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, keep_miss, False, False, c, P0, Rn, f_in, t_in,
                                springs, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
         info[1] += max_iter  # the failed attempt's iterations count
     if info[0] != OK:
