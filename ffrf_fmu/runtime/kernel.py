@@ -102,6 +102,20 @@ def _copy(dst, d0, src, s0, n):
 
 
 @jit
+def _put_rotation(motion, k, s, Rd, wd, RN_p, zN_p, R_in, w_in):
+    """A port's rotation Rd and world angular velocity wd at the step's end: a motion-driven rotation
+    into the node's prescribed frame RN_p[k] and body-axes rate zN_p[k, 3:] = Rd^T wd, else into the
+    compliant spring's input slot s (R_in, w_in). Shared by the scene's schedule and the held inputs."""
+    if motion:
+        _copy(RN_p, 9 * k, Rd, 0, 9)
+        for i in range(3):
+            zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
+    else:
+        _copy(R_in, 9 * s, Rd, 0, 9)
+        _copy(w_in, 3 * s, wd, 0, 3)
+
+
+@jit
 def _skew(a, out):
     out[0, 0], out[0, 1], out[0, 2] = 0.0, -a[2], a[1]
     out[1, 0], out[1, 1], out[1, 2] = a[2], 0.0, -a[0]
@@ -1175,13 +1189,7 @@ def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs
             for i in range(3):
                 th[i], wd[i] = sv[0] * axis[j, 1, i], sv[1] * axis[j, 1, i]
             _expm(th, Rd)
-            if mode[j, 1] == 1:
-                _copy(RN_p, 9 * k, Rd, 0, 9)
-                for i in range(3):  # body-axes rate R^T w
-                    zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
-            else:
-                _copy(R_in, 9 * s, Rd, 0, 9)
-                _copy(w_in, 3 * s, wd, 0, 3)
+            _put_rotation(mode[j, 1] == 1, k, s, Rd, wd, RN_p, zN_p, R_in, w_in)
     for ld in range(load_port.shape[0]):
         if load_window[ld, 0] <= t < load_window[ld, 1]:
             j = load_port[ld]
@@ -1327,13 +1335,7 @@ def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
             for i in range(3):
                 for m in range(3):
                     Rd[i, m] = E[i, 0] * row[9 + m] + E[i, 1] * row[12 + m] + E[i, 2] * row[15 + m]
-            if mode[j, 1] == 1:
-                _copy(RN_p, 9 * k, Rd, 0, 9)
-                for i in range(3):  # body-axes rate R^T w
-                    zN_p[k, 3 + i] = wd[0] * Rd[0, i] + wd[1] * Rd[1, i] + wd[2] * Rd[2, i]
-            else:
-                _copy(R_in, 9 * s, Rd, 0, 9)
-                _copy(w_in, 3 * s, wd, 0, 3)
+            _put_rotation(mode[j, 1] == 1, k, s, Rd, wd, RN_p, zN_p, R_in, w_in)
 
 
 @jit
