@@ -1159,16 +1159,23 @@ def _time_function(kind, prm, t, out):
 
 
 @jit
-def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
-    """The inputs of `step` at time t from a scene's schedule (simulate.scene_schedule): what
-    simulate.scene_inputs gives and BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
-    node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm = schedule
-    r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
+def _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in):
+    """The inputs of a step where no port prescribes anything: the current frames (`BodySystem._read_inputs`
+    where there is no motion input), zero rates, zero loads. The input functions overwrite what the ports set."""
     _copy(xN_p, 0, xN, 0, xN.size)
     _copy(RN_p, 0, RN, 0, RN.size)
     zN_p[:] = 0.0
     f_in[:] = 0.0
     t_in[:] = 0.0
+
+
+@jit
+def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
+    """The inputs of `step` at time t from a scene's schedule (simulate.scene_schedule): what
+    simulate.scene_inputs gives and BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
+    node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm = schedule
+    r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
+    _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in)
     sv, th, Rd, wd = np.zeros(2), np.zeros(3), np.zeros((3, 3)), np.zeros(3)
     for j in range(node.shape[0]):
         k, s = node[j], spring[j]
@@ -1305,11 +1312,7 @@ def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
     2 compliant, values' columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27)."""
     node, mode, spring, values = held
     r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
-    _copy(xN_p, 0, xN, 0, xN.size)
-    _copy(RN_p, 0, RN, 0, RN.size)
-    zN_p[:] = 0.0
-    f_in[:] = 0.0
-    t_in[:] = 0.0
+    _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in)
     dt = t - t_c
     half = 0.5 * dt * dt
     th, E, Rd, wd = np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
