@@ -317,3 +317,66 @@ def test_tumbling_free_beam_starts_with_the_rigid_velocity_field_under_a_load():
         expected = np.cross(w, pv.r - np.asarray(model.body.origin))
         assert np.allclose(pv.v, expected, rtol=0.0, atol=1e-13 * max(1.0, np.abs(expected).max())), name
         assert np.allclose(pv.w, w, rtol=0.0, atol=1e-14), name
+
+
+def _core(fmu, tmp_path):
+    """The FMU's BodyCoSim in this process, from its unpacked resources."""
+    import zipfile
+
+    from ffrf_fmu.fmu.core import BodyCoSim
+
+    zipfile.ZipFile(fmu).extractall(tmp_path)
+    return BodyCoSim.from_resources(tmp_path / "resources")
+
+
+def _hub_at_rest(core):
+    """Every hub input of a body at rest at the reference (R = I), set in initialization mode."""
+    names = [v.name for v in core.variables if v.causality == "input" and v.name.startswith("hub.")]
+    core.set_many([core.by_name[n] for n in names], [1.0 if n in ("hub.R[1,1]", "hub.R[2,2]", "hub.R[3,3]") else 0.0
+                                                     for n in names])
+
+
+def test_set_many_refuses_per_mode_with_the_same_list_again_and_instances_apart(fmu, tmp_path):
+    """set_many keeps each value-reference list's index array and causalities (a host sets the same list
+    every step): a list with a parameter is accepted in initialization and refused in step mode, one
+    with an output always, in order up to the first refused value; a second instance of the same FMU
+    keeps its own values."""
+    a, b = _core(fmu, tmp_path / "a"), _core(fmu, tmp_path / "b")
+    rho, f1, r1 = a.by_name["solver.rho_inf"], a.by_name["tip.f[1]"], a.by_name["tip.r[1]"]
+    for core in (a, b):
+        core.setup_experiment(0.0)
+        core.enter_initialization_mode()
+        _hub_at_rest(core)
+    assert a.set_many([rho, f1], [0.5, 1.0]) == ""
+    assert b.set_many([rho, f1], [0.6, 3.0]) == ""
+    assert (a.values[rho], a.values[f1], b.values[rho], b.values[f1]) == (0.5, 1.0, 0.6, 3.0)
+    assert a.exit_initialization_mode() == "" and b.exit_initialization_mode() == ""
+    assert a.set_many([rho, f1], [0.7, 2.0]) == "solver.rho_inf is a fixed parameter: it cannot change after initialization"
+    assert (a.values[rho], a.values[f1]) == (0.5, 1.0)  # the parameter came first: nothing set
+    assert a.set_many([f1, r1], [2.0, 9.0]) == "tip.r[1] is an output: it cannot be set"
+    assert a.values[f1] == 2.0 and a.values[r1] != 9.0  # set in order up to the refused output
+    for value in (4.0, 5.0):  # the same list again: a plain scatter
+        assert a.set_many([f1], [value]) == "" and a.values[f1] == value
+    assert (b.values[rho], b.values[f1]) == (0.6, 3.0)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered")
+def test_finite_checks_refuse_nan_and_inf_but_not_a_sum_that_overflows(fmu, tmp_path):
+    """The doStep's finite checks sum first (a NaN or inf makes the sum non-finite): an input or
+    state of huge finite values whose sum overflows passes, one NaN or inf anywhere is refused."""
+    from types import SimpleNamespace
+
+    from ffrf_fmu.fmu.core import BodyCoSim
+    from ffrf_fmu.runtime.ports import StepFailure
+
+    huge = np.full(4, 1e308)
+    BodyCoSim._check_finite(SimpleNamespace(t=0.1, yd=huge), huge)  # sums inf, entries finite: passes
+    for outputs, yd in ((np.array([1.0, np.nan]), huge), (huge, np.array([0.0, -np.inf]))):
+        with pytest.raises(StepFailure, match="the state is not finite"):
+            BodyCoSim._check_finite(SimpleNamespace(t=0.1, yd=yd), outputs)
+    core = _core(fmu, tmp_path)
+    f1, f2 = core.by_name["tip.f[1]"], core.by_name["tip.f[2]"]
+    core.values[[f1, f2]] = 1e308
+    assert core._held_inputs(0.0)[1] == ""
+    core.values[f2] = -math.inf
+    assert core._held_inputs(0.0)[1] == "t = 0 s: input(s) tip.f[2] not finite (NaN or inf)"

@@ -91,7 +91,7 @@ class BodyCoSim:
         self.output_ix = np.array([i for i in range(n) if self.causality[i] == "output"], dtype=int)
         self._is_output = np.array([c == "output" for c in self.causality])
         self._is_parameter = np.array([c == "parameter" for c in self.causality])
-        self._set_plans: dict[tuple, tuple] = {}  # see set_many
+        self._plans: dict[tuple, tuple] = {}  # see _plan
         self._step_vr = int(self.index[("parameter", "step")][0])  # solver.step, read at every doStep
         self.mode = "instantiated"  # -> "initialization" -> "step"
         self.start_time = 0.0
@@ -142,27 +142,31 @@ class BodyCoSim:
             self.refresh_initial_outputs()
         return self.values[vr]
 
+    def _plan(self, vrs) -> tuple[np.ndarray, bool, bool]:
+        """(index array, any output, any parameter) of a value-reference list. A host gets and sets the
+        same lists at every step: they are kept (up to 256 lists; building them each time cost ~5 us
+        of a doStep)."""
+        key = tuple(vrs)
+        plan = self._plans.get(key)
+        if plan is None:
+            ix = np.asarray(vrs, dtype=int)
+            plan = (ix, bool(self._is_output[ix].any()), bool(self._is_parameter[ix].any()))
+            if len(self._plans) >= 256:
+                self._plans.clear()
+            self._plans[key] = plan
+        return plan
+
     def get_many(self, vrs) -> list[float]:
         """get() of several value references at once (one gather: the FMI getters' path)."""
-        ix = np.asarray(vrs, dtype=int)
-        if self.mode == "initialization" and self._is_output[ix].any():
+        ix, outputs, _ = self._plan(vrs)
+        if outputs and self.mode == "initialization":
             self.refresh_initial_outputs()
         return self.values[ix].tolist()
 
     def set_many(self, vrs, values) -> str:
         """set() of several value references: one scatter when every one may be set now; otherwise
-        one by one in order up to the first refused (the same outcome as set() in a loop). A host
-        sets the same list at every step: its index array and causalities are kept (up to 256 lists;
-        building them each time cost ~5 us of a doStep)."""
-        key = tuple(vrs)
-        plan = self._set_plans.get(key)
-        if plan is None:
-            ix = np.asarray(vrs, dtype=int)
-            plan = (ix, bool(self._is_output[ix].any()), bool(self._is_parameter[ix].any()))
-            if len(self._set_plans) >= 256:
-                self._set_plans.clear()
-            self._set_plans[key] = plan
-        ix, outputs, parameters = plan
+        one by one in order up to the first refused (the same outcome as set() in a loop)."""
+        ix, outputs, parameters = self._plan(vrs)
         if not (outputs or (parameters and self.mode == "step")):
             self.values[ix] = values
             return ""
