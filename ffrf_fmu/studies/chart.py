@@ -107,14 +107,16 @@ def errors(run: dict, ref: dict, metric_name: str | None) -> dict:
     return out
 
 
-def pareto_front(cost: Sequence[float], error: Sequence[float]) -> list[int]:
+def pareto_front(cost: Sequence[float], error: Sequence[float], same_error_rel: float = 0.0) -> list[int]:
     """Indices of the non-dominated points (no other point is both cheaper and more accurate),
-    ordered by cost. NaN entries never belong to the front."""
+    ordered by cost. NaN entries never belong to the front. same_error_rel: errors within this
+    relative difference count as equal, so the dearer of two such points is dominated (default 0:
+    any lower error counts)."""
     idx = [i for i in range(len(cost)) if np.isfinite(cost[i]) and np.isfinite(error[i])]
     idx.sort(key=lambda i: (cost[i], error[i]))
     front, best = [], math.inf
     for i in idx:
-        if error[i] < best:
+        if error[i] < best * (1.0 - same_error_rel):
             front.append(i)
             best = error[i]
     return front
@@ -197,7 +199,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     address); the results are stored in DIR/runs.jsonl and a rerun skips the finished ones
     (fresh: discard them first).
 
-    Returns {"rows": [...], "reference": {...}, "csv", "png", "json"}.
+    Returns {"rows": [...], "reference": {...}, "csv", "png", "json", "meta", "tasks"}; tasks[j] is the
+    run (task.Task) of rows[j], for a caller that runs it again (benchmarks/peers.py times it N times).
     """
     model_path = str(model_path)
     if cost not in COSTS:
@@ -274,20 +277,10 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                      "step": float(c.get("step") or scene.step), "elements": int(c["elements"]),
                      **measured(results[(k, peer)])})
         row_keys.append((k, peer))
-    # Pareto front per runner, on the primary metric error (the trajectory error without one)
-    err_key = "metric_error_rel" if metric_name else "rms_error_rel"
-    for r in runners + ([peer] if peer_cfgs else []):
-        sel = [j for j, row in enumerate(rows) if row["runner"] == r and row["completed"]]
-        c = [rows[j][COSTS[cost]] or math.nan for j in sel]
-        err = [rows[j][err_key] if rows[j][err_key] is not None else math.nan for j in sel]
-        front = {sel[k] for k in pareto_front(c, err)}
-        for j in sel:
-            rows[j]["pareto"] = j in front
-    for row in rows:
-        row.setdefault("pareto", False)
+    mark_pareto(rows, cost, bool(metric_name))
 
     csv_path, png_path, json_path = out_dir / "chart.csv", out_dir / "chart.png", out_dir / "chart.json"
-    write_rows(csv_path, rows, CSV_FIRST + tuple(_extra_columns(rows)) + CSV_LAST)
+    write_csv(csv_path, rows)
     meta = {
         "model": model_path, "scene": scene.name, "overrides": list(overrides), "sweep": groups,
         "metric": metric_name, "cost": cost, "backend": backend, "peer": peer, "peer_sweep": peer_sweep, "workers": sched.workers, "cpu_count": os.cpu_count(),
@@ -308,7 +301,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                    + (f"\nREFERENCE SUSPECT: energy error {100 * ref['energy_error']:.2g} %" if ref.get("warning") else ""),
                    metric_name=metric_name, cost=cost)
     return {"rows": rows, "reference": ref, "csv": str(csv_path), "png": str(png_path), "json": str(json_path),
-            "meta": meta}
+            "meta": meta, "tasks": [tasks[job] for job in row_keys]}
 
 
 CSV_FIRST = ("label", "runner", *SHOWN_KEYS)
@@ -318,6 +311,26 @@ CSV_LAST = ("wall_time_s", "cpu_time_s", "real_time_factor", "metric_name", "met
 
 def _extra_columns(rows: list[dict]) -> list[str]:
     return list(dict.fromkeys(k for row in rows for k in row if k not in CSV_FIRST + CSV_LAST))
+
+
+def write_csv(path, rows: list[dict]) -> None:
+    """chart.csv: the CSV_FIRST columns, the swept and runner-specific ones, then CSV_LAST."""
+    write_rows(path, rows, CSV_FIRST + tuple(_extra_columns(rows)) + CSV_LAST)
+
+
+def mark_pareto(rows: list[dict], cost: str = "wall", primary: bool = True, same_error_rel: float = 0.0) -> None:
+    """Set every row's "pareto": on its runner's Pareto front of error against cost (COSTS[cost]),
+    the error being the primary metric's (the trajectory's, rms_error_rel, when `primary` is False;
+    same_error_rel as pareto_front's). Rows that did not complete are never on it."""
+    err_key = "metric_error_rel" if primary else "rms_error_rel"
+    for r in dict.fromkeys(row["runner"] for row in rows):
+        sel = [j for j, row in enumerate(rows) if row["runner"] == r and row["completed"]]
+        front = {sel[k] for k in pareto_front([rows[j][COSTS[cost]] or math.nan for j in sel],
+                                               [rows[j][err_key] if rows[j][err_key] is not None else math.nan
+                                                for j in sel], same_error_rel)}
+        for j, row in enumerate(rows):
+            if row["runner"] == r:
+                row["pareto"] = j in front
 
 
 def read_csv(path) -> list[dict]:
@@ -337,15 +350,7 @@ def replot(out_dir, cost: str | None = None) -> Path:
     rows = read_csv(out_dir / "chart.csv")
     meta = json.loads((out_dir / "chart.json").read_text(encoding="utf-8"))
     cost = cost or meta.get("cost", "wall")
-    err_key = "metric_error_rel" if meta.get("metric") else "rms_error_rel"
-    for r in {row["runner"] for row in rows}:
-        sel = [j for j, row in enumerate(rows) if row["runner"] == r and row["completed"]]
-        front = {sel[k] for k in pareto_front([rows[j][COSTS[cost]] or math.nan for j in sel],
-                                               [rows[j][err_key] if rows[j][err_key] is not None else math.nan
-                                                for j in sel])}
-        for j, row in enumerate(rows):
-            if row["runner"] == r:
-                row["pareto"] = j in front
+    mark_pareto(rows, cost, bool(meta.get("metric")))
     ref = meta["reference"]
     png = out_dir / "chart.png"
     plot_chart(rows, png, title=f"{Path(meta['model']).stem} / {meta['scene']}: error against {'CPU' if cost == 'cpu' else 'wall'} time (reference: "
