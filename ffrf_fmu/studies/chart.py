@@ -344,13 +344,14 @@ def read_csv(path) -> list[dict]:
     return rows
 
 
-def replot(out_dir, cost: str | None = None) -> Path:
-    """Redraw DIR/chart.png from DIR/chart.csv and DIR/chart.json (Pareto front recomputed for `cost`)."""
+def replot(out_dir, cost: str | None = None, same_error_rel: float = 0.0) -> Path:
+    """Redraw DIR/chart.png from DIR/chart.csv and DIR/chart.json (Pareto front recomputed for `cost`,
+    same_error_rel as pareto_front's)."""
     out_dir = Path(out_dir)
     rows = read_csv(out_dir / "chart.csv")
     meta = json.loads((out_dir / "chart.json").read_text(encoding="utf-8"))
     cost = cost or meta.get("cost", "wall")
-    mark_pareto(rows, cost, bool(meta.get("metric")))
+    mark_pareto(rows, cost, bool(meta.get("metric")), same_error_rel)
     ref = meta["reference"]
     png = out_dir / "chart.png"
     plot_chart(rows, png, title=f"{Path(meta['model']).stem} / {meta['scene']}: error against {'CPU' if cost == 'cpu' else 'wall'} time (reference: "
