@@ -30,7 +30,7 @@ body, _ = build_body(model.body)
 system, inputs = sim.build_system(body, sc, backend="numba")
 system.step(sc.step, inputs)
 c = system._compiled
-step = c.module.step.stats
+step = c.module.advance.stats
 print(json.dumps({{"package": ffrf_fmu.__file__, "backend": system.backend, "compiled": c.compiled,
                   "hits": sum(step.cache_hits.values()), "misses": sum(step.cache_misses.values())}}))
 """

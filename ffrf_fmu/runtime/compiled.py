@@ -212,8 +212,6 @@ class CompiledStep:
     buffers the kernel updates in place (the body's state attributes are these buffers), the LU
     buffers kept across steps."""
 
-    STATE = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "yd_prev2", "a", "fN", "tN")
-
     def __init__(self, system, module):
         self.module = module
         L = system.layout
@@ -252,22 +250,28 @@ class CompiledStep:
         self.spring_ports = [p.name for p in ports]
         N = L.n_nodes
         self.inputs = (np.zeros((N, 3)), np.zeros((N, 3, 3)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros((N, 3)))
-        self.energy_data = (K, M, mass, J0, X_B, se_nodes, *inertia)
-        self.run_fn = None  # the compiled many-step entry point, once known
-        self.run_held_fn, self.held_args = None, None  # the same for an FMU's communication step (`run_held`)
-        self.port_nodes = i64([p.node for p in system.data.ports])
+        self.ports = tuple(i64(x) for x in system._held_codes)  # (node, mode, spring): runtime/held.py port_codes
         # simulate.record's row: port_array raveled, the energies, iterations
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self.record_fn = None
-        self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in self.STATE}
+        self.state = {k: np.zeros_like(np.asarray(getattr(system, k), dtype=float), order="C") for k in system._STATE_FIELDS}
         self.energy = np.zeros(2)  # work, power
+        self.state_args = (*self.state.values(), self.energy)  # the kernel's `state`: BodySystem._STATE_FIELDS' order, energy
         self.ydw, self.p = np.zeros(L.ny), np.zeros(L.ny)
         self._set_lu(np.zeros((nf, nf)), np.zeros(nf, dtype=np.int32))
         self.lu_meta = np.zeros(12)  # [valid, beta, R_ref (9), serves]: the numpy path's `_lu` after the arrays
         self.info = np.zeros(2, dtype=np.int64)
         self.F = np.zeros(L.ny)
         self.R = np.zeros((L.n_nodes + L.n_se, 3, 3))
-        self.fn = None  # the compiled entry point, once known (calling it skips numba's type dispatch)
+        self.work = (self.ydw, self.p, self.R, self.F)
+        # what a call of `advance` does not read (the schedule of a scene's run after its ports' codes,
+        # simulate.scene_schedule; an FMU's held values; the recorded rows and times): empty arrays of
+        # the types of the used ones, so that every call has the same types (ONE compiled specialization)
+        self.no_schedule = (np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2, 3)), np.zeros((0, 2, 3)),
+                            np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2, 3)))
+        self.no_values = np.zeros((0, 30))
+        self.no_rows, self.no_times = np.zeros((0, self.row_size)), np.zeros(0)
+        self.fn = None  # the compiled entry point `advance`, once known (calling it skips numba's type dispatch)
         self.compile_seconds = None  # seconds of the first calls in this process (compilation or cache load)
         self.compile_cpu_seconds = None  # this process's CPU seconds in them
         self.compiled = None  # True: a first call compiled (empty cache); False: every one loaded from disk
@@ -341,11 +345,39 @@ class CompiledStep:
         self.verified = True
         return it
 
+    def _advance(self, system, kind, n, h, am, af, gamma, inputs, schedule, values, t_c, rows, times):
+        """(steps completed, the most iterations of a step, the iterations of the last one) of the kernel's
+        `advance` (its arguments there), the factorization taken over; None if the kernel failed to compile
+        (the body then runs on numpy, with a note). The first call compiles or loads it (`_first_call`)."""
+        args = (kind, n, self.const, self.state_args, inputs, self.springs, self.ports, schedule, values, float(h), float(am),
+                float(af), float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), self.work, self.luT,
+                self.piv, self.lu_meta, self.info, float(system.t), float(t_c), rows, times)
+        if self.fn is None:
+            try:  # compiled (or loaded from the disk cache) with no step to take: compile_seconds holds no step
+                self._first_call(self.module.advance, (kind, 0, *args[2:]))
+            except Exception as exc:  # compilation failed (a broken numba install): numpy from here on
+                system._compiled, system.backend = None, "numpy"
+                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
+                logging.getLogger("ffrf_fmu").warning(system.backend_note)
+                return None
+            self.fn = self.module.advance.overloads[self.module.advance.signatures[0]].entry_point
+        done, worst, last_it, luT, piv = self.fn(*args)
+        self._set_lu(luT, piv)
+        return done, worst, last_it
+
+    def _prepare(self, system):
+        """The body's state, energy and compliances into the kernel's buffers before a call."""
+        self._adopt(system)
+        KC = self.springs[3]
+        for i, name in enumerate(self.spring_ports):
+            KC[i] = system.compliance[name]
+        self.energy[0], self.energy[1] = system.work, system.power
+
     def _kernel_step(self, system, h, inputs, am, af, gamma) -> int:
         t1 = system.t + h
         if not (h > 0.0 and np.isfinite(h)):
             raise StepFailure(system.t, f"step size must be positive and finite, got {h}")
-        xN_p, RN_p, zN_p, f_in, t_in = system._read_inputs(t1, inputs(t1))
+        read = system._read_inputs(t1, inputs(t1))
         self._adopt(system)
         if system._springs:
             _, _, _, KC, r_in, v_in, R_in, w_in, _ = self.springs
@@ -355,23 +387,11 @@ class CompiledStep:
                     r_in[i], v_in[i] = r, v
                 if R is not None:
                     R_in[i], w_in[i] = R, w
-        s = self.state
         self.energy[0], self.energy[1] = system.work, system.power
-        args = (*self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["yd_prev"], s["yd_prev2"], s["a"],
-                s["fN"], s["tN"], self.energy, xN_p, RN_p, zN_p, f_in, t_in, self.springs, float(h), float(am), float(af),
-                float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), self.ydw, self.p, self.R, self.F, self.luT,
-                self.piv, self.lu_meta, self.info)
-        if self.fn is None:
-            try:
-                self._set_lu(*self._first_call(self.module.step, args))
-            except Exception as exc:  # compilation failed (a broken numba install): numpy from here on
-                system._compiled, system.backend = None, "numpy"
-                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
-                logging.getLogger("ffrf_fmu").warning(system.backend_note)
-                return system._step(h, inputs, am, af, gamma, commit_config=True)
-            self.fn = self.module.step.overloads[self.module.step.signatures[0]].entry_point
-        else:
-            self._set_lu(*self.fn(*args))
+        out = self._advance(system, self.module.GIVEN, 1, h, am, af, gamma, read, self.no_schedule, self.no_values, 0.0,
+                            self.no_rows, self.no_times)
+        if out is None:
+            return system._step(h, inputs, am, af, gamma, commit_config=True)
         failure = self._outcome(system, t1)
         if failure is not None:
             raise failure
@@ -398,11 +418,12 @@ class CompiledStep:
 
     def record(self, system) -> np.ndarray:
         """simulate.record's row at the current state (port_array, energies, iterations), computed by the
-        kernel's `_record` (the numpy twins: BodySystem.port_array, energies)."""
+        kernel's `_record` (the numpy twins: BodySystem.port_array, energies), called directly: the
+        function `advance` calls, compiled once for both."""
         self._adopt(system)
         s, row = self.state, np.empty(self.row_size)
-        args = (row, self.port_nodes, self.energy_data, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"],
-                s["fN"], s["tN"], float(system.work), int(system.iterations))
+        args = (row, self.ports[0], self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["fN"], s["tN"],
+                float(system.work), int(system.iterations))
         if self.record_fn is None:  # compiled (or loaded from the disk cache) on first use
             self._first_call(self.module._record, args)
             self.record_fn = self.module._record.overloads[self.module._record.signatures[-1]].entry_point
@@ -411,69 +432,35 @@ class CompiledStep:
         return row
 
     def run(self, system, h, schedule, rows, times, am, af, gamma):
-        """len(rows) steps of h in ONE kernel call (runtime/kernel.py `run`), the inputs evaluated from the
+        """len(rows) steps of h in ONE kernel call (runtime/kernel.py `advance`), the inputs evaluated from the
         scene's schedule (simulate.scene_schedule) and every step recorded into rows (simulate.record's
         layout) and times. Returns (steps completed, StepFailure of the next step or None)."""
         if not (h > 0.0 and np.isfinite(h)):
             return 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
-        self._adopt(system)
-        KC = self.springs[3]
-        for i, name in enumerate(self.spring_ports):
-            KC[i] = system.compliance[name]
-        self.energy[0], self.energy[1] = system.work, system.power
-        state = tuple(self.state[k] for k in self.STATE) + (self.energy,)
-        work = (self.ydw, self.p, self.R, self.F)
-        args = (self.const, state, schedule, self.springs, self.inputs, self.energy_data, float(h), float(am), float(af),
-                float(gamma), float(system.tol), int(system.max_iter), int(system.iterations), work, self.luT, self.piv, self.lu_meta, self.info,
-                float(system.t))
-        if self.run_fn is None:  # compile (or load from the disk cache) with no step to take
-            try:
-                self._first_call(self.module.run, (*args, rows[:0], times[:0]))
-            except Exception as exc:  # a broken numba install: numpy from here on
-                system._compiled, system.backend = None, "numpy"
-                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
-                logging.getLogger("ffrf_fmu").warning(system.backend_note)
-                return 0, None
-            self.run_fn = self.module.run.overloads[self.module.run.signatures[0]].entry_point
-        done, luT, piv = self.run_fn(*args, rows, times)
-        self._set_lu(luT, piv)
+        self._prepare(system)
+        out = self._advance(system, self.module.SCHEDULED, rows.shape[0], h, am, af, gamma, self.inputs, schedule[3:],
+                            self.no_values, 0.0, rows, times)
+        if out is None:
+            return 0, None
+        done = out[0]
         if done:
             system.t, system.iterations = float(times[done - 1]), int(rows[done - 1, -1])
         system.work, system.power = float(self.energy[0]), float(self.energy[1])
         return done, self._outcome(system, system.t + h)  # (also hands the factorization back to the body)
 
     def run_held(self, system, h, n, t_c, held, row, am, af, gamma):
-        """n steps of h in ONE kernel call (runtime/kernel.py `run_held`), the inputs extrapolated from the
+        """n steps of h in ONE kernel call (runtime/kernel.py `advance`), the inputs extrapolated from the
         values held at t_c (runtime/held.py; held = (node, mode, spring, values)), the output row of the
         last step into row (simulate.record's layout). Returns (steps completed, the most Newton iterations
         of a step, StepFailure of the next step or None)."""
         if not (h > 0.0 and np.isfinite(h)):
             return 0, 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
-        self._adopt(system)
-        KC = self.springs[3]
-        for i, name in enumerate(self.spring_ports):
-            KC[i] = system.compliance[name]
-        self.energy[0], self.energy[1] = system.work, system.power
-        if self.held_args is None:  # the arguments that are the same objects at every call, built once
-            self.held_args = (self.const, tuple(self.state[k] for k in self.STATE) + (self.energy,))
-            self.held_rest = (self.springs, self.inputs, self.energy_data)
-            self.held_work = (self.ydw, self.p, self.R, self.F)
-        const, state = self.held_args
-        springs, inputs, energy_data = self.held_rest
-        args = (const, state, held, springs, inputs, energy_data, float(h), float(am), float(af), float(gamma),
-                float(system.tol), int(system.max_iter), int(system.iterations), self.held_work, self.luT, self.piv,
-                self.lu_meta, self.info, float(system.t), float(t_c))
-        if self.run_held_fn is None:  # compile (or load from the disk cache) with no step to take
-            try:
-                self._first_call(self.module.run_held, (*args, 0, row))
-            except Exception as exc:  # a broken numba install: numpy from here on
-                system._compiled, system.backend = None, "numpy"
-                system.backend_note = f"numba backend failed to compile ({type(exc).__name__}: {exc}): running on numpy"
-                logging.getLogger("ffrf_fmu").warning(system.backend_note)
-                return 0, 0, None
-            self.run_held_fn = self.module.run_held.overloads[self.module.run_held.signatures[0]].entry_point
-        done, worst, last_it, luT, piv = self.run_held_fn(*args, int(n), row)
-        self._set_lu(luT, piv)
+        self._prepare(system)
+        out = self._advance(system, self.module.HELD, int(n), h, am, af, gamma, self.inputs, self.no_schedule, held[3], t_c,
+                            row.reshape(1, -1), self.no_times)
+        if out is None:
+            return 0, 0, None
+        done, worst, last_it = out
         t = system.t
         for _ in range(done):  # the clock of `step`, one addition per step
             t += h

@@ -1015,18 +1015,20 @@ def _lu_solve(luT, piv, b):
 
 
 @jit
-def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-         field_of, theta_refresh, keep, keep_miss, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
-         motion_T_slots, stage_mask, motion_parts, xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy,
-         xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it,
-         ydw, p, R, F, luT, piv, lu_meta, info):
+def step(const, state, inputs, springs, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv, lu_meta, info):
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
-    body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN, energy = [work, power])
-    are updated in place, and only if Newton succeeded (info[0] == OK). xN_p ... t_in: the inputs
-    read by `BodySystem._read_inputs` (current frames where no motion input); last_it the iterations
-    of the last step (the refresh rule `REFRESH_AFTER` = (refresh_min, refresh_max); keep its
-    KEEP_CONTRACTION). Returns the
-    factorization (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
+    body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN in BodySystem._STATE_FIELDS'
+    order, then energy = [work, power]) are updated in place, and only if Newton succeeded (info[0] == OK).
+    inputs = (xN_p, RN_p, zN_p, f_in, t_in): those read by `BodySystem._read_inputs` (current frames where
+    no motion input); last_it the iterations of the last step (the refresh rule `REFRESH_AFTER` =
+    (refresh_min, refresh_max); keep its KEEP_CONTRACTION); work = (ydw, p, R, F) of newton_step. Returns
+    the factorization (luT, piv) to keep, new arrays if it was refreshed (newton_step)."""
+    (gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
+     field_of, theta_refresh, keep, keep_miss, refresh_min, refresh_max, world_idx, lin_slots, fixed_idx, motion_x, motion_x_slots,
+     motion_T_slots, stage_mask, motion_parts) = const
+    xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a, fN, tN, energy = state
+    xN_p, RN_p, zN_p, f_in, t_in = inputs
+    ydw, p, R, F = work
     N, E, ny = xN.shape[0], x0.shape[0], yd.shape[0]
     beta = h * gamma * af / am
     # stage (integrator `_prepare_step`): a_{n+1} = (af/am) ydot + A0, p = beta ydot + P0
@@ -1066,20 +1068,21 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
     stale, trusted = after and lu_meta[11] == 0.0, after and lu_meta[11] != 0.0
     if stale:
         lu_meta[0] = 0.0
-    luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx,
-                           newton_pos, k3, field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_in, t_in, springs, beta, tol,
-                           max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
-    if info[0] != OK and info[0] != ROTATION_ALIAS:
+    for attempt in range(2):  # ONE call site: each call of a jitted function links (and compiles) its whole tree
+        luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
+                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_in,
+                               t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
+        if attempt == 1:
+            info[1] += max_iter  # the failed attempt's iterations count
+        if info[0] == OK or info[0] == ROTATION_ALIAS or attempt == 1:
+            break
         # one retry from the last step's rates with a fresh matrix (integrator `_step`)
         for i in range(ny):
             ydw[i] = yd[i]
         for i in fixed_idx:
             ydw[i] = zflat[i]
         lu_meta[0] = 0.0
-        luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
-                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, keep_miss, False, False, c, P0, Rn, f_in, t_in,
-                               springs, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
-        info[1] += max_iter  # the failed attempt's iterations count
+        stale, trusted = False, False
     if info[0] != OK:
         return luT, piv
     # commit (integrator `_commit`)
@@ -1126,9 +1129,9 @@ def step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, ve
 
 # ------------------------------------------------------------------ many steps in one call
 # A standalone run whose inputs are known functions of time (a scene's drives and loads) takes its
-# steps here: the inputs evaluated and each step's output row recorded inside the compiled code, so
-# no Python runs between steps. The numpy twins: simulate.scene_inputs, BodySystem._read_inputs,
-# simulate.record (port_array, energies).
+# steps in one call of `advance`: the inputs evaluated and each step's output row recorded inside the
+# compiled code, so no Python runs between steps. The numpy twins: simulate.scene_inputs,
+# BodySystem._read_inputs, simulate.record (port_array, energies).
 
 
 @jit
@@ -1170,10 +1173,12 @@ def _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in):
 
 
 @jit
-def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
-    """The inputs of `step` at time t from a scene's schedule (simulate.scene_schedule): what
-    simulate.scene_inputs gives and BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
-    node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm = schedule
+def _scheduled_inputs(t, ports, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
+    """The inputs of `step` at time t from a scene's schedule (simulate.scene_schedule, after the ports'
+    (node, mode, spring) = runtime/held.py port_codes): what simulate.scene_inputs gives and
+    BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant."""
+    node, mode, spring = ports
+    r0, kind, prm, axis, load_port, load_window, load_fm = schedule
     r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
     _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in)
     sv, th, Rd, wd = np.zeros(2), np.zeros(3), np.zeros((3, 3)), np.zeros(3)
@@ -1209,10 +1214,12 @@ def _scheduled_inputs(t, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs
 
 
 @jit
-def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, iterations):
-    """One row of simulate.record: per port r, R (row-major), v, w = R W, f, t (BodySystem.port_array);
-    the energies kinetic_rigid, kinetic_elastic, strain, work_external (BodySystem.energies); iterations."""
-    K, M, mass, J0, X_B, se_nodes, stiff, W1, W2, vk_a, vk_B = energy_data
+def _record(row, node, const, xN, RN, x0, R0, eta, v, yd, fN, tN, work, iterations):
+    """One row of simulate.record: per port (boundary nodes node) r, R (row-major), v, w = R W, f, t
+    (BodySystem.port_array); the energies kinetic_rigid, kinetic_elastic, strain, work_external
+    (BodySystem.energies); iterations. const: `step`'s."""
+    K, M, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, se_nodes = const[1], const[2], const[4], const[5], const[6], const[7], \
+        const[8], const[9], const[10], const[11], const[12]
     col = 0
     for j in range(node.shape[0]):
         k = node[j]
@@ -1275,42 +1282,18 @@ def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, it
     row[col], row[col + 1], row[col + 2], row[col + 3], row[col + 4] = kr, ke, st, work, iterations
 
 
-@jit
-def run(const, state, schedule, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv, lu_meta,
-        info, t, rows, times):
-    """Steps of h from time t, one per row of rows (simulate.record's layout) and times, with the
-    inputs of the scene's schedule: `step` with the inputs and the recording around it. Returns the
-    (steps completed, luT, piv); a failed step leaves the state at the last completed one and its status
-    in info (as `step`). work = (ydw, p, R, F) of `step`; last_it the iterations of the step before t."""
-    xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
-        state[10], state[11], state[12]
-    xN_p, RN_p, zN_p, f_in, t_in = inputs
-    for k in range(rows.shape[0]):
-        t1 = t + h
-        _scheduled_inputs(t1, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
-        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it, *work,
-                        luT, piv, lu_meta, info)
-        if info[0] != OK:
-            return k, luT, piv
-        last_it = info[1]
-        t = t1
-        times[k] = t
-        _record(rows[k], schedule[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], info[1])
-    return rows.shape[0], luT, piv
-
-
 # ------------------------------------------------------------------ an FMU's communication step in one call
 # The inputs extrapolated from the values held at the communication point t_c (runtime/held.py, whose
 # `inputs` is the numpy twin of `_held_inputs`), evaluated at every internal step inside the compiled
-# code; the output row recorded once, at the end.
+# code (`advance`); the output row recorded once, at the end.
 
 
 @jit
-def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
+def _held_inputs(t, t_c, ports, values, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
     """The inputs of `step` at time t extrapolated from the held values (runtime/held.py `inputs`, read by
-    BodySystem._read_inputs): held = (node, mode, spring, values) per port, mode 0 force, 1 motion,
-    2 compliant, values' columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27)."""
-    node, mode, spring, values = held
+    BodySystem._read_inputs): ports = (node, mode, spring) (held.port_codes), mode 0 force, 1 motion,
+    2 compliant; values one row per port, columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27)."""
+    node, mode, spring = ports
     r_in, v_in, R_in, w_in = springs[4], springs[5], springs[6], springs[7]
     _no_inputs(xN, RN, xN_p, RN_p, zN_p, f_in, t_in)
     dt = t - t_c
@@ -1341,28 +1324,46 @@ def _held_inputs(t, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs):
             _put_rotation(mode[j, 1] == 1, k, s, Rd, wd, RN_p, zN_p, R_in, w_in)
 
 
+# ------------------------------------------------------------------ the one entry point
+# Every step the kernel takes is taken by `advance`: numba links a jitted function's whole callee tree into
+# each function that calls it and optimizes and emits it again there, so an entry point of its own per use
+# (one step, a scene's run, an FMU's communication step) would compile `step`'s tree once more each
+# (docs/benchmarks.md, compile section). One entry point with the inputs' kind as an argument compiles it
+# once; the arguments a kind does not read are empty arrays of the same types (runtime/compiled.py). An
+# output row alone is `_record` called directly: a callee of `advance` without callees, compiled once for both.
+
+GIVEN, SCHEDULED, HELD = 0, 1, 2  # `advance`: where a step's inputs come from
+
+
 @jit
-def run_held(const, state, held, springs, inputs, energy_data, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv,
-             lu_meta, info, t, t_c, n, row):
-    """n steps of h from time t with the inputs extrapolated from the values held at t_c (`_held_inputs`):
-    `step` with the inputs around it, then the output row of the last step (`_record`, simulate.record's
-    layout) into row. Returns (steps completed, the most Newton iterations of a step, the iterations of the
-    last completed step (last_it if none), luT, piv); a failed
-    step leaves the state at the last completed one, its status in info (as `step`), row untouched."""
+def advance(kind, n, const, state, inputs, springs, ports, schedule, values, h, am, af, gamma, tol, max_iter, last_it, work, luT,
+            piv, lu_meta, info, t, t_c, rows, times):
+    """n steps of h from time t (`step` each), their inputs by kind: GIVEN as the caller set them in inputs
+    (BodySystem.step, n = 1), SCHEDULED from the scene's schedule (`_scheduled_inputs`; every step's row
+    recorded into rows[k] and its time into times[k], simulate.record's layout), HELD extrapolated from the
+    values held at t_c (`_held_inputs`, an FMU's communication step; the last step's row into rows[0]).
+    ports = (node, mode, spring) of the ports (held.port_codes). Returns (steps completed, the most Newton iterations of a
+    step, the iterations of the last completed step (last_it if none), luT, piv); a failed step leaves the
+    state at the last completed one, its status in info (as `step`), rows untouched."""
     xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
         state[10], state[11], state[12]
     xN_p, RN_p, zN_p, f_in, t_in = inputs
     worst = 0
     for k in range(n):
         t1 = t + h
-        _held_inputs(t1, t_c, held, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
-        luT, piv = step(*const, *state, xN_p, RN_p, zN_p, f_in, t_in, springs, h, am, af, gamma, tol, max_iter, last_it, *work,
-                        luT, piv, lu_meta, info)
+        if kind == SCHEDULED:
+            _scheduled_inputs(t1, ports, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
+        elif kind == HELD:
+            _held_inputs(t1, t_c, ports, values, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, springs)
+        luT, piv = step(const, state, inputs, springs, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv, lu_meta, info)
         if info[0] != OK:
             return k, worst, last_it, luT, piv
         last_it = info[1]
         worst = max(worst, last_it)
         t = t1
-    if n > 0:
-        _record(row, held[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
+        if kind == SCHEDULED:
+            times[k] = t
+            _record(rows[k], ports[0], const, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
+    if kind == HELD and n > 0:
+        _record(rows[0], ports[0], const, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
     return n, worst, last_it, luT, piv
