@@ -155,6 +155,26 @@ def test_state_round_trips_between_backends():
     np.testing.assert_array_equal(other.get_state(), s.get_state())
 
 
+def test_every_use_of_the_kernel_shares_one_compiled_entry_point():
+    """An output row, a single step, a scene's run and an FMU's communication step (a compliant port
+    too) all call the kernel's `advance` (and `_record`) with the same argument types: ONE compiled
+    specialization each, so a first run compiles the step's tree once (docs/benchmarks.md, compile
+    section); a second specialization would compile it again."""
+    model = load_model("models/haug_beam.toml", ["superelements=1", "modes=2", 'body.ports.tip.translation="compliant"',
+                                                  "body.ports.tip.coupling={ stiffness = [1e3, 1e3, 1e3], damping = [1.0, 1.0, 1.0] }"])
+    sc = model.scene("spinup")
+    body, _ = build_scene_body(model.body, sc)
+    s, inputs = sim.build_system(body, sc, backend="numba")
+    s.output_row()
+    s.step(sc.step, inputs)
+    rows, times = np.empty((3, s._compiled.row_size)), np.empty(3)
+    assert s.run_schedule(sc.step, sim.scene_schedule(body, sc), rows, times) == (3, None)
+    s.run_held(sc.step, 2, s.t, held.rows(body.ports, inputs(s.t)), np.empty(s._compiled.row_size))
+    assert s.backend == "numba", s.backend_note
+    module = s._compiled.module
+    assert len(module.advance.signatures) == 1 and len(module._record.signatures) == 1
+
+
 def test_uncovered_term_set_or_missing_numba_falls_back_with_a_note(monkeypatch, caplog):
     module, why = compiled.load_kernel("a_new_term_set")  # a term set added to the numpy path only
     assert module is None and "does not cover term set 'a_new_term_set'" in why

@@ -250,6 +250,7 @@ class CompiledStep:
         self.spring_ports = [p.name for p in ports]
         N = L.n_nodes
         self.inputs = (np.zeros((N, 3)), np.zeros((N, 3, 3)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros((N, 3)))
+        self.energy_data = (K, M, mass, J0, X_B, se_nodes, *inertia)  # kernel._energy_data(const), for `_record`
         self.ports = tuple(i64(x) for x in system._held_codes)  # (node, mode, spring): runtime/held.py port_codes
         # simulate.record's row: port_array raveled, the energies, iterations
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
@@ -422,7 +423,7 @@ class CompiledStep:
         function `advance` calls, compiled once for both."""
         self._adopt(system)
         s, row = self.state, np.empty(self.row_size)
-        args = (row, self.ports[0], self.const, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["fN"], s["tN"],
+        args = (row, self.ports[0], self.energy_data, s["xN"], s["RN"], s["x0"], s["R0"], s["eta"], s["v"], s["yd"], s["fN"], s["tN"],
                 float(system.work), int(system.iterations))
         if self.record_fn is None:  # compiled (or loaded from the disk cache) on first use
             self._first_call(self.module._record, args)

@@ -7,7 +7,7 @@ rule, fmu/variables.py INPUTS_BETWEEN_COMMUNICATION_POINTS): second order in s =
 the rotation exact for a fixed axis, otherwise missing (w x dw) s^3/12 (third order).
 
 The held values are one array per port (`COLUMNS`), so that the compiled kernel evaluates them at every
-internal step of the communication step in one call (runtime/kernel.py `_held_inputs`, `run_held`);
+internal step of the communication step in one call (runtime/kernel.py `_held_inputs`, in `advance`);
 `inputs` here is its numpy twin and the oracle (tests/test_backends.py).
 Runtime module: numpy only.
 """

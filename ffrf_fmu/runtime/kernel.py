@@ -39,12 +39,20 @@ CORIOLIS, COUPLING = 1, 2
 OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS = 0, 1, 2, 3, 4
 
 jit = numba.njit(cache=True, nogil=True)
+# A function compiled on its own has its library optimized and emitted by LLVM with its whole callee
+# tree linked in, and again in its caller's, down the chain (docs/benchmarks.md, compile section). The thin
+# layers called from one site (`step` in `advance`, `_evaluate` and `_work` in `newton_step`) are inlined
+# into their caller at numba's IR level instead: one optimization of the tree fewer. Not the whole tree:
+# numba's own passes over the one huge function that makes took 354 s, LLVM 39 s. Numerics unchanged (no
+# fast-math: LLVM keeps IEEE results whatever it inlines). A call of an inlined function takes at most
+# 30 arguments (Python passes more as *args, which numba cannot inline).
+inlined = numba.njit(cache=True, nogil=True, inline="always")
 
 _Work = namedtuple("_Work", "q qd g rho Q H alpha x0 W0 x0dot v vdot u c v3 v3b GW h torque Gq Gqd Gr Grd dsdq fa "
                             "Dq Dqd dgz dgy S S2 B W0x C QC T1 Bq Nk Z Jq Jqd hs Kt eq V Vd Kc HQ")
 
 
-@jit
+@inlined
 def _work(n, nb, nc, nv, r, n2):
     """Work arrays of `_superelement` and `_jacobian`, allocated once per step."""
     ncv = nc + nv
@@ -659,12 +667,12 @@ def _jacobian(e, gyro, Ke, Me, G, stiff, W1, W2, vk_a, vk_B, mass, Je, nb, nm, n
                 Fy[eT0 + i, j] += s2
 
 
-@jit
-def _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
-              jac, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T):
+@inlined
+def _evaluate(N, const, f_load, t_load, p, yd, R, theta, jac, beta, F, JT, w, Fl, Fz, Fy, T):
     """Assembled residual F (ny) with the loads and, if jac, the iteration matrix
     J = F_ydot + beta [F_y T, F_v] on the unknowns in the Newton order, stored transposed (JT[col, row],
-    i.e. J in Fortran order, as LAPACK wants it). runtime/integrator.py `_iteration_matrix`."""
+    i.e. J in Fortran order, as LAPACK wants it). runtime/integrator.py `_iteration_matrix`. const: `step`'s."""
+    (gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity), newton_pos = const[:16], const[18]
     E, nc, nv = K.shape[0], cfg.shape[1], vel.shape[1]
     nb, nf = X_B.shape[1], JT.shape[0]
     nm = K.shape[1] - 6 * nb
@@ -829,10 +837,9 @@ def _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp):
 
 
 @jit
-def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots, newton_idx, newton_pos, k3,
-                field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R,
-                F, luT, piv, lu_meta, info):
-    """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions).
+def newton_step(const, stale, trusted, c, P0, Rn, f_load, t_load, springs, beta, tol, max_iter, yd, p, R, F, luT, piv, lu_meta, info):
+    """Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_step`, the same decisions);
+    const: `step`'s.
 
     In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
     predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
@@ -846,6 +853,8 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
     KEEP_MISS; stale:
     luT, piv, lu_meta hold the matrix REFRESH_AFTER dropped, which the first refresh compares; trusted:
     REFRESH_AFTER kept it on its serves verdict)."""
+    K, X_B, cfg, vel, W2, vk_a = const[1], const[11], const[13], const[14], const[6], const[7]
+    rot_slots, newton_idx, newton_pos, k3, field_of, theta_refresh, keep, keep_miss = const[16:24]
     NR, E = Rn.shape[0], K.shape[0]
     N = NR - E
     n, nb, nc, nv = K.shape[1], X_B.shape[1], cfg.shape[1], vel.shape[1]
@@ -869,8 +878,7 @@ def newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, 
         if refresh and JT.shape[0] != nf:
             JT = np.zeros((nf, nf))
         _stage_at(rot_slots, c, P0, Rn, yd, p, theta, R, Rexp)
-        _evaluate(N, gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, f_load, t_load, p, yd, R, theta,
-                  refresh, beta, newton_pos, F, JT, w, Fl, Fz, Fy, T)
+        _evaluate(N, const, f_load, t_load, p, yd, R, theta, refresh, beta, F, JT, w, Fl, Fz, Fy, T)
         _springs(springs, p, yd, R, T, refresh, beta, newton_pos, F, JT)
         s = 0.0
         for i in range(ny):
@@ -1014,7 +1022,7 @@ def _lu_solve(luT, piv, b):
             b[i] -= row[i] * bj
 
 
-@jit
+@inlined
 def step(const, state, inputs, springs, h, am, af, gamma, tol, max_iter, last_it, work, luT, piv, lu_meta, info):
     """One whole step t -> t + h of the numpy path (integrator `_step` with `_prepare_step`, `_commit`,
     body `_update_port_loads`, `_external_power`): the state arrays (xN ... tN in BodySystem._STATE_FIELDS'
@@ -1068,10 +1076,9 @@ def step(const, state, inputs, springs, h, am, af, gamma, tol, max_iter, last_it
     stale, trusted = after and lu_meta[11] == 0.0, after and lu_meta[11] != 0.0
     if stale:
         lu_meta[0] = 0.0
-    for attempt in range(2):  # ONE call site: each call of a jitted function links (and compiles) its whole tree
-        luT, piv = newton_step(gyro, K, M, G, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, nodes, cfg, vel, gravity, rot_slots,
-                               newton_idx, newton_pos, k3, field_of, theta_refresh, keep, keep_miss, stale, trusted, c, P0, Rn, f_in,
-                               t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv, lu_meta, info)
+    for attempt in range(2):  # ONE call site (a retry's call with literal False compiled newton_step's tree a second time)
+        luT, piv = newton_step(const, stale, trusted, c, P0, Rn, f_in, t_in, springs, beta, tol, max_iter, ydw, p, R, F, luT, piv,
+                               lu_meta, info)
         if attempt == 1:
             info[1] += max_iter  # the failed attempt's iterations count
         if info[0] == OK or info[0] == ROTATION_ALIAS or attempt == 1:
@@ -1214,12 +1221,12 @@ def _scheduled_inputs(t, ports, schedule, xN, RN, xN_p, RN_p, zN_p, f_in, t_in, 
 
 
 @jit
-def _record(row, node, const, xN, RN, x0, R0, eta, v, yd, fN, tN, work, iterations):
+def _record(row, node, energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, work, iterations):
     """One row of simulate.record: per port (boundary nodes node) r, R (row-major), v, w = R W, f, t
     (BodySystem.port_array); the energies kinetic_rigid, kinetic_elastic, strain, work_external
-    (BodySystem.energies); iterations. const: `step`'s."""
-    K, M, stiff, W1, W2, vk_a, vk_B, mass, J0, X_B, se_nodes = const[1], const[2], const[4], const[5], const[6], const[7], \
-        const[8], const[9], const[10], const[11], const[12]
+    (BodySystem.energies); iterations. energy_data: the arrays of `step`'s const it reads (`_energy_data`;
+    passed alone, not const: each array of a call's arguments costs its unboxing when called from Python)."""
+    K, M, mass, J0, X_B, se_nodes, stiff, W1, W2, vk_a, vk_B = energy_data
     col = 0
     for j in range(node.shape[0]):
         k = node[j]
@@ -1336,6 +1343,12 @@ GIVEN, SCHEDULED, HELD = 0, 1, 2  # `advance`: where a step's inputs come from
 
 
 @jit
+def _energy_data(const):
+    """(K, M, mass, J0, X_B, se_nodes, stiff, W1, W2, vk_a, vk_B) of `step`'s const: what `_record` reads."""
+    return const[1], const[2], const[9], const[10], const[11], const[12], const[4], const[5], const[6], const[7], const[8]
+
+
+@jit
 def advance(kind, n, const, state, inputs, springs, ports, schedule, values, h, am, af, gamma, tol, max_iter, last_it, work, luT,
             piv, lu_meta, info, t, t_c, rows, times):
     """n steps of h from time t (`step` each), their inputs by kind: GIVEN as the caller set them in inputs
@@ -1348,6 +1361,7 @@ def advance(kind, n, const, state, inputs, springs, ports, schedule, values, h, 
     xN, RN, x0, R0, eta, v, yd, fN, tN, energy = state[0], state[1], state[2], state[3], state[4], state[5], state[6], \
         state[10], state[11], state[12]
     xN_p, RN_p, zN_p, f_in, t_in = inputs
+    energy_data = _energy_data(const)
     worst = 0
     for k in range(n):
         t1 = t + h
@@ -1363,7 +1377,7 @@ def advance(kind, n, const, state, inputs, springs, ports, schedule, values, h, 
         t = t1
         if kind == SCHEDULED:
             times[k] = t
-            _record(rows[k], ports[0], const, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
+            _record(rows[k], ports[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
     if kind == HELD and n > 0:
-        _record(rows[0], ports[0], const, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
+        _record(rows[0], ports[0], energy_data, xN, RN, x0, R0, eta, v, yd, fN, tN, energy[0], last_it)
     return n, worst, last_it, luT, piv
