@@ -1,6 +1,6 @@
 """First use of the numba kernel from an empty disk cache, per path (issue 10, compile time).
 
-    python benchmarks/compile_time.py [--paths standalone,fmu,step] [--steps 300] [--no-load]
+    python benchmarks/compile_time.py [--paths standalone,fmu,step] [--steps 300] [--no-load] [--nested]
 
 Each path runs in a fresh process with an empty kernel cache (FFRF_FMU_CACHE_DIR a new temporary
 directory), on B1 (models/haug_beam.toml, scene spinup, 1 superelement x 2 modes: the compiled code
@@ -18,7 +18,10 @@ CPU), the seconds of each kernel entry point numba compiled (numba's compile eve
 an entry point's callees are nested in it), the seconds numba held its LLVM lock (optimization and
 machine code), the process's wall and CPU for the whole path, and the load average before and after.
 Unless --no-load, a second fresh process per path runs the same path on the cache the first left: it
-should load (0 cache misses) and its first-use seconds are the load time.
+should load (0 cache misses) and its first-use seconds are the load time. --nested also lists every
+function numba compiled, indented under its caller: seconds with its callees, without them, and its
+own seconds under the LLVM lock (where a function's library is optimized and emitted with its callees
+linked in, so a deep chain of separately compiled functions optimizes the deepest code many times).
 
 Load average and other processes change the figures several-fold on a shared machine: compare only
 runs made side by side (docs/benchmarks.md, compile section).
@@ -54,23 +57,38 @@ body, _ = build_scene_body(model.body, scene)
 
 
 class Spans(event.Listener):
-    # (name, seconds) of each top-level event of a kind (nested ones are inside their caller's)
-    def __init__(self):
-        self.depth, self.spans = 0, []
+    # (name, seconds) of each top-level event of a kind (nested ones are inside their caller's); with
+    # `inner`, every compile as (depth, name, seconds, without callees, own LLVM-lock seconds)
+    def __init__(self, inner=None):
+        self.depth, self.spans, self.stack, self.inner, self.all = 0, [], [], inner, []
 
     def on_start(self, ev):
         if self.depth == 0:
             self.t0 = time.perf_counter()
         self.depth += 1
+        self.stack.append([time.perf_counter(), 0.0, self.inner.total() if self.inner else 0.0, 0.0])
 
     def on_end(self, ev):
         self.depth -= 1
+        d = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+        name = getattr(getattr(d, "py_func", None), "__name__", "?")
+        t0, child, llvm0, child_llvm = self.stack.pop()
+        dt = time.perf_counter() - t0
+        llvm = self.inner.total() - llvm0 if self.inner else 0.0
+        if self.stack:
+            self.stack[-1][1] += dt
+            self.stack[-1][3] += llvm
+        if self.inner is not None and name != "impl":  # (numba's own overloads: impl)
+            self.all.append((self.depth, name, dt, dt - child, llvm - child_llvm))
         if self.depth == 0:
-            d = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
-            self.spans.append((getattr(getattr(d, "py_func", None), "__name__", "?"), time.perf_counter() - self.t0))
+            self.spans.append((name, time.perf_counter() - self.t0))
+
+    def total(self):
+        return sum(s for _, s in self.spans) + (time.perf_counter() - self.t0 if self.depth else 0.0)
 
 
-compiles, llvm = Spans(), Spans()
+llvm = Spans()
+compiles = Spans(inner=llvm)
 t0, c0 = time.perf_counter(), time.process_time()
 with event.install_listener("numba:compile", compiles), event.install_listener("numba:llvm_lock", llvm):
     if path == "standalone":
@@ -98,7 +116,7 @@ with event.install_listener("numba:compile", compiles), event.install_listener("
         c = system._compiled
         first, first_cpu, compiled = c.compile_seconds, c.compile_cpu_seconds, c.compiled
 print(json.dumps(dict(first=first, first_cpu=first_cpu, compiled=compiled,
-                      entry=compiles.spans, llvm=sum(s for _, s in llvm.spans),
+                      entry=compiles.spans, nested=compiles.all, llvm=sum(s for _, s in llvm.spans),
                       wall=time.perf_counter() - t0, cpu=time.process_time() - c0,
                       process_wall=time.perf_counter() - t_start, process_cpu=time.process_time() - c_start,
                       finite=bool(np.isfinite(rows).all()), steps=len(rows) - 1)))
@@ -122,6 +140,7 @@ def main() -> None:
     ap.add_argument("--paths", default="standalone,fmu,step")
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--no-load", action="store_true", help="skip the second process on the cache the first left")
+    ap.add_argument("--nested", action="store_true", help="list every compiled function under its caller")
     args = ap.parse_args()
     for path in args.paths.split(","):
         with tempfile.TemporaryDirectory(prefix="ffrf-compile-") as cache:
@@ -134,6 +153,10 @@ def main() -> None:
             print(f"{path:10s} {label:14s} first use {r['first']:.2f} s{cpu} ({'compiled' if r['compiled'] else 'loaded'}); "
                   f"compiled: {entry}; LLVM lock {r['llvm']:.1f} s; whole path {r['wall']:.1f} s wall / {r['cpu']:.1f} s CPU; "
                   f"{r['steps']} steps, finite {r['finite']}; load average {r['load'][0]:.2f} -> {r['load'][1]:.2f}", flush=True)
+            if args.nested and r["nested"]:
+                # numba reports a callee's end before its caller's: print in reverse, callers first
+                for depth, name, dt, own, own_llvm in reversed(r["nested"]):
+                    print(f"    {'  ' * depth}{name:24s} {dt:6.1f} s, without callees {own:6.1f} s, LLVM lock {own_llvm:5.1f} s")
 
 
 if __name__ == "__main__":
