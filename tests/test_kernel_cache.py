@@ -108,7 +108,7 @@ def test_kernel_file_is_created_once(tmp_path, monkeypatch):
 
 
 def test_stale_kernel_versions_are_pruned_when_a_new_one_is_cached(tmp_path):
-    """Caching a kernel version removes the versions unused for STALE_AFTER_DAYS (8-10 MB of machine
+    """Caching a kernel version removes the versions unused for STALE_AFTER_DAYS (about 6 MB of machine
     code each), keeps the recent ones, the one being cached, and one whose compile lock another
     process holds (it is compiling or loading it)."""
     import fcntl

@@ -18,7 +18,7 @@ cache both compile (minutes each on a busy machine). The first call of each entr
 holds an exclusive lock on <cache>/kernels/<sha256 prefix>/.compile.lock (released by the OS if the
 process dies): a second process waits for the first one's compilation and then loads it from disk.
 
-Each kernel version's directory holds 8-10 MB of machine code. Loading a version marks it used
+Each kernel version's directory holds about 6 MB of machine code. Loading a version marks it used
 (`.last-used`); caching a new version removes the versions unused for STALE_AFTER_DAYS, skipping
 any whose compile lock another process holds.
 """
@@ -434,8 +434,9 @@ class CompiledStep:
 
     def run(self, system, h, schedule, rows, times, am, af, gamma):
         """len(rows) steps of h in ONE kernel call (runtime/kernel.py `advance`), the inputs evaluated from the
-        scene's schedule (simulate.scene_schedule) and every step recorded into rows (simulate.record's
-        layout) and times. Returns (steps completed, StepFailure of the next step or None)."""
+        scene's schedule (simulate.scene_schedule; its first three arrays are the ports' codes, held.port_codes,
+        which the kernel reads from self.ports) and every step recorded into rows (simulate.record's layout)
+        and times. Returns (steps completed, StepFailure of the next step or None)."""
         if not (h > 0.0 and np.isfinite(h)):
             return 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
         self._prepare(system)
