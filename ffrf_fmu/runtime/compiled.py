@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .held import WIDTH as HELD_WIDTH
 from .ports import StepFailure
 
 KERNEL_TERM_SETS = ("linear", "gyroscopic", "full")  # term sets runtime/kernel.py computes, each with or without stiffening
@@ -270,7 +271,7 @@ class CompiledStep:
         # the types of the used ones, so that every call has the same types (ONE compiled specialization)
         self.no_schedule = (np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2, 3)), np.zeros((0, 2, 3)),
                             np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2, 3)))
-        self.no_values = np.zeros((0, 30))
+        self.no_values = np.zeros((0, HELD_WIDTH))
         self.no_rows, self.no_times = np.zeros((0, self.row_size)), np.zeros(0)
         self.fn = None  # the compiled entry point `advance`, once known (calling it skips numba's type dispatch)
         self.compile_seconds = None  # seconds of the first calls in this process (compilation or cache load)
