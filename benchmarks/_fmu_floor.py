@@ -16,12 +16,12 @@ Both are built into `dest` from the given FMU's modelDescription.xml; a missing 
 """
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
+
+from ffrf_fmu.fmu.builder import c_compiler
 
 C_SOURCE = r"""
 /* zero-work FMI 2.0 co-simulation FMU: {n} values indexed by value reference (benchmarks/_fmu_floor.py) */
@@ -143,7 +143,7 @@ def _variables(fmu: Path) -> list[tuple]:
 def c_floor(fmu, dest) -> Path:
     """The zero-work C FMU of `fmu`'s interface, built in directory `dest`: dest/floor_c.fmu."""
     fmu, dest = Path(fmu), Path(dest)
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    cc = c_compiler()  # the one our FMU's native loader is built with
     if not cc:
         raise RuntimeError("no C compiler found (set CC or install gcc)")
     n = len(_variables(fmu))

@@ -94,9 +94,14 @@ def python_facts() -> dict:
             "site_dirs": list(dict.fromkeys(dirs))}
 
 
+def c_compiler() -> str | None:
+    """The C compiler an FMU's native code is built with: $CC, else cc, gcc or clang on the PATH; None if none."""
+    return os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+
+
 def compile_loader(out: Path) -> str:
     """Compile native_loader.c into `out`; '' on success, else why not (no compiler, error)."""
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    cc = c_compiler()
     if not cc:
         return "no C compiler found (set CC or install gcc)"
     channel = [f"-DFFRF_DERIVATIVE_{key}={value}u" for key, value in DERIVATIVE_CHANNEL.items()]
