@@ -188,11 +188,16 @@ def timing_rounds(order: list[int], tasks, repeat: int, execute, log=None) -> di
     return runs
 
 
+def _completed(runs: list[dict]) -> list[dict]:
+    """The timing runs that completed with both times."""
+    return [r for r in runs if r["completed"] and r["wall_time_s"] and r["cpu_time_s"]]
+
+
 def best_of(runs: list[dict]) -> dict:
     """The minimum wall and CPU time of a configuration's completed timing runs (module doc: the
     estimate least disturbed by the machine's load), with the spread max / min of each and their
     count. Times None when no run completed."""
-    ok = [r for r in runs if r["completed"] and r["wall_time_s"] and r["cpu_time_s"]]
+    ok = _completed(runs)
     out = {"timing_runs": len(ok)}
     for cost in ch.COSTS.values():
         vals = [r[cost] for r in ok]
@@ -225,7 +230,7 @@ def round_of(r: int):
 
 def slowest_of(runs: list[dict]) -> dict:
     """The slowest completed run's wall and CPU time (each its maximum)."""
-    ok = [r for r in runs if r["completed"] and r["wall_time_s"] and r["cpu_time_s"]]
+    ok = _completed(runs)
     return {k: max(r[k] for r in ok) if ok else None for k in ch.COSTS.values()}
 
 
