@@ -175,6 +175,20 @@ def test_every_use_of_the_kernel_shares_one_compiled_entry_point():
     assert len(module.advance.signatures) == 1 and len(module._record.signatures) == 1
 
 
+def test_an_output_rows_arrays_are_those_advance_gives_record():
+    """`CompiledStep.record` calls the kernel's `_record` with its own tuple of `step`'s constants
+    (energy_data; passing all of const would unbox every array per call); `advance` picks the same
+    from const (kernel `_energy_data`). The two must be the very same arrays, in the same order."""
+    model = load_model("models/haug_beam.toml", ["superelements=2", "stiffening=true"])
+    sc = model.scene("spinup")
+    body, _ = build_scene_body(model.body, sc)
+    s, _ = sim.build_system(body, sc, backend="numba")
+    cs = s._compiled
+    picked = cs.module._energy_data.py_func(cs.const)
+    assert len(picked) == len(cs.energy_data)
+    assert all(a is b for a, b in zip(picked, cs.energy_data))
+
+
 def test_uncovered_term_set_or_missing_numba_falls_back_with_a_note(monkeypatch, caplog):
     module, why = compiled.load_kernel("a_new_term_set")  # a term set added to the numpy path only
     assert module is None and "does not cover term set 'a_new_term_set'" in why
