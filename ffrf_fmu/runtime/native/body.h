@@ -1,0 +1,218 @@
+/* The body of the C runtime: one struct with named fields (the reduced data, the integrator's
+ * index maps, the state, the inputs of a step, the compliant ports' springs, the work arrays).
+ *
+ * Every array is allocated once, in ffrf_body_create (body.c), from a versioned binary image of
+ * the body (runtime/native/image.py writes it); nothing is allocated in a step and no state is
+ * global: instances are independent, one instance per thread is safe.
+ *
+ * Array shapes are given in brackets with the dimension names of `ffrf_dims`; every array is
+ * C-ordered (row-major) and contiguous. Indices are int64 (the image stores them so).
+ * The names are those of runtime/equations.py and runtime/integrator.py (docs/equations.md).
+ */
+#ifndef FFRF_BODY_H
+#define FFRF_BODY_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ffrf_runtime.h"
+
+typedef int64_t idx_t;
+
+#define FFRF_PI 3.14159265358979323846
+
+/* The sizes of a body. N boundary nodes, E superelements, nb boundary nodes per superelement,
+ * nm modes per superelement, n = 6 nb + nm reduced dofs, nc = 6 + nm + 6 nb local configuration
+ * columns, nv = 6 + n local velocity columns, ny global rates, nf Newton unknowns. */
+typedef struct {
+    int N, E, nb, nm, n, nc, nv, ny, nf;
+    int n_vk;      /* rows of the membrane strain vk_a (0: no stiffening strain) */
+    int n_w1;      /* leading size of W1 (n, or 0: no deformation-dependent inertia) */
+    int n_w2;      /* leading sizes of W2 (n, or 0: no quadratic inertia) */
+    int n_g;       /* size of G's matrices (n, or 1 for the placeholder of the linear set) */
+    int n_world;   /* world triplets of ydot (rows of world_idx) */
+    int n_lin;     /* entries of lin_slots: 3N + 3E + E nm + E nv */
+    int n_fixed;   /* motion-prescribed rates */
+    int n_mx;      /* motion-driven translations */
+    int n_mT;      /* motion-driven rotation slots (3 per motion-driven rotation) */
+    int n_fields;  /* fields of the Newton increments' scaling (max field_of + 1) */
+    int n_ports;   /* ports, in the model's order */
+    int n_springs; /* compliant ports */
+    int n_loads;   /* load windows of a scene's schedule (0 outside a scheduled run) */
+} ffrf_dims;
+
+/* The reduced data and the integrator's maps: constant after creation. */
+typedef struct {
+    int gyro;                 /* FFRF_CORIOLIS | FFRF_COUPLING bits of the gyroscopic terms */
+    int stiff;                /* 1: the deformation-dependent inertia W1 [W2] is on (stiffening or `full`) */
+    const double *K;          /* [E][n][n]     K_bar (76) */
+    const double *M;          /* [E][n][n]     M_bar (76) */
+    const double *G;          /* [E][3][n_g][n_g] G_k = Y^T M_k Y (53) */
+    const double *W1;         /* [E][n_w1][3][3] */
+    const double *W2;         /* [E][n_w2][n_w2][3][3] */
+    const double *vk_a;       /* [E][n_vk][n]  membrane strain, linear part */
+    const double *vk_B;       /* [E][n_vk][n][n] membrane strain, quadratic part */
+    const double *mass;       /* [E] */
+    const double *J0;         /* [E][3][3] inertia about the CM (13) */
+    const double *X_B;        /* [E][nb][3] boundary nodes relative to the CM, body axes */
+    const idx_t *se_nodes;    /* [E][nb]       global boundary node of each local node */
+    const idx_t *cfg_map;     /* [E][nc]       local configuration column -> global rate */
+    const idx_t *vel_map;     /* [E][nv]       local velocity column -> global rate */
+    const double *gravity;    /* [3] */
+    const idx_t *rot_slots;   /* [N + E][3]    rate slots of every rotation (nodes, then CM frames) */
+    const idx_t *newton_idx;  /* [nf]          Newton order -> global rate */
+    const idx_t *newton_pos;  /* [ny]          global rate -> Newton order (>= nf: not an unknown) */
+    int k3;                   /* 3 x the free world triplets that lead the Newton order */
+    const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
+    double theta_refresh, keep_contraction, keep_miss; /* the Newton policy (integrator.py) */
+    int refresh_min, refresh_max;                      /* REFRESH_AFTER */
+    const idx_t *world_idx;   /* [n_world][3] */
+    const idx_t *lin_slots;   /* [n_lin]       stage slots of xN, x0, eta, v (in that order) */
+    const idx_t *fixed_idx;   /* [n_fixed] */
+    const idx_t *motion_x;    /* [n_mx]        nodes with a motion-driven translation */
+    const idx_t *motion_x_slots; /* [3 n_mx] */
+    const idx_t *motion_T_slots; /* [n_mT] */
+    const double *stage_mask; /* [ny] */
+    const double *motion_parts; /* [N][2][3]   1 on motion-driven node dofs */
+    /* ports (runtime/held.py port_codes) */
+    const idx_t *port_node;   /* [n_ports] */
+    const idx_t *port_mode;   /* [n_ports][2] translation, rotation: 0 force, 1 motion, 2 compliant */
+    const idx_t *port_spring; /* [n_ports]     index among the compliant ports, -1 */
+    /* compliant ports (runtime/coupling.py) */
+    const idx_t *spring_node; /* [n_springs] */
+    const idx_t *spring_trans;/* [n_springs]   1: translation compliant */
+    const idx_t *spring_rot;  /* [n_springs]   1: rotation compliant */
+} ffrf_data;
+
+/* Everything the next step depends on (BodySystem._STATE_FIELDS, then the scalars). */
+typedef struct {
+    double *xN;        /* [N][3] */
+    double *RN;        /* [N][3][3] */
+    double *x0;        /* [E][3] */
+    double *R0;        /* [E][3][3] */
+    double *eta;       /* [E][nm] */
+    double *v;         /* [E][nv] */
+    double *yd;        /* [ny] */
+    double *yd_prev;   /* [ny] */
+    double *yd_prev2;  /* [ny] */
+    double *a;         /* [ny] */
+    double *fN;        /* [N][3] */
+    double *tN;        /* [N][3] */
+    double *energy;    /* [2] work, power */
+    double t;
+    int iterations;    /* Newton iterations of the last step */
+} ffrf_state;
+
+/* The inputs of one step (BodySystem._read_inputs): prescribed frames and rates, loads. */
+typedef struct {
+    double *xN_p;      /* [N][3] */
+    double *RN_p;      /* [N][3][3] */
+    double *zN_p;      /* [N][6] */
+    double *f_in;      /* [N][3] */
+    double *t_in;      /* [N][3] */
+} ffrf_inputs;
+
+/* Compliant ports' spring-dampers: settable stiffness and far-end inputs, the loads they apply. */
+typedef struct {
+    double *KC;        /* [n_springs][4][3] K_t, C_t, K_r, C_r */
+    double *r_in;      /* [n_springs][3] */
+    double *v_in;      /* [n_springs][3] */
+    double *R_in;      /* [n_springs][3][3] */
+    double *w_in;      /* [n_springs][3] */
+    double *loads;     /* [N][2][3] force, moment (world) of the springs, zero elsewhere */
+} ffrf_springs;
+
+/* A scene's schedule (simulate.scene_schedule after the ports' codes), for FFRF_SCHEDULED. */
+typedef struct {
+    double *r0;          /* [n_ports][3] */
+    idx_t *kind;         /* [n_ports][2]  time function codes (drives.CODES), -1 none */
+    double *prm;         /* [n_ports][2][3] */
+    double *axis;        /* [n_ports][2][3] */
+    idx_t *load_port;    /* [n_loads] */
+    double *load_window; /* [n_loads][2] */
+    double *load_fm;     /* [n_loads][2][3] */
+} ffrf_schedule;
+
+/* The factorization of the iteration matrix, kept across steps (integrator `_lu`). */
+typedef struct {
+    double *luT;       /* [nf][nf] LU factors, transposed (luT^T is LAPACK's/scipy's LU) */
+    int *piv;          /* [nf]     0-based row interchanges */
+    double *meta;      /* [12]     valid, beta, R_ref (9, row-major), serves */
+    double *luT_stale; /* [nf][nf] the matrix REFRESH_AFTER dropped, compared at the next refresh */
+    int *piv_stale;    /* [nf] */
+    double *JT;        /* [nf][nf] the iteration matrix being built (transposed) */
+    uint64_t version;  /* incremented at every refresh: a caller's copy is stale when it differs */
+} ffrf_lu;
+
+typedef struct ffrf_se_work ffrf_se_work; /* superelement.c: work arrays of one superelement */
+
+/* Work arrays of a step (newton_step's and step's locals, allocated at creation). */
+typedef struct {
+    double *ydw, *p, *R, *F;          /* [ny], [ny], [N + E][3][3], [ny] */
+    double *A0, *P0, *c;              /* [ny] */
+    double *Rn;                       /* [N + E][3][3] */
+    double *theta, *T;                /* [N + E][3], [N + E][3][3] */
+    double *Fl, *Fz, *Fy;             /* [nv + nc], [nv + nc][nc + nv] x 2 */
+    double *b, *b_stale;              /* [nf] */
+    double *S;                        /* [n_fields] */
+    double *row;                      /* [OUTPUT row]: 24 n_ports + 5 */
+    double *q_rec;                    /* [n] */
+    ffrf_se_work *se;                 /* superelement.c */
+} ffrf_work;
+
+struct ffrf_body {
+    ffrf_dims dims;
+    ffrf_data data;
+    ffrf_state state;
+    ffrf_inputs in;
+    ffrf_springs springs;
+    ffrf_schedule schedule;
+    double *held;                     /* [n_ports][FFRF_HELD_WIDTH] an FMU's held input values */
+    ffrf_lu lu;
+    ffrf_work work;
+    double tol;                       /* Newton tolerance */
+    int max_iter;
+    double rho_inf, am, af, gamma;    /* generalized-alpha coefficients (integrator alpha_coefficients) */
+    void *arena;                      /* the one allocation holding every array */
+    void *image;                      /* the image's arrays (owned copy) */
+};
+
+/* ---- so3.c: the rotation helpers (runtime/rotation.py) ---- */
+void ffrf_expm(const double th[3], double out[9]);
+void ffrf_tangent(const double th[3], double out[9]);
+void ffrf_logm(const double M[9], double out[3]);
+void ffrf_inv3(const double A[9], double out[9]);
+void ffrf_skew(const double a[3], double out[9]);
+void ffrf_cross(const double a[3], const double b[3], double out[3]);
+
+/* ---- superelement.c: the equations of one superelement and their assembly ---- */
+/* Bytes of work space one superelement needs (an ffrf_se_work and its arrays, suitably aligned), and
+ * that space laid out in `mem` (allocated by body.c at creation, 16-byte aligned). */
+size_t ffrf_se_work_bytes(const ffrf_dims *d);
+ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d);
+/* kernel.py `_evaluate`: the assembled residual F [ny] with the loads f_load, t_load [N][3] at the
+ * stage (p, yd, R [N+E][3][3], theta [N+E][3]) and, if jac, the transposed iteration matrix JT
+ * [nf][nf] = (F_ydot + beta [F_y T, F_v])^T on the Newton unknowns (T [N+E][3][3] filled here). */
+void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load, const double *t_load,
+                   const double *p, const double *yd, const double *R, const double *theta, int jac,
+                   double beta, double *F, double *JT, double *Fl, double *Fz, double *Fy, double *T);
+/* kernel.py `_superelement`: the local rows F (nv + nc) of superelement e and, if jac, Fz, Fy
+ * [nv + nc][nc + nv]. */
+void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double *yd, const double *R,
+                       int jac, double *F, double *Fz, double *Fy, ffrf_se_work *w);
+
+/* ---- step.c: Newton, the generalized-alpha step, compliant springs, LU ---- */
+void ffrf_springs_apply(ffrf_body *b, const double *p, const double *yd, const double *R,
+                        const double *T, int jac, double beta, double *F, double *JT);
+/* One step t -> t + h (kernel.py `step`); the state changes only if it succeeded. Returns the
+ * status (FFRF_OK ...); b->state.iterations holds its iterations. */
+int ffrf_step(ffrf_body *b, double h, int last_it);
+
+/* ---- advance.c: inputs by kind, output rows, many steps in one call ---- */
+void ffrf_scheduled_inputs(ffrf_body *b, double t);
+void ffrf_held_inputs(ffrf_body *b, double t, double t_c);
+/* One output row (simulate.record's layout): per port r, R, v, w, f, t (24), then kinetic_rigid,
+ * kinetic_elastic, strain, work_external, iterations. */
+void ffrf_record(const ffrf_body *b, double *row);
+
+#endif

@@ -1,0 +1,56 @@
+/* The C runtime of ffrf-fmu's flexible bodies: the public interface (what the Python binding,
+ * runtime/native/binding.py, and the FMI wrappers call). One `ffrf_body` per body instance; no
+ * global state. */
+#ifndef FFRF_RUNTIME_H
+#define FFRF_RUNTIME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define FFRF_RUNTIME_VERSION 1        /* of this interface and of the body image format */
+
+/* statuses of a step (kernel.py's codes) */
+enum { FFRF_OK = 0, FFRF_NOT_FINITE = 1, FFRF_NOT_CONVERGED = 2, FFRF_NOT_FACTORED = 3, FFRF_ROTATION_ALIAS = 4,
+       FFRF_BAD_STEP = 5 };
+/* the gyroscopic terms' two parts: the elastic Coriolis G(W0) (53), the inertia coupling S(q) r (55) */
+enum { FFRF_CORIOLIS = 1, FFRF_COUPLING = 2 };
+/* where a step's inputs come from */
+enum { FFRF_GIVEN = 0, FFRF_SCHEDULED = 1, FFRF_HELD = 2 };
+
+#define FFRF_OUTPUT_WIDTH 24  /* output columns per port: r, R (row-major), v, w, f, t */
+#define FFRF_N_ENERGIES 4     /* kinetic_rigid, kinetic_elastic, strain, work_external */
+#define FFRF_HELD_WIDTH 30    /* runtime/held.py COLUMNS: r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27 */
+
+typedef struct ffrf_body ffrf_body;
+
+/* A body from its image (`size` bytes, runtime/native/image.py); NULL with a message in err
+ * (err_len bytes) when the image is damaged, of another version or inconsistent. */
+ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t err_len);
+void ffrf_body_free(ffrf_body *b);
+
+/* The address and size (in elements) of a named array of the body (state, inputs, springs,
+ * schedule, held, lu, data): NULL if there is none of that name. kind: 'd' double, 'q' int64,
+ * 'i' int32. Used by the Python binding to view the body's memory as numpy arrays. */
+void *ffrf_body_array(ffrf_body *b, const char *name, size_t *count, char *kind);
+/* Scalars of the body, by name (t, iterations, tol, max_iter, rho_inf, lu_version ...). */
+int ffrf_body_get_scalar(const ffrf_body *b, const char *name, double *value);
+int ffrf_body_set_scalar(ffrf_body *b, const char *name, double value);
+
+/* n steps of h from the body's time, inputs by kind (FFRF_GIVEN: as set in the inputs arrays;
+ * FFRF_SCHEDULED: from the schedule, every step's output row into rows[k] and its time into
+ * times[k]; FFRF_HELD: extrapolated from the held values at t_c, the last step's row into rows).
+ * Returns the steps completed; *status the status of the first failed step (FFRF_OK if none),
+ * *worst the most Newton iterations of a step. A failed step leaves the state at the last one. */
+int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, double *rows,
+                      double *times, int *status, int *worst);
+
+/* The output row at the current state (FFRF_OUTPUT_WIDTH n_ports + FFRF_N_ENERGIES + 1 doubles). */
+void ffrf_body_record(const ffrf_body *b, double *row);
+
+/* The whole state (everything the next step depends on, the factorization included) as doubles:
+ * its size, a copy out, a copy in (checked: 0 ok, -1 wrong size). */
+size_t ffrf_body_state_size(const ffrf_body *b);
+void ffrf_body_get_state(const ffrf_body *b, double *out);
+int ffrf_body_set_state(ffrf_body *b, const double *in, size_t size);
+
+#endif
