@@ -22,7 +22,8 @@ state, its `FusedResidual` and its inputs).
 """
 from __future__ import annotations
 
-from typing import Callable
+from dataclasses import dataclass
+from typing import Callable, Iterator
 
 import numpy as np
 import scipy.linalg as sla
@@ -50,8 +51,28 @@ def zero_or_nan(x: np.ndarray, zeros: np.ndarray) -> float:
     return float(x @ zeros)
 
 
+@dataclass(frozen=True)
+class NewtonDecisions:
+    """The Newton decisions of one step as another run of the same body took them (`GeneralizedAlpha.
+    newton_replay`): its iterations (a retry's counted after the failed attempt's max_iter, as
+    `iterations`) and the iterations at which it built the iteration matrix."""
+
+    iterations: int
+    refreshed: frozenset[int]
+
+    def retry(self, max_iter: int) -> "NewtonDecisions":
+        """The decisions of the retry that followed a failed first attempt of max_iter iterations."""
+        return NewtonDecisions(self.iterations - max_iter, frozenset(i - max_iter for i in self.refreshed if i > max_iter))
+
+
 class GeneralizedAlpha:
     """Stepping of a body (see the module docstring); the state lives on the body."""
+
+    # Tests only: an iterator of NewtonDecisions, one per step. Newton then builds the matrix and accepts
+    # the iterate where the replayed run did, instead of consulting its own convergence and refresh tests
+    # (REFRESH_AFTER included), so that two runs compared to round-off (the C runtime against this path)
+    # cannot part at a test that round-off tips (a count one apart moves the rates by up to the tolerance).
+    newton_replay: Iterator[NewtonDecisions] | None = None
 
     def _build_newton(self):
         """Index maps of the Newton system: the unknowns (free rates), their order in the stored
@@ -183,13 +204,16 @@ class GeneralizedAlpha:
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
         stale, trusted = None, False  # (REFRESH_AFTER)
-        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
+        replay = next(self.newton_replay) if commit_config and self.newton_replay is not None else None
+        if replay is None and commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
             if self._lu[4]:
                 trusted = True
             else:
                 stale, self._lu = self._lu, None
         try:
-            F, it = self._newton(yd, beta, t1, stale, trusted)
+            if replay is not None and replay.iterations > self.max_iter:
+                raise StepFailure(t1, "the replayed run's first attempt failed")
+            F, it = self._newton(yd, beta, t1, stale, trusted, replay)
         except StepFailure:
             if not commit_config:
                 raise
@@ -199,7 +223,7 @@ class GeneralizedAlpha:
             yd[:] = self.yd
             yd[fixed] = zN_p.ravel()[fixed]
             self._lu = None
-            F, it = self._newton(yd, beta, t1)
+            F, it = self._newton(yd, beta, t1, replay=replay and replay.retry(self.max_iter))
             it += self.max_iter  # the failed attempt's iterations count
         self._check_rotation_increments(t1)
         if not commit_config:
@@ -212,7 +236,7 @@ class GeneralizedAlpha:
         self.power = p_new
         return it
 
-    def _newton(self, yd, beta, t1, stale=None, trusted=False):
+    def _newton(self, yd, beta, t1, stale=None, trusted=False, replay=None):
         """Newton on the rates yd (updated in place) of the prepared step; returns the residual of the
         last evaluation and the iterations (residual evaluations, each followed by one solve).
         runtime/kernel.py `newton_step` is its compiled twin.
@@ -236,7 +260,8 @@ class GeneralizedAlpha:
         REFRESH_AFTER dropped, one step older), when `stale` would have given the same first increment
         to KEEP_CONTRACTION of it (the matrix ages by less than that per step; one more solve). A matrix
         that REFRESH_AFTER kept on that verdict (`trusted`) and that needs a third increment serves no more:
-        it is rebuilt at the second iterate (an FMU's matrix kept 950 steps took 5-6 iterations otherwise)."""
+        it is rebuilt at the second iterate (an FMU's matrix kept 950 steps took 5-6 iterations otherwise).
+        replay: NewtonDecisions to take instead (`newton_replay`)."""
         order = self._newton_idx
         nrm_prev = np.inf
         kept, serves = True, False  # kept: no matrix built in this step (yet)
@@ -244,6 +269,11 @@ class GeneralizedAlpha:
             # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
             # communication grid repeats its step only up to round-off
             refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
+            if replay is not None:
+                if self._lu is None and it not in replay.refreshed:
+                    raise ValueError(f"Newton replay at t = {t1}: the replayed run kept a matrix at iteration {it}, "
+                                     "this one has none")
+                refresh = it in replay.refreshed
             if refresh:
                 F, J = self._residual_at(yd, jacobian=True, beta=beta)
                 kept = False
@@ -264,14 +294,18 @@ class GeneralizedAlpha:
                 far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
                 if far and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
                     serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
-            if nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0):
+            if replay is not None:
+                accept = it == replay.iterations
+            else:
+                accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
+            if accept:
                 self._stage_at(yd)
                 if kept:  # (two increments: as many as a matrix built at the predictor needs)
                     serves = it == 2 and far and theta <= self.KEEP_CONTRACTION
                 self._lu = (*self._lu[:4], serves)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
+            if replay is None and it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
                 self._lu, serves = None, False
             nrm_prev = nrm
         self._lu = None

@@ -142,6 +142,9 @@ typedef struct {
     int *piv_stale;    /* [nf] */
     double *JT;        /* [nf][nf] the iteration matrix being built (transposed) */
     uint64_t version;  /* incremented at every refresh: a caller's copy is stale when it differs */
+    uint64_t refreshed; /* the last ffrf_step's refreshes: bit i - 1 set when Newton built the matrix at iteration i
+                        * (a retry's iterations counted after the failed attempt's max_iter, as state.iterations);
+                        * the scalar "refreshed": the decisions a test replays on the numpy path */
 } ffrf_lu;
 
 typedef struct ffrf_se_work ffrf_se_work; /* superelement.c: work arrays of one superelement */

@@ -251,7 +251,8 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
  *
  * In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
  * predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
- * evaluation (the accepted iterate is not evaluated again); info = [status, iterations]. b->lu holds the
+ * evaluation (the accepted iterate is not evaluated again); info = [status, iterations]; a refresh at
+ * iteration it sets bit it + offset - 1 of lu.refreshed (offset: iterations of a failed attempt). b->lu holds the
  * LU of the iteration matrix across steps (luT transposed: luT^T is scipy's lu_factor LU; piv 0-based;
  * meta = [valid, beta, R_ref (9), serves]); a refresh factors the matrix built in lu.JT into lu.luT and
  * increments lu.version. On failure meta[0] = 0 and a status != OK, with the last increment in meta[1]
@@ -262,7 +263,7 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
  * to lu.luT_stale before the new one replaces it); trusted: REFRESH_AFTER kept it on its serves verdict). */
 static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, const double *P0, const double *Rn,
                         const double *f_load, const double *t_load, double beta, double tol, int max_iter, double *yd,
-                        double *p, double *R, double *F, int info[2])
+                        double *p, double *R, double *F, int offset, int info[2])
 {
     const ffrf_data *D = &b->data;
     ffrf_work *w = &b->work;
@@ -311,6 +312,8 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
             }
             memcpy(L->luT, L->JT, (size_t)nf * nf * sizeof(double));
             L->version++;
+            if (it + offset <= 64)
+                L->refreshed |= (uint64_t)1 << (it + offset - 1);
             int status = ok ? lu_factor(L->luT, L->piv, nf) : -1;
             if (status != 0) {
                 lu_meta[0] = 0.0;
@@ -456,8 +459,9 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
     int stale = after && lu_meta[11] == 0.0, trusted = after && lu_meta[11] != 0.0;
     if (stale)
         lu_meta[0] = 0.0;
+    b->lu.refreshed = 0;
     for (int attempt = 0; attempt < 2; attempt++) {
-        newton_step(b, stale, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, b->max_iter, ydw, p, R, F, info);
+        newton_step(b, stale, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, b->max_iter, ydw, p, R, F, attempt * b->max_iter, info);
         if (attempt == 1)
             info[1] += b->max_iter; /* the failed attempt's iterations count */
         if (info[0] == FFRF_OK || info[0] == FFRF_ROTATION_ALIAS || attempt == 1)
