@@ -53,4 +53,12 @@ size_t ffrf_body_state_size(const ffrf_body *b);
 void ffrf_body_get_state(const ffrf_body *b, double *out);
 int ffrf_body_set_state(ffrf_body *b, const double *in, size_t size);
 
+/* ---- for tests ---- */
+/* The local rows F [nv + nc] of superelement e at the stage (p [ny], yd [ny], R [N + E][3][3]) and, if
+ * jac, its blocks F_ydot (Fz) and F_y (Fy) [nv + nc][nc + nv] (runtime/equations.py residual_and_jacobian's
+ * rows and columns), computed in the body's own work space. Returns 0, or -1 if e is not a
+ * superelement of the body or an array is missing. */
+int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *yd, const double *R, int jac,
+                           double *F, double *Fz, double *Fy);
+
 #endif

@@ -1,0 +1,855 @@
+/* The equations of one superelement and their assembly into the body's residual and iteration
+ * matrix: the C port of runtime/kernel.py `_superelement`, `_stiff_force`, `_stiff_tangent`,
+ * `_jacobian` and `_evaluate` (runtime/equations.py is the oracle; equation numbers are those of
+ * Geradin's two-field paper, docs/equations.md).
+ *
+ * The loops and the order of every sum are those of the numba kernel, statement by statement, so
+ * both agree to round-off: a C sum `s += a + b` is s + (a + b) as in Python. Build without
+ * floating-point contraction (gcc's default in ISO mode, -std=c11; clang needs -ffp-contract=off)
+ * for the results to be the kernel's to the last bit where the kernel's are LLVM's plain IEEE ones.
+ *
+ * Arrays are viewed through pointers to variably modified types (double (*)[n]) so that indexing
+ * reads like the kernel's (GW[i][j] for GW[i, j]); nothing is allocated here.
+ *
+ * Term sets (kernel.py): `linear` (gyro = 0), `gyroscopic` (gyro = CORIOLIS | COUPLING), `full`
+ * (either part of gyro, W1 possibly zero, W2 possibly absent: n_w2 = 0), each with or without the
+ * geometric stiffening (stiff = 1: the deformation-dependent inertia W1 [W2] and, when vk_a has
+ * rows, the membrane strain of runtime/stiffening.py).
+ */
+#include <string.h>
+
+#include "body.h"
+
+/* Work arrays of `ffrf_superelement` and its Jacobian: kernel.py's `_Work`, same names and shapes
+ * (r: rows of vk_a, n2: n_w2). Bound once to a block that body.c allocates at creation. */
+struct ffrf_se_work {
+    int n, nb, nc, nv, r, n2;                   /* the sizes the arrays were laid out for */
+    double *q, *qd, *g;                         /* [n]    q_bar (89), q_bar_dot (91), g (78) */
+    double *rho, *Q, *H, *alpha;                /* [nb][3], [nb][3][3], [nb][3][3], [nb][3] */
+    double *x0, *W0, *x0dot;                    /* [3] */
+    double *v, *vdot;                           /* [nv] */
+    double *u, *c;                              /* [nb][3] */
+    double *v3, *v3b;                           /* [3] */
+    double *GW;                                 /* [n][n]  G(W0) (53) */
+    double *h, *torque;                         /* [3] */
+    double *Gq, *Gqd, *Gr, *Grd, *dsdq;         /* [3][n] */
+    double *fa;                                 /* [nb][3] */
+    double *Dq, *Dqd;                           /* [n][nc] */
+    double *dgz, *dgy;                          /* [n][nc + nv] */
+    double *S, *S2, *B, *W0x, *C, *QC;          /* [3][3] */
+    double *T1;                                 /* [3][nc] */
+    double *Bq;                                 /* [r][n] */
+    double *Nk;                                 /* [r] */
+    double *Z;                                  /* [3][n] */
+    double *Jq, *Jqd;                           /* [3][3] */
+    double *hs;                                 /* [3] */
+    double *Kt;                                 /* [n][n] */
+    double *eq;                                 /* [3][n] */
+    double *V, *Vd;                             /* [n2][3][3] */
+    double *Kc;                                 /* [n2][n2] */
+    double *HQ;                                 /* [3][n] */
+};
+
+#define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
+
+static size_t se_round(size_t bytes) { return (bytes + SE_ALIGN - 1) / SE_ALIGN * SE_ALIGN; }
+
+/* Walks the arrays of the work struct in one order, for both the size and the binding: with
+ * w == NULL only the bytes are counted. */
+static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
+{
+    size_t n = (size_t)d->n, nb = (size_t)d->nb, nc = (size_t)d->nc, nv = (size_t)d->nv;
+    size_t r = (size_t)d->n_vk, n2 = (size_t)d->n_w2, ncv = nc + nv;
+    size_t off = se_round(sizeof(struct ffrf_se_work));
+#define SE_ARRAY(name, count)                                                  \
+    do {                                                                       \
+        if (w) w->name = (double *)(void *)(mem + off);                        \
+        off += se_round((count) * sizeof(double));                             \
+    } while (0)
+    SE_ARRAY(q, n); SE_ARRAY(qd, n); SE_ARRAY(g, n);
+    SE_ARRAY(rho, nb * 3); SE_ARRAY(Q, nb * 9); SE_ARRAY(H, nb * 9); SE_ARRAY(alpha, nb * 3);
+    SE_ARRAY(x0, 3); SE_ARRAY(W0, 3); SE_ARRAY(x0dot, 3);
+    SE_ARRAY(v, nv); SE_ARRAY(vdot, nv);
+    SE_ARRAY(u, nb * 3); SE_ARRAY(c, nb * 3);
+    SE_ARRAY(v3, 3); SE_ARRAY(v3b, 3);
+    SE_ARRAY(GW, n * n);
+    SE_ARRAY(h, 3); SE_ARRAY(torque, 3);
+    SE_ARRAY(Gq, 3 * n); SE_ARRAY(Gqd, 3 * n); SE_ARRAY(Gr, 3 * n); SE_ARRAY(Grd, 3 * n); SE_ARRAY(dsdq, 3 * n);
+    SE_ARRAY(fa, nb * 3);
+    SE_ARRAY(Dq, n * nc); SE_ARRAY(Dqd, n * nc);
+    SE_ARRAY(dgz, n * ncv); SE_ARRAY(dgy, n * ncv);
+    SE_ARRAY(S, 9); SE_ARRAY(S2, 9); SE_ARRAY(B, 9); SE_ARRAY(W0x, 9); SE_ARRAY(C, 9); SE_ARRAY(QC, 9);
+    SE_ARRAY(T1, 3 * nc);
+    SE_ARRAY(Bq, r * n); SE_ARRAY(Nk, r);
+    SE_ARRAY(Z, 3 * n);
+    SE_ARRAY(Jq, 9); SE_ARRAY(Jqd, 9); SE_ARRAY(hs, 3);
+    SE_ARRAY(Kt, n * n);
+    SE_ARRAY(eq, 3 * n);
+    SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
+    SE_ARRAY(HQ, 3 * n);
+#undef SE_ARRAY
+    if (w) {
+        w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
+    }
+    return off;
+}
+
+size_t ffrf_se_work_bytes(const ffrf_dims *d) { return se_layout(NULL, NULL, d); }
+
+/* The work struct at the start of `mem` and its arrays after it, all zero (kernel.py allocates them
+ * with np.zeros: an array a term set never writes reads as zero). */
+ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d)
+{
+    size_t bytes = ffrf_se_work_bytes(d);
+    ffrf_se_work *w = (ffrf_se_work *)mem;
+    memset(mem, 0, bytes);
+    se_layout(w, (char *)mem, d);
+    return w;
+}
+
+static void skew(const double *a, double (*out)[3]) { ffrf_skew(a, &out[0][0]); }
+
+/* g += f_vk(q) - f0(Omega0) [- Kc(Omega0) q] (stiffening.von_karman, deformed_inertia); keeps Bq,
+ * N = a q + sigma, Z(Omega0) (Z[:, j] = W1_j Omega0) [and Kc] in w for the Jacobian and the rotation
+ * rows. W2 absent: n_w2 = 0. */
+static void stiff_force(const ffrf_body *b, int e, const double *q, const double *Om, double *g, ffrf_se_work *w)
+{
+    const int r = b->dims.n_vk, n = b->dims.n, n2 = b->dims.n_w2;
+    const double (*vk_a)[n] = (const double (*)[n])b->data.vk_a + (size_t)e * r;
+    const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
+    const double (*W1)[3][3] = (const double (*)[3][3])b->data.W1 + (size_t)e * b->dims.n_w1;
+    double (*Bq)[n] = (double (*)[n])w->Bq, *Nk = w->Nk;
+    double (*Z)[n] = (double (*)[n])w->Z;
+    for (int k = 0; k < r; k++) {
+        double ek = 0.0, sk = 0.0;
+        for (int i = 0; i < n; i++) {
+            double s = 0.0;
+            for (int j = 0; j < n; j++)
+                s += vk_B[k][i][j] * q[j];
+            Bq[k][i] = s;
+            ek += vk_a[k][i] * q[i];
+        }
+        for (int i = 0; i < n; i++)
+            sk += 0.5 * Bq[k][i] * q[i];
+        Nk[k] = ek + sk;
+        for (int i = 0; i < n; i++) /* a^T sigma + Bq^T N */
+            g[i] += vk_a[k][i] * sk + Bq[k][i] * Nk[k];
+    }
+    for (int j = 0; j < n; j++) {
+        double s = 0.0;
+        for (int a = 0; a < 3; a++) {
+            double za = 0.0;
+            for (int bb = 0; bb < 3; bb++)
+                za += W1[j][a][bb] * Om[bb];
+            Z[a][j] = za;
+            s += za * Om[a];
+        }
+        g[j] -= 0.5 * s;
+    }
+    if (n2 > 0) { /* the elastic centrifugal force -Kc(Omega0) q, Kc_jl = Omega0^T W2_jl Omega0 */
+        const double (*W2)[n2][3][3] = (const double (*)[n2][3][3])b->data.W2 + (size_t)e * n2;
+        double (*Kc)[n2] = (double (*)[n2])w->Kc;
+        for (int j = 0; j < n; j++) {
+            double s = 0.0;
+            for (int l = 0; l < n; l++) {
+                double kc = 0.0;
+                for (int a = 0; a < 3; a++)
+                    for (int bb = 0; bb < 3; bb++)
+                        kc += Om[a] * W2[j][l][a][bb] * Om[bb];
+                Kc[j][l] = kc;
+                s += kc * q[l];
+            }
+            g[j] -= s;
+        }
+    }
+}
+
+/* Kt = a^T Bq + Bq^T a + Bq^T Bq + sum_k N_k B_k (stiffening.von_karman) into w->Kt. */
+static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
+{
+    const int r = b->dims.n_vk;
+    const double (*vk_a)[n] = (const double (*)[n])b->data.vk_a + (size_t)e * r;
+    const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
+    const double (*Bq)[n] = (const double (*)[n])w->Bq, *Nk = w->Nk;
+    double (*Kt)[n] = (double (*)[n])w->Kt;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            double s = 0.0;
+            for (int k = 0; k < r; k++)
+                s += vk_a[k][i] * Bq[k][j] + Bq[k][i] * (vk_a[k][j] + Bq[k][j]) + Nk[k] * vk_B[k][i][j];
+            Kt[i][j] = s;
+        }
+}
+
+/* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
+ * (runtime/equations.py residual_and_jacobian, same algebra; kernel.py `_jacobian`). */
+static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, double *Fz_, double *Fy_)
+{
+    const int gyro = b->data.gyro, stiff = b->data.stiff;
+    const int nb = b->dims.nb, nm = b->dims.nm, n = b->dims.n, nc = b->dims.nc, nv = b->dims.nv;
+    const int ncv = nc + nv, ng = b->dims.n_g, n2 = b->dims.n_w2;
+    const double (*Ke)[n] = (const double (*)[n])b->data.K + (size_t)e * n;
+    const double (*Me)[n] = (const double (*)[n])b->data.M + (size_t)e * n;
+    const double (*Je)[3] = (const double (*)[3])b->data.J0 + (size_t)e * 3;
+    const double (*G)[ng][ng] = (const double (*)[ng][ng])b->data.G + (size_t)e * 3;
+    const double *mass = b->data.mass;
+    const double *g = w->g, *h = w->h, *W0 = w->W0;
+    const double *r = w->v + 6, *rdot = w->vdot + 6;
+    double (*rho)[3] = (double (*)[3])w->rho, (*alpha)[3] = (double (*)[3])w->alpha;
+    double (*Q)[3][3] = (double (*)[3][3])w->Q, (*H)[3][3] = (double (*)[3][3])w->H;
+    double (*Dq)[nc] = (double (*)[nc])w->Dq, (*Dqd)[nc] = (double (*)[nc])w->Dqd;
+    double (*dgz)[ncv] = (double (*)[ncv])w->dgz, (*dgy)[ncv] = (double (*)[ncv])w->dgy;
+    double (*S)[3] = (double (*)[3])w->S, (*S2)[3] = (double (*)[3])w->S2, (*B)[3] = (double (*)[3])w->B;
+    double (*W0x)[3] = (double (*)[3])w->W0x;
+    double (*u)[3] = (double (*)[3])w->u, (*cc)[3] = (double (*)[3])w->c;
+    double (*Fz)[ncv] = (double (*)[ncv])Fz_, (*Fy)[ncv] = (double (*)[ncv])Fy_;
+    memset(Fz_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
+    memset(Fy_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
+    memset(w->Dq, 0, sizeof(double) * (size_t)n * (size_t)nc);
+    memset(w->Dqd, 0, sizeof(double) * (size_t)n * (size_t)nc);
+    memset(w->dgz, 0, sizeof(double) * (size_t)n * (size_t)ncv);
+    memset(w->dgy, 0, sizeof(double) * (size_t)n * (size_t)ncv);
+    skew(W0, W0x);
+    for (int k = 0; k < nb; k++) {
+        const int XP = 6 + nm + 6 * k, TP = 9 + nm + 6 * k;
+        const int d = 6 * k, a = 6 * k + 3;
+        skew(rho[k], S);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                Dq[d + i][j] = -R0[j][i]; /* d d_P = -R0^T dx0 + skew(rho) dTheta0 + R0^T dx_P */
+                Dq[d + i][3 + j] = S[i][j];
+                Dq[d + i][XP + j] = R0[j][i];
+                Dq[a + i][TP + j] = H[k][i][j]; /* d alpha_P = H (dTheta_P - Q^T dTheta0) */
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += H[k][i][m] * Q[k][j][m];
+                Dq[a + i][3 + j] = -s;
+            }
+        /* d(d_Pdot) = skew(u) dTheta0 - skew(W0) d(d_P) */
+        skew(u[k], S);
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < nc; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s -= W0x[i][m] * Dq[d + m][j];
+                Dqd[d + i][j] = s;
+            }
+            for (int j = 0; j < 3; j++)
+                Dqd[d + i][3 + j] += S[i][j];
+        }
+        /* d(H c) = B eps, B = -c alpha^T - skew(Q^T c)/2 - H skew(Q^T W0) */
+        const double *c = cc[k];
+        double *QTc = w->v3, *QTW = w->v3b;
+        for (int i = 0; i < 3; i++) {
+            double s1 = 0.0, s2 = 0.0;
+            for (int j = 0; j < 3; j++) {
+                s1 += Q[k][j][i] * c[j];
+                s2 += Q[k][j][i] * W0[j];
+            }
+            QTc[i] = s1;
+            QTW[i] = s2;
+        }
+        skew(QTc, S);
+        skew(QTW, S2);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += H[k][i][m] * S2[m][j];
+                B[i][j] = -c[i] * alpha[k][j] - 0.5 * S[i][j] - s;
+            }
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                Dqd[a + i][TP + j] = B[i][j];
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += B[i][m] * Q[k][j][m];
+                Dqd[a + i][3 + j] = -s;
+            }
+    }
+    for (int i = 0; i < nm; i++)
+        Dq[6 * nb + i][6 + i] = 1.0;
+    const int cv0 = nc, cO0 = nc + 3, cr = nc + 6;
+    const int kq = 6, ex0 = nv, eT0 = nv + 3, eeta = nv + 6;
+    for (int i = 0; i < 3; i++) {
+        Fz[i][i] = 1.0; /* x0dot - v0 */
+        Fy[i][cv0 + i] = -1.0;
+        Fz[3 + i][3 + i] = 1.0; /* W0 - Omega0 */
+        Fy[3 + i][cO0 + i] = -1.0;
+        Fz[ex0 + i][cv0 + i] = mass[e];
+    }
+    for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] */
+        for (int j = 0; j < nc; j++) {
+            double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+            for (int m = 0; m < n; m++) {
+                s1 += Me[i][m] * Dq[m][j];
+                s2 += Me[i][m] * Dqd[m][j];
+                s3 += Ke[i][m] * Dq[m][j];
+            }
+            Fz[kq + i][j] = s1;
+            Fy[kq + i][j] = s2;
+            dgy[i][j] = s3;
+        }
+        for (int j = 0; j < n; j++) {
+            Fy[kq + i][cr + j] = -Me[i][j];
+            dgz[i][cr + j] = Me[i][j];
+        }
+    }
+    /* angular momentum rows: J0 Omega0dot + W0 x h */
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            Fz[eT0 + i][cO0 + j] = Je[i][j];
+            double s = 0.0;
+            for (int m = 0; m < 3; m++)
+                s += W0x[i][m] * Je[m][j];
+            Fy[eT0 + i][cO0 + j] = s;
+        }
+    skew(h, S); /* h includes s for the gyroscopic set */
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            Fz[eT0 + i][3 + j] -= S[i][j];
+    if (gyro) {
+        double (*GW)[n] = (double (*)[n])w->GW, (*Gq)[n] = (double (*)[n])w->Gq;
+        double (*Gr)[n] = (double (*)[n])w->Gr, (*Grd)[n] = (double (*)[n])w->Grd;
+        double (*dsdq)[n] = (double (*)[n])w->dsdq;
+        for (int kk = 0; kk < 3; kk++)
+            for (int i = 0; i < n; i++) {
+                double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+                for (int j = 0; j < n; j++) {
+                    s1 += G[kk][i][j] * r[j];
+                    s2 += r[j] * G[kk][j][i];    /* (r^T G_k)_i */
+                    s3 += rdot[j] * G[kk][j][i]; /* (rdot^T G_k)_i */
+                }
+                Gr[kk][i] = s1;
+                dsdq[kk][i] = s2;
+                Grd[kk][i] = s3;
+            }
+        for (int i = 0; i < ((gyro & FFRF_CORIOLIS) ? n : 0); i++) {
+            for (int kk = 0; kk < 3; kk++) {
+                Fz[kq + i][3 + kk] += Gq[kk][i]; /* d(G(W0) q)/dW0 */
+                dgz[i][3 + kk] += Gr[kk][i];
+            }
+            for (int j = 0; j < nc; j++) {
+                double s = 0.0;
+                for (int m = 0; m < n; m++)
+                    s += GW[i][m] * Dq[m][j];
+                Fy[kq + i][j] += s;
+            }
+            for (int j = 0; j < n; j++)
+                dgy[i][cr + j] += GW[i][j];
+        }
+    }
+    if (gyro & FFRF_COUPLING) { /* s and sdot: rows of ds/dq, ds/dr, dsdot/d... */
+        const double (*Gq)[n] = (const double (*)[n])w->Gq, (*Gqd)[n] = (const double (*)[n])w->Gqd;
+        const double (*Grd)[n] = (const double (*)[n])w->Grd, (*dsdq)[n] = (const double (*)[n])w->dsdq;
+        double (*T1)[nc] = (double (*)[nc])w->T1; /* (3, nc): ds_dq Dq ; T2 = rdot^T G_k Dq ; T3 = ds_dq Dqd */
+        for (int kk = 0; kk < 3; kk++) {
+            for (int j = 0; j < nc; j++) {
+                double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+                for (int m = 0; m < n; m++) {
+                    s1 += dsdq[kk][m] * Dq[m][j];
+                    s2 += Grd[kk][m] * Dq[m][j];
+                    s3 += dsdq[kk][m] * Dqd[m][j];
+                }
+                T1[kk][j] = s1;
+                Fy[eT0 + kk][j] += s2 + s3;
+                Fz[eT0 + kk][j] += s1;
+            }
+            for (int j = 0; j < n; j++) {
+                Fz[eT0 + kk][cr + j] += Gq[kk][j];
+                Fy[eT0 + kk][cr + j] += Gqd[kk][j];
+            }
+        }
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < nc; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += W0x[i][m] * T1[m][j];
+                Fy[eT0 + i][j] += s;
+            }
+            for (int j = 0; j < n; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += W0x[i][m] * Gq[m][j];
+                Fy[eT0 + i][cr + j] += s;
+            }
+        }
+    }
+    if (stiff) { /* d(f_vk - f0 [- Kc q]): (Kt [- Kc]) Dq on the configuration, -HQ^T on the Omega0 columns */
+        double (*Kt)[n] = (double (*)[n])w->Kt;
+        const double (*HQ)[n] = (const double (*)[n])w->HQ;
+        stiff_tangent(b, e, n, w);
+        if (n2 > 0) {
+            const double (*Kc)[n2] = (const double (*)[n2])w->Kc;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++)
+                    Kt[i][j] -= Kc[i][j];
+        }
+        for (int i = 0; i < n; i++) {
+            for (int j = 0; j < nc; j++) {
+                double s = 0.0;
+                for (int m = 0; m < n; m++)
+                    s += Kt[i][m] * Dq[m][j];
+                dgy[i][j] += s;
+            }
+            for (int bb = 0; bb < 3; bb++)
+                dgy[i][cO0 + bb] -= HQ[bb][i];
+        }
+    }
+    for (int i = 0; i < nm; i++)
+        for (int j = 0; j < ncv; j++) {
+            Fz[eeta + i][j] = dgz[6 * nb + i][j];
+            Fy[eeta + i][j] = dgy[6 * nb + i][j];
+        }
+    /* g_B through (91): equations.project_boundary_force */
+    double (*C)[3] = (double (*)[3])w->C, (*QC)[3] = (double (*)[3])w->QC;
+    double (*fa)[3] = (double (*)[3])w->fa;
+    for (int k = 0; k < nb; k++) {
+        const int exP = nv + 6 + nm + 6 * k, eTP = nv + 9 + nm + 6 * k;
+        const int TP = 9 + nm + 6 * k;
+        const int d = 6 * k, a = 6 * k + 3;
+        const double *gd = g + d, *ga = g + a;
+        double *ya = w->v3;
+        for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy) */
+            double (*D)[ncv] = pass == 0 ? Fz : Fy;
+            double (*dg)[ncv] = pass == 0 ? dgz : dgy;
+            for (int j = 0; j < ncv; j++) {
+                for (int i = 0; i < 3; i++) {
+                    double s1 = 0.0, s2 = 0.0;
+                    for (int m = 0; m < 3; m++) {
+                        s1 += R0[i][m] * dg[d + m][j];
+                        s2 += H[k][m][i] * dg[a + m][j];
+                    }
+                    D[exP + i][j] += s1; /* R0 dg_d */
+                    D[ex0 + i][j] -= s1;
+                    D[eTP + i][j] += s2; /* H^T dg_a */
+                    ya[i] = s2;
+                }
+                for (int i = 0; i < 3; i++) { /* -(rho x dg_d + Q H^T dg_a) */
+                    double s = rho[k][(i + 1) % 3] * dg[d + (i + 2) % 3][j] - rho[k][(i + 2) % 3] * dg[d + (i + 1) % 3][j];
+                    for (int m = 0; m < 3; m++)
+                        s += Q[k][i][m] * ya[m];
+                    D[eT0 + i][j] -= s;
+                }
+            }
+        }
+        skew(gd, S);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += R0[i][m] * S[m][j];
+                Fy[exP + i][3 + j] -= s; /* d(R0 g_d) = -R0 skew(g_d) dTheta0 + ... */
+                Fy[ex0 + i][3 + j] += s;
+            }
+        /* C = -g_a alpha^T + Q skew(g_a)/2 on the node rotation rows */
+        skew(ga, S2);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += Q[k][i][m] * S2[m][j];
+                C[i][j] = -ga[i] * alpha[k][j] + 0.5 * s;
+            }
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                Fy[eTP + i][TP + j] += C[i][j];
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += C[i][m] * Q[k][j][m];
+                Fy[eTP + i][3 + j] -= s;
+            }
+        /* CM rotation rows: + skew(g_d) Dq_d, and -Q (C - skew(f_a)) eps */
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < nc; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += S[i][m] * Dq[d + m][j];
+                Fy[eT0 + i][j] += s;
+            }
+        skew(fa[k], S2);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += Q[k][i][m] * (C[m][j] - S2[m][j]);
+                QC[i][j] = s;
+            }
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                Fy[eT0 + i][TP + j] -= QC[i][j];
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += QC[i][m] * Q[k][j][m];
+                Fy[eT0 + i][3 + j] += s;
+            }
+    }
+    if (stiff) { /* stiffening.rotation_rows derivatives */
+        /* Z here is w->HQ, dh/dq = de/dqdot (kernel.py: Z = w.HQ) */
+        const double (*Z)[n] = (const double (*)[n])w->HQ;
+        const double (*Jq)[3] = (const double (*)[3])w->Jq, (*Jqd)[3] = (const double (*)[3])w->Jqd;
+        double (*eq)[n] = (double (*)[n])w->eq;
+        const double *Om = w->v + 3, *Omd = w->vdot + 3;
+        const double (*W1)[3][3] = (const double (*)[3][3])b->data.W1 + (size_t)e * b->dims.n_w1;
+        const double (*V)[3][3] = (const double (*)[3][3])w->V, (*Vd)[3][3] = (const double (*)[3][3])w->Vd;
+        for (int a = 0; a < 3; a++)
+            for (int j = 0; j < n; j++) {
+                double s = 0.0;
+                for (int bb = 0; bb < 3; bb++) {
+                    s += W1[j][a][bb] * Omd[bb];
+                    if (n2 > 0)
+                        s += V[j][a][bb] * Omd[bb] + Vd[j][a][bb] * Om[bb];
+                }
+                eq[a][j] = s; /* de/dq: W1_j Omd [+ V_j Omd + Vd_j Om] */
+            }
+        skew(w->hs, S);
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < 3; j++) {
+                Fz[eT0 + i][3 + j] -= S[i][j];    /* d(W0 x h)/dW0 */
+                Fz[eT0 + i][cO0 + j] += Jq[i][j]; /* d/dOmega0dot */
+                double s = Jqd[i][j];
+                for (int m = 0; m < 3; m++)
+                    s += W0x[i][m] * Jq[m][j];
+                Fy[eT0 + i][cO0 + j] += s; /* W0 x (W1 q) + W1 qdot on Omega0 */
+            }
+            for (int j = 0; j < nc; j++) {
+                double s1 = 0.0, s2 = 0.0;
+                for (int m = 0; m < n; m++) {
+                    double zw = eq[i][m];
+                    for (int bb = 0; bb < 3; bb++)
+                        zw += W0x[i][bb] * Z[bb][m];
+                    s1 += Z[i][m] * Dq[m][j];
+                    s2 += zw * Dq[m][j] + Z[i][m] * Dqd[m][j];
+                }
+                Fz[eT0 + i][j] += s1;
+                Fy[eT0 + i][j] += s2;
+            }
+        }
+    }
+}
+
+void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double *yd, const double *R_,
+                       int jac, double *F, double *Fz, double *Fy, ffrf_se_work *w)
+{
+    const int N = b->dims.N, gyro = b->data.gyro, stiff = b->data.stiff;
+    const int n = b->dims.n, nb = b->dims.nb, nc = b->dims.nc, nv = b->dims.nv;
+    const int nm = n - 6 * nb, ng = b->dims.n_g, n2 = b->dims.n_w2;
+    const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *vel = b->data.vel_map + (size_t)e * nv;
+    const idx_t *nodes = b->data.se_nodes + (size_t)e * nb;
+    const double (*X_B)[3] = (const double (*)[3])b->data.X_B + (size_t)e * nb;
+    const double (*Ke)[n] = (const double (*)[n])b->data.K + (size_t)e * n;
+    const double (*Me)[n] = (const double (*)[n])b->data.M + (size_t)e * n;
+    const double (*Je)[3] = (const double (*)[3])b->data.J0 + (size_t)e * 3;
+    const double (*G)[ng][ng] = (const double (*)[ng][ng])b->data.G + (size_t)e * 3;
+    const double *mass = b->data.mass, *gravity = b->data.gravity;
+    const double (*R)[3][3] = (const double (*)[3][3])R_;
+    double *q = w->q, *qd = w->qd, *g = w->g;
+    double (*rho)[3] = (double (*)[3])w->rho, (*alpha)[3] = (double (*)[3])w->alpha;
+    double (*Q)[3][3] = (double (*)[3][3])w->Q, (*H)[3][3] = (double (*)[3][3])w->H;
+    double (*u)[3] = (double (*)[3])w->u, (*cc)[3] = (double (*)[3])w->c, (*fa)[3] = (double (*)[3])w->fa;
+    const double (*R0)[3] = R[N + e];
+    double *x0 = w->x0, *W0 = w->W0, *x0dot = w->x0dot;
+    for (int i = 0; i < 3; i++) {
+        x0[i] = p[cfg[i]];
+        x0dot[i] = yd[cfg[i]];
+        W0[i] = yd[cfg[3 + i]];
+    }
+    double *v = w->v, *vdot = w->vdot;
+    for (int i = 0; i < nv; i++) {
+        v[i] = p[vel[i]];
+        vdot[i] = yd[vel[i]];
+    }
+    /* ---- boundary coordinates (89) and their rates (91), node by node */
+    for (int k = 0; k < nb; k++) {
+        const idx_t P = nodes[k];
+        const int base = 6 + nm + 6 * k;
+        for (int i = 0; i < 3; i++) {
+            double s1 = 0.0, s2 = 0.0;
+            for (int j = 0; j < 3; j++) {
+                s1 += R0[j][i] * (p[cfg[base + j]] - x0[j]);
+                s2 += R0[j][i] * (yd[cfg[base + j]] - x0dot[j]);
+            }
+            rho[k][i] = s1;
+            u[k][i] = s2;
+            for (int j = 0; j < 3; j++) {
+                double s = 0.0;
+                for (int m = 0; m < 3; m++)
+                    s += R0[m][i] * R[P][m][j];
+                Q[k][i][j] = s;
+            }
+        }
+        alpha[k][0] = 0.5 * (Q[k][2][1] - Q[k][1][2]);
+        alpha[k][1] = 0.5 * (Q[k][0][2] - Q[k][2][0]);
+        alpha[k][2] = 0.5 * (Q[k][1][0] - Q[k][0][1]);
+        const double tr = Q[k][0][0] + Q[k][1][1] + Q[k][2][2];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                H[k][i][j] = 0.5 * ((i == j ? tr : 0.0) - Q[k][j][i]);
+        double *c = cc[k];
+        for (int i = 0; i < 3; i++) {
+            double s = 0.0;
+            for (int j = 0; j < 3; j++)
+                s += Q[k][j][i] * W0[j];
+            c[i] = yd[cfg[base + 3 + i]] - s;
+        }
+        double *rxW = w->v3;
+        ffrf_cross(rho[k], W0, rxW);
+        for (int i = 0; i < 3; i++) {
+            q[6 * k + i] = rho[k][i] - X_B[k][i];
+            q[6 * k + 3 + i] = alpha[k][i];
+            qd[6 * k + i] = u[k][i] + rxW[i];
+            double s = 0.0;
+            for (int j = 0; j < 3; j++)
+                s += H[k][i][j] * c[j];
+            qd[6 * k + 3 + i] = s;
+        }
+    }
+    for (int i = 0; i < nm; i++) {
+        q[6 * nb + i] = p[cfg[6 + i]];
+        qd[6 * nb + i] = yd[cfg[6 + i]];
+    }
+    const double *r = v + 6, *rdot = vdot + 6;
+    /* ---- residual rows */
+    for (int i = 0; i < 3; i++) {
+        F[i] = x0dot[i] - v[i];     /* (69b) */
+        F[3 + i] = W0[i] - v[3 + i]; /* (69d) */
+    }
+    double (*GW)[n] = (double (*)[n])w->GW;
+    if (gyro & FFRF_CORIOLIS)
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                GW[i][j] = W0[0] * G[0][i][j] + W0[1] * G[1][i][j] + W0[2] * G[2][i][j];
+    for (int i = 0; i < n; i++) { /* (79) and (78) */
+        double s1 = 0.0, s2 = 0.0;
+        for (int j = 0; j < n; j++) {
+            s1 += Me[i][j] * (qd[j] - r[j]);
+            s2 += Ke[i][j] * q[j] + Me[i][j] * rdot[j];
+            if (gyro & FFRF_CORIOLIS) {
+                s1 += GW[i][j] * q[j];
+                s2 += GW[i][j] * r[j];
+            }
+        }
+        F[6 + i] = s1;
+        g[i] = s2;
+    }
+    double *h = w->h, *torque = w->torque;
+    for (int i = 0; i < 3; i++) {
+        double s1 = 0.0, s2 = 0.0;
+        for (int j = 0; j < 3; j++) {
+            s1 += Je[i][j] * v[3 + j];
+            s2 += Je[i][j] * vdot[3 + j];
+        }
+        h[i] = s1;
+        torque[i] = s2;
+    }
+    if (gyro) { /* G_k q, G_k qdot; s_k = r^T G_k q (55), sdot_k = rdot^T G_k q + r^T G_k qdot */
+        double (*Gq)[n] = (double (*)[n])w->Gq, (*Gqd)[n] = (double (*)[n])w->Gqd;
+        for (int kk = 0; kk < 3; kk++) {
+            for (int i = 0; i < n; i++) {
+                double s1 = 0.0, s2 = 0.0;
+                for (int j = 0; j < n; j++) {
+                    s1 += G[kk][i][j] * q[j];
+                    s2 += G[kk][i][j] * qd[j];
+                }
+                Gq[kk][i] = s1;
+                Gqd[kk][i] = s2;
+            }
+            if (gyro & FFRF_COUPLING) {
+                double s = 0.0, sd = 0.0;
+                for (int i = 0; i < n; i++) {
+                    s += r[i] * Gq[kk][i];
+                    sd += rdot[i] * Gq[kk][i] + r[i] * Gqd[kk][i];
+                }
+                h[kk] += s;
+                torque[kk] += sd;
+            }
+        }
+    }
+    const int ex0 = nv, eT0 = nv + 3, eeta = nv + 6;
+    if (stiff) /* geometric stiffening (runtime/stiffening.py elastic_force): g += f_vk(q) - f0(Omega0) */
+        stiff_force(b, e, q, v + 3, g, w);
+    ffrf_cross(W0, h, w->v3);
+    for (int i = 0; i < 3; i++) {
+        F[eT0 + i] = torque[i] + w->v3[i];                     /* (77) */
+        F[ex0 + i] = mass[e] * vdot[i] - mass[e] * gravity[i]; /* (69a) */
+    }
+    for (int i = 0; i < nm; i++)
+        F[eeta + i] = g[6 * nb + i];
+    for (int k = 0; k < nb; k++) { /* g_B through (91) */
+        const int exP = nv + 6 + nm + 6 * k, eTP = nv + 9 + nm + 6 * k;
+        for (int i = 0; i < 3; i++) {
+            double s1 = 0.0, s2 = 0.0;
+            for (int j = 0; j < 3; j++) {
+                s1 += R0[i][j] * g[6 * k + j];
+                s2 += H[k][j][i] * g[6 * k + 3 + j];
+            }
+            F[exP + i] = s1;
+            F[ex0 + i] -= s1;
+            F[eTP + i] = s2;
+            fa[k][i] = s2;
+        }
+        ffrf_cross(rho[k], g + 6 * k, w->v3);
+        for (int i = 0; i < 3; i++) {
+            double s = 0.0;
+            for (int j = 0; j < 3; j++)
+                s += Q[k][i][j] * fa[k][j];
+            F[eT0 + i] -= w->v3[i] + s;
+        }
+    }
+    if (stiff) { /* stiffening.rotation_rows: W0 x (Jq Omega0) + Jq Omega0dot + Jqd Omega0, Jq = W1 q [+ q W2 q] */
+        const double *Om = v + 3, *Omd = vdot + 3;
+        const double (*W1)[3][3] = (const double (*)[3][3])b->data.W1 + (size_t)e * b->dims.n_w1;
+        double (*Jq)[3] = (double (*)[3])w->Jq, (*Jqd)[3] = (double (*)[3])w->Jqd;
+        double (*HQ)[n] = (double (*)[n])w->HQ;
+        const double (*Z)[n] = (const double (*)[n])w->Z;
+        for (int a = 0; a < 3; a++) {
+            for (int bb = 0; bb < 3; bb++) {
+                double s1 = 0.0, s2 = 0.0;
+                for (int j = 0; j < n; j++) {
+                    s1 += q[j] * W1[j][a][bb];
+                    s2 += qd[j] * W1[j][a][bb];
+                }
+                Jq[a][bb] = s1;
+                Jqd[a][bb] = s2;
+            }
+            for (int j = 0; j < n; j++)
+                HQ[a][j] = Z[a][j]; /* dh/dq = Z [+ V_j Omega0] */
+        }
+        if (n2 > 0) { /* V_j = sum_l q_l (W2_jl + W2_lj), Vd_j the same with qdot (deformed_inertia) */
+            const double (*W2)[n2][3][3] = (const double (*)[n2][3][3])b->data.W2 + (size_t)e * n2;
+            double (*V)[3][3] = (double (*)[3][3])w->V, (*Vd)[3][3] = (double (*)[3][3])w->Vd;
+            for (int j = 0; j < n; j++)
+                for (int a = 0; a < 3; a++)
+                    for (int bb = 0; bb < 3; bb++) {
+                        double s1 = 0.0, s2 = 0.0;
+                        for (int l = 0; l < n; l++) {
+                            const double wjl = W2[j][l][a][bb] + W2[l][j][a][bb];
+                            s1 += q[l] * wjl;
+                            s2 += qd[l] * wjl;
+                        }
+                        V[j][a][bb] = s1;
+                        Vd[j][a][bb] = s2;
+                    }
+            for (int a = 0; a < 3; a++) {
+                for (int bb = 0; bb < 3; bb++) {
+                    double s1 = 0.0, s2 = 0.0;
+                    for (int j = 0; j < n; j++) {
+                        s1 += q[j] * V[j][a][bb];
+                        s2 += qd[j] * V[j][a][bb];
+                    }
+                    Jq[a][bb] += 0.5 * s1; /* q W2 q = 1/2 sum_j q_j V_j */
+                    Jqd[a][bb] += s2;
+                }
+                for (int j = 0; j < n; j++) {
+                    double s = 0.0;
+                    for (int bb = 0; bb < 3; bb++)
+                        s += V[j][a][bb] * Om[bb];
+                    HQ[a][j] += s;
+                }
+            }
+        }
+        for (int a = 0; a < 3; a++) {
+            double s = 0.0;
+            for (int bb = 0; bb < 3; bb++)
+                s += Jq[a][bb] * Om[bb];
+            w->hs[a] = s;
+        }
+        ffrf_cross(W0, w->hs, w->v3);
+        for (int a = 0; a < 3; a++) {
+            double s = w->v3[a];
+            for (int bb = 0; bb < 3; bb++)
+                s += Jq[a][bb] * Omd[bb] + Jqd[a][bb] * Om[bb];
+            F[eT0 + a] += s;
+        }
+    }
+    if (jac)
+        jacobian(b, e, R0, w, Fz, Fy);
+}
+
+void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, const double *t_load_,
+                   const double *p, const double *yd, const double *R_, const double *theta_, int jac,
+                   double beta, double *F, double *JT_, double *Fl, double *Fz_, double *Fy_, double *T_)
+{
+    const int N = b->dims.N, E = b->dims.E, nc = b->dims.nc, nv = b->dims.nv, nb = b->dims.nb;
+    const int nf = b->dims.nf, nm = b->dims.nm, ny = b->dims.ny, ncv = nc + nv;
+    const idx_t (*cfg)[nc] = (const idx_t (*)[nc])b->data.cfg_map, (*vel)[nv] = (const idx_t (*)[nv])b->data.vel_map;
+    const idx_t (*nodes)[nb] = (const idx_t (*)[nb])b->data.se_nodes;
+    const idx_t *newton_pos = b->data.newton_pos;
+    const double (*f_load)[3] = (const double (*)[3])f_load_, (*t_load)[3] = (const double (*)[3])t_load_;
+    const double (*R)[3][3] = (const double (*)[3][3])R_, (*theta)[3] = (const double (*)[3])theta_;
+    double (*T)[3][3] = (double (*)[3][3])T_;
+    double (*JT)[nf] = (double (*)[nf])JT_;
+    double (*Fy)[ncv] = (double (*)[ncv])Fy_;
+    const double (*Fz)[ncv] = (const double (*)[ncv])Fz_;
+    memset(F, 0, sizeof(double) * (size_t)ny);
+    if (jac) {
+        memset(JT_, 0, sizeof(double) * (size_t)nf * (size_t)nf);
+        for (int r = 0; r < N + E; r++)
+            ffrf_tangent(theta[r], &T[r][0][0]);
+    }
+    double *tmp = w->v3b;
+    for (int e = 0; e < E; e++) {
+        ffrf_superelement(b, e, p, yd, R_, jac, Fl, Fz_, Fy_, w);
+        for (int i = 0; i < nv; i++)
+            F[vel[e][i]] += Fl[i];
+        for (int i = 0; i < nc; i++)
+            F[cfg[e][i]] += Fl[nv + i];
+        if (!jac)
+            continue;
+        /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T */
+        for (int i = 0; i < nv + nc; i++)
+            for (int blk = 0; blk < nb + 1; blk++) {
+                const int col = blk == 0 ? 3 : 9 + nm + 6 * (blk - 1);
+                double (*Tr)[3] = blk == 0 ? T[N + e] : T[nodes[e][blk - 1]];
+                for (int j = 0; j < 3; j++) {
+                    double s = 0.0;
+                    for (int m = 0; m < 3; m++)
+                        s += Fy[i][col + m] * Tr[m][j];
+                    tmp[j] = s;
+                }
+                for (int j = 0; j < 3; j++)
+                    Fy[i][col + j] = tmp[j];
+            }
+        for (int i = 0; i < nv + nc; i++) {
+            const idx_t gr = i < nv ? newton_pos[vel[e][i]] : newton_pos[cfg[e][i - nv]];
+            if (gr >= nf)
+                continue;
+            for (int j = 0; j < nc + nv; j++) {
+                const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
+                if (gc < nf)
+                    JT[gc][gr] += beta * Fy[i][j] + Fz[i][j];
+            }
+        }
+    }
+    /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
+    double (*S)[3] = (double (*)[3])w->S;
+    for (int k = 0; k < N; k++) {
+        for (int i = 0; i < 3; i++) {
+            F[6 * k + i] -= f_load[k][i];
+            double s = 0.0;
+            for (int j = 0; j < 3; j++)
+                s += R[k][j][i] * t_load[k][j];
+            tmp[i] = s;
+            F[6 * k + 3 + i] -= s;
+        }
+        if (jac && newton_pos[6 * k + 3] < nf) {
+            skew(tmp, S);
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) {
+                    double s = 0.0;
+                    for (int m = 0; m < 3; m++)
+                        s += S[i][m] * T[k][m][j];
+                    JT[newton_pos[6 * k + 3 + j]][newton_pos[6 * k + 3 + i]] -= beta * s;
+                }
+        }
+    }
+}
+
+int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *yd, const double *R, int jac,
+                           double *F, double *Fz, double *Fy)
+{
+    if (!b || !b->work.se || e < 0 || e >= b->dims.E || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
+        return -1;
+    ffrf_superelement(b, e, p, yd, R, jac, F, Fz, Fy, b->work.se);
+    return 0;
+}
