@@ -217,26 +217,36 @@ def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0
     yd the global rates; the same quantities as the fused path's `BodySystem._local`."""
     F = np.zeros(layout.ny)
     Fz, Fy = [], []
-    from .stiffening import plain_hooks
-
-    for e, sd in enumerate(data.superelements):
-        se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
-        cfg, vel = layout.cfg_map[e], layout.vel_map[e]
-        hooks = {}
-        full = terms == "full"
-        use_W1 = sd.stiffening or (full and "inertia_W1" in full_terms)
-        use_W2 = full and "inertia_W2" in full_terms
-        if use_W1 or use_W2:  # geometric stiffening, deformation-dependent inertia (runtime/stiffening.py)
-            sd_h = sd if use_W1 else dataclasses.replace(sd, W1=0.0 * sd.W1)
-            g_term, row_term = plain_hooks(sd_h, membrane=sd.stiffening, W2=use_W2)
-            hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        parts = tuple(p for p in ("inertia_coupling", "coriolis") if terms == "gyroscopic" or (full and p in full_terms))
-        Fe, Fze, Fye = residual_and_jacobian(se, "linear", gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
-                                             v[e], yd[cfg], yd[vel], parts=parts, **hooks)
-        np.add.at(F, np.concatenate([vel, cfg]), Fe)
+    for e in range(len(data.superelements)):
+        Fe, Fze, Fye = superelement_residual_and_jacobian(data, layout, terms, gravity, e, xN, RN, x0, R0, eta, v, yd,
+                                                          full_terms)
+        np.add.at(F, np.concatenate([layout.vel_map[e], layout.cfg_map[e]]), Fe)
         Fz.append(Fze)
         Fy.append(Fye)
     return F, np.stack(Fz), np.stack(Fy)
+
+
+def superelement_residual_and_jacobian(data, layout, terms: str, gravity, e: int, xN, RN, x0, R0, eta, v, yd,
+                                       full_terms=("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")):
+    """Superelement e of a body through `residual_and_jacobian` with the hooks of its term set: its
+    local rows F (nv + nc,) and blocks F_ydot, F_y (nv + nc, nc + nv), at the body's configuration
+    and global rates yd (arguments as `body_residual_and_jacobian`)."""
+    from .stiffening import plain_hooks
+
+    sd = data.superelements[e]
+    se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
+    cfg, vel = layout.cfg_map[e], layout.vel_map[e]
+    hooks = {}
+    full = terms == "full"
+    use_W1 = sd.stiffening or (full and "inertia_W1" in full_terms)
+    use_W2 = full and "inertia_W2" in full_terms
+    if use_W1 or use_W2:  # geometric stiffening, deformation-dependent inertia (runtime/stiffening.py)
+        sd_h = sd if use_W1 else dataclasses.replace(sd, W1=0.0 * sd.W1)
+        g_term, row_term = plain_hooks(sd_h, membrane=sd.stiffening, W2=use_W2)
+        hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
+    parts = tuple(p for p in ("inertia_coupling", "coriolis") if terms == "gyroscopic" or (full and p in full_terms))
+    return residual_and_jacobian(se, "linear", gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],
+                                 v[e], yd[cfg], yd[vel], parts=parts, **hooks)
 
 
 def project_boundary_force(kin: Kinematics, g, dg_z, dg_y, nv: int, nm: int):
