@@ -131,6 +131,9 @@ def info(args) -> int:
                                                   stiffening=advice.stiffening)
     inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": advice.terms, "superelements": advice.superelements,
                               "stiffening": advice.stiffening, "reason": advice.reasons["terms"]}
+    # the first bending frequency of each direction at the top spin (the body linearized about its steady spin)
+    inertia["stiffened_frequencies_hz"] = advice.indicators["stiffened_frequencies_hz"]
+    inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
     if args.json:
         out = {
             "model": model.path,
@@ -173,6 +176,9 @@ def info(args) -> int:
               f"first frequency: about the spin axis W1 q/I0 {worst('W1q_spin_axis'):.1e}, "
               f"q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n    centrifugal softening {worst('softening'):.1e}, "
               f"Coriolis {worst('coriolis'):.1e}, widening {worst('widening'):.1e} of the length")
+        sf = inertia["stiffened_frequencies_hz"]
+        print(f"  first bending at {spin:g} rad/s: in the plane of rotation {sf['in-plane']:.4f} Hz, out of it "
+              f"{sf['out-of-plane']:.4f} Hz ({inertia['stiffened_frequencies_source']})")
     needed = [k for k, v in inertia["needed"].items() if v]
     print(f"  Witteveen's flags (his section 8): {', '.join(needed) or 'nothing beyond the linear terms'}")
     eff = inertia["term_effects"]

@@ -17,6 +17,8 @@ diagonal because U is taken about the CM.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -202,3 +204,71 @@ def spin_modes(system, omega: float, axis=(0.0, 0.0, 1.0), f_max: float = 50.0):
     vec = vec[:, keep]
     order = np.argsort(np.nan_to_num(f, nan=-1.0))
     return f[order], vec[:, order]
+
+
+# ---------------------------------------------------------------------------------------------
+# Each mode about the steady spin with its direction (shared/spec/stiffening.md: out of the plane of
+# rotation omega^2 = omega_0^2 + K Omega^2, in the plane omega^2 = omega_0^2 + (K - 1) Omega^2; the
+# two first frequencies differ by the centrifugal softening Omega^2 of the in-plane motion, 1.6 x at
+# 4 rad/s on B1). A mode's direction is where its boundary nodes move, relative to the spin axis a
+# and the beam axis e: along a (out-of-plane, flap), along a x e (in-plane, lead-lag), along e
+# (axial), or rotating about e (torsion).
+# ---------------------------------------------------------------------------------------------
+
+DIRECTIONS = ("in-plane", "out-of-plane", "axial", "torsion")
+
+
+@dataclass(frozen=True)
+class SpinMode:
+    """One small vibration about the steady spin: its frequency in the spinning frame [Hz] (NaN:
+    divergent), its direction (one of DIRECTIONS) and the share of the boundary nodes' motion in each
+    direction (translations, and rotations times the beam length)."""
+
+    frequency_hz: float
+    direction: str
+    shares: dict
+
+
+def mode_directions(system, vectors: np.ndarray, axis, beam_direction, length: float) -> list[tuple[str, dict]]:
+    """(direction, shares) of each eigenvector (columns on the system's unknowns, spin_modes): the squared
+    motion of the boundary nodes projected on the spin axis a (out-of-plane), a x e (in-plane), the beam
+    axis e (axial) and the rotation about e times `length` (torsion); bending rotations count with their
+    plane (a rotation about a moves the beam in the plane of rotation). A spin about the beam's own axis
+    has no plane of rotation: every bending mode is then called in-plane."""
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    e = np.asarray(beam_direction, dtype=float) / np.linalg.norm(beam_direction)
+    t = np.cross(a, e)
+    if np.linalg.norm(t) < 1e-9:  # spin about the beam axis: any normal will do
+        t = np.cross(e, [1.0, 0.0, 0.0] if abs(e[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    a_n = np.cross(e, t)  # the part of a normal to the beam (a itself for a spin normal to the beam)
+    n_nodes = system.layout.n_nodes
+    out = []
+    for v in np.atleast_2d(vectors.T):
+        full = np.zeros(system.layout.ny, dtype=complex)
+        full[system.unknowns] = v
+        node = full[: 6 * n_nodes].reshape(n_nodes, 6)
+        u, r = node[:, 0:3], node[:, 3:6] * length
+        power = lambda x, d: float(np.sum(np.abs(x @ d) ** 2))  # noqa: E731
+        parts = {"in-plane": power(u, t) + power(r, a_n), "out-of-plane": power(u, a_n) + power(r, t),
+                 "axial": power(u, e), "torsion": power(r, e)}
+        total = sum(parts.values()) or 1.0
+        shares = {k: v / total for k, v in parts.items()}
+        out.append((max(shares, key=shares.get), shares))
+    return out
+
+
+def directional_spin_modes(system, omega: float, axis=(0.0, 0.0, 1.0), *, beam_direction=(1.0, 0.0, 0.0),
+                           length: float = 1.0, f_max: float = 50.0) -> list[SpinMode]:
+    """spin_modes with each mode's direction (mode_directions), ascending in frequency."""
+    f, V = spin_modes(system, omega, axis, f_max)
+    dirs = mode_directions(system, V, axis, beam_direction, length) if len(f) else []
+    return [SpinMode(float(fi), d, s) for fi, (d, s) in zip(f, dirs)]
+
+
+def first_by_direction(modes: list[SpinMode]) -> dict:
+    """The lowest frequency [Hz] of each direction that has a mode (NaN when its first mode diverges)."""
+    out: dict = {}
+    for m in modes:
+        out.setdefault(m.direction, m.frequency_hz)
+    return out

@@ -40,6 +40,69 @@ def test_period_error_of_the_integrator():
     assert abs(ad.period_error(4.0 * h, 0.8)) == pytest.approx(1e-3, rel=1e-6)
 
 
+# shared/spec/stiffening.md, B1 data (80 Euler-Bernoulli elements): Omega [rad/s] -> (flap, in-plane) [Hz]
+STIFFENING_TABLE = {4.0: (0.8305, 0.5334), 8.0: (1.4329, 0.6573), 12.0: (2.0611, 0.7748)}
+
+
+@pytest.mark.parametrize("omega", sorted(STIFFENING_TABLE))
+def test_stiffened_frequencies_per_direction_from_the_body(omega):
+    """The advisor's (and info's) stiffened frequencies are the body's own, linearized about the steady
+    spin, each with its direction: out of the plane of rotation the Southwell coefficient is S1, in it
+    S1 - 1, so the two differ by 1.6 x at 4 rad/s and 2.7 x at 12 rad/s (the in-plane value for an
+    out-of-plane mode, the old rule, states less than half the flap frequency at 8 rad/s). B1's model
+    (4 SE x 8 elements, Timoshenko) against the table's Euler-Bernoulli mesh: measured within 2e-4;
+    3e-3 is 10 x below the smallest difference of a wrong direction or coefficient (S1 for in-plane:
+    +8 % at 4 rad/s)."""
+    from ffrf_fmu.model import scene_body
+    from ffrf_fmu.studies.indicators import stiffened_frequencies
+
+    model = load_model(B1, [f"scenes.spinup_fast.drives.hub.rotation.angle.omega={omega}"])
+    scene = model.scene("spinup_fast")
+    f = stiffened_frequencies(scene_body(model.body, scene), scene, omega, np.array([0.0, 0.0, 1.0]))
+    flap, inplane = STIFFENING_TABLE[omega]
+    assert "linearized" in f["source"]
+    assert f["out-of-plane"] == pytest.approx(flap, rel=3e-3)
+    assert f["in-plane"] == pytest.approx(inplane, rel=3e-3)
+
+
+def test_step_follows_the_stiffened_frequency_of_the_excited_direction(beam_toml, tmp_path):
+    """A spin-up alone excites the plane of rotation; a tip load along the spin axis excites the flap,
+    whose stiffened frequency is higher (1.43 against 0.66 Hz at 8 rad/s): the advisor's relevant
+    frequency, and so its step, follows the flap frequency then (the load window's own band kept low)."""
+    base = """
+[scenes.s]
+duration = 20.0
+step = 0.002
+rho_inf = 0.8
+[scenes.s.metrics]
+kind = "tip_deflection"
+primary = "tip_deflection_max_m"
+[scenes.s.drives.hub.rotation]
+axis = [0.0, 0.0, 1.0]
+angle = { kind = "haug_spinup", omega = 8.0, T = 15.0 }
+"""
+    load = """[[scenes.s.loads]]
+port = "tip"
+force = [0.0, 0.0, 1.0]
+t_start = 16.0
+t_end = 19.0
+"""
+    inplane, flap = tmp_path / "inplane.toml", tmp_path / "flap.toml"
+    inplane.write_text(beam_toml(base, superelements=1, elements=8))
+    flap.write_text(beam_toml(base + load, superelements=1, elements=8))
+    a_in, a_flap = ad.advise(str(inplane), "s", 0.01), ad.advise(str(flap), "s", 0.01)
+    assert a_in.indicators["excited_directions"] == ["in-plane"]
+    assert a_flap.indicators["excited_directions"] == ["in-plane", "out-of-plane"]
+    f = a_flap.indicators["stiffened_frequencies_hz"]
+    assert f["out-of-plane"] > 2.0 * f["in-plane"]
+    assert a_in.indicators["relevant_frequency_hz"] == pytest.approx(1.2732, rel=1e-3)  # the spin rate 8 rad/s
+    assert a_flap.indicators["relevant_frequency_hz"] == pytest.approx(f["out-of-plane"])
+    # the same chain and budget: the step the accuracy allows scales with 1 / the relevant frequency
+    assert a_flap.indicators["step_budget"] == pytest.approx(a_in.indicators["step_budget"])
+    assert a_flap.indicators["step_accuracy_s"] / a_in.indicators["step_accuracy_s"] == pytest.approx(
+        1.2732 / f["out-of-plane"], rel=1e-3)
+
+
 def test_no_spin_one_superelement_linear_terms():
     # B1's beam with the hub free (co-simulation scene): nothing spins, nothing to stiffen
     a = ad.advise(B1, "hub_free", 0.01)

@@ -8,15 +8,18 @@ derivations and their check against the B1 chart. The tolerance is shared as an 
 chain may use CHAIN_SHARE of it, the step what the chain leaves up to RESERVE; the rest is kept for
 what no rule estimates (modal truncation, interactions).
 
-1. Stiffening and superelements, from the spin. A beam spun about its root has its first bending
-   frequency omega^2 = omega_1^2 + K Omega^2 in the rotating frame (Southwell): K = S1 - 1 in the
-   plane of rotation, S1 = 1.193 (`southwell_coefficient`). When sigma = (Omega_max/omega_1)^2
-   reaches STIFFENING_SIGMA, stiffening is turned on: each superelement then carries its own
-   centrifugal axial force (docs/equations.md), and what a chain of N still misses is predicted as
-   STIFFENED_ERROR (Omega_max/omega_se)^2, omega_se the first free-free frequency of one of its
-   superelements (Witteveen's in-superelement centrifugal indicator); N is the smallest count within
-   CHAIN_SHARE x tolerance. (Before stiffening existed, this rule predicted the deficit of a chain of
-   linear superelements with a constant calibrated on B1 and checked on B1: gone.)
+1. Stiffening and superelements, from the spin. A beam spun about its root stiffens (Southwell): its
+   first bending frequency in the rotating frame is omega^2 = omega_1^2 + S1 Omega^2 out of the plane
+   of rotation and omega_1^2 + (S1 - 1) Omega^2 in it (S1 = 1.193 for a cantilever,
+   `southwell_coefficient`; 0.83 against 0.53 Hz on B1 at 4 rad/s). The advice takes both from the body
+   itself (`stiffened_frequencies`: the reduced chain with stiffening linearized about the scene's steady
+   spin, linear.directional_spin_modes, each mode with its direction), Southwell's law with each
+   direction's coefficient only where the body has no steady spin to linearize about. When
+   sigma = (Omega_max/omega_1)^2 reaches STIFFENING_SIGMA, stiffening is turned on: each superelement
+   then carries its own centrifugal axial force (docs/equations.md), and what a chain of N still misses
+   is predicted as STIFFENED_ERROR (Omega_max/omega_se)^2, omega_se the first free-free frequency of
+   one of its superelements (Witteveen's in-superelement centrifugal indicator); N is the smallest
+   count within CHAIN_SHARE x tolerance.
 2. Modes per superelement, from the excitation band (`excitation`): free-free modes above
    MODE_BAND x the highest excitation frequency respond quasi-statically and are dropped, but the
    first bending pair is always kept (static response to distributed inertial loads).
@@ -31,7 +34,9 @@ what no rule estimates (modal truncation, interactions).
    (`step_cost`, measured per backend) is lower. Measured on disk_rotor, where the terms matter: on numpy
    3 linear superelements are cheaper than 1 with `full` (1.26 against 2.71), on numba 1 with `full`
    is (1.09 against 1.20): the advice depends on the backend that runs the body (docs/inertia-terms.md).
-4. Step, from the highest relevant (kept and excited) frequency and the drive's time scale: the
+4. Step, from the highest relevant (kept and excited) frequency and the drive's time scale (the first
+   bending frequency at the top spin of each direction the scene excites, `excited_directions`: the
+   drive in the plane of rotation, loads and gravity by their direction): the
    integrator's period error (`period_error`, from its amplification matrix) times
    STEP_ERROR_FACTOR (+ FMU_INPUT_FACTOR through the FMU) within the budget the chain leaves, and
    at least STEPS_PER_DRIVE_TIME steps per spin-up time (Newton robustness); rounded down to a
@@ -56,8 +61,8 @@ from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_
 from .chart import label, primary_metric
 from .task import make_task
 from .indicators import (excitation, drive_time_scale, first_frequency, free_free_frequencies, largest_step,
-                         nice_step, period_error, rechain, reduced, southwell_coefficient, spin_history, step_cost,
-                         valid_count)
+                         excited_directions, nice_step, period_error, rechain, reduced, southwell_coefficient,
+                         spin_history, step_cost, stiffened_frequencies, valid_count)
 
 
 # ------------------------------------------------------------------------------ the advice
@@ -136,6 +141,11 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         t = rate = acc = axis = None
         source, spin, normal = "none", 0.0, 0.0
     sigma = (spin / w1) ** 2 if w1 > 0 else 0.0
+    # the first bending frequency of each direction at the top spin, from the body linearized about it
+    f_dir = stiffened_frequencies(body, scene, spin, axis)
+    excited = sorted(d for d in excited_directions(scene, axis, body.direction) if d in ("in-plane", "out-of-plane"))
+    ind |= {"stiffened_frequencies_hz": {d: f_dir[d] for d in ("in-plane", "out-of-plane")},
+            "stiffened_frequencies_source": f_dir["source"], "excited_directions": excited}
     ind |= {"first_frequency_hz": f1, "spin_rad_s": spin, "spin_source": source, "sigma": sigma,
             "southwell_S1": S1, "stiffening_K": K, "spin_axis": None if axis is None else [float(x) for x in axis]}
 
@@ -155,7 +165,8 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         why["stiffening"] = (
             f"spin up to {spin:.3g} rad/s ({source}) against the first bending frequency {f1:.4g} Hz "
             f"({w1:.3g} rad/s): sigma = (Omega/omega_1)^2 = {sigma:.3g} >= {STIFFENING_SIGMA:g}: geometric stiffening "
-            f"(Southwell, S1 = {S1:.4f}: omega^2 = omega_1^2 + {K:.3f} Omega^2 in the plane of rotation) matters; "
+            f"(at {spin:.3g} rad/s the first bending frequency is {f_dir['in-plane']:.4g} Hz in the plane of rotation and "
+            f"{f_dir['out-of-plane']:.4g} Hz out of it: {f_dir['source']}) matters; "
             "stiffened superelements carry their own centrifugal axial force (docs/equations.md) -> on")
         why["superelements"] = (
             f"stiffened superelements miss STIFFENED_ERROR x (Omega/omega_se)^2 = {STIFFENED_ERROR:g} x "
@@ -238,7 +249,9 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     e_n = e_n + e_nl
 
     # --- step: the budget the chain leaves, the relevant frequency, the drive's time scale
-    w_rot = math.sqrt(w1**2 + K * spin**2)
+    f_stiff = {d: f_dir[d] for d in excited if math.isfinite(f_dir[d])}
+    top_dir = max(f_stiff, key=f_stiff.get) if f_stiff else "in-plane"
+    w_rot = 2 * math.pi * f_stiff[top_dir] if f_stiff else math.sqrt(w1**2 + K * spin**2)
     f_rel = max(f_exc, w_rot / (2 * math.pi))
     step_budget = max(RESERVE * tolerance - e_n - e_t, 0.05 * tolerance)
     factor = STEP_ERROR_FACTOR + (FMU_INPUT_FACTOR if fmu else 0.0)
@@ -257,8 +270,8 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
     if T_drive:
         limits.append(f"the drive's time scale {T_drive:g} s / {STEPS_PER_DRIVE_TIME}: h <= {h_drive:.3g} s")
     why["step"] = (
-        f"highest relevant frequency {f_rel:.3g} Hz (excitation {f_exc:.3g} Hz; first bending stiffened at the "
-        f"top spin {w_rot / (2 * math.pi):.3g} Hz); " + "; ".join(limits) + f" -> h = {h:g} s (predicted step "
+        f"highest relevant frequency {f_rel:.3g} Hz (excitation {f_exc:.3g} Hz; first bending at the top spin "
+        f"{w_rot / (2 * math.pi):.3g} Hz {top_dir}, the highest of the excited directions ({', '.join(excited)})); " + "; ".join(limits) + f" -> h = {h:g} s (predicted step "
         f"error {e_h:.2%}). The kept modes (up to {ind['highest_kept_free_free_hz']:.3g} Hz) lie above the "
         f"excitation band and respond quasi-statically; generalized-alpha (rho_inf = {scene.rho_inf:g}) is "
         "unconditionally stable" + (" and damps them" if scene.rho_inf < 1 else "") + ": they need not be resolved")

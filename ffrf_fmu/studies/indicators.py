@@ -218,3 +218,74 @@ def spin_history(scene, n_max: int = 200_001):
         return None
     t, rate, acc, axis, src = best
     return t, rate, acc, axis / np.linalg.norm(axis), src
+
+
+def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:
+    """The first bending frequency of each direction at the scene's top spin, from the body itself: the
+    reduced chain with stiffening and the gyroscopic terms linearized about its steady spin
+    (linear.directional_spin_modes; docs/stability.md, docs/accuracy.md "Rotating cantilever"), each mode
+    told in-plane or out-of-plane by where it moves relative to the spin axis. Where the body has no
+    steady spin to linearize about (no drive about an axis through a motion-driven port at the origin,
+    e.g. a free body's initial spin), Southwell's law with the coefficient of each direction:
+    omega^2 = omega_1^2 + S1 Omega^2 out of the plane, omega_1^2 + (S1 - 1) Omega^2 in it.
+    Returns {"in-plane": Hz, "out-of-plane": Hz, "source": text, "modes": [(Hz, direction), ...]}."""
+    from ..linear import directional_spin_modes, first_by_direction, natural_frequencies
+    from ..runtime.body import BodySystem
+
+    data, _ = reduced(dataclasses.replace(body, modes=max(body.modes, 2)))
+    if spin <= 0.0:
+        f0 = natural_frequencies(data)
+        f1 = float(f0[0]) if len(f0) else math.nan
+        return {"in-plane": f1, "out-of-plane": f1, "source": "no spin: the body's first frequency", "modes": []}
+    held = [p for p in data.ports if p.translation == "motion" and p.rotation == "motion"]
+    through = held and np.linalg.norm(np.cross(axis, data.node_positions[held[0].node])) <= 1e-9 * body.length
+    if through:
+        from ..reduction import build_body
+
+        data, _ = build_body(dataclasses.replace(body, modes=max(body.modes, 2)), stiffening=True)
+        try:
+            modes = directional_spin_modes(BodySystem(data, terms="gyroscopic"), spin, axis,
+                                           beam_direction=body.direction, length=body.length,
+                                           f_max=max(50.0, 10 * spin))
+            first = first_by_direction(modes)
+            if "in-plane" in first and "out-of-plane" in first:
+                return {"in-plane": first["in-plane"], "out-of-plane": first["out-of-plane"],
+                        "source": f"the reduced body with stiffening linearized about its steady spin at {spin:.3g} rad/s",
+                        "modes": [(m.frequency_hz, m.direction) for m in modes[:8]]}
+        except (RuntimeError, np.linalg.LinAlgError):
+            pass
+    w1 = 2 * math.pi * first_frequency(body)
+    S1 = southwell_coefficient()
+    return {"in-plane": math.sqrt(max(w1**2 + (S1 - 1.0) * spin**2, 0.0)) / (2 * math.pi),
+            "out-of-plane": math.sqrt(w1**2 + S1 * spin**2) / (2 * math.pi),
+            "source": f"Southwell's law (S1 = {S1:.4f}; no steady spin of the body to linearize about)", "modes": []}
+
+
+def excited_directions(scene, axis, beam_direction) -> set:
+    """Which bending directions the scene excites, relative to the spin axis a and the beam axis e: a
+    rotation drive (its angular acceleration, Coriolis) and loads or gravity normal to a move the beam in
+    the plane of rotation; loads, moments about the in-plane normal, gravity and initial displacements
+    along a move it out of that plane. Without a spin axis both directions count."""
+    if axis is None:
+        return {"in-plane", "out-of-plane"}
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    e = np.asarray(beam_direction, dtype=float) / np.linalg.norm(beam_direction)
+    t = np.cross(a, e)
+    t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else t
+    out = set()
+    if any(d.rotation is not None for d in scene.drives):
+        out.add("in-plane")
+    vecs = [np.asarray(ld.force, float) for ld in scene.loads] + [np.asarray(scene.gravity, float)]
+    vecs += [np.asarray(u, float) for _, u in scene.initial.port_displacements]
+    moments = [np.asarray(ld.moment, float) for ld in scene.loads]
+    for v in vecs:
+        if abs(v @ a) > 1e-12 * max(np.linalg.norm(v), 1e-300):
+            out.add("out-of-plane")
+        if abs(v @ t) > 1e-12 * max(np.linalg.norm(v), 1e-300):
+            out.add("in-plane")
+    for mv in moments:
+        if abs(mv @ t) > 1e-12 * max(np.linalg.norm(mv), 1e-300):
+            out.add("out-of-plane")
+        if abs(mv @ a) > 1e-12 * max(np.linalg.norm(mv), 1e-300):
+            out.add("in-plane")
+    return out or {"in-plane"}
