@@ -19,7 +19,8 @@ except ModuleNotFoundError:  # Python 3.10: tomli is a dependency there
     import tomli as tomllib
 
 MODULE = {"libcosimpy": "libcosimpy.CosimExecution",  # the package imports lazily: load its library
-          "dask[distributed]": "distributed"}  # the extra is what the project uses
+          "dask[distributed]": "distributed",  # the extra is what the project uses
+          "scikit-fem": "skfem"}
 
 
 def _import(name: str) -> None:

@@ -122,18 +122,26 @@ def info(args) -> int:
     inertia["spin_source"] = spin_source
     # what each term does on this chain's steady spin (the indicator of term_rule.choose_term_set), and
     # the recommendation: the advisor itself at INFO_TOLERANCE (one rule for info and advise)
-    from .term_rule import INFO_TOLERANCE, steady_term_effects
-    from .studies.advise import advise
+    from .term_rule import INFO_TOLERANCE, choose_term_set, steady_term_effects
 
-    advice = advise(model, scene.name, INFO_TOLERANCE)
-    # W1 q is part of the stiffening option too: the terms are weighed with the stiffening the advisor picks
-    inertia["term_effects"] = steady_term_effects(scene_body(body, scene), scene,
-                                                  stiffening=advice.stiffening)
-    inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": advice.terms, "superelements": advice.superelements,
-                              "stiffening": advice.stiffening, "reason": advice.reasons["terms"]}
-    # the first bending frequency of each direction at the top spin (the body linearized about its steady spin)
-    inertia["stiffened_frequencies_hz"] = advice.indicators["stiffened_frequencies_hz"]
-    inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
+    if body.solid is not None:  # one superelement, no stiffening: the term-set rule alone (the advisor sizes chains)
+        inertia["term_effects"] = steady_term_effects(scene_body(body, scene), scene)
+        terms, reason = choose_term_set(inertia["term_effects"], INFO_TOLERANCE)
+        inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": terms, "superelements": 1,
+                                  "stiffening": False, "reason": reason}
+    else:
+        from .studies.advise import advise
+
+        advice = advise(model, scene.name, INFO_TOLERANCE)
+        # W1 q is part of the stiffening option too: the terms are weighed with the stiffening the advisor picks
+        inertia["term_effects"] = steady_term_effects(scene_body(body, scene), scene,
+                                                      stiffening=advice.stiffening)
+        inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": advice.terms,
+                                  "superelements": advice.superelements,
+                                  "stiffening": advice.stiffening, "reason": advice.reasons["terms"]}
+        # the first bending frequency of each direction at the top spin (the body linearized about its steady spin)
+        inertia["stiffened_frequencies_hz"] = advice.indicators["stiffened_frequencies_hz"]
+        inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
     if args.json:
         out = {
             "model": model.path,
@@ -151,15 +159,29 @@ def info(args) -> int:
         json.dump(out, sys.stdout, indent=2)
         print()
         return 0
-    sec = body.section
-    kind = "Timoshenko" if sec.GA2 is not None else "Euler-Bernoulli"
     print(f"model {model.path}: body {body.name!r}, scene {scene.name!r}")
-    print(f"  beam: L = {body.length:g} m from {list(body.origin)} along {list(body.direction)}, {kind}, "
-          f"EA = {sec.EA:g} N, EI2 = {sec.EI2:g}, EI3 = {sec.EI3:g} N m^2, m = {sec.m:g} kg/m")
-    print(f"  {len(ses)} superelements x {body.elements_per_superelement} elements, "
-          f"{n_nodes} boundary nodes, {body.modes} free-free modes kept per superelement")
-    for p in ports:
-        print(f"  port {p.name}: node {p.node}, translation {p.translation}, rotation {p.rotation}")
+    if body.solid is not None:
+        import numpy as np
+
+        red, spec = reductions[0], body.solid
+        what = (f"{spec.element} mesh ({red.fe.source})" if spec.source == "mesh" else
+                f"{spec.source} export ({red.fe.source}; units: {spec.units})")
+        print(f"  solid: {what}, {red.fe.n_nodes} nodes, size {body.length:.4g} m (bounding-box diagonal), "
+              f"mass {red.data.mass:.6g} kg, CM {np.round(red.data.x_cm, 6).tolist()} m")
+        print(f"  1 superelement, {n_nodes} interface frames, "
+              + (f"modes up to {spec.cutoff_hz:g} Hz" if spec.cutoff_hz else f"{body.modes} free-free modes kept"))
+        for p, fr in zip(ports, red.frames):
+            print(f"  port {p.name}: frame {p.node} at {np.round(fr.point, 6).tolist()} m on {fr.nodes.size} nodes "
+                  f"({fr.coupling}), translation {p.translation}, rotation {p.rotation}")
+    else:
+        sec = body.section
+        kind = "Timoshenko" if sec.GA2 is not None else "Euler-Bernoulli"
+        print(f"  beam: L = {body.length:g} m from {list(body.origin)} along {list(body.direction)}, {kind}, "
+              f"EA = {sec.EA:g} N, EI2 = {sec.EI2:g}, EI3 = {sec.EI3:g} N m^2, m = {sec.m:g} kg/m")
+        print(f"  {len(ses)} superelements x {body.elements_per_superelement} elements, "
+              f"{n_nodes} boundary nodes, {body.modes} free-free modes kept per superelement")
+        for p in ports:
+            print(f"  port {p.name}: node {p.node}, translation {p.translation}, rotation {p.rotation}")
     print("  superelement  FE dofs -> reduced  |U^T M Y|  block-diag  free-free modes [Hz]")
     for i, s in enumerate(ses):
         print(f"  {i:>12}  {s['n_fe_dofs']:>7} -> {s['n_reduced_dofs']:<7}  {s['orthogonality_error']:9.1e}  "
@@ -176,7 +198,8 @@ def info(args) -> int:
               f"first frequency: about the spin axis W1 q/I0 {worst('W1q_spin_axis'):.1e}, "
               f"q W2 q/I0 {worst('qW2q_spin_axis'):.1e}\n    centrifugal softening {worst('softening'):.1e}, "
               f"Coriolis {worst('coriolis'):.1e}, widening {worst('widening'):.1e} of the length")
-        sf = inertia["stiffened_frequencies_hz"]
+        sf = inertia.get("stiffened_frequencies_hz")  # beams only (the advisor's directions)
+    if spin and sf:
         print(f"  first bending at {spin:g} rad/s: in the plane of rotation {sf['in-plane']:.4f} Hz, out of it "
               f"{sf['out-of-plane']:.4f} Hz ({inertia['stiffened_frequencies_source']})")
     needed = [k for k, v in inertia["needed"].items() if v]

@@ -71,6 +71,7 @@ class Invariants:
     G: np.ndarray  # (3, n, n) G_k = Phi^T M_k Phi
     P: np.ndarray  # (n, n, 3, 3) P_jl[a, b] = int Phi_j,a Phi_l,b rho
     amplitude: np.ndarray  # (n,) modal amplitude at which the largest displacement is DEFLECTION * length
+    dofs_per_node: int = 6  # rows of Phi per FE node, translations first (beam 6, solid 3)
 
     def inertia(self, q) -> np.ndarray:
         """Inertia tensor of the deformed body about the (undeformed) CM: I0 + W1 q + q^T W2 q."""
@@ -139,6 +140,10 @@ def body_invariants(body: Body, reductions=None) -> list[Invariants]:
         from .reduction import build_body
 
         reductions = build_body(body)[1]
+    if body.solid is not None:
+        from .reduction_sparse import solid_invariants
+
+        return [solid_invariants(red) for red in reductions]
     from .reduction import superelement_models
 
     out = []
@@ -212,7 +217,7 @@ def indicators(inv: Invariants, spin_rate: float | None = None, spin_axis=None) 
         f0, Kc = inv.centrifugal(w)
         Gw = inv.coriolis(w)
         qs = f0 / inv.omega**2  # K^-1 f0: static widening
-        u = np.linalg.norm((inv.Phi @ qs).reshape(-1, 6)[:, :3], axis=1).max()
+        u = np.linalg.norm((inv.Phi @ qs).reshape(-1, inv.dofs_per_node)[:, :3], axis=1).max()
         K = np.diag(inv.omega**2)
         if nv:  # inertia change about the spin axis only (what a planar spin feels)
             nIn = n @ inv.I0 @ n

@@ -76,6 +76,34 @@ class PointMass:
 
 
 @dataclass(frozen=True)
+class SolidFrame:
+    """A solid's port frame (docs/model-format.md, solids): its node selection (solid/frames.py) as
+    canonical JSON (hashable), the link of the set to the frame, and its origin (None: the set's centroid)."""
+
+    port: str
+    select: str  # JSON of the selection table, e.g. {"near": {"set": "BCleft", "radius": 0.08}}
+    link: str  # "rigid" (RBE2) | "averaging" (RBE3)
+    point: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class SolidSpec:
+    """[body] kind = "solid" (docs/model-format.md): where K and M come from and how it is reduced.
+
+    source "mesh": a mesh (a file read with meshio, or a generated box/cylinder) assembled with
+    scikit-fem from the material; "abaqus"/"ansys": a partner's exported matrices, read as they are."""
+
+    source: str  # "mesh" | "abaqus" | "ansys"
+    files: tuple[tuple[str, str], ...] = ()  # (role, absolute path): mesh | inp, stiffness, mass | mapping, nodes, elements
+    generated: tuple[tuple[str, Any], ...] = ()  # ("box"|"cylinder", parameters as sorted pairs), when no mesh file
+    element: str = ""  # hex8 | hex20 | hex27 | tet4 | tet10 (mesh only)
+    material: tuple[float, float, float] | None = None  # E [Pa], nu, rho [kg/m^3] (mesh only)
+    cutoff_hz: float | None = None  # keep every free-free mode up to this frequency (besides or instead of modes)
+    frames: tuple[SolidFrame, ...] = ()
+    units: str = ""  # the units assumed for an export (stated in the model file)
+
+
+@dataclass(frozen=True)
 class Body:
     name: str
     length: float
@@ -88,6 +116,7 @@ class Body:
     ports: tuple[Port, ...]
     source: str = ""  # file the body came from (for messages)
     masses: tuple[PointMass, ...] = ()  # point masses at FE nodes
+    solid: "SolidSpec | None" = None  # kind = "solid": its mesh or export and frames (section is then None)
 
     def port(self, name: str) -> Port:
         for p in self.ports:
@@ -219,6 +248,7 @@ class Model:
 
 TOP_KEYS = {"body": "a table [body]", "scenes": "a table of scenes [scenes.NAME]"}
 BODY_KEYS = {
+    "kind": "'beam' (default) or 'solid' (docs/model-format.md, solids)",
     "name": "a name of letters, digits and _ (default: the file name)",
     "length": "a positive length [m]",
     "origin": "3 numbers [m] (default [0, 0, 0])",
@@ -342,6 +372,9 @@ def load_model(path, overrides: Sequence[str] = ()) -> Model:
 
 def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
     b = "body"
+    kind = r.string(r.table(t, b, None), b, "kind", BODY_KEYS["kind"], "beam", ("beam", "solid"))
+    if kind == "solid":
+        return _parse_solid(r, t, default_name, file)
     r.table(t, b, BODY_KEYS, required=("length", "superelements", "elements_per_superelement", "modes", "section"))
     name = r.string(t, b, "name", BODY_KEYS["name"], default_name)
     if not _NAME.match(name):  # becomes part of FMU and variable names
@@ -430,6 +463,190 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
         source=file,
         masses=tuple(masses),
     )
+
+
+SOLID_KEYS = {
+    "kind": BODY_KEYS["kind"],
+    "name": BODY_KEYS["name"],
+    "superelements": "1: a solid is one superelement",
+    "modes": "an integer >= 0: the free-free modes kept (or cutoff_hz)",
+    "cutoff_hz": "a positive frequency [Hz]: keep every free-free mode up to it (or modes)",
+    "mesh": "a table [body.mesh] {file | box | cylinder, element}",
+    "material": "a table [body.material] {E, nu, rho}",
+    "export": "a table [body.export] {format, files..., units}",
+    "ports": "a table of ports [body.ports.NAME] {select, link, point, translation, rotation, coupling}",
+}
+MESH_KEYS = {
+    "file": "a mesh file read with meshio (Gmsh .msh, Abaqus .inp, VTK, ...), relative to the model file",
+    "box": "a table {size = [lx, ly, lz] m, divisions = [nx, ny, nz], origin = [x, y, z] m}",
+    "cylinder": "a table {radius m, length m, radial = cells across a radius, axial = cells along, origin} (along +Z)",
+    "element": "one of hex8, hex20, hex27, tet4, tet10 (hex8 and tet4 lock in bending: docs/solids.md)",
+}
+MATERIAL_KEYS = {"E": "a positive Young's modulus [Pa]", "nu": "a Poisson's ratio in [0, 0.5)",
+                 "rho": "a positive density [kg/m^3]"}
+EXPORT_KEYS = {
+    "format": "'abaqus' (*MATRIX OUTPUT .mtx + .inp) or 'ansys' (Matrix Market + dof mapping + node table)",
+    "inp": "the Abaqus input deck (.inp): nodes and node sets",
+    "stiffness": "the exported stiffness matrix file",
+    "mass": "the exported mass matrix file",
+    "mapping": "the Ansys dof mapping vector file (Matrix Market)",
+    "nodes": "the Ansys node table (number, X, Y, Z)",
+    "elements": "the Ansys element table (optional: cells for VTK output)",
+    "units": "a text stating the units assumed (the files do not say)",
+}
+EXPORT_FILES = {"abaqus": ("inp", "stiffness", "mass"), "ansys": ("stiffness", "mass", "mapping", "nodes")}
+SOLID_PORT_KEYS = {
+    "select": "a node selection table: {set = NAME} | {plane = {point, normal, tol}} | {cylinder = {point, axis, "
+              "radius, tol}} | {box = {min, max}} | {near = {point | set, radius}}",
+    "link": "'rigid' (RBE2: the set moves rigidly with the frame) or 'averaging' (RBE3: the frame follows the set's "
+            "mean motion) (default 'rigid')",
+    "point": "3 numbers [m]: the frame origin (default: the centroid of the selected nodes)",
+    "translation": PORT_KEYS["translation"],
+    "rotation": PORT_KEYS["rotation"],
+    "coupling": PORT_KEYS["coupling"],
+}
+
+
+def _port_coupling(r: Reader, p: dict, pp: str, tr: str, rot: str) -> tuple:
+    coupling = ()
+    if "coupling" in p:
+        cp = join(pp, "coupling")
+        c = r.table(p["coupling"], cp, COUPLING_KEYS)
+        cvals = {}
+        if "step" in c:
+            cvals["step"] = r.real(c, cp, "step", COUPLING_KEYS["step"], ok=positive)
+        for key in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
+            if key in c:
+                v = r.vec3(c, cp, key, COUPLING_KEYS[key])
+                if min(v) < 0.0:
+                    r.fail(join(cp, key), f"expected {COUPLING_KEYS[key]}, got {list(v)}")
+                cvals[key] = v
+        coupling = tuple(cvals.items())
+    if "compliant" in (tr, rot) and not coupling:
+        r.fail(pp, "a compliant part needs a coupling table: {step = H} (the rule of docs/cosim.md) or explicit "
+               "stiffness/damping values")
+    return coupling
+
+
+def _frozen(v):
+    """TOML values as hashable tuples (tables as sorted pairs)."""
+    if isinstance(v, dict):
+        return tuple(sorted((k, _frozen(x)) for k, x in v.items()))
+    if isinstance(v, list):
+        return tuple(_frozen(x) for x in v)
+    return v
+
+
+def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
+    """[body] kind = "solid": a mesh + material or an export, ports as frames on node sets (SolidSpec)."""
+    import json
+
+    b = "body"
+    r.table(t, b, SOLID_KEYS, required=("ports",))
+    name = r.string(t, b, "name", SOLID_KEYS["name"], default_name)
+    if not _NAME.match(name):
+        r.expected(join(b, "name"), SOLID_KEYS["name"], name)
+    n_se = r.integer(t, b, "superelements", SOLID_KEYS["superelements"], 1, low=1)
+    if n_se != 1:
+        r.fail(join(b, "superelements"), f"a solid is one superelement (its frames are its boundary), got {n_se}; "
+               "split a solid into parts as separate bodies")
+    modes = r.integer(t, b, "modes", SOLID_KEYS["modes"], 0, low=0)
+    cutoff = r.real(t, b, "cutoff_hz", SOLID_KEYS["cutoff_hz"], None, ok=positive) if "cutoff_hz" in t else None
+    if ("modes" in t) == (cutoff is not None):
+        r.fail(b, "expected one of modes = N or cutoff_hz = F (which free-free modes to keep)")
+    base = Path(file).parent
+    if ("mesh" in t) == ("export" in t):
+        r.fail(b, "expected exactly one of [body.mesh] (with [body.material]) or [body.export]")
+    files, generated, element, material, units = [], (), "", None, ""
+    if "mesh" in t:
+        mp = join(b, "mesh")
+        mt = r.table(t["mesh"], mp, MESH_KEYS, required=("element",))
+        element = r.string(mt, mp, "element", MESH_KEYS["element"], choices=("hex8", "hex20", "hex27", "tet4", "tet10"))
+        given = [k for k in ("file", "box", "cylinder") if k in mt]
+        if len(given) != 1:
+            r.fail(mp, f"expected exactly one of file, box, cylinder, got {given or 'none'}")
+        if "file" in mt:
+            f = base / r.string(mt, mp, "file", MESH_KEYS["file"])
+            if not f.is_file():
+                r.fail(join(mp, "file"), f"no such file: {f}")
+            files.append(("mesh", str(f)))
+        else:
+            kind = given[0]
+            gp = join(mp, kind)
+            if kind == "box":
+                gt = r.table(mt[kind], gp, {"size": "3 positive lengths [m]", "divisions": "3 integers >= 1",
+                                             "origin": "3 numbers [m] (default [0, 0, 0])"}, required=("size", "divisions"))
+                size = r.vec3(gt, gp, "size", "3 positive lengths [m]")
+                div = gt["divisions"]
+                if min(size) <= 0:
+                    r.expected(join(gp, "size"), "3 positive lengths [m]", list(size))
+                if not (isinstance(div, list) and len(div) == 3 and all(isinstance(x, int) and x >= 1 for x in div)):
+                    r.expected(join(gp, "divisions"), "3 integers >= 1", div)
+                params = {"size": size, "divisions": tuple(div), "origin": r.vec3(gt, gp, "origin", "3 numbers [m]",
+                                                                                  (0.0, 0.0, 0.0))}
+            else:
+                gt = r.table(mt[kind], gp, {"radius": "a positive radius [m]", "length": "a positive length [m]",
+                                             "radial": "an integer >= 1", "axial": "an integer >= 1",
+                                             "origin": "3 numbers [m] (default [0, 0, 0])"},
+                             required=("radius", "length", "radial", "axial"))
+                params = {"radius": r.real(gt, gp, "radius", "a positive radius [m]", ok=positive),
+                          "length": r.real(gt, gp, "length", "a positive length [m]", ok=positive),
+                          "radial": r.integer(gt, gp, "radial", "an integer >= 1", low=1),
+                          "axial": r.integer(gt, gp, "axial", "an integer >= 1", low=1),
+                          "origin": r.vec3(gt, gp, "origin", "3 numbers [m]", (0.0, 0.0, 0.0))}
+            generated = (kind, _frozen(params))
+        if "material" not in t:
+            r.fail(b, "a mesh needs a table [body.material] {E, nu, rho}")
+        mp = join(b, "material")
+        mat = r.table(t["material"], mp, MATERIAL_KEYS, required=("E", "nu", "rho"))
+        material = (r.real(mat, mp, "E", MATERIAL_KEYS["E"], ok=positive),
+                    r.real(mat, mp, "nu", MATERIAL_KEYS["nu"], ok=lambda x: 0.0 <= x < 0.5),
+                    r.real(mat, mp, "rho", MATERIAL_KEYS["rho"], ok=positive))
+        source = "mesh"
+    else:
+        ep = join(b, "export")
+        et = r.table(t["export"], ep, EXPORT_KEYS, required=("format", "units"))
+        source = r.string(et, ep, "format", EXPORT_KEYS["format"], choices=tuple(EXPORT_FILES))
+        units = r.string(et, ep, "units", EXPORT_KEYS["units"])
+        for role in EXPORT_FILES[source] + (("elements",) if source == "ansys" and "elements" in et else ()):
+            if role not in et:
+                r.fail(ep, f"expected {role} = FILE ({EXPORT_KEYS[role]}) for format {source!r}")
+            f = base / r.string(et, ep, role, EXPORT_KEYS[role])
+            if not f.is_file():
+                r.fail(join(ep, role), f"no such file: {f}")
+            files.append((role, str(f)))
+        extra = sorted(set(et) - set(EXPORT_FILES[source]) - {"format", "units", "elements"})
+        if extra:
+            r.fail(join(ep, extra[0]), f"not a file of format {source!r} (expects {', '.join(EXPORT_FILES[source])})")
+    ports, frames = [], []
+    pt = r.table(t["ports"], "body.ports", None)
+    for i, (pname, p) in enumerate(pt.items()):
+        pp = join("body.ports", pname)
+        if not _NAME.match(pname):
+            r.fail(pp, "expected a port name of letters, digits and _ (it prefixes FMU variable names)")
+        r.table(p, pp, SOLID_PORT_KEYS, required=("select",))
+        sel = r.table(p["select"], join(pp, "select"), {k: SOLID_PORT_KEYS["select"] for k in
+                                                        ("set", "plane", "cylinder", "box", "near")})
+        if len(sel) != 1:
+            r.fail(join(pp, "select"), f"expected exactly one selection kind, got {sorted(sel) or 'none'}")
+        link = r.string(p, pp, "link", SOLID_PORT_KEYS["link"], "rigid", ("rigid", "averaging"))
+        point = r.vec3(p, pp, "point", SOLID_PORT_KEYS["point"], None) if "point" in p else None
+        tr = r.string(p, pp, "translation", PORT_KEYS["translation"], "force", PART_CAUSALITIES)
+        rot = r.string(p, pp, "rotation", PORT_KEYS["rotation"], "force", PART_CAUSALITIES)
+        ports.append(Port(pname, i, tr, rot, _port_coupling(r, p, pp, tr, rot)))
+        frames.append(SolidFrame(pname, json.dumps(sel, sort_keys=True), link, point))
+    if len(ports) < 2:
+        r.fail("body.ports", f"a solid needs at least 2 ports (interface frames), got {len(ports)}")
+    spec = SolidSpec(source, tuple(files), generated, element, material, cutoff, tuple(frames), units)
+    from .solid.body import solid_size  # the body's size: messages and scales of the tools that need one
+
+    try:
+        length = solid_size(spec)
+    except (OSError, ValueError) as e:
+        r.fail(b, f"cannot read the solid's nodes: {e}")
+    return Body(name=name, length=length, origin=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0), section=None,
+                superelements=1, elements_per_superelement=0, modes=modes, ports=tuple(ports), source=file,
+                solid=spec)
 
 
 def _parse_time_function(r: Reader, t: dict, path: str, key: str) -> TimeFunction:

@@ -314,6 +314,10 @@ def build_body(
     The ports keep the body's causality: a scene's overrides come in through model.scene_body
     (build_scene_body).
     """
+    if body.solid is not None:  # a solid: one sparse superelement on its port frames (reduction_sparse.py)
+        from .solid.body import build_solid_body
+
+        return build_solid_body(body, stiffening=stiffening, inertia=inertia)
     n_se, n_el = body.superelements, body.elements_per_superelement
     if n_se < 1:
         raise ValueError(f"body {body.name!r}: needs at least one superelement")

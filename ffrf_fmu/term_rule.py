@@ -84,8 +84,8 @@ def free_axial_rotation(body: Body, scene: Scene) -> dict | None:
     drops it and the body spins about its axis by that momentum / J_p (B2, one superelement: a mean axial
     spin of -0.0066 rad/s after the tip load, where the full-order beam and S(q) keep it at 0 as Euler's
     equations of a symmetric body do; docs/accuracy.md)."""
-    if any(p.rotation != "force" for p in body.ports):
-        return None
+    if body.solid is not None or any(p.rotation != "force" for p in body.ports):
+        return None  # a solid has no beam axis whose polar inertia is small
     ini = scene.initial
     moving = (scene.loads or scene.drives or any(scene.gravity) or any(ini.velocity) or any(ini.angular_velocity)
               or ini.port_displacements)
