@@ -22,7 +22,7 @@ state, its `FusedResidual` and its inputs).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 import numpy as np
@@ -65,14 +65,25 @@ class NewtonDecisions:
         return NewtonDecisions(self.iterations - max_iter, frozenset(i - max_iter for i in self.refreshed if i > max_iter))
 
 
+@dataclass
+class NewtonReplay:
+    """Newton decisions to replay, one NewtonDecisions per step (`GeneralizedAlpha.newton_replay`), and
+    where this run's own rules would have decided otherwise (one line each: time, iteration, which
+    decision): the replayed run's policy checked against this one's, decision by decision."""
+
+    decisions: Iterator[NewtonDecisions]
+    disagreements: list[str] = field(default_factory=list)
+
+
 class GeneralizedAlpha:
     """Stepping of a body (see the module docstring); the state lives on the body."""
 
-    # Tests only: an iterator of NewtonDecisions, one per step. Newton then builds the matrix and accepts
-    # the iterate where the replayed run did, instead of consulting its own convergence and refresh tests
-    # (REFRESH_AFTER included), so that two runs compared to round-off (the C runtime against this path)
-    # cannot part at a test that round-off tips (a count one apart moves the rates by up to the tolerance).
-    newton_replay: Iterator[NewtonDecisions] | None = None
+    # Tests only: Newton then builds the matrix and accepts the iterate where the replayed run did, instead
+    # of following its own convergence and refresh rules (REFRESH_AFTER included; they are still evaluated,
+    # and where they differ it is logged), so that two runs compared to round-off (the C runtime against
+    # this path) cannot part at a test that round-off tips (a count one apart moves the rates by up to the
+    # tolerance).
+    newton_replay: NewtonReplay | None = None
 
     def _build_newton(self):
         """Index maps of the Newton system: the unknowns (free rates), their order in the stored
@@ -204,12 +215,14 @@ class GeneralizedAlpha:
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
         stale, trusted = None, False  # (REFRESH_AFTER)
-        replay = next(self.newton_replay) if commit_config and self.newton_replay is not None else None
-        if replay is None and commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
+        replay = next(self.newton_replay.decisions) if commit_config and self.newton_replay is not None else None
+        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
             if self._lu[4]:
                 trusted = True
             else:
-                stale, self._lu = self._lu, None
+                stale = self._lu
+                if replay is None:  # (a replay decides the refresh: `_newton`)
+                    self._lu = None
         try:
             if replay is not None and replay.iterations > self.max_iter:
                 raise StepFailure(t1, "the replayed run's first attempt failed")
@@ -265,11 +278,14 @@ class GeneralizedAlpha:
         order = self._newton_idx
         nrm_prev = np.inf
         kept, serves = True, False  # kept: no matrix built in this step (yet)
+        drop = replay is not None and stale is not None  # (a replay's own verdict: `_step` dropped the matrix)
         for it in range(1, self.max_iter + 1):
             # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
             # communication grid repeats its step only up to round-off
             refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
             if replay is not None:
+                self._replay_verdict(t1, it, "refresh", refresh or drop, it in replay.refreshed)
+                drop = False
                 if self._lu is None and it not in replay.refreshed:
                     raise ValueError(f"Newton replay at t = {t1}: the replayed run kept a matrix at iteration {it}, "
                                      "this one has none")
@@ -294,10 +310,10 @@ class GeneralizedAlpha:
                 far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
                 if far and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
                     serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
+            accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
             if replay is not None:
+                self._replay_verdict(t1, it, "accept", accept, it == replay.iterations)
                 accept = it == replay.iterations
-            else:
-                accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
             if accept:
                 self._stage_at(yd)
                 if kept:  # (two increments: as many as a matrix built at the predictor needs)
@@ -305,12 +321,21 @@ class GeneralizedAlpha:
                 self._lu = (*self._lu[:4], serves)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-            if replay is None and it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
-                self._lu, serves = None, False
+            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
+                serves = False
+                if replay is None:
+                    self._lu = None
+                else:
+                    drop = True
             nrm_prev = nrm
         self._lu = None
         raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
                               f"(last increment {nrm_prev:.3g} of the tolerance)")
+
+    def _replay_verdict(self, t1, it, decision, own, replayed):
+        """Log where this run's own rule decides otherwise than the replayed run (`newton_replay`)."""
+        if own != replayed:
+            self.newton_replay.disagreements.append(f"t = {t1}, iteration {it}: {decision} {replayed} replayed, {own} by this run's rule")
 
     # contraction beyond which the kept iteration matrix is rebuilt (besides: when the contraction would not
     # reach the tolerance within 3 more iterations). Measured on B1 with benchmarks/newton_policy.py before
