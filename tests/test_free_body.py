@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from ffrf_fmu import simulate as sim
+from ffrf_fmu.fmu.variables import port_variables
 from ffrf_fmu.model import load_model, scene_body
 from ffrf_fmu.reduction import build_scene_body
 from ffrf_fmu.reference import simulate_reference
@@ -17,7 +18,7 @@ def _moving(body, Q, c, tip_body, J_body, h):
     """A result whose tip, CM, inertia and angular momentum follow the rotations Q (nt, 3, 3) and the CM c."""
     _, tip = sim.end_ports(body)
     r = c + np.einsum("nij,j->ni", Q, tip_body)
-    cols = dict(zip(sim.port_variables(tip, "r"), r.T))
+    cols = dict(zip(port_variables(tip, "r"), r.T))
     J = np.einsum("nij,jk,nlk->nil", Q, J_body, Q)
     cols |= sim.free_body_columns(c, J, np.zeros_like(c), np.repeat(h[None], len(c), 0))
     return sim.SimulationResult(np.linspace(0.0, 1.0, len(c)), cols, {}, body)

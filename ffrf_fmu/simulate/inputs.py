@@ -1,0 +1,85 @@
+"""A scene's drives and loads as port inputs: a function of time for the stepped run
+(scene_inputs) and the same inputs as arrays for the native run (scene_schedule)."""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..model import Scene
+from ..runtime import drives
+from ..runtime.data import BodyData
+from ..runtime.held import port_codes
+from ..runtime.ports import PortValues
+from ..runtime.rotation import expm
+
+
+def _tf(fn, t):
+    return drives.evaluate(fn.kind, dict(fn.params), t)
+
+
+def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, PortValues]]:
+    """Port inputs of a scene as a function of time: drives on motion parts, loads on force parts."""
+    drive_of = {d.port: d for d in scene.drives}
+    loads = scene.loads
+
+    def inputs(t: float) -> dict[str, PortValues]:
+        out = {}
+        for p in body.ports:
+            pv = PortValues()
+            d = drive_of.get(p.name)
+            if p.translation in ("motion", "compliant"):  # compliant: the far end of the spring
+                r0 = body.node_positions[p.node]
+                if d is not None and d.translation is not None:
+                    u, du, ddu = _tf(d.translation.displacement, t)
+                    e = np.asarray(d.translation.direction, float)
+                    pv.r, pv.v, pv.a = r0 + u * e, du * e, ddu * e
+                else:
+                    pv.r, pv.v, pv.a = r0.copy(), np.zeros(3), np.zeros(3)
+            if p.rotation in ("motion", "compliant"):
+                if d is not None and d.rotation is not None:
+                    phi, dphi, ddphi = _tf(d.rotation.angle, t)
+                    axis = np.asarray(d.rotation.axis, float)
+                    pv.R, pv.w, pv.dw = expm(phi * axis), dphi * axis, ddphi * axis
+                else:
+                    pv.R, pv.w, pv.dw = np.eye(3), np.zeros(3), np.zeros(3)
+            f, m = np.zeros(3), np.zeros(3)
+            for ld in loads:
+                if ld.port == p.name and ld.t_start <= t < ld.t_end:
+                    f += ld.force
+                    m += ld.moment
+            if p.translation == "force":
+                pv.f = f
+            if p.rotation == "force":
+                pv.t = m
+            out[p.name] = pv
+        return out
+
+    return inputs
+
+
+def scene_schedule(body: BodyData, scene: Scene) -> tuple:
+    """The inputs of `scene_inputs` as arrays, for the compiled run (runtime/kernel.py `advance`, which
+    evaluates them at every step as scene_inputs does): per port its node, part causalities (0 force,
+    1 motion, 2 compliant), spring index among the compliant ports (-1: none), reference position,
+    drive time functions (code, parameters; -1: no drive) and direction / axis; per load its port,
+    time window, force and moment."""
+    drive_of = {d.port: d for d in scene.drives}
+    P = len(body.ports)
+    node, mode, spring = port_codes(body.ports)
+    kind = np.full((P, 2), -1, dtype=np.int64)
+    r0, prm, axis = np.zeros((P, 3)), np.zeros((P, 2, 3)), np.zeros((P, 2, 3))
+    for j, p in enumerate(body.ports):
+        r0[j] = body.node_positions[p.node]
+        d = drive_of.get(p.name)
+        for part, drive in ((0, d and d.translation), (1, d and d.rotation)):
+            if drive:
+                fn = drive.displacement if part == 0 else drive.angle
+                kind[j, part], prm[j, part] = drives.encode(fn.kind, dict(fn.params))
+                axis[j, part] = drive.direction if part == 0 else drive.axis
+    port_index = {p.name: j for j, p in enumerate(body.ports)}
+    loads = [ld for ld in scene.loads if ld.port in port_index]
+    load_port = np.array([port_index[ld.port] for ld in loads], dtype=np.int64)
+    load_window = np.array([[ld.t_start, ld.t_end] for ld in loads], dtype=float).reshape(-1, 2)
+    load_fm = np.array([[ld.force, ld.moment] for ld in loads], dtype=float).reshape(-1, 2, 3)
+    return node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm

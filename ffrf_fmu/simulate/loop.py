@@ -1,0 +1,202 @@
+"""The standalone run loop: the body built for a scene and initialized, stepped with the scene's
+constant step to the end (chunks in one call of the compiled runtime where it can), every step recorded,
+the summary with the run's timings and metrics."""
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import time
+import warnings
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..model import Model, Scene, load_model
+from ..runtime.body import BodySystem
+from ..runtime.data import BodyData
+from ..runtime.ports import StepFailure
+from .inputs import scene_inputs, scene_schedule
+from .quantities import energy_balance, metrics
+from .results import SimulationResult, column_names, free_body_columns
+
+
+class Progress:
+    """A one-line progress bar on a terminal; silent otherwise (CI logs stay clean)."""
+
+    def __init__(self, total: float, label: str, stream=None):
+        self.total, self.label = total, label
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty()
+        self.shown = -1
+        self.start = time.perf_counter()
+
+    def update(self, done: float) -> None:
+        if not self.enabled:
+            return
+        pct = int(100 * done / self.total) if self.total > 0 else 100
+        if pct != self.shown:
+            self.shown = pct
+            bar = "#" * (pct // 4) + "." * (25 - pct // 4)
+            el = time.perf_counter() - self.start
+            self.stream.write(f"\r{self.label} [{bar}] {pct:3d}% t={done:.3g}s wall={el:.1f}s")
+            self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+class InitializationFailure(RuntimeError):
+    """The scene's initial state cannot be built (e.g. port displacements without a static equilibrium)."""
+
+
+def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: str = "numpy") -> tuple[BodySystem, Callable]:
+    """A BodySystem for the scene, initialized at t = 0; returns it with its input function.
+    backend: "numpy" (reference) or "numba" (compiled step; falls back to numpy with a logged note)."""
+    system = BodySystem(body, terms=scene.terms, full_terms=scene.full_terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend)
+
+    inputs = scene_inputs(body, scene)
+    init = scene.initial
+    try:
+        system.initialize(
+            0.0,
+            inputs,
+            velocity=init.velocity,
+            angular_velocity=init.angular_velocity,
+            port_displacements=dict(init.port_displacements),
+            origin=origin,
+        )
+    except StepFailure as e:
+        raise InitializationFailure(f"scene {scene.name!r} cannot start: {e.cause}") from e
+    return system, inputs
+
+
+def record(system: BodySystem) -> np.ndarray:
+    """One row of the time series: every port's outputs (column_names order), energies, Newton iterations."""
+    return system.output_row()
+
+
+def whole_steps(duration: float, step: float) -> tuple[int, float]:
+    """(n, h): n steps of h = duration / n, the largest h <= step that divides the duration (as the
+    reference solver does); a duration within 1e-9 relative of a whole number of steps keeps the step."""
+    ratio = duration / step
+    n = round(ratio)
+    if n >= 1 and abs(ratio - n) <= 1e-9 * ratio:
+        return int(n), step
+    n = max(1, math.ceil(ratio))
+    return n, duration / n
+
+
+def free_body_state(system: BodySystem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(CM, inertia tensor about the CM, linear momentum, angular momentum about the CM) of the body,
+    world axes, as its equations hold them (BodySystem.mass_properties, momenta)."""
+    _, c, J = system.mass_properties()
+    p, h = system.momenta()
+    return c, J, p, h - np.cross(c, p)
+
+
+def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool = True,
+        backend: str = "numpy") -> SimulationResult:
+    """Step the body through the scene with the scene's constant step; record every step.
+
+    A duration that is not a whole number of steps is never rounded: the step is reduced to
+    divide it (whole_steps), with a warning, and the summary gives both steps."""
+    start, cpu_start = time.perf_counter(), time.process_time()
+    requested = scene.step
+    n_steps, h = whole_steps(scene.duration, scene.step)
+    if h != requested:
+        warnings.warn(f"scene {scene.name!r}: duration {scene.duration:g} s is not a whole number of steps of "
+                      f"{requested:g} s ({scene.duration / requested:.6g}): step reduced to {h:.6g} s "
+                      f"({n_steps} steps)", UserWarning, stacklevel=2)
+        scene = dataclasses.replace(scene, step=h)
+    system, inputs = build_system(body, scene, origin, backend)
+    rows = np.empty((n_steps + 1, len(column_names(body))))
+    rows[0] = record(system)
+    times = np.empty(n_steps + 1)
+    times[0] = 0.0
+    free = scene.metrics.kind == "momentum"  # these metrics read the mass properties at every step
+    masses = [free_body_state(system)] if free else []
+    bar = Progress(scene.duration, f"{body.name}/{scene.name}") if progress else None
+    iterations = 0
+    failure = None
+    # on the numba backend, after its first step (checked against numpy), chunks of steps run in one
+    # kernel call each with the scene's inputs and the recording inside (momenta, for a free body's
+    # metrics, are recorded in Python: such scenes step one by one)
+    schedule = None if free else scene_schedule(body, scene)
+    k = 0
+    while k < n_steps:
+        compiled = system._compiled
+        if schedule is not None and compiled is not None and compiled.verified:
+            m = min(n_steps - k, 500)  # a chunk: progress updates and a prompt return on failure
+            done, exc = system.run_schedule(scene.step, schedule, rows[k + 1 : k + 1 + m], times[k + 1 : k + 1 + m])
+            iterations += int(rows[k + 1 : k + 1 + done, -1].sum())
+            k += done
+            if exc is not None:
+                failure = str(exc)
+                break
+            if bar is not None:
+                bar.update(system.t)
+            continue
+        try:
+            iterations += system.step(scene.step, inputs)
+        except StepFailure as exc:
+            failure = str(exc)
+            break
+        k += 1
+        rows[k] = record(system)
+        times[k] = system.t
+        if free:
+            masses.append(free_body_state(system))
+        if bar is not None:
+            bar.update(system.t)
+    if bar is not None:
+        bar.close()
+    rows, times = rows[: k + 1], times[: k + 1]
+    # the one-time compilation (or disk-cache load) of the numba kernel is reported apart, not as run time
+    # (wall and CPU alike: counting its CPU but not its wall made short runs report CPU above wall)
+    kernel = system._compiled
+    compile_s = kernel.compile_seconds if kernel is not None else None
+    wall = time.perf_counter() - start - (compile_s or 0.0)
+    cpu = time.process_time() - cpu_start - ((kernel.compile_cpu_seconds or 0.0) if kernel is not None else 0.0)
+    columns = dict(zip(column_names(body), rows.T))
+    if free:
+        columns |= free_body_columns(*(np.array(x) for x in zip(*masses)))
+    summary = {
+        "body": body.name,
+        "scene": scene.name,
+        "terms": scene.terms,
+        "superelements": len(body.superelements),
+        "step": scene.step,
+        "step_requested": requested,
+        "rho_inf": scene.rho_inf,
+        "backend": system.backend,
+        "backend_note": system.backend_note,
+        "compile_time_s": compile_s,
+        "kernel_compiled": kernel.compiled if kernel is not None else None,  # False: loaded from the disk cache
+        "completed": failure is None,
+        "failure": failure,
+        "t_end": float(times[-1]),
+        "wall_time_s": wall,
+        "cpu_time_s": cpu,
+        "steps": int(k),
+        "real_time_factor": float(times[-1] / wall) if wall > 0 else None,
+        "newton_iterations_mean": iterations / max(k, 1),
+        "energy_balance_max_rel": energy_balance(columns),
+    }
+    result = SimulationResult(times, columns, summary, body)
+    summary["metrics"] = metrics(result, scene)
+    return result
+
+
+def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False,
+              backend: str = "numpy"):
+    """Load (if a path), build and reduce the body for the scene, run it standalone."""
+    from ..reduction import build_scene_body
+
+    if not isinstance(model, Model):
+        model = load_model(model, overrides)
+    scene = model.scene(scene_name)
+    body, _ = build_scene_body(model.body, scene)
+    return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
