@@ -235,13 +235,10 @@ def mode_directions(system, vectors: np.ndarray, axis, beam_direction, length: f
     axis e (axial) and the rotation about e times `length` (torsion); bending rotations count with their
     plane (a rotation about a moves the beam in the plane of rotation). A spin about the beam's own axis
     has no plane of rotation: every bending mode is then called in-plane."""
-    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    from .directions import spin_plane
+
     e = np.asarray(beam_direction, dtype=float) / np.linalg.norm(beam_direction)
-    t = np.cross(a, e)
-    if np.linalg.norm(t) < 1e-9:  # spin about the beam axis: any normal will do
-        t = np.cross(e, [1.0, 0.0, 0.0] if abs(e[0]) < 0.9 else [0.0, 1.0, 0.0])
-    t /= np.linalg.norm(t)
-    a_n = np.cross(e, t)  # the part of a normal to the beam (a itself for a spin normal to the beam)
+    t, a_n = spin_plane(axis, e)  # in-plane; out-of-plane (the part of a normal to the beam)
     n_nodes = system.layout.n_nodes
     out = []
     for v in np.atleast_2d(vectors.T):

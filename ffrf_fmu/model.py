@@ -28,7 +28,8 @@ from .runtime.terms import FULL_TERMS, TERM_SETS
 PART_CAUSALITIES = ("motion", "force", "compliant")
 # metric kind -> the summary metrics it computes (simulate.metrics); "{coast_end_s}" is filled in
 METRIC_KINDS = {
-    "tip_deflection": ("tip_deflection_max_m", "tip_axial_at_max_m", "t_at_max_s", "oscillation_frequency_hz"),
+    "tip_deflection": ("tip_deflection_max_m", "tip_axial_at_max_m", "t_at_max_s", "oscillation_frequency_hz",
+                       "tip_in_plane_max_m", "tip_out_of_plane_max_m", "in_plane_frequency_hz", "out_of_plane_frequency_hz"),
     "hub_rates": ("omega_z_at_{coast_end_s}s", "omega_y_mean_after_load", "tip_frequency_hz", "hub_rotation_vector_end",
                   "t_end_s"),
     "momentum": ("linear_momentum_drift_rel", "angular_momentum_drift_rel", "total_energy_drift_rel", "tip_from_cm_max_m",

@@ -106,6 +106,9 @@ def metrics(result: SimulationResult, scene: Scene) -> dict:
             after = t > T_spin
             signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
             out["oscillation_frequency_hz"] = dominant_frequency(t[after], signed, *m.band_hz)
+        from ..directions import directional_tip_metrics  # 3D: in and out of the plane of rotation
+
+        out |= directional_tip_metrics(t, d, scene, axis, dominant_frequency)
         return out
     if m.kind == "hub_rates":
         root, tip = end_ports(result.body)

@@ -268,24 +268,14 @@ def excited_directions(scene, axis, beam_direction) -> set:
     along a move it out of that plane. Without a spin axis both directions count."""
     if axis is None:
         return {"in-plane", "out-of-plane"}
-    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    e = np.asarray(beam_direction, dtype=float) / np.linalg.norm(beam_direction)
-    t = np.cross(a, e)
-    t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else t
+    from ..directions import excites, spin_plane
+
+    plane = spin_plane(axis, beam_direction)
     out = set()
     if any(d.rotation is not None for d in scene.drives):
         out.add("in-plane")
-    vecs = [np.asarray(ld.force, float) for ld in scene.loads] + [np.asarray(scene.gravity, float)]
-    vecs += [np.asarray(u, float) for _, u in scene.initial.port_displacements]
-    moments = [np.asarray(ld.moment, float) for ld in scene.loads]
-    for v in vecs:
-        if abs(v @ a) > 1e-12 * max(np.linalg.norm(v), 1e-300):
-            out.add("out-of-plane")
-        if abs(v @ t) > 1e-12 * max(np.linalg.norm(v), 1e-300):
-            out.add("in-plane")
-    for mv in moments:
-        if abs(mv @ t) > 1e-12 * max(np.linalg.norm(mv), 1e-300):
-            out.add("out-of-plane")
-        if abs(mv @ a) > 1e-12 * max(np.linalg.norm(mv), 1e-300):
-            out.add("in-plane")
+    for v in [ld.force for ld in scene.loads] + [scene.gravity] + [u for _, u in scene.initial.port_displacements]:
+        out |= excites(v, plane)
+    for mv in [ld.moment for ld in scene.loads]:
+        out |= excites(mv, plane, moment=True)
     return out or {"in-plane"}
