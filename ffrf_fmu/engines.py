@@ -87,13 +87,29 @@ def libcosim_run(fmus: dict[str, str], connections: list[tuple[str, str, float]]
                  H: float, duration: float, record: list[str], work_dir, sources=None):
     """Run FMUs {instance: fmu path} joined by `connections` under libcosim's fixed-step algorithm
     with communication step H; start_values and record as `instance.variable`; sources(t) ->
-    {`instance.variable`: value} set before each step (an override manipulator).
+    {`instance.variable`: value} set before each step (an override manipulator). The system goes
+    through an SSP package (master/ssp.py: the FMUs, the connections, start_values as parameters).
 
     Returns (times, {recorded name: values}, stopped, wall time of the stepping): one sample per
     step, at its end; stopped is "" or the step that failed."""
-    import shutil
-    import time
     from pathlib import Path
+
+    from .master.ssp import Connection, System, write_ssp
+
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    n = int(round(duration / H))
+    system = System("ffrf", {k: str(v) for k, v in fmus.items()}, tuple(Connection(*c) for c in connections),
+                    dict(start_values), H, 0.0, n * H)
+    path = write_ssp(work / "system.ssp", system)
+    return libcosim_run_ssp(path, H, n, record, 0.0, sources)
+
+
+def libcosim_run_ssp(path, H: float, n: int, record: list[str], start: float = 0.0, sources=None):
+    """n steps of H of an SSP package under libcosim's fixed-step algorithm (libcosimpy
+    `CosimExecution.from_ssp_file`: components, connections with their linear transformations and
+    the package's parameter set as initial values); returns as `libcosim_run`."""
+    import time
 
     import numpy as np
     from libcosimpy.CosimExecution import CosimExecution
@@ -102,23 +118,14 @@ def libcosim_run(fmus: dict[str, str], connections: list[tuple[str, str, float]]
     from libcosimpy.CosimObserver import CosimObserver
 
     log_output_level(CosimLogLevel.ERROR)
-    work = Path(work_dir)
-    work.mkdir(parents=True, exist_ok=True)
-    comps = {}
-    for name, fmu in fmus.items():
-        shutil.copy(fmu, work / Path(fmu).name)
-        comps[name] = Path(fmu).name
-    ssd = write_ssd(work / "SystemStructure.ssd", comps, connections)
-    ex = CosimExecution.from_ssp_file(str(ssd), step_size=int(round(H * 1e9)))
+    ex = CosimExecution.from_ssp_file(str(path), step_size=int(round(H * 1e9)))
     index = {info.name.decode(): info.index for info in ex.slave_infos()}
-    refs = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
+    refs = {name: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for name, i in index.items()}
 
     def ref(full: str) -> tuple[int, int]:
         inst, var = full.split(".", 1)
         return index[inst], refs[inst][var]
 
-    for full, value in start_values.items():
-        ex.real_initial_value(*ref(full), float(value))
     observer = CosimObserver.create_last_value()
     ex.add_observer(observer)
     manip = CosimManipulator.create_override()
@@ -135,17 +142,46 @@ def libcosim_run(fmus: dict[str, str], connections: list[tuple[str, str, float]]
 
     t0 = time.perf_counter()
     rows, times, stopped = [], [], ""
-    apply_sources(0.0)
-    for k in range(int(round(duration / H))):
-        apply_sources(k * H)
+    apply_sources(start)
+    for k in range(n):
+        apply_sources(start + k * H)
         if not ex.step(1):
-            stopped = f"libcosim: step at t = {k * H:.6g} s failed"
+            stopped = f"libcosim: step at t = {start + k * H:.6g} s failed"
             break
         row = {}
         for inst, names in by_instance.items():
             row.update(zip(names, observer.last_real_values(index[inst], [ref(n)[1] for n in names])))
         rows.append(row)
-        times.append((k + 1) * H)
+        times.append(start + (k + 1) * H)
     wall = time.perf_counter() - t0
     del ex
     return np.array(times), {n: np.array([r[n] for r in rows]) for n in record}, stopped, wall
+
+
+def ecos_run_ssp(path, H: float, n: int, record: list[str], parameter_set: str | None):
+    """n steps of H of an SSP package under ecos's fixed-step algorithm (ecospy
+    `EcosSimulation(ssp_path=...)`, the package's parameter set applied at init); returns as
+    `libcosim_run`. ecos names variables `instance::variable`. ecos goes on after an FMU refused a
+    step (docs/cosim.md, "The engines"): a failure shows only as an exception of its step call."""
+    import time
+
+    import numpy as np
+
+    ecospy = import_ecospy()
+    t0 = time.perf_counter()
+    rows, times, stopped = [], [], ""
+    names = [full.replace(".", "::", 1) for full in record]
+    with ecospy.EcosSimulation(step_size=H, ssp_path=str(path)) as sim:
+        sim.init(parameter_set=parameter_set) if parameter_set else sim.init()
+        t_start = sim.get_time() if hasattr(sim, "get_time") else 0.0
+        for k in range(n):
+            try:
+                sim.step(1)
+            except Exception as e:  # noqa: BLE001 - the engine's report, kept as the run's failure
+                stopped = f"ecos: step at t = {t_start + k * H:.6g} s failed: {e}"
+                break
+            rows.append([sim.get_real(v) for v in names])
+            times.append(t_start + (k + 1) * H)
+        sim.terminate()
+    cols = {full: np.array([r[i] for r in rows]) for i, full in enumerate(record)}
+    return np.array(times), cols, stopped, time.perf_counter() - t0

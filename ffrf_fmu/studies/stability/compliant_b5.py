@@ -88,6 +88,17 @@ def _result(b5: CompliantB5, t, get, stopped, wall) -> CosimRun:
     return CosimRun(np.asarray(t), d, get("beam.hub.node.w[3]"), get("beam.hub.t[3]"), stopped, wall)
 
 
+def system(b5: CompliantB5, settings: CosimSettings, H: float, duration: float, acceleration: bool = True):
+    """The compliant B5 as an SSP system (master/ssp.py): the two FMUs, the connections, the
+    drive's parameters and the beam's internal step as parameters, the shaft stiffness inside the
+    beam FMU (its `hub.coupling.k_rot[3]` parameter, set too so the package shows it)."""
+    from ...master.ssp import Connection, System
+
+    params = {**start_values(settings, H), "beam.hub.coupling.k_rot[3]": SHAFT_K}
+    return System("b5_compliant", dict(b5.fmus), tuple(Connection(*c) for c in connections(acceleration)),
+                  params, H, 0.0, duration)
+
+
 def run_master(b5: CompliantB5, settings: CosimSettings, H: float, duration: float, scheme: str = "jacobi",
                acceleration: bool = True) -> CosimRun:
     from ...master import CoSimulation
