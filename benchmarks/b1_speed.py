@@ -1,6 +1,6 @@
 """B1 (Haug's rotating beam) standalone with 1, 2 and 4 superelements: speed and accuracy table.
 
-    python benchmarks/b1_speed.py [--duration 20] [--modes 6] [--backend numba|numpy|both] [--profile]
+    python benchmarks/b1_speed.py [--duration 20] [--modes 6] [--backend native|numpy|both] [--profile]
 
 Prints wall time, steps per second, real-time factor (simulated / wall seconds), Newton
 iterations per step, the B1 metrics against the paper's Table 1, and each configuration's wall
@@ -31,13 +31,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--modes", type=int, default=6)
-    ap.add_argument("--backend", choices=("numba", "numpy", "both"), default="both")
+    ap.add_argument("--backend", choices=("native", "numpy", "both"), default="both")
     ap.add_argument("--profile", action="store_true")
     args = ap.parse_args(argv)
-    backends = ("numpy", "numba") if args.backend == "both" else (args.backend,)
+    backends = ("numpy", "native") if args.backend == "both" else (args.backend,)
     rows = []
-    if "numba" in backends:  # compile or load the kernel before the timed runs
-        sim.run_scene(load_model(MODEL, ["duration=0.02", f"modes={args.modes}"]), "spinup", backend="numba")
+    if "native" in backends:  # compile or load the kernel before the timed runs
+        sim.run_scene(load_model(MODEL, ["duration=0.02", f"modes={args.modes}"]), "spinup", backend="native")
     for n in (1, 2, 4):
         model = load_model(MODEL, [f"superelements={n}", f"duration={args.duration}", f"modes={args.modes}"])
         for backend in backends:

@@ -95,7 +95,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=None, help="simulated time [s] (default: the scene's)")
     ap.add_argument("--comm-step", type=float, nargs="+", default=None,
                     help="communication steps H [s] (default: h, 5 h, 10 h with the scene's internal step h)")
-    ap.add_argument("--backend", choices=("numba", "numpy"), default="numba",
+    ap.add_argument("--backend", choices=("native", "numpy"), default="native",
                     help="the body's backend, the same for the standalone run and the FMU (default numba)")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each, interleaved; the best counts (default 3)")
     ap.add_argument("--short", type=int, default=10, help="doSteps of the runs that give the fixed cost (default 10)")

@@ -42,7 +42,7 @@ from ffrf_fmu.simulate import build_system, record, scene_inputs, scene_schedule
 
 def run_chunks(body, scene, chunk: int) -> list[float]:
     """Seconds per step of run_schedule calls of `chunk` steps (after two untimed first steps)."""
-    system, inputs = build_system(body, scene, backend="numba")
+    system, inputs = build_system(body, scene, backend="native")
     n, h = whole_steps(scene.duration, scene.step)
     schedule = scene_schedule(body, scene)
     rows, times = np.empty((n + 1, record(system).size)), np.empty(n + 1)
@@ -62,7 +62,7 @@ def run_chunks(body, scene, chunk: int) -> list[float]:
 def held_calls(body, scene, n_steps: int, calls: int, traffic: np.ndarray | None) -> list[float]:
     """Seconds per run_held(h, n_steps) call from one state mid-run (t = duration / 2), restored
     between calls; `traffic` written between calls when given."""
-    system, inputs = build_system(body, scene, backend="numba")
+    system, inputs = build_system(body, scene, backend="native")
     h = scene.step
     for _ in range(int(round(scene.duration / 2 / h))):
         system.run_held(h, 1, system.t, held.rows(body.ports, inputs(system.t)))

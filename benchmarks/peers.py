@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark: our superelement chains against Exudyn's full-order 3D beam on B1, in ONE run.
 
-    python benchmarks/peers.py [--quick] [--repeat N] [--backend numba|numpy] [-o DIR] [--set KEY=V ...]
+    python benchmarks/peers.py [--quick] [--repeat N] [--backend native|numpy] [-o DIR] [--set KEY=V ...]
                                [--sweep KEY=V1,V2 ...] [--peer-sweep ...]
 
 B1 (models/haug_beam.toml, scene spinup: Haug's rotating beam, 20 s, rho_inf 0.8). Runs, one
@@ -401,7 +401,7 @@ def main(argv=None) -> int:
     ap.add_argument("--peer-sweep", nargs="+", metavar="KEY=V1,V2", help="Exudyn's (default chart.PEER_SWEEP)")
     ap.add_argument("--reference-elements", type=int, default=64)
     ap.add_argument("--check-elements", default="16,32", help="Exudyn meshes at 2 ms for the convergence check")
-    ap.add_argument("--backend", choices=("numba", "numpy"), default="numba",
+    ap.add_argument("--backend", choices=("native", "numpy"), default="native",
                     help="our runtime backend (numba falls back to numpy, with a note, for what its kernel lacks)")
     ap.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                     help=f"timing runs per configuration, interleaved; each keeps the minimum (default {REPEAT})")

@@ -1,4 +1,4 @@
-"""Cost of one integrator step of the body (B1, Haug's rotating beam), numpy and numba backends.
+"""Cost of one integrator step of the body (B1, Haug's rotating beam), numpy and native backends.
 
     python benchmarks/step_profile.py [--phases 0.5,5,15] [--steps 40] [--repeats 10]
                                       [--configs 1x2,4x2,4x6] [--blas-threads 1|default]
@@ -6,7 +6,7 @@
 
 Configurations are superelements x modes per superelement (h = 2 ms, the scene's term set). Both
 backends run in the same process on the same states; the numpy backend is the baseline of the
-ratios (numpy time / numba time). --no-compile-time skips the first-compile measurement (two fresh
+ratios (numpy time / native time). --no-compile-time skips the first-compile measurement (two fresh
 processes: one with an empty kernel cache, which compiles, one with the cache it left, which loads).
 
 The spin-up changes character over its 20 s (about 2 Newton iterations per step early on, the
@@ -27,8 +27,8 @@ BLAS runs on one thread unless --blas-threads default: the target is one core, a
 OpenBLAS makes the LU of the iteration matrix (n ~ 170) hundreds of times slower when the other
 core is busy.
 
-The row `numba-run` is simulate.run's path on the numba backend: the window's steps in ONE kernel call
-(BodySystem.run_schedule), the scene's inputs evaluated and every step recorded inside the kernel;
+The row `native-run` is simulate.run's path on the native backend: the window's steps in ONE call of the C runtime
+(BodySystem.run_schedule), the scene's inputs evaluated and every step recorded inside the C runtime;
 its step and step+record columns are the same figure (per step, recording included): the CPU time of
 the whole window (best of the repeats), since a call of many milliseconds is interrupted on a busy
 machine where the single short calls of the other rows are timed clean.
@@ -72,7 +72,7 @@ def implementations():
     """(label, system factory, record function): both backends and, if present, a frozen baseline."""
     make = lambda backend: lambda body, sc: BodySystem(  # noqa: E731
         body, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity, backend=backend)
-    out = [("numpy", make("numpy"), sim.record), ("numba", make("numba"), sim.record)]
+    out = [("numpy", make("numpy"), sim.record), ("native", make("native"), sim.record)]
     if (HERE / "_baseline_system.py").exists():
         base = importlib.import_module("_baseline_system")
         out.append(("baseline", lambda body, sc: base.BodySystem(
@@ -81,33 +81,27 @@ def implementations():
 
 
 COMPILE_SNIPPET = """
-import sys
+import sys, time
 sys.path.insert(0, {root!r})
-from ffrf_fmu import simulate as sim
-from ffrf_fmu.model import load_model
-from ffrf_fmu.reduction import build_body
-model = load_model({model!r}, ["superelements=1", "modes=2"])
-sc = model.scene("spinup")
-body, _ = build_body(model.body)
-system, inputs = sim.build_system(body, sc, backend="numba")
-system.step(sc.step, inputs)
-print(system._compiled.compile_seconds, system._compiled.compiled)
+from ffrf_fmu.runtime.native import build
+t0 = time.perf_counter()
+build.library()
+print(time.perf_counter() - t0)
 """
 
 
-def compile_times() -> tuple[tuple[float, bool], tuple[float, bool]]:
-    """(seconds, compiled) of the first numba step in a fresh process with an empty kernel cache (it
-    compiles) and in a second fresh process with the cache the first one left (it should load: compiled
-    False, from numba's dispatcher statistics)."""
+def compile_times() -> tuple[float, float]:
+    """Seconds of the C runtime's first use in a fresh process with an empty cache (it compiles) and in a
+    second fresh process with the cache the first one left (it finds the library)."""
     import subprocess
     import tempfile
 
-    code = COMPILE_SNIPPET.format(root=str(HERE.parent), model=str(MODEL))
+    code = COMPILE_SNIPPET.format(root=str(HERE.parent))
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "FFRF_FMU_CACHE_DIR": cache}
         runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
                 for _ in range(2)]
-    return tuple((float(r.stdout.split()[0]), r.stdout.split()[1] == "True") for r in runs)
+    return tuple(float(r.stdout.split()[0]) for r in runs)
 
 
 def phase_states(body, scene, phases):
@@ -179,7 +173,7 @@ def measure(make, record, body, scene, states, args):
         system.step(h, inputs)  # a first step builds the iteration matrix; the window starts after it
         state = system.get_state()
         restore()
-        if i == 0 and getattr(system, "backend", "numpy") == "numpy":  # the numba residual is inside its kernel
+        if i == 0 and getattr(system, "backend", "numpy") == "numpy":  # the native residual is inside the C runtime
             out["residual"] = best_per_call(residual_call(system, h, inputs), 5, 20 * args.repeats)
             restore()
         iterations = []
@@ -189,14 +183,11 @@ def measure(make, record, body, scene, states, args):
         out["step+record"].append(
             best_per_call(lambda: (system.step(h, inputs), record(system)), args.steps, args.repeats, restore)
         )
-        if getattr(system, "backend", "numpy") == "numba":  # the many-step kernel call of simulate.run
+        if getattr(system, "backend", "numpy") == "native":  # the many-step call of simulate.run
             schedule = sim.scene_schedule(body, scene)
             rows, times = np.empty((args.steps, len(sim.column_names(body)))), np.empty(args.steps)
-            verified = lambda: (restore(), setattr(system._compiled, "verified", True))  # noqa: E731
-            verified()
-            system.run_schedule(h, schedule, rows[:1], times[:1])  # compiles (or loads) the run entry point
             out.setdefault("run", []).append(best_cpu(lambda: system.run_schedule(h, schedule, rows, times), args.repeats,
-                                                      verified) / args.steps)
+                                                      restore) / args.steps)
     return out
 
 
@@ -214,9 +205,8 @@ def main(argv=None) -> int:
     configs = [tuple(int(v) for v in c.split("x")) for c in args.configs.split(",")]
     impls = implementations()
     if not args.no_compile_time:
-        (first, _), (cached, again) = compile_times()
-        print(f"numba kernel: first compile {first:.1f} s (empty cache), {cached:.2f} s from the disk cache"
-              + (" (the second process COMPILED again: the source changed in between?)" if again else ""))
+        first, cached = compile_times()
+        print(f"C runtime: first use {first:.1f} s (empty cache: compiles), {cached:.3f} s with the cache")
     print(f"B1 spin-up, h = 2 ms, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS', 'default')}; windows of "
           f"{args.steps} steps at t = {', '.join(f'{p:g}' for p in phases)} s; best of {args.repeats} per step")
     head = " ".join(f"{f't={p:g}':>7}" for p in phases)
@@ -232,9 +222,9 @@ def main(argv=None) -> int:
             mid = (body, scene, states[len(states) // 2], f"{n} SE x {modes} modes")
         rows = {label: measure(make, rec, body, scene, states, args) for label, make, rec in impls}
         base = rows["numpy"]
-        if "run" in rows["numba"]:  # simulate.run's path: chunks of steps in one kernel call, inputs and recording inside
-            rows["numba-run"] = {**rows["numba"], "step": rows["numba"]["run"], "step+record": rows["numba"]["run"]}
-            rows["numba-run"].pop("residual", None)
+        if "run" in rows["native"]:  # simulate.run's path: chunks of steps in one call, inputs and recording inside
+            rows["native-run"] = {**rows["native"], "step": rows["native"]["run"], "step+record": rows["native"]["run"]}
+            rows["native-run"].pop("residual", None)
         for label, r in rows.items():
             step, rec = np.mean(r["step"]), np.mean(r["step+record"])
             ratio = f"  {np.mean(base['step']) / step:.1f}x, {np.mean(base['step+record']) / rec:.1f}x"
@@ -244,9 +234,9 @@ def main(argv=None) -> int:
                   f"{1e3 * rec / scene.step:8.0f} {' '.join(f'{x:.2f}' for x in r['iterations']):>14}{ratio}")
     if not args.no_profile:
         body, scene, state, label = mid
-        system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend="numba")
+        system = BodySystem(body, terms=scene.terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend="native")
         system.set_state(state)
-        system.step(scene.step, sim.scene_inputs(body, scene))  # the kernel loaded before profiling
+        system.step(scene.step, sim.scene_inputs(body, scene))  # the runtime loaded before profiling
         inputs = sim.scene_inputs(body, scene)
         system.set_state(state)
         prof = cProfile.Profile()
@@ -258,7 +248,7 @@ def main(argv=None) -> int:
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("tottime").print_stats(15)
         t_mid = phases[len(phases) // 2]
-        print(f"\ncProfile, numba backend, {label}, {5 * args.steps} steps with recording from t = {t_mid:g} s (tottime):")
+        print(f"\ncProfile, native backend, {label}, {5 * args.steps} steps with recording from t = {t_mid:g} s (tottime):")
         print(out.getvalue())
     return 0
 

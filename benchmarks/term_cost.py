@@ -3,7 +3,7 @@ of what one superelement misses on a centrifugally soft body. models/disk_rotor.
 superelement, h = 10 ms, the first STEPS steps of the spin-up (Newton works there), best of REPEAT (CPU
 time of this process), ratios to 1 SE `linear` measured in the same run, for each backend.
 
-    python benchmarks/term_cost.py [--backend numpy|numba|both]
+    python benchmarks/term_cost.py [--backend numpy|native|both]
 """
 from __future__ import annotations
 
@@ -25,8 +25,8 @@ def cost_per_step(n_se: int, terms: str, backend: str) -> float:
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--backend", choices=("numpy", "numba", "both"), default="both")
-    backends = ("numpy", "numba") if p.parse_args().backend == "both" else (p.parse_args().backend,)
+    p.add_argument("--backend", choices=("numpy", "native", "both"), default="both")
+    backends = ("numpy", "native") if p.parse_args().backend == "both" else (p.parse_args().backend,)
     for backend in backends:
         costs = {c: cost_per_step(*c, backend) for c in CONFIGS}
         base = costs[(1, "linear")]

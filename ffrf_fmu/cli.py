@@ -37,10 +37,21 @@ MODEL_ARGS = (
 )
 
 
+def _backend(value: str) -> str:
+    """--backend: a backend of runtime/body.py BACKENDS; a retired one is refused naming its replacement."""
+    from .runtime.body import check_backend
+
+    try:
+        check_backend(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return value
+
+
 BACKEND_ARG = arg(
-    "--backend", choices=("numba", "numpy"), default="numba",
-    help="numba: the compiled step (default; compiled once, then cached in ~/.cache/ffrf-fmu), numpy: the "
-         "reference implementation; without numba, or for a term set the kernel does not cover, numpy with a note")
+    "--backend", type=_backend, default="native", metavar="{native,numpy}",
+    help="native: the C runtime (default; compiled on first use in seconds, then cached in ~/.cache/ffrf-fmu), "
+         "numpy: the plain reference implementation")
 
 
 # Where a sweep's runs go (ffrf_fmu/studies/sweep.py, docs/scale.md); chart and study share them.
@@ -244,10 +255,6 @@ def simulate(args) -> int:
             return 2
         if result.summary["backend_note"]:
             print(f"{PROG}: note: {result.summary['backend_note']}", file=sys.stderr)
-        elif result.summary["kernel_compiled"]:
-            print(f"numba kernel compiled in {result.summary['compile_time_s']:.1f} s (cached for later runs)", file=sys.stderr)
-        elif (result.summary["compile_time_s"] or 0.0) > 1.0:
-            print(f"numba kernel loaded from the disk cache in {result.summary['compile_time_s']:.1f} s", file=sys.stderr)
     s = result.summary
     if args.out:
         result.write_csv(args.out)
@@ -503,9 +510,8 @@ def advise(args) -> int:
     arg("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
         help="override a model value (repeatable), e.g. --set superelements=2"),
     arg("-o", "--output", default=None, help="FMU file to write (default: <body name>.fmu in the current directory)"),
-    arg("--backend", choices=("numba", "numpy"), default="numba",
-        help="numba (default): the FMU runs the compiled step when its host has numba, else numpy "
-             "with a logged message; numpy: always the reference implementation"),
+    arg("--backend", choices=("numpy",), default="numpy",
+        help="numpy: the pythonfmu FMU's slave steps on the reference implementation"),
 )
 def build(args) -> int:
     """Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
@@ -563,14 +569,8 @@ def validate(args) -> int:
         print(f"  {mark} {g:28s} max|diff| {d['max_abs_diff']:.3e}  rel {d['max_rel_diff']:.3e}")
     for k, d in rep["metrics"].items():
         print(f"  metric {k}: FMU {d['fmu']:.6g}, standalone {d['standalone']:.6g}, rel diff {d['rel_diff']:.2e}")
-    w, k = rep["wall_time_s"], rep["kernel"]
-    steps = f" ({w['fmu_without_kernel']:.2f} s without its kernel calls)" if w["fmu_without_kernel"] is not None else ""
-    print(f"  wall time: FMU {w['fmu']:.2f} s{steps}, standalone {w['standalone']:.2f} s "
-          f"(backend {rep['backend']['standalone']}, without its kernel calls)")
-    for who in ("standalone", "fmu"):
-        if k[who] is not None:
-            how = "compiled" if k[who]["compiled"] else "loaded from the disk cache"
-            print(f"  numba kernel of the {'FMU' if who == 'fmu' else who}: {how} in {k[who]['seconds']:.2f} s")
+    w = rep["wall_time_s"]
+    print(f"  wall time: FMU {w['fmu']:.2f} s, standalone {w['standalone']:.2f} s (backend {rep['backend']['standalone']})")
     print(("PASSED" if rep["passed"] else "FAILED") + f" (rtol {rep['tolerances']['rtol']:g})")
     return 0 if rep["passed"] else 1
 

@@ -17,12 +17,8 @@ the group. A group passes when max_rel_diff <= rtol (default 1e-3; groups whose 
 values stay below `atol` pass on the absolute difference). The scene's benchmark metrics
 (simulate.metrics, e.g. the maximum tip deflection of eq. 92) are computed from both runs.
 
-Times (report `wall_time_s`, `kernel`): the standalone run goes first, on the backend the FMU was
-built for (numba or numpy). On numba each run's first kernel calls compile the kernel into the disk
-cache or load it from there (the FMU's copy of the runtime has the same content, so the same cache
-entry: runtime/compiled.py); `kernel` gives their seconds per run, compiled or loaded (the FMU logs
-its own at fmi2Terminate). The standalone wall time leaves them out; for the FMU both the whole fmpy
-run and the run without them are given.
+Times (report `wall_time_s`): the standalone run goes first, on the backend the FMU steps on; the
+FMU's is the whole fmpy run.
 """
 from __future__ import annotations
 
@@ -107,11 +103,13 @@ def same_body(a, b, rtol: float = 1e-10) -> bool:
 
 
 def fmu_backend(fmu_path) -> str:
-    """The backend the FMU was built for (its resources' config; numpy for FMUs built before the choice)."""
+    """The backend the FMU steps on (its resources' config; numpy for FMUs built before the choice, and for
+    those built for the retired numba backend)."""
     from .fmu.core import CONFIG_FILE
 
     with zipfile.ZipFile(fmu_path) as z:
-        return json.loads(z.read(f"resources/{CONFIG_FILE}")).get("backend", "numpy")
+        backend = json.loads(z.read(f"resources/{CONFIG_FILE}")).get("backend", "numpy")
+    return backend if backend == "native" else "numpy"
 
 
 def validate(source, *, scene: str | None = None, model=None, overrides=(), comm_step: float | None = None,
@@ -120,7 +118,6 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     from .fmu.builder import build_from_model
     from .fmu.run import fmu_body, run_fmu
     from .model import load_model
-    from .runtime.compiled import parse_kernel_report
     from .simulate import metrics, run_scene, scene_inputs
 
     source = Path(source)
@@ -159,7 +156,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
             )
 
     backend = fmu_backend(fmu_path)
-    ref = run_scene(mdl, sc.name, backend=backend)  # first: a numba kernel compiles (or loads) here, timed apart
+    ref = run_scene(mdl, sc.name, backend=backend)
     wall_ref = ref.summary["wall_time_s"]
     body = ref.body
     matches = same_body(fmu_data, body)
@@ -168,11 +165,6 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
 
     run = run_fmu(fmu_path, sc, scene_inputs(body, sc), H)
     t_fmu, fmu_cols, reached, wall_fmu, log = run.t, run.columns, run.reached, run.wall_time_s, run.log
-    kernel_ref = ({"seconds": ref.summary["compile_time_s"], "compiled": ref.summary["kernel_compiled"]}
-                  if ref.summary["compile_time_s"] is not None else None)
-    reported = parse_kernel_report(log)
-    kernel_fmu = {"seconds": reported[0], "compiled": reported[1]} if reported else None
-    wall_fmu_steps = wall_fmu - reported[0] if reported else None
     outputs = [v.name for v in read_model_description(str(fmu_path)).modelVariables if v.causality == "output"]
     ref_ok = bool(ref.summary.get("completed", True))
     compared = [n for n in outputs if n in ref.columns]
@@ -214,14 +206,9 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
         "groups": groups,
         "metrics": metric_rows,
         "backend": {"fmu": backend, "standalone": ref.summary["backend"]},
-        "kernel": {"standalone": kernel_ref, "fmu": kernel_fmu,
-                   "note": "seconds of each run's first numba kernel calls, compiled into the disk cache (compiled "
-                           "true) or loaded from it; null: numpy, or an FMU that does not report them"},
-        "wall_time_s": {"fmu": wall_fmu, "fmu_without_kernel": wall_fmu_steps, "standalone": wall_ref,
-                        "ratio_fmu_over_standalone": (wall_fmu_steps if wall_fmu_steps is not None else wall_fmu) / wall_ref
-                        if wall_ref > 0 else None,
-                        "note": "fmu: the whole fmpy run; fmu_without_kernel: less its kernel seconds (the ratio's "
-                                "numerator when known); standalone: set-up and steps without its kernel seconds"},
+        "wall_time_s": {"fmu": wall_fmu, "standalone": wall_ref,
+                        "ratio_fmu_over_standalone": wall_fmu / wall_ref if wall_ref > 0 else None,
+                        "note": "fmu: the whole fmpy run; standalone: the steps and their recording (simulate.run)"},
         "fmu_log": log[-50:],
         "input_treatment": "inputs sampled at the communication points; FMU extrapolates motion inputs with "
                            "v and w and holds force inputs over each communication step (docs/fmu.md)",

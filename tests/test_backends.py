@@ -1,5 +1,5 @@
-"""The compiled step (backend numba, runtime/kernel.py) against the numpy reference backend, and the
-fallback when numba cannot serve.
+"""The C runtime (backend native, runtime/native) against the numpy reference backend, and the
+fallback when the C runtime cannot be compiled.
 
 Both backends make the same Newton decisions on the same equations; their residuals differ by
 round-off only, so the runs agree to round-off amplified over the run: we require 1e-10 of each
@@ -9,7 +9,7 @@ loads are residual rows at the last evaluated Newton iterate, one increment befo
 on a beam of 8 m); that iterate carries the round-off of the previous, larger increment through the
 ill-conditioned iteration matrix (condition ~1e11 on B1), so their round-off is up to ~1e-6 of their
 own size (measured 7.8e-7, the coned beam's hub force; 2e-9 when they were evaluated at the accepted
-iterate): 2e-6 for them. The numba runs take their steps in the kernel's many-step run (inputs and recording
+iterate): 2e-6 for them. The native runs take their steps in the C runtime's many-step run (inputs and recording
 inside), except B4 (a free body's momenta are recorded step by step).
 
 The runs are chosen so that no convergence test sits at its threshold: there the two backends' round-off
@@ -27,10 +27,8 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import build_body, build_scene_body
-from ffrf_fmu.runtime import compiled, held
+from ffrf_fmu.runtime import held
 from ffrf_fmu.runtime.body import BodySystem
-
-pytest.importorskip("numba")  # a declared dependency (CI checks it imports); the kernel's tests need it
 
 RUNS = {  # a few hundred steps into each benchmark
     "B1": ("models/haug_beam.toml", "spinup", ["superelements=2", "step=0.01", "duration=3.0"]),
@@ -65,9 +63,9 @@ def _run(name, backend):
 
 
 @pytest.mark.parametrize("name", list(RUNS))
-def test_numba_backend_matches_numpy(name):
-    ref, fast = _run(name, "numpy"), _run(name, "numba")
-    assert fast.summary["backend"] == "numba" and ref.summary["backend"] == "numpy"
+def test_native_backend_matches_numpy(name):
+    ref, fast = _run(name, "numpy"), _run(name, "native")
+    assert fast.summary["backend"] == "native" and ref.summary["backend"] == "numpy"
     assert ref.summary["completed"] and fast.summary["completed"]
     assert ref.summary["steps"] >= 200
     assert set(fast.summary["metrics"]) == set(ref.summary["metrics"])  # e.g. a free body's momenta recorded on both
@@ -80,7 +78,7 @@ def test_numba_backend_matches_numpy(name):
             a, b = ref.port(port.name, field), fast.port(port.name, field)
             rtol = 1e-10 if field in KINEMATIC else 2e-6
             assert np.abs(a - b).max() <= rtol * max(scale, 1e-300), (port.name, field)
-    # the energies (recorded inside the kernel's many-step run; measured <= 1.4e-11 of the peak)
+    # the energies (recorded inside the C runtime's many-step run; measured <= 1.4e-11 of the peak)
     np.testing.assert_array_equal(fast.t, ref.t)
     peak = max(np.abs(ref.columns[f"energy.{k}"]).max() for k in sim.ENERGIES)
     for k in sim.ENERGIES:
@@ -91,9 +89,9 @@ HELD_RUNS = {k: RUNS[k] for k in ("B1", "B1-compliant", "B1-full-stiffening-W2")
 
 
 @pytest.mark.parametrize("name", list(HELD_RUNS))
-def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
-    """An FMU's communication step in ONE kernel call (BodySystem.run_held on numba: the inputs
-    extrapolated from the held values inside the kernel, kernel._held_inputs) against one step call per
+def test_held_inputs_in_the_runtime_match_the_numpy_twin(name):
+    """An FMU's communication step in ONE call of the C runtime (BodySystem.run_held on native: the inputs
+    extrapolated from the held values inside it, advance.c ffrf_held_inputs) against one step call per
     internal step with their numpy twin runtime/held.inputs (numpy backend): 1e-10 of the kinematic
     outputs, 2e-6 of the loads (module docstring), equal iterations; 5 internal steps per
     communication step, so that the extrapolation spans several steps, over 1 s of the scene. The
@@ -106,7 +104,7 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
     body, _ = build_scene_body(model.body, sc)
     n, h = 5, sc.step
     runs, lus = {}, {}
-    for backend in ("numpy", "numba"):
+    for backend in ("numpy", "native"):
         s, inputs = sim.build_system(body, sc, model.body.origin, backend)
         rows, worst = [], []
         for k in range(int(round(1.0 / (n * h)))):
@@ -116,14 +114,14 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
             s.t = t_c + n * h  # the master's clock (fmu/core.py)
             rows.append(row)
         assert s.backend == backend
-        if backend == "numba":
-            assert s._compiled.verified and s._lu[0] is s._compiled.lu
+        if backend == "native":
+            assert s._lu[0] is s._compiled._lu_out
         runs[backend] = (np.array(rows), worst)
         lus[backend] = s._lu
-    (ref, w_ref), (fast, w_fast) = runs["numpy"], runs["numba"]
+    (ref, w_ref), (fast, w_fast) = runs["numpy"], runs["native"]
     assert w_fast == w_ref
-    np.testing.assert_allclose(lus["numba"][3], lus["numpy"][3], rtol=0, atol=1e-10)
-    assert lus["numba"][4] == lus["numpy"][4]
+    np.testing.assert_allclose(lus["native"][3], lus["numpy"][3], rtol=0, atol=1e-10)
+    assert lus["native"][4] == lus["numpy"][4]
     np.testing.assert_array_equal(fast[:, -1], ref[:, -1])
     P = len(body.ports)
     for field, cols in (("r", slice(0, 3)), ("R", slice(3, 12)), ("v", slice(12, 15)), ("w", slice(15, 18)),
@@ -138,16 +136,16 @@ def test_held_inputs_in_the_kernel_match_the_numpy_twin(name):
 
 def test_state_round_trips_between_backends():
     """A state saved by one backend (factorization included) continues bit-for-bit the same way in a
-    body restored from it: the kernel's LU is the array scipy's lu_factor returns."""
+    body restored from it: the C runtime's LU is the array scipy's lu_factor returns (transposed)."""
     model = load_model("models/haug_beam.toml", ["superelements=2"])
     sc = model.scene("spinup")
     body, _ = build_body(model.body)
-    s, inputs = sim.build_system(body, sc, backend="numba")
+    s, inputs = sim.build_system(body, sc, backend="native")
     for _ in range(50):
         s.step(sc.step, inputs)
     state = s.get_state()
     assert state[4] == 1.0  # the factorization is part of the state
-    other = BodySystem(body, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity, backend="numba")
+    other = BodySystem(body, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity, backend="native")
     other.set_state(state)
     for _ in range(20):
         s.step(sc.step, inputs)
@@ -155,82 +153,31 @@ def test_state_round_trips_between_backends():
     np.testing.assert_array_equal(other.get_state(), s.get_state())
 
 
-def test_every_use_of_the_kernel_shares_one_compiled_entry_point():
-    """An output row, a single step, a scene's run and an FMU's communication step (a compliant port
-    too) all call the kernel's `advance` (and `_record`) with the same argument types: ONE compiled
-    specialization each, so a first run compiles the step's tree once (docs/benchmarks.md, compile
-    section); a second specialization would compile it again."""
-    model = load_model("models/haug_beam.toml", ["superelements=1", "modes=2", 'body.ports.tip.translation="compliant"',
-                                                  "body.ports.tip.coupling={ stiffness = [1e3, 1e3, 1e3], damping = [1.0, 1.0, 1.0] }"])
-    sc = model.scene("spinup")
-    body, _ = build_scene_body(model.body, sc)
-    s, inputs = sim.build_system(body, sc, backend="numba")
-    s.output_row()
-    s.step(sc.step, inputs)
-    rows, times = np.empty((3, s._compiled.row_size)), np.empty(3)
-    assert s.run_schedule(sc.step, sim.scene_schedule(body, sc), rows, times) == (3, None)
-    s.run_held(sc.step, 2, s.t, held.rows(body.ports, inputs(s.t)), np.empty(s._compiled.row_size))
-    assert s.backend == "numba", s.backend_note
-    module = s._compiled.module
-    assert len(module.advance.signatures) == 1 and len(module._record.signatures) == 1
+def test_a_missing_compiler_falls_back_to_numpy_with_a_note(monkeypatch, caplog):
+    """Where the C runtime cannot be compiled (no compiler, a failing build), the body runs on the numpy
+    path and says why, in backend_note and the log."""
+    from ffrf_fmu.runtime.native import binding, build
 
+    def no_compiler(sanitize=False):
+        raise build.BuildError("no C compiler: none of cc, gcc, clang on the PATH")
 
-def test_an_output_rows_arrays_are_those_advance_gives_record():
-    """`CompiledStep.record` calls the kernel's `_record` with its own tuple of `step`'s constants
-    (energy_data; passing all of const would unbox every array per call); `advance` picks the same
-    from const (kernel `_energy_data`). The two must be the very same arrays, in the same order."""
-    model = load_model("models/haug_beam.toml", ["superelements=2", "stiffening=true"])
-    sc = model.scene("spinup")
-    body, _ = build_scene_body(model.body, sc)
-    s, _ = sim.build_system(body, sc, backend="numba")
-    cs = s._compiled
-    picked = cs.module._energy_data.py_func(cs.const)
-    assert len(picked) == len(cs.energy_data)
-    assert all(a is b for a, b in zip(picked, cs.energy_data))
-
-
-def test_uncovered_term_set_or_missing_numba_falls_back_with_a_note(monkeypatch, caplog):
-    module, why = compiled.load_kernel("a_new_term_set")  # a term set added to the numpy path only
-    assert module is None and "does not cover term set 'a_new_term_set'" in why
-    monkeypatch.setattr(compiled, "load_kernel", lambda terms: (None, "numba is not installed"))
-    import ffrf_fmu.runtime.body as body_module
-
-    monkeypatch.setattr(body_module, "load_kernel", compiled.load_kernel)
+    monkeypatch.setattr(binding, "load", no_compiler)
     model = load_model("models/haug_beam.toml", ["superelements=1"])
     body, _ = build_body(model.body)
     with caplog.at_level(logging.WARNING, logger="ffrf_fmu"):
-        s = BodySystem(body, backend="numba")
-    assert s.backend == "numpy" and "numba is not installed" in s.backend_note
+        s = BodySystem(body, backend="native")
+    assert s.backend == "numpy" and "no C compiler" in s.backend_note
     assert "running on numpy" in caplog.text
 
 
-def test_a_term_the_kernel_lacks_is_caught_at_the_first_step(caplog):
-    """A term in the numpy equations that the kernel does not have (here a constant elastic force
-    added through the fused hook, as a new term set would be) makes the first step disagree: the body
-    continues on numpy, from the numpy step, with a note."""
-    from ffrf_fmu.runtime.fused import FusedResidual
-
-    model = load_model("models/haug_beam.toml", ["superelements=1", "modes=2"])
-    sc = model.scene("spinup")
+def test_the_retired_numba_backend_is_refused_naming_its_replacement():
+    model = load_model("models/haug_beam.toml", ["superelements=1"])
     body, _ = build_body(model.body)
-    s, inputs = sim.build_system(body, sc, backend="numba")
-    ref, _ = sim.build_system(body, sc, backend="numpy")
-    for system in (s, ref):
-        const = np.full(system.layout.n, 10.0)
-
-        def extra(st, D, const=const):
-            g = np.broadcast_to(const, st["q"].shape).copy()
-            return (g, None, None) if D is None else (g, np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)),
-                                                        np.zeros(g.shape + (D["Dq"].shape[2] + g.shape[1] + 6,)))
-        system.fused = FusedResidual(system.layout, system.stack, system.coupling, system.coriolis, g_terms=(extra,))
-    with caplog.at_level(logging.WARNING, logger="ffrf_fmu"):
-        s.step(sc.step, inputs)
-    assert s.backend == "numpy" and "disagrees" in s.backend_note and "disagrees" in caplog.text
-    ref.step(sc.step, inputs)
-    np.testing.assert_array_equal(s.get_state(), ref.get_state())  # the numpy step, exactly
+    with pytest.raises(ValueError, match="replaced by the C runtime: use backend 'native'"):
+        BodySystem(body, backend="numba")
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("backend", ["numpy", "native"])
 def test_snapshot_restore_repeats_the_steps_bit_for_bit(backend):
     """BodySystem.restore(snapshot()) (an FMU's rollback) returns to the snapshot's state with its
     factorization, which the snapshot shares instead of copying: the steps after it repeat bit for bit,
@@ -251,21 +198,3 @@ def test_snapshot_restore_repeats_the_steps_bit_for_bit(backend):
     for k in range(40):
         s.step(sc.step, inputs)
         np.testing.assert_array_equal(s.get_state(), first[k])
-
-
-def test_the_kernels_time_functions_are_the_drives():
-    """kernel._time_function (the drives of simulate.run's many-step kernel call) against
-    runtime/drives.py evaluate, every kind, on both sides of its switching times."""
-    from ffrf_fmu.runtime import drives
-
-    module, _ = compiled.load_kernel("linear")
-    cases = {"constant": {"value": 1.5}, "haug_spinup": {"omega": 4.0, "T": 15.0}, "ramp": {"rate": 2.0, "t_start": 0.3},
-             "window": {"value": 3.0, "t_start": 0.2, "t_end": 0.7}, "sine": {"amplitude": 0.1, "frequency_hz": 2.0, "phase": 0.4}}
-    assert set(cases) == set(drives.KINDS)
-    out = np.zeros(2)
-    for kind, params in cases.items():
-        code, prm = drives.encode(kind, params)
-        for t in (0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 14.9, 15.0, 20.0):
-            module._time_function(code, np.array(prm), t, out)
-            s, ds, _ = drives.evaluate(kind, params, t)
-            np.testing.assert_allclose(out, [s, ds], rtol=1e-14, atol=1e-15, err_msg=f"{kind} at t = {t}")

@@ -52,7 +52,7 @@ SHIPPED_FMU_MODULES = ("core.py", "derivatives.py", "variables.py")
 LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
 PYTHON_FILE = "ffrf_python.json"
 LIBPYTHON_FILE = "ffrf_libpython.txt"
-ALLOWED_IMPORTS = {"numpy", "scipy", "numba"}  # numba: runtime/compiled.py falls back to numpy without it
+ALLOWED_IMPORTS = {"numpy", "scipy"}
 OPTIONAL_IMPORTS = {"threadpoolctl"}  # allowed inside `try: ... except ImportError:` only
 
 DESCRIPTION = (
@@ -202,8 +202,7 @@ _STDLIB = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
 
 
 def check_shipped_imports(sources: dict[str, str]) -> None:
-    """The shipped modules may import only the standard library, numpy, scipy, numba (optional: imported
-    only by runtime/compiled.py, which falls back to numpy without it) and each other
+    """The shipped modules may import only the standard library, numpy, scipy and each other
     (relative imports): anything else would be missing where the FMU runs."""
     import ast
 
@@ -227,7 +226,7 @@ def check_shipped_imports(sources: dict[str, str]) -> None:
                 if top in ALLOWED_IMPORTS or top in _STDLIB or (top in OPTIONAL_IMPORTS and id(node) in guarded):
                     continue
                 raise BuildError(
-                    f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, numba, the "
+                    f"{name} imports {mod!r}: modules shipped in an FMU may import only numpy, scipy, the "
                     "standard library and each other (relative imports)"
                 )
 
@@ -255,7 +254,7 @@ def build_fmu(
     origin=None,
     build_info: dict | None = None,
     native_loader: bool = True,
-    backend: str = "numba",
+    backend: str = "numpy",
 ) -> Path:
     """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
 
@@ -263,11 +262,10 @@ def build_fmu(
     build_info: free JSON-able facts stored in the resources (model file, scene, overrides).
     native_loader: put the native loader in front of pythonfmu's binary (Linux, needs a C
     compiler at build time; without one a BuildWarning says what the FMU then needs).
-    backend: "numba" (the FMU uses the compiled step when its host has numba, else numpy with a logged
-    message) or "numpy" (always the reference implementation).
+    backend: "numpy" (the slave steps on the reference implementation, shipped as Python modules).
     """
-    if backend not in ("numba", "numpy"):
-        raise BuildError(f"backend must be numba or numpy, got {backend!r}")
+    if backend != "numpy":
+        raise BuildError(f"the pythonfmu FMU's slave steps on backend numpy, got {backend!r}")
     from pythonfmu import FmuBuilder  # build-time only
 
     runtime_src = _sources(RUNTIME_DIR)
@@ -363,7 +361,7 @@ def build_fmu(
 # from a model file
 
 
-def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numba") -> Path:
+def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numpy") -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
     from ..model import load_model
     from ..reduction import build_scene_body

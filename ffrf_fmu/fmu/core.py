@@ -32,7 +32,6 @@ from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
-from ..runtime.compiled import kernel_report
 from .derivatives import LastStep, directional_derivative
 from .variables import Variable, body_variables
 
@@ -104,7 +103,7 @@ class BodyCoSim:
         # 17-21 s with two OpenBLAS threads, 3.2-3.5 s with one). The limit holds during this
         # instance's calls only and is undone on return: the host's own setting stays as it is.
         self._blas = ThreadpoolController() if ThreadpoolController is not None else None
-        self.backend_note = None  # why the numba backend is not used, when it was asked for
+        self.backend_note = None  # why the native backend is not used, when it was asked for
         self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
         self._output_map: tuple | None = None  # see _output_values
         self._row = np.empty(BodySystem.OUTPUT_WIDTH * len(data.ports) + len(BodySystem.ENERGY_FIELDS) + 1)  # output_row
@@ -252,7 +251,7 @@ class BodyCoSim:
             self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"],
                                      full_terms=tuple(self.config["parameters"]["full_terms"]),
                                      backend=self.config.get("backend", "numpy"))
-            self.backend_note = self.system.backend_note  # numba wanted but not usable: the slave logs it
+            self.backend_note = self.system.backend_note  # native wanted but not usable: the slave logs it
             self._system_params = key
         for port, KC in p["compliance"].items():  # compliant ports: the coupling parameters
             self.system.compliance[port][...] = KC
@@ -397,7 +396,7 @@ class BodyCoSim:
         hh = H / n
         try:
             with self.one_blas_thread():
-                worst = system.run_held(hh, n, t_c, held, self._row)  # one kernel call on numba
+                worst = system.run_held(hh, n, t_c, held, self._row)  # one call of the C runtime on backend native
                 system.t = t_end  # the master's clock, not the sum of n rounded steps
                 dst, out = self._output_values(worst, self._row)
             self._check_finite(system, out)
@@ -525,9 +524,6 @@ class BodyCoSim:
         else:
             self._make_system().set_state(np.asarray(state["system"], dtype=float))
 
-    def kernel_report(self) -> str | None:
-        """The numba kernel's first-call time of this instance, for the log (compiled.kernel_report)."""
-        return kernel_report(self.system._compiled if self.system is not None else None)
 
     @staticmethod
     def state_to_bytes(state: dict) -> bytes:

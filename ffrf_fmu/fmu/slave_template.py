@@ -250,9 +250,7 @@ class {cls}(Fmi2Slave):
 
     @_guarded(lambda *a: None)
     def terminate(self):
-        report = self.core.kernel_report()  # compile or disk-cache load time, apart from stepping (validate reads it)
-        if report:
-            self.log(report)
+        pass
 
     @_guarded(lambda *a: {{"invalid": "fmi2GetFMUstate failed (see the log)"}})
     def _get_fmu_state(self):

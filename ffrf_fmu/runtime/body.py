@@ -11,7 +11,6 @@ from typing import Callable
 
 import numpy as np
 
-from .compiled import CompiledStep, load_kernel
 from .data import BodyData
 from . import stiffening
 from .fused import FusedResidual
@@ -23,7 +22,17 @@ from .ports import PortValues, StepFailure
 from .rotation import ROTATION_TOL, cross, is_rotation, vect
 from .terms import FULL_TERMS, TERM_SETS
 
-BACKENDS = ("numpy", "numba")
+BACKENDS = ("native", "numpy")
+# backends that were replaced, and by what (a request for one is refused with this message)
+RETIRED_BACKENDS = {"numba": "the numba backend was replaced by the C runtime: use backend 'native' (the default)"}
+
+
+def check_backend(backend: str) -> None:
+    """Refuse an unknown or retired backend with a message naming the replacement."""
+    if backend in RETIRED_BACKENDS:
+        raise ValueError(RETIRED_BACKENDS[backend])
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
 
 
 def _input(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
@@ -60,15 +69,14 @@ class BodySystem(GeneralizedAlpha):
         gravity=(0.0, 0.0, 0.0),
         tol: float = 1e-9,
         max_iter: int = 25,
-        backend: str = "numpy",
+        backend: str = "native",
     ):
-        """backend: "numpy" (the reference) or "numba" (the compiled step, runtime/kernel.py); when numba
-        is missing or does not cover the term set, the body runs on numpy, says why in `backend_note`
-        and logs it (logger "ffrf_fmu"). `backend` is the one in use."""
+        """backend: "native" (the C runtime, runtime/native; compiled into the user cache on first use)
+        or "numpy" (the plain reference path). When the C runtime cannot be compiled here, the body runs
+        on numpy, says why in `backend_note` and logs it (logger "ffrf_fmu"). `backend` is the one in use."""
         if terms not in TERM_SETS:
             raise ValueError(f"unknown term set {terms!r}; choose one of {TERM_SETS}")
-        if backend not in BACKENDS:
-            raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
+        check_backend(backend)
         self.data, self.terms, self.rho_inf = data, terms, float(rho_inf)
         self.coefficients = alpha_coefficients(self.rho_inf)
         self.gravity = np.asarray(gravity, dtype=float)
@@ -85,7 +93,7 @@ class BodySystem(GeneralizedAlpha):
         # the gyroscopic set's two parts: the S(q) coupling (55) in (77), the G(W0) Coriolis (53) in (78)-(79)
         self.coupling = terms == "gyroscopic" or (terms == "full" and "inertia_coupling" in self.full_terms)
         self.coriolis = terms == "gyroscopic" or (terms == "full" and "coriolis" in self.full_terms)
-        self.gyro = self.coupling and self.coriolis  # the whole gyroscopic set (the numba kernel's flag)
+        self.gyro = self.coupling and self.coriolis  # the whole gyroscopic set
         # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it; the
         # deformation-dependent inertia (Witteveen's I0 + W1 q + q W2 q) with the `full` term set
         ses = data.superelements
@@ -144,13 +152,15 @@ class BodySystem(GeneralizedAlpha):
         self.iterations = 0
         self.reset_reference()
         self._compiled, self.backend, self.backend_note = None, "numpy", None
-        if backend == "numba":
-            module, why = load_kernel(terms)
-            if module is None:
-                self.backend_note = f"numba backend not available ({why}): running on numpy"
+        if backend == "native":
+            from .native.binding import native_step  # (ctypes: imported when a body asks for it)
+
+            self._compiled, why = native_step(self)
+            if self._compiled is None:
+                self.backend_note = f"C runtime not available ({why}): running on numpy"
                 logging.getLogger("ffrf_fmu").warning(self.backend_note)
             else:
-                self._compiled, self.backend = CompiledStep(self, module), "numba"
+                self.backend = "native"
 
     # ------------------------------------------------------------------ state
     def reset_reference(self):
@@ -190,7 +200,7 @@ class BodySystem(GeneralizedAlpha):
     def snapshot(self):
         """A rollback point for `restore` (an FMU's doStep): get_state without the iteration matrix,
         copied, and the factorization by reference, which costs nothing: a factorization is never
-        modified in place (numpy's `_factor` and the kernel's refresh make new arrays)."""
+        modified in place (numpy's `_factor` makes new arrays; the C runtime's is copied out after a refresh)."""
         return self._flat_state(with_lu=False), self._lu
 
     def restore(self, snapshot) -> None:
@@ -507,8 +517,8 @@ class BodySystem(GeneralizedAlpha):
 
     def output_row(self) -> np.ndarray:
         """One row of a time series (simulate.record's layout): port_array raveled, the energies in
-        `energies` order, the Newton iterations of the last step; on the numba backend computed by the
-        kernel (runtime/kernel.py `_record`, the compiled twin of port_array and energies)."""
+        `energies` order, the Newton iterations of the last step; on the native backend computed by the
+        C runtime (advance.c `ffrf_record`, the compiled twin of port_array and energies)."""
         if self._compiled is not None:
             return self._compiled.record(self)
         e = self.energies()

@@ -14,11 +14,11 @@ KINDS = {
     "sine": ("amplitude", "frequency_hz", "phase"),
 }
 
-CODES = {kind: i for i, kind in enumerate(KINDS)}  # the kind's number in the compiled twin (runtime/kernel.py)
+CODES = {kind: i for i, kind in enumerate(KINDS)}  # the kind's number in the C twin (runtime/native/advance.c time_function)
 
 
 def encode(kind: str, params: dict) -> tuple[int, list[float]]:
-    """(code, parameters in KINDS order, padded to 3): a time function as the compiled kernel reads it."""
+    """(code, parameters in KINDS order, padded to 3): a time function as the C runtime reads it."""
     if kind not in KINDS:
         raise ValueError(f"unknown time function kind {kind!r}; known: {sorted(KINDS)}")
     values = [float(params.get(k, 0.0)) for k in KINDS[kind]]

@@ -1,5 +1,5 @@
 """The equations of one two-field superelement, written straight from the paper: the plain twin and
-test oracle of the fused evaluation (runtime/fused.py) and of compiled kernels.
+test oracle of the fused evaluation (runtime/fused.py) and of the C runtime (runtime/native).
 
 Equation numbers are those of Geradin's two-field paper; docs/equations.md has the algebra.
 Nothing here is on the hot path: clarity first, one superelement and one boundary node at a time.

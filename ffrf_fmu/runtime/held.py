@@ -6,8 +6,8 @@ rule, fmu/variables.py INPUTS_BETWEEN_COMMUNICATION_POINTS): second order in s =
 
 the rotation exact for a fixed axis, otherwise missing (w x dw) s^3/12 (third order).
 
-The held values are one array per port (`COLUMNS`), so that the compiled kernel evaluates them at every
-internal step of the communication step in one call (runtime/kernel.py `_held_inputs`, in `advance`);
+The held values are one array per port (`COLUMNS`), so that the C runtime evaluates them at every
+internal step of the communication step in one call (runtime/native/advance.c `ffrf_held_inputs`, in `ffrf_body_advance`);
 `inputs` here is its numpy twin and the oracle (tests/test_backends.py).
 Runtime module: numpy only.
 """
@@ -20,7 +20,7 @@ import numpy as np
 from .ports import PortValues
 from .rotation import expm
 
-PART_CODES = {"force": 0, "motion": 1, "compliant": 2}  # a port part's causality as the kernel reads it
+PART_CODES = {"force": 0, "motion": 1, "compliant": 2}  # a port part's causality as the C runtime reads it
 
 # columns of a port's row of held values: position, velocity, acceleration, R (row-major), angular
 # velocity, angular acceleration (world axes), force, moment
@@ -32,7 +32,7 @@ WIDTH = 30
 def port_codes(ports) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(node, mode, spring) per port in `ports` order: the boundary node, the causality codes of
     (translation, rotation) (PART_CODES), the index among the compliant ports (-1: not compliant;
-    the order of BodySystem.compliant and of the kernel's spring arrays)."""
+    the order of BodySystem.compliant and of the C runtime's spring arrays)."""
     node = np.array([p.node for p in ports], dtype=np.int64)
     mode = np.array([[PART_CODES[p.translation], PART_CODES[p.rotation]] for p in ports], dtype=np.int64).reshape(-1, 2)
     spring, k = np.full(len(ports), -1, dtype=np.int64), 0

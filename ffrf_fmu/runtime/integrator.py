@@ -150,31 +150,29 @@ class GeneralizedAlpha:
         return self._step(h, inputs, am, af, gamma, commit_config=True)
 
     def run_schedule(self, h: float, schedule: tuple, rows: np.ndarray, times: np.ndarray):
-        """len(rows) steps of h in one compiled call (backend numba only), with the inputs a scene's
+        """len(rows) steps of h in one call of the C runtime (backend native only), with the inputs a scene's
         schedule tabulates (simulate.scene_schedule) evaluated inside it and every step recorded in
         rows (simulate.record's layout) and times. Returns (steps completed, StepFailure or None)."""
         if self._compiled is None:
-            raise ValueError("run_schedule needs the numba backend (this body runs on numpy)")
+            raise ValueError("run_schedule needs the native backend (this body runs on numpy)")
         am, af, gamma = self.coefficients
         return self._compiled.run(self, h, schedule, rows, times, am, af, gamma)
 
     def run_held(self, h: float, n: int, t_c: float, values: np.ndarray, row: np.ndarray | None = None) -> int:
         """n steps of h with the inputs extrapolated from the values held at t_c (runtime/held.py; one row of
-        `values` per port, held.COLUMNS): an FMU's communication step. On numba (after its first step,
-        checked against numpy) in ONE kernel call with the extrapolation inside; otherwise one `step` call
+        `values` per port, held.COLUMNS): an FMU's communication step. On the native backend in ONE call
+        of the C runtime with the extrapolation inside; otherwise one `step` call
         per step with held.inputs, its numpy twin. Returns the most Newton iterations of a step; raises
         StepFailure (the state then is that of the last completed step). row, if given, receives
         `output_row` at the end."""
         compiled = self._compiled
-        if compiled is not None and compiled.verified:
+        if compiled is not None:
             am, af, gamma = self.coefficients
-            held = (*self._held_codes, values)
             buf = row if row is not None else np.empty(compiled.row_size)
-            done, worst, exc = compiled.run_held(self, h, n, t_c, held, buf, am, af, gamma)
+            done, worst, exc = compiled.run_held(self, h, n, t_c, values, buf, am, af, gamma)
             if exc is not None:
                 raise exc
-            if self._compiled is not None:  # (None: the kernel failed to compile, nothing was stepped)
-                return worst
+            return worst
         inputs, worst = held_inputs(self.data.ports, values, t_c), 0
         for _ in range(n):
             worst = max(worst, self.step(h, inputs))
@@ -252,7 +250,7 @@ class GeneralizedAlpha:
     def _newton(self, yd, beta, t1, stale=None, trusted=False, replay=None):
         """Newton on the rates yd (updated in place) of the prepared step; returns the residual of the
         last evaluation and the iterations (residual evaluations, each followed by one solve).
-        runtime/kernel.py `newton_step` is its compiled twin.
+        runtime/native/step.c `newton_step` is its C twin.
 
         Increments are measured per field (`_field_scale`): |dx_i| / (tol/beta + tol S_f), S_f the
         largest rate of the field of unknown i, so that a modal acceleration and a node velocity

@@ -2,8 +2,8 @@
 elastic rotation map `vect` and the rotation check.
 
 Every stage imports it from here (the FE model, linearization, the reference beam, the master,
-the studies): it lives in runtime/ because runtime/ ships inside each FMU. Its compiled twins are
-the scalar numba functions `_skew`, `_cross`, `_expm`, `_tangent` of runtime/kernel.py (checked
+the studies): it lives in runtime/ because runtime/ ships inside each FMU. Its C twins are
+`ffrf_skew`, `ffrf_cross`, `ffrf_expm`, `ffrf_tangent`, `ffrf_logm` of runtime/native/so3.c (checked
 through whole runs against the numpy backend in tests/test_backends.py).
 
 Conventions: rotations are matrices R (columns = rotated axes in fixed axes), updated on the

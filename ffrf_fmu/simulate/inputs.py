@@ -59,7 +59,7 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
 
 
 def scene_schedule(body: BodyData, scene: Scene) -> tuple:
-    """The inputs of `scene_inputs` as arrays, for the compiled run (runtime/kernel.py `advance`, which
+    """The inputs of `scene_inputs` as arrays, for the native run (runtime/native/advance.c `ffrf_body_advance`, which
     evaluates them at every step as scene_inputs does): per port its node, part causalities (0 force,
     1 motion, 2 compliant), spring index among the compliant ports (-1: none), reference position,
     drive time functions (code, parameters; -1: no drive) and direction / axis; per load its port,

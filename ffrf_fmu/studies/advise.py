@@ -46,7 +46,6 @@ what no rule estimates (modal truncation, interactions).
 
 from __future__ import annotations
 
-import importlib.util
 
 import math
 from dataclasses import dataclass, field
@@ -78,7 +77,7 @@ class Advice:
     reasons: dict = field(default_factory=dict)  # choice -> text
     warnings: list = field(default_factory=list)  # where the advice leaves the range its rules were checked on
     stiffening: bool = False
-    backend: str = "numba"  # the backend the costs were priced on, and the one --check runs
+    backend: str = "native"  # the backend the costs were priced on, and the one --check runs
 
     @property
     def overrides(self) -> list[str]:
@@ -98,21 +97,20 @@ class Advice:
 
 
 def pricing_backend(backend: str) -> str:
-    """The backend whose measured costs price a configuration: numba runs the body when it is installed
-    (the kernel covers every term set), else numpy runs it."""
-    if backend not in ("numba", "numpy"):
-        raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
-    if backend == "numba" and importlib.util.find_spec("numba") is None:
-        return "numpy"
+    """The backend whose measured costs price a configuration (runtime/body.py check_backend refuses
+    an unknown or retired one)."""
+    from ..runtime.body import check_backend
+
+    check_backend(backend)
     return backend
 
 
 def advise(model: Model | str, scene_name: str | None = None, tolerance: float = 0.01,
-           overrides: Sequence[str] = (), fmu: bool = False, backend: str = "numba") -> Advice:
+           overrides: Sequence[str] = (), fmu: bool = False, backend: str = "native") -> Advice:
     """The configuration for `scene_name` at `tolerance` (relative error of the scene's primary
     metric); module doc for the rules. fmu: the body will run as an FMU with communication step =
     internal step, whose input extrapolation adds a step error (FMU_INPUT_FACTOR). backend: the one that
-    will run the body; costs per step are priced on it (numpy where numba is not installed)."""
+    will run the body; costs per step are priced on it."""
     from ..term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 
     if not 0.0 < tolerance < 1.0:

@@ -160,7 +160,7 @@ def valid_count(body: Body, n_min: int) -> int:
     return max(step, step * math.ceil(n_min / step))
 
 
-def step_cost(n_se: int, terms: str, backend: str = "numba") -> float:
+def step_cost(n_se: int, terms: str, backend: str = "native") -> float:
     """Predicted cost per step against 1 superelement `linear` on `backend` (calibration.LINEAR_COST_PER_SE,
     TERM_COST, both measured per backend)."""
     from .calibration import LINEAR_COST_PER_SE, TERM_COST

@@ -36,6 +36,12 @@ void *ffrf_body_array(ffrf_body *b, const char *name, size_t *count, char *kind)
 int ffrf_body_get_scalar(const ffrf_body *b, const char *name, double *value);
 int ffrf_body_set_scalar(ffrf_body *b, const char *name, double value);
 
+/* The schedule of a scene's run (FFRF_SCHEDULED; simulate.scene_schedule): arrays of the caller's,
+ * read during ffrf_body_advance. r0 [n_ports][3], kind [n_ports][2] (-1: none), prm, axis
+ * [n_ports][2][3], load_port [n_loads], load_window [n_loads][2], load_fm [n_loads][2][3]. */
+void ffrf_body_set_schedule(ffrf_body *b, double *r0, int64_t *kind, double *prm, double *axis, int64_t *load_port,
+                            double *load_window, double *load_fm, int n_loads);
+
 /* n steps of h from the body's time, inputs by kind (FFRF_GIVEN: as set in the inputs arrays;
  * FFRF_SCHEDULED: from the schedule, every step's output row into rows[k] and its time into
  * times[k]; FFRF_HELD: extrapolated from the held values at t_c, the last step's row into rows).

@@ -1,0 +1,276 @@
+"""The C runtime called from Python (ctypes): a body's `NativeStep`, the fast path of BodySystem.
+
+The body's state arrays ARE the C body's memory (numpy views of it), as BodySystem's attributes: a step
+writes them in place and Python reads them without a copy. What BodySystem replaces (set_state,
+initialize, a step of the numpy path) is copied in before the next call (`_adopt`). The factorization
+of the iteration matrix lives in the C body; BodySystem's `_lu` gets a copy of it after a refresh only
+(its version changes), so a rollback snapshot keeps the matrix it was taken with.
+"""
+from __future__ import annotations
+
+import ctypes as C
+import logging
+
+import numpy as np
+
+from ..ports import StepFailure
+from . import build
+from .image import body_image
+
+GIVEN, SCHEDULED, HELD = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
+OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP = range(6)
+
+_LIB: dict[bool, C.CDLL] = {}
+
+_p, _d, _i, _sz = C.c_void_p, C.c_double, C.c_int, C.c_size_t
+_SIGNATURES = {
+    "ffrf_body_create": (_p, [C.c_char_p, _sz, C.c_char_p, _sz]),
+    "ffrf_body_free": (None, [_p]),
+    "ffrf_body_array": (_p, [_p, C.c_char_p, C.POINTER(_sz), C.c_char_p]),
+    "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, C.POINTER(_d)]),
+    "ffrf_body_set_scalar": (_i, [_p, C.c_char_p, _d]),
+    "ffrf_body_set_schedule": (None, [_p, _p, _p, _p, _p, _p, _p, _p, _i]),
+    "ffrf_body_advance": (_i, [_p, _i, _i, _d, _d, _p, _p, C.POINTER(_i), C.POINTER(_i)]),
+    "ffrf_body_record": (None, [_p, _p]),
+    "ffrf_body_state_size": (_sz, [_p]),
+    "ffrf_body_get_state": (None, [_p, _p]),
+    "ffrf_body_set_state": (_i, [_p, _p, _sz]),
+}
+
+
+def load(sanitize: bool = False) -> C.CDLL:
+    """The runtime library, compiled into the cache on first use (runtime/native/build.py)."""
+    if sanitize not in _LIB:
+        lib = C.CDLL(str(build.library(sanitize)))
+        for name, (res, args) in _SIGNATURES.items():
+            fn = getattr(lib, name)
+            fn.restype, fn.argtypes = res, args
+        _LIB[sanitize] = lib
+    return _LIB[sanitize]
+
+
+_KINDS = {b"d": np.float64, b"q": np.int64, b"i": np.intc}
+
+
+class NativeBody:
+    """One C body made from an image: its named arrays as numpy views, its scalars, its state."""
+
+    def __init__(self, image: bytes, sanitize: bool = False):
+        self.lib = lib = load(sanitize)
+        err = C.create_string_buffer(512)
+        self._image = image
+        self.ptr = lib.ffrf_body_create(image, len(image), err, len(err))
+        if not self.ptr:
+            raise ValueError(f"C runtime refused the body image: {err.value.decode(errors='replace')}")
+
+    def __del__(self):
+        if getattr(self, "ptr", None):
+            self.lib.ffrf_body_free(self.ptr)
+            self.ptr = None
+
+    def array(self, name: str, shape=None) -> np.ndarray:
+        """The body's array `name` as a writable numpy view (reshaped to shape)."""
+        count, kind = _sz(), C.create_string_buffer(1)
+        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), C.byref(count), kind)
+        if addr is None and count.value:
+            raise KeyError(f"the C body has no array {name!r}")
+        dtype = np.dtype(_KINDS[kind.raw[:1]])
+        if count.value == 0:
+            a = np.zeros(0, dtype=dtype)
+        else:
+            buf = (C.c_char * (count.value * dtype.itemsize)).from_address(addr)
+            a = np.frombuffer(buf, dtype=dtype)
+        return a.reshape(shape) if shape is not None else a
+
+    def get(self, name: str) -> float:
+        v = _d()
+        if self.lib.ffrf_body_get_scalar(self.ptr, name.encode(), C.byref(v)):
+            raise KeyError(f"the C body has no scalar {name!r}")
+        return v.value
+
+    def set(self, name: str, value: float) -> None:
+        if self.lib.ffrf_body_set_scalar(self.ptr, name.encode(), float(value)):
+            raise KeyError(f"the C body has no settable scalar {name!r}")
+
+    def advance(self, kind: int, n: int, h: float, t_c: float, rows: np.ndarray | None, times: np.ndarray | None):
+        """ffrf_body_advance: (steps completed, status, the most iterations of a step)."""
+        status, worst = _i(), _i()
+        done = self.lib.ffrf_body_advance(self.ptr, kind, n, h, t_c, None if rows is None else rows.ctypes.data,
+                                          None if times is None else times.ctypes.data, C.byref(status), C.byref(worst))
+        return done, status.value, worst.value
+
+    def record(self, row: np.ndarray) -> None:
+        self.lib.ffrf_body_record(self.ptr, row.ctypes.data)
+
+    def get_state(self) -> np.ndarray:
+        out = np.empty(self.lib.ffrf_body_state_size(self.ptr))
+        self.lib.ffrf_body_get_state(self.ptr, out.ctypes.data)
+        return out
+
+    def set_state(self, state: np.ndarray) -> None:
+        state = np.ascontiguousarray(state, dtype=float)
+        code = self.lib.ffrf_body_set_state(self.ptr, state.ctypes.data, state.size)
+        if code == -1:
+            raise ValueError(f"state has {state.size} entries, this body needs {self.lib.ffrf_body_state_size(self.ptr)}")
+        if code:
+            raise ValueError("state refused: its pivots or iteration count are not those of a factorization")
+
+
+def failure(status: int, t1: float, max_iter: int, last_increment: float) -> StepFailure | None:
+    """The StepFailure of a step's status, with the numpy path's messages (integrator.py)."""
+    if status == NOT_FINITE:
+        return StepFailure(t1, "the residual is not finite (NaN or overflow)")
+    if status == NOT_CONVERGED:
+        return StepFailure(t1, f"Newton did not converge in {max_iter} iterations "
+                               f"(last increment {last_increment:.3g} of the tolerance)")
+    if status == ROTATION_ALIAS:
+        return StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
+                               "or an absurd input)")
+    if status == NOT_FACTORED:
+        return StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
+    if status == BAD_STEP:
+        return StepFailure(t1, "step size must be positive and finite")
+    return None
+
+
+class NativeStep:
+    """The C runtime's step for one BodySystem (its `_compiled`): BodySystem.step, run_schedule, run_held
+    and output_row call it."""
+
+    def __init__(self, system, sanitize: bool = False):
+        self.body = B = NativeBody(body_image(system), sanitize)
+        L = system.layout
+        N, E = L.n_nodes, L.n_se
+        self.state = {k: B.array(k, np.shape(getattr(system, k))) for k in system._STATE_FIELDS}
+        self.energy = B.array("energy")
+        self.inputs = tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),
+                                                         ("f_in", (N, 3)), ("t_in", (N, 3))))
+        ns = len(system.compliant)
+        self.KC, self.r_in, self.v_in = B.array("KC", (ns, 4, 3)), B.array("r_in", (ns, 3)), B.array("v_in", (ns, 3))
+        self.R_in, self.w_in = B.array("R_in", (ns, 3, 3)), B.array("w_in", (ns, 3))
+        self.spring_ports = [p.name for p in system.data.ports if p.name in system.compliant]
+        loads = B.array("spring_loads", (N, 2, 3))
+        loads[...] = system._spring_loads
+        system._spring_loads = loads  # the springs' loads: written by the C steps, read by the numpy path
+        self.held = B.array("held", (len(system.data.ports), -1))
+        nf = len(system._newton_idx)
+        self.luT, self.piv, self.meta = B.array("luT", (nf, nf)), B.array("piv"), B.array("lu_meta")
+        self._lu_out = None  # the factorization last handed to system._lu (a copy), and the C version it copies
+        self._lu_version = -1.0
+        self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
+        self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
+
+    # ---------------------------------------------------------------- state in, results out
+    def _adopt(self, system):
+        """The body's state in the C body's memory (after set_state, initialize or a numpy step)."""
+        for k, buf in self.state.items():
+            arr = getattr(system, k)
+            if arr is not buf:
+                buf[...] = arr
+                setattr(system, k, buf)
+        m, lu = self.meta, system._lu
+        if lu is None:
+            m[0] = 0.0
+            return
+        if lu[0] is not self._lu_out:  # a factorization of the numpy path, set_state or an older snapshot
+            self.luT[...] = lu[0].T
+            self.piv[...] = lu[1]
+            m[2:11] = np.ravel(lu[3])
+            self._lu_out, self._lu_version = lu[0], self.body.get("lu_version")
+        m[0], m[1], m[11] = 1.0, lu[2], lu[4]
+
+    def _prepare(self, system, am, af, gamma):
+        self._adopt(system)
+        B = self.body
+        B.set("t", system.t)
+        B.set("iterations", system.iterations)
+        B.set("am", am)
+        B.set("af", af)
+        B.set("gamma", gamma)
+        B.set("tol", system.tol)
+        B.set("max_iter", system.max_iter)
+        for i, name in enumerate(self.spring_ports):
+            self.KC[i] = system.compliance[name]
+        self.energy[0], self.energy[1] = system.work, system.power
+
+    def _finish(self, system, status: int) -> StepFailure | None:
+        """Time, iterations, energy and the factorization back to the body; the failure of the next step."""
+        B, m = self.body, self.meta
+        system.t, system.iterations = B.get("t"), int(B.get("iterations"))
+        system.work, system.power = float(self.energy[0]), float(self.energy[1])
+        if m[0]:
+            version = B.get("lu_version")
+            if version != self._lu_version:  # refreshed: a copy, so that snapshots keep theirs
+                self._lu_out, self._lu_version = np.asfortranarray(self.luT.T), version
+                self._piv_out = self.piv.copy()
+            system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), bool(m[11]))
+        else:
+            system._lu = None
+        return failure(status, system.t + self._h, system.max_iter, float(m[1]))
+
+    # ---------------------------------------------------------------- the three ways to step
+    def step(self, system, h, inputs, am, af, gamma) -> int:
+        """BodySystem.step on the C runtime (inputs read and checked by BodySystem._read_inputs)."""
+        if not (h > 0.0 and np.isfinite(h)):
+            raise StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        read = system._read_inputs(system.t + h, inputs(system.t + h))
+        for dst, src in zip(self.inputs, read):
+            dst[...] = src
+        self._prepare(system, am, af, gamma)
+        for i, (_, _, _, kc, (r, v, R, w)) in enumerate(system._springs):
+            self.KC[i] = kc
+            if r is not None:
+                self.r_in[i], self.v_in[i] = r, v
+            if R is not None:
+                self.R_in[i], self.w_in[i] = R, w
+        self._h = h
+        _, status, _ = self.body.advance(GIVEN, 1, h, 0.0, None, None)
+        exc = self._finish(system, status)
+        if exc is not None:
+            raise exc
+        return system.iterations
+
+    def run(self, system, h, schedule, rows, times, am, af, gamma):
+        """len(rows) steps of h in ONE call, the inputs from the scene's schedule (simulate.scene_schedule;
+        its first three arrays are the ports' codes, in the image) and every step recorded into rows
+        (simulate.record's layout) and times. Returns (steps completed, StepFailure of the next step or None)."""
+        if not (h > 0.0 and np.isfinite(h)):
+            return 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        r0, kind, prm, axis, load_port, load_window, load_fm = (np.ascontiguousarray(a) for a in schedule[3:])
+        self._schedule = (r0, kind.astype(np.int64), prm, axis, load_port.astype(np.int64), load_window, load_fm)
+        s = self._schedule
+        self.body.lib.ffrf_body_set_schedule(self.body.ptr, *(a.ctypes.data for a in s), len(s[4]))
+        self._prepare(system, am, af, gamma)
+        self._h = h
+        done, status, _ = self.body.advance(SCHEDULED, rows.shape[0], h, 0.0, rows, times)
+        return done, self._finish(system, status)
+
+    def run_held(self, system, h, n, t_c, values, row, am, af, gamma):
+        """n steps of h in ONE call, the inputs extrapolated from the values held at t_c (runtime/held.py),
+        the last step's output row into row. Returns (steps completed, the most Newton iterations of a
+        step, StepFailure of the next step or None)."""
+        if not (h > 0.0 and np.isfinite(h)):
+            return 0, 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
+        self.held[...] = values
+        self._prepare(system, am, af, gamma)
+        self._h = h
+        done, status, worst = self.body.advance(HELD, int(n), h, t_c, row.reshape(1, -1), None)
+        return done, worst, self._finish(system, status)
+
+    def record(self, system) -> np.ndarray:
+        """simulate.record's row at the current state (BodySystem.port_array, energies, iterations)."""
+        self._adopt(system)
+        self.body.set("iterations", system.iterations)
+        self.energy[0], self.energy[1] = system.work, system.power
+        row = np.empty(self.row_size)
+        self.body.record(row)
+        return row
+
+
+def native_step(system, sanitize: bool = False) -> tuple[NativeStep | None, str | None]:
+    """(NativeStep, None), or (None, why) when the runtime cannot be compiled or loaded here."""
+    try:
+        return NativeStep(system, sanitize), None
+    except build.BuildError as e:
+        logging.getLogger("ffrf_fmu").warning("C runtime not available: %s", e)
+        return None, str(e)

@@ -1,0 +1,121 @@
+"""Compiling the C runtime: on first use, in seconds, into the user cache, keyed by its sources.
+
+Why on first use and not at install: `pip install -e .` must work without a compiler in the path of the
+build backend (an editable install runs no build step of ours), and a key by content means an edited
+source, a second checkout or an upgrade compiles its own library once (about 2 s with gcc -O2) and later
+processes load it (milliseconds). The compiler is $FFRF_FMU_CC, else the system's `cc`, else zig's
+(the `ziglang` package, a dependency: a machine without a C compiler still runs).
+
+Flags that decide the numbers: -O2 without fast-math and -ffp-contract=off (no fused multiply-adds), so
+the floating-point operations are those written, in that order, whatever the compiler: the standalone
+run and an FMU built by another compiler for the same machine then compute the same bits (glibc's libm
+is the same at run time). The cache is $FFRF_FMU_CACHE_DIR, else $XDG_CACHE_HOME/ffrf-fmu, else
+~/.cache/ffrf-fmu; a temporary directory if none can be written.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SOURCES = ("so3.c", "superelement.c", "step.c", "advance.c", "body.c")
+HEADERS = ("ffrf_runtime.h", "body.h")
+# -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
+# within expressions); -fvisibility=hidden with the public API marked by FFRF_API (ffrf_runtime.h)
+FLAGS = ("-std=c11", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra", "-Werror", "-pedantic")
+SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=undefined", "-fno-omit-frame-pointer", "-g")
+
+
+class BuildError(RuntimeError):
+    """The runtime could not be compiled: the message names the compiler, the command and its errors."""
+
+
+def cache_root() -> Path:
+    env = os.environ.get("FFRF_FMU_CACHE_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "ffrf-fmu"
+
+
+def sources() -> list[Path]:
+    return [HERE / s for s in SOURCES]
+
+
+def source_digest(extra: tuple[str, ...] = ()) -> str:
+    """sha256 of the runtime's sources and headers (and the compile command's words): the cache key."""
+    h = hashlib.sha256()
+    for name in SOURCES + HEADERS:
+        h.update(name.encode() + b"\0" + (HERE / name).read_bytes() + b"\0")
+    for word in extra:
+        h.update(word.encode() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def compiler() -> list[str]:
+    """The command of the C compiler: $FFRF_FMU_CC (split on spaces), cc / gcc / clang on the PATH, else
+    zig's from the ziglang package (`python -m ziglang cc`)."""
+    env = os.environ.get("FFRF_FMU_CC")
+    if env:
+        return env.split()
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return [path]
+    try:
+        import ziglang  # noqa: F401
+    except ImportError:
+        raise BuildError("no C compiler: none of cc, gcc, clang on the PATH, and the ziglang package is not "
+                         "installed (pip install ziglang), or set FFRF_FMU_CC") from None
+    return [sys.executable, "-m", "ziglang", "cc"]
+
+
+def _library_name() -> str:
+    return "ffrf_runtime.dll" if sys.platform == "win32" else "libffrf_runtime.so"
+
+
+def compile_library(out: Path, cc: list[str] | None = None, extra: tuple[str, ...] = ()) -> None:
+    """Compile the runtime into the shared library `out`; raises BuildError with the compiler's words."""
+    cc = cc or compiler()
+    cmd = [*cc, *FLAGS, *extra, "-shared", "-fPIC", "-o", str(out), *map(str, sources()), "-lm"]
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        raise BuildError(f"{' '.join(cmd)}: {e}") from None
+    if done.returncode != 0:
+        raise BuildError(f"{' '.join(cmd)} failed:\n{done.stderr.strip()[:4000]}")
+
+
+def library(sanitize: bool = False) -> Path:
+    """The compiled runtime for this machine, compiled into the cache on first use (atomically: a
+    process that loses a race uses the winner's file). sanitize: the address and undefined-behaviour
+    sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`)."""
+    extra = SANITIZE if sanitize else ()
+    cc = compiler()
+    digest = source_digest((*cc[-1:], *extra))
+    for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
+        d = root / "native" / (digest + ("-sanitize" if sanitize else ""))
+        lib = d / _library_name()
+        if lib.exists():
+            return lib
+        try:
+            d.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        tmp = d / f".{lib.name}.{os.getpid()}.tmp"
+        compile_library(tmp, cc, extra)
+        os.replace(tmp, lib)
+        return lib
+    raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
+
+
+def sanitizer_preload() -> str:
+    """The path of the compiler's libasan, for LD_PRELOAD of a process that loads the sanitizer build."""
+    cc = compiler()
+    out = subprocess.run([*cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
+    return out
