@@ -32,8 +32,8 @@ what no rule estimates (modal truncation, interactions).
    superelement misses is more linear superelements (their frames carry the terms between them): the
    smallest such chain within TERM_SHARE x tolerance of full is taken when its predicted cost per step
    (`step_cost`, measured per backend) is lower. Measured on disk_rotor, where the terms matter: on numpy
-   3 linear superelements are cheaper than 1 with `full` (1.26 against 2.71), on numba 1 with `full`
-   is (1.09 against 1.20): the advice depends on the backend that runs the body (docs/inertia-terms.md).
+   3 linear superelements are cheaper than 1 with `full` (1.26 against 2.71), on the C runtime 1 with `full`
+   is (1.03 against 1.28): the advice depends on the backend that runs the body (docs/inertia-terms.md).
 4. Step, from the highest relevant (kept and excited) frequency and the drive's time scale (the first
    bending frequency at the top spin of each direction the scene excites, `excited_directions`: the
    drive in the plane of rotation, loads and gravity by their direction): the

@@ -63,9 +63,10 @@ NONLINEAR_ERROR = 4.4
 # numpy (2026-11-25, before the kernel covered full): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8
 # superelements, i.e. 0.13 per added superelement up to 4 (the step's fixed Python and LU overhead dominates
 # a short chain); gyroscopic x 1.35 and full x 2.71 at 1 SE (full x 2.95 at 2 SE).
-# numba (2026-11-25, kernel with full, many steps per call, machine under load): linear x 1.08 / 1.31 / 1.91,
-# i.e. 0.10 per added superelement up to 4; gyroscopic x 0.99, full x 1.09 at 1 SE (x 1.31 at 2 SE): in the
-# compiled step the extra inertia products cost little next to the factorization, which grows with the chain.
-LINEAR_COST_PER_SE = {"numpy": 0.13, "numba": 0.10}
+# native (C runtime; `python benchmarks/term_cost.py --backend native`, 2026-11-27, load ~1): linear x 1.14 with
+# 2 superelements, i.e. 0.14 per added one; gyroscopic x 0.91, full x 1.03 at 1 SE (x 1.69 at 2 SE): in compiled
+# code the inertia products cost little next to the iteration matrix. Its dense LU grows as the cube of the
+# unknowns: x 5.8 / 43 at 4 / 8 SE in that run, above the linear rule.
+LINEAR_COST_PER_SE = {"numpy": 0.13, "native": 0.14}
 TERM_COST = {"numpy": {"linear": 1.0, "gyroscopic": 1.35, "full": 2.71},
-             "numba": {"linear": 1.0, "gyroscopic": 0.99, "full": 1.09}}
+             "native": {"linear": 1.0, "gyroscopic": 0.91, "full": 1.03}}

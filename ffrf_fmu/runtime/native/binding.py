@@ -155,8 +155,8 @@ class NativeStep:
         self.held = B.array("held", (len(system.data.ports), -1))
         nf = len(system._newton_idx)
         self.luT, self.piv, self.meta = B.array("luT", (nf, nf)), B.array("piv"), B.array("lu_meta")
-        self._lu_out = None  # the factorization last handed to system._lu (a copy), and the C version it copies
-        self._lu_version = -1.0
+        # the factorization last handed to system._lu (copies of the C body's), and the C version they copy
+        self._lu_out, self._piv_out, self._lu_version = None, None, -1.0
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
 
@@ -176,7 +176,7 @@ class NativeStep:
             self.luT[...] = lu[0].T
             self.piv[...] = lu[1]
             m[2:11] = np.ravel(lu[3])
-            self._lu_out, self._lu_version = lu[0], self.body.get("lu_version")
+            self._lu_out, self._piv_out, self._lu_version = lu[0], lu[1], self.body.get("lu_version")
         m[0], m[1], m[11] = 1.0, lu[2], lu[4]
 
     def _prepare(self, system, am, af, gamma):
