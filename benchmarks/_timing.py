@@ -10,7 +10,7 @@ from ffrf_fmu.reduction import build_scene_body
 
 def cpu_per_step(model_path: str, scene_name: str, overrides, steps: int, repeat: int, backend: str = "numpy") -> float:
     """Best over `repeat` runs of the CPU time (this process) per step of the scene's first `steps`
-    steps after one untimed step (the numba kernel compiles or loads there)."""
+    steps after one untimed step (the C runtime is loaded there)."""
     model = load_model(model_path, overrides)
     scene = model.scene(scene_name)
     body, _ = build_scene_body(model.body, scene)

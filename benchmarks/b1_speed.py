@@ -6,9 +6,9 @@ Prints wall time, steps per second, real-time factor (simulated / wall seconds),
 iterations per step, the B1 metrics against the paper's Table 1, and each configuration's wall
 time as a ratio to the 1-superelement run of the same invocation (the baseline), so the figures
 compare across machines. --backend both (the default) runs every configuration on both backends
-and adds the numpy/numba wall-time ratio; the numba wall time excludes the one-time compilation (or
-disk-cache load), reported apart; a short numba run before the table loads the kernel, so the CPU
-time column (this process's CPU seconds, steadier than wall time on a shared machine) excludes it.
+and adds the numpy/native wall-time ratio; a short native run before the table loads (or compiles) the
+C runtime, so no timed run pays it; the CPU time column (this process's CPU seconds) is steadier than
+wall time on a shared machine.
 --profile adds a cProfile summary of the 4-superelement run.
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     backends = ("numpy", "native") if args.backend == "both" else (args.backend,)
     rows = []
-    if "native" in backends:  # compile or load the kernel before the timed runs
+    if "native" in backends:  # compile or load the C runtime before the timed runs
         sim.run_scene(load_model(MODEL, ["duration=0.02", f"modes={args.modes}"]), "spinup", backend="native")
     for n in (1, 2, 4):
         model = load_model(MODEL, [f"superelements={n}", f"duration={args.duration}", f"modes={args.modes}"])
@@ -59,9 +59,6 @@ def main(argv=None) -> int:
         print(f"{n:>3} {backend:>7} {s['wall_time_s']:9.2f} {s['cpu_time_s']:8.2f} {s['steps'] / s['wall_time_s']:8.0f} {s['real_time_factor']:9.2f} "
               f"{s['wall_time_s'] / base:8.2f} {ratio:10.1f} {s['newton_iterations_mean']:11.2f} {d:12.4f} {PAPER[n]:7.4f} "
               f"{100 * (d / PAPER[n] - 1):+6.2f}% {m['tip_axial_at_max_m']:10.4f}")
-    compiled = [s["compile_time_s"] for _, _, s in rows if s.get("compile_time_s") is not None]
-    if compiled:
-        print(f"numba kernel: first step {compiled[0]:.2f} s in this process (compilation, or the disk cache's load)")
     if args.profile:
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("tottime").print_stats(15)

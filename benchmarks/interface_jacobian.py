@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="ffrf_ij_") as tmp:
         for kind, duration in (("split", args.split_duration), ("motor", args.motor_duration)):
             case = st.CosimCase(kind, args.model, Path(tmp) / kind, st.CosimSettings())
-            timed(case, args.H, 2 * args.H, "fmu")  # warm-up: imports, numba compile, FMU extraction
+            timed(case, args.H, 2 * args.H, "fmu")  # warm-up: imports, the C runtime, FMU extraction
             best = {"fd": (np.inf, np.inf), "fmu": (np.inf, np.inf)}
             runs = {}
             for _ in range(args.repeat):

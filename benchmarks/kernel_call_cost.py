@@ -5,7 +5,7 @@ one call per 500 steps).
 
     python benchmarks/kernel_call_cost.py [--duration 2] [--traffic-mb 1]
 
-B1 (4 SE x 6 modes, h = 2 ms, numba, one BLAS thread), in this process, wall time of the calls
+B1 (4 SE x 6 modes, h = 2 ms, native, one BLAS thread), in this process, wall time of the calls
 alone (perf_counter around each; mean, median and minimum over the calls: the steps vary with their
 Newton iterations, the mean also with the machine's other jobs):
   run 500       simulate.run's path: BodySystem.run_schedule, 500 steps per call (per step)
@@ -98,7 +98,7 @@ def main(argv=None) -> int:
         f"held cold ({args.traffic_mb:g} MB between)": held_calls(body, scene, 1, args.calls,
                                                                  np.zeros(int(args.traffic_mb * 1e6 / 8))),
     }
-    print(f"B1 {scene.name}, h = {scene.step:g} s, numba; load average {os.getloadavg()[0]:.2f}, "
+    print(f"B1 {scene.name}, h = {scene.step:g} s, native; load average {os.getloadavg()[0]:.2f}, "
           f"{time.strftime('%H:%M UTC', time.gmtime())}")
     for label, t in rows.items():
         print(f"  {label:32s} mean {1e6 * np.mean(t):6.1f} us   median {1e6 * np.median(t):6.1f} us   "

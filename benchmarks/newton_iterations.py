@@ -8,11 +8,11 @@ runtime and the working tree, in one run.
 
 The baseline is exported with `git archive` into a temporary directory; every run is a subprocess
 that imports either tree, so both run the same scene with their own integrator. Counts come from a
-numpy-backend run with the integrator's `_residual_at` and `_factor` wrapped (the numba backend
+numpy-backend run with the integrator's `_residual_at` and `_factor` wrapped (the native backend
 makes the same decisions, tests/test_backends.py): an evaluation is one residual (with or without
 the Jacobian), so it is the honest count of Newton iterations whatever either tree calls an
 iteration (the baseline evaluated the accepted iterate once more after its last solve). Time is
-the CPU time of a numba-backend `simulate.run` of the reduced body (steps and per-step recording;
+the CPU time of a native-backend `simulate.run` of the reduced body (steps and per-step recording;
 the kernel loaded by a short run before), the best of --repeats runs, one BLAS thread: CPU time,
 because on the shared 2-core machine wall times swing by 2x. --refresh-after runs the working
 tree once per value lo:hi of `GeneralizedAlpha.REFRESH_AFTER` (the Jacobian is rebuilt at the
@@ -82,11 +82,11 @@ def worker(tree: str, h: float, cfg: str, refresh_after: tuple[int, int] | None,
         ref = run(scene, "numpy")
         GeneralizedAlpha._residual_at, GeneralizedAlpha._factor = residual_at, factor
         # the kernel compiles or loads from its disk cache at the first call of a process: a short run first
-        run(dataclasses.replace(scene, duration=3 * h), "numba")
+        run(dataclasses.replace(scene, duration=3 * h), "native")
         cpus, walls, fast = [], [], None
         for _ in range(repeats):
             c0 = time.process_time()
-            fast = run(scene, "numba")
+            fast = run(scene, "native")
             cpus.append(time.process_time() - c0)
             walls.append(fast.summary["wall_time_s"])
     s, steps = ref.summary, max(ref.summary["steps"], 1)
@@ -94,8 +94,8 @@ def worker(tree: str, h: float, cfg: str, refresh_after: tuple[int, int] | None,
         "evaluations": counts["evaluations"] / steps, "jacobians": counts["jacobians"] / steps,
         "factorizations": counts["factorizations"] / steps, "reported": s["newton_iterations_mean"],
         "failure": s["failure"], "t_end": s["t_end"], "tip": s["metrics"].get("tip_deflection_max_m"),
-        "wall_numba": min(walls), "cpu_numba": min(cpus), "backend": fast.summary["backend"], "failure_numba": fast.summary["failure"],
-        "tip_numba": fast.summary["metrics"].get("tip_deflection_max_m"),
+        "wall_native": min(walls), "cpu_native": min(cpus), "backend": fast.summary["backend"], "failure_native": fast.summary["failure"],
+        "tip_native": fast.summary["metrics"].get("tip_deflection_max_m"),
     }
 
 
@@ -135,7 +135,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         base = export(args.baseline, tmp)
         print(f"B1 spin-up {args.duration:g} s; per step: residual evaluations / Jacobians / factorizations (numpy "
-              f"counts); numba CPU [s] (best of {args.repeats}); max tip deflection [m]; ratios working tree / "
+              f"counts); native CPU [s] (best of {args.repeats}); max tip deflection [m]; ratios working tree / "
               f"baseline {args.baseline}")
         for h in (float(x) for x in args.steps.split(",")):
             for cfg in args.configs.split(","):
@@ -145,10 +145,10 @@ def main(argv=None) -> int:
                 for name, r in rows:
                     fail = f"  FAILED at t = {r['t_end']:.2f} s: {r['failure']}" if r["failure"] else ""
                     ratio = "" if r is b else (f"  evals x{r['evaluations'] / b['evaluations']:.2f}  CPU "
-                                               f"x{r['cpu_numba'] / b['cpu_numba']:.2f}  tip {(r['tip'] - b['tip']) / b['tip']:+.1e}"
+                                               f"x{r['cpu_native'] / b['cpu_native']:.2f}  tip {(r['tip'] - b['tip']) / b['tip']:+.1e}"
                                                if not (r["failure"] or b["failure"]) else "")
                     print(f"{1e3 * h:5g} ms {cfg:>4} {name:>16}: {r['evaluations']:5.2f} / {r['jacobians']:4.2f} / "
-                          f"{r['factorizations']:4.2f}  CPU {r['cpu_numba']:6.3f}  tip {r['tip']:.9f}{ratio}{fail}",
+                          f"{r['factorizations']:4.2f}  CPU {r['cpu_native']:6.3f}  tip {r['tip']:.9f}{ratio}{fail}",
                           flush=True)
     return 0
 

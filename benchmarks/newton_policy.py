@@ -4,7 +4,7 @@ step size and the Jacobian-reuse rules (runtime/integrator.py THETA_REFRESH, REF
     python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
                                        [--refresh-after 2:3] [--duration 20] [--held 1,5,10]
 
-Each run is the whole scene on the numpy backend (the numba backend makes the same decisions):
+Each run is the whole scene on the numpy backend (the native backend makes the same decisions):
 Newton iterations (residual evaluations, each with one solve) per step, factorizations of the
 iteration matrix per step, and the failure if Newton gave up. The threshold is the contraction theta
 of successive increments beyond which the stored factorization is dropped within a step (modified

@@ -7,7 +7,7 @@
 B1 (models/haug_beam.toml, scene spinup: Haug's rotating beam, 20 s, rho_inf 0.8). Runs, one
 after another in this process (one core; BLAS and Exudyn pinned to one thread):
 - ours over superelements x modes x steps (OURS, or `--sweep` groups): the linear chain and the
-  chain with geometric stiffening (`stiffening=true`), with `--backend` (default numba; it falls
+  chain with geometric stiffening (`stiffening=true`), with `--backend` (default native; it falls
   back to numpy, with a note, for what its kernel lacks; the table says which ran). `--set` applies
   to every run;
 - Exudyn's ObjectBeamGeometricallyExact (ffrf_fmu/peers/exudyn_beam.py: the same section, the
@@ -94,7 +94,7 @@ SAME_ERROR_REL = 1e-6
 
 
 def warm_up(model_path, scene, overrides, backend) -> None:
-    """A short run of each code first (not timed): the numba kernel is compiled or loaded from its disk
+    """A short run of each code first (not timed): the C runtime is compiled or loaded from its disk
     cache, Exudyn and the modules imported, so no configuration pays that in its time."""
     from ffrf_fmu.peers.exudyn_beam import run_configuration as run_peer
 
@@ -402,7 +402,7 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-elements", type=int, default=64)
     ap.add_argument("--check-elements", default="16,32", help="Exudyn meshes at 2 ms for the convergence check")
     ap.add_argument("--backend", choices=("native", "numpy"), default="native",
-                    help="our runtime backend (numba falls back to numpy, with a note, for what its kernel lacks)")
+                    help="our runtime backend (native falls back to numpy, with a note, where the C runtime cannot be compiled)")
     ap.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                     help=f"timing runs per configuration, interleaved; each keeps the minimum (default {REPEAT})")
     ap.add_argument("--quick", action="store_true", help="a small subset (smoke test): 2 of ours, 2 of Exudyn's, "
