@@ -4,17 +4,17 @@ The basis is the one of reduction.py, generalized from boundary nodes to interfa
 boundary coordinates are q_B = L z, L (6 n_f, n_z) the frames' operator (rigid frames: their own
 6 dofs after the RBE2 elimination u = T z; averaging frames: the least-squares rigid fit W of their
 node sets, solid/frames.py). With P = I - M U (U^T M U)^-1 U^T (inertia relief about the CM, U the
-rigid modes, eq. 11) and G_e = P^T G_c P the free flexibility (G_c: any isostatic support):
+rigid modes, eq. 11) and G_e the free flexibility (K x = P b with U^T M x = 0):
 
     free attachment modes  F = G_e L^T,  F_BB = L F,  Y_B = F F_BB^-1          (L Y_B = I)
     free-free modes        K Xi = M Xi diag(w^2), U^T M Xi = 0, Xi^T M Xi = I
     eq. (76)               Y = [Y_B, Xi - Y_B (L Xi)]                           (L Y = [I, 0])
 
 Every column is mass-orthogonal to the rigid modes (eq. 74). Nothing dense of size n_dof x n_dof is
-formed: K and M stay scipy.sparse, G_c is one sparse LU (scipy's SuperLU) of K with 6 isostatic dofs
-held, the modes come from ARPACK in shift-invert mode about a negative shift sigma (K - sigma M is
-positive definite while K is singular), a second sparse LU. Only tall n_dof x (6 n_f + modes)
-arrays are dense.
+formed: K and M stay scipy.sparse, and ONE sparse LU (scipy's SuperLU) of K - sigma M, sigma < 0
+(positive definite while K is singular), serves both the modes (ARPACK in shift-invert mode about
+sigma) and the static solves of G_e (exact on the computed modes, preconditioned Richardson on the
+rest: free_static). Only tall n_dof x (6 n_f + modes) arrays are dense.
 
 Invariants from the sparse node-block mass M = M_s (x) I_3 (solid/__init__.py): with Y_n the basis as
 (n_nodes, 3, n), Q_ab = Y_n[:, a]^T M_s Y_n[:, b] (= Y^T T_ab Y),
@@ -41,8 +41,9 @@ from .runtime.rotation import skew
 from .solid import SolidFE
 from .solid.frames import Frame, averaging_weights, check_set
 
-RIGID_GAP = 1e-4  # the 6 lowest eigenvalues must lie below this x the 7th: else not a free body with 6 rigid modes
+RIGID_GAP = 1e-4  # an elastic eigenvalue below this x the Ritz estimate of w_1^2 is a mechanism
 SHIFT_FRACTION = 0.1  # sigma = -SHIFT_FRACTION x (estimate of w_1^2): rigid and elastic eigenvalues well apart
+DEFLATE = 6  # at least this many modes are computed: the static solves converge on the rest
 MAX_MODES = 200  # a frequency cutoff keeps at most this many modes
 
 
@@ -137,80 +138,102 @@ def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
 
 
 def _splu(A: sp.spmatrix):
-    """Sparse LU of a symmetric matrix: symmetric ordering, diagonal pivots (SuperLU's symmetric mode)."""
+    """Sparse LU of a symmetric positive definite matrix: symmetric ordering (minimum degree on A^T + A),
+    diagonal pivots (SuperLU's symmetric mode)."""
     return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                      options={"SymmetricMode": True})
 
 
-def isostatic_support(U: np.ndarray) -> np.ndarray:
-    """6 dofs that hold the rigid modes exactly once (U[support] nonsingular, best conditioned by
-    pivoted QR of U^T): holding them is an isostatic support."""
-    _, _, piv = sla.qr(U.T, mode="economic", pivoting=True)
-    return np.sort(piv[:6])
+def ritz_estimate(fe: SolidFE) -> float:
+    """An upper bound of w_1^2 of the free solid that needs no factorization: Rayleigh-Ritz on the
+    polynomial displacement fields of degree <= 3 (57 fields; the 6 rigid ones give 0 and are passed
+    over). A beam's first bending shape is nearly cubic: within a few % on a bar (a factor on a
+    complex part, which only moves the shift)."""
+    X = fe.coords - fe.coords.mean(0)
+    X = X / np.abs(X).max(0).clip(min=1e-300)
+    powers = [(a, b, c) for a in range(4) for b in range(4) for c in range(4) if 1 <= a + b + c <= 3]
+    mono = np.stack([X[:, 0] ** a * X[:, 1] ** b * X[:, 2] ** c for a, b, c in powers], axis=1)  # (n, 19)
+    V = np.zeros((fe.n_nodes, 3, 3 * mono.shape[1]))
+    for comp in range(3):
+        V[:, comp, comp * mono.shape[1] : (comp + 1) * mono.shape[1]] = mono
+    V, _ = np.linalg.qr(V.reshape(fe.n_dof, -1))
+    w2 = sla.eigh(V.T @ (fe.K @ V), V.T @ (fe.M @ V), eigvals_only=True)
+    return float(w2[6])
 
 
-class FreeFlexibility:
-    """x = G_e b = P^T G_c P b: the free (inertia-relief) static response to loads b (n_z, k), with
-    G_c one sparse LU of K with an isostatic support; U^T M x = 0 (P^T applied twice, reduction.py)."""
-
-    def __init__(self, K: sp.spmatrix, M: sp.spmatrix, U: np.ndarray):
-        self.M, self.U = M, U
-        self.MU = np.asarray(M @ U)
-        self.A = U.T @ self.MU
-        support = isostatic_support(U)
-        self.free = np.setdiff1d(np.arange(K.shape[0]), support)
-        self.lu = _splu(sp.csr_matrix(K)[self.free][:, self.free])
-
-    def project_load(self, b):  # P b: the load minus its rigid (inertia-relief) resultant
-        return b - self.MU @ np.linalg.solve(self.A, self.U.T @ b)
-
-    def project_shape(self, x):  # P^T x: the shape made mass-orthogonal to the rigid modes
-        return x - self.U @ np.linalg.solve(self.A, self.MU.T @ x)
-
-    def __call__(self, b):
-        b = self.project_load(np.asarray(b, dtype=float).reshape(self.M.shape[0], -1))
-        x = np.zeros_like(b)
-        x[self.free] = self.lu.solve(np.ascontiguousarray(b[self.free]))
-        return self.project_shape(self.project_shape(x))
-
-
-def lowest_eigenvalue_estimate(G: FreeFlexibility, K, M, start, iterations: int = 4) -> float:
-    """Rayleigh quotient after a few inverse iterations x <- G_e M x: an upper bound of w_1^2 close to it."""
-    x = G(start[:, None])[:, 0]
-    for _ in range(iterations):
-        x = G((M @ x)[:, None])[:, 0]
-        x /= np.abs(x).max()
-    return float(x @ (K @ x) / (x @ (M @ x)))
-
-
-def free_free_modes(K, M, U, A, n_modes: int | None, cutoff_hz: float | None, sigma: float):
-    """Elastic modes of K x = w^2 M x by shift-invert about sigma < 0 (one sparse LU of K - sigma M),
-    the 6 rigid ones dropped (checked: below RIGID_GAP x the first elastic one), projected against U
-    and mass-normalized. n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES).
-    Returns (Xi (n_z, k), w^2 (k,))."""
+def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None, sigma: float, w2_scale: float):
+    """Elastic modes of K x = w^2 M x by ARPACK in shift-invert mode about sigma < 0 with the LU `lu`
+    of K - sigma M followed by the projection that removes the rigid modes (M-orthogonal to U): the
+    rigid modes map to 0 in the shifted spectrum, so ARPACK never has to resolve their six-fold
+    eigenvalue (with a plain shift it missed one of the six on a box). Mass-normalized, U^T M Xi = 0.
+    n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES). A mode below RIGID_GAP x
+    w2_scale (the Ritz estimate of w_1^2) is a mechanism: an error. Returns (Xi (n_z, k), w^2 (k,))."""
     n = K.shape[0]
-    lu = _splu(K - sigma * M)
-    op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
-    v0 = np.asarray(M @ np.ones(n)).ravel() + np.linspace(0.0, 1.0, n)  # deterministic start
-    want = 6 + (n_modes if n_modes is not None else 8)
+    MU = np.asarray(M @ U)
+
+    def solve(x):
+        y = lu.solve(np.asarray(x, dtype=float))
+        return y - U @ np.linalg.solve(A, MU.T @ y)
+
+    op = spla.LinearOperator((n, n), matvec=solve, dtype=float)
+    v0 = solve(np.asarray(M @ np.linspace(1.0, 2.0, n)).ravel())  # deterministic start, free of rigid parts
+    want = n_modes if n_modes is not None else 8
     while True:
-        k = min(want, n - 2)
+        k = min(want, n - 7)
         w2, X = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, v0=v0, tol=1e-10)
         order = np.argsort(w2)
         w2, X = w2[order], X[:, order]
-        if n_modes is not None or w2[-1] > (2 * math.pi * cutoff_hz) ** 2 or k >= min(n - 2, MAX_MODES + 6):
+        if n_modes is not None or w2[-1] > (2 * math.pi * cutoff_hz) ** 2 or k >= min(n - 7, MAX_MODES):
             break
         want *= 2
-    if w2.size > 6 and np.abs(w2[:6]).max() > RIGID_GAP * w2[6]:
-        raise ValueError(f"the body does not have exactly 6 rigid modes: eigenvalues {w2[:7]} (a mechanism, or "
-                         "constrained dofs in the export)")
-    w2, X = w2[6:], X[:, 6:]
+    if w2[0] < RIGID_GAP * w2_scale:
+        raise ValueError(f"the body has more than 6 rigid modes: free-free eigenvalue {w2[0]:.3g} against "
+                         f"{w2_scale:.3g} expected near the first (a mechanism, or a part not connected)")
     if cutoff_hz is not None and n_modes is None:
         keep = w2 <= (2 * math.pi * cutoff_hz) ** 2
         w2, X = w2[keep], X[:, keep]
-    X = X - U @ np.linalg.solve(A, (M @ U).T @ X)
+    X = X - U @ np.linalg.solve(A, MU.T @ X)
     X = X / np.sqrt(np.einsum("ij,ij->j", X, M @ X))
     return X, w2
+
+
+STATIC_TOL = 1e-10  # relative residual of the static solves (round-off stalls them near 1e-12)
+STATIC_MAXITER = 300
+
+
+def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
+    """x = G_e b: the free (inertia-relief) static response to loads b (n_z, k), U^T M x = 0, from the
+    LU of K - sigma M that the modes used (one factorization for the whole reduction). With P the
+    inertia-relief projector, K x = P b is solved in the M-orthogonal complement of the rigid modes:
+    exactly on the computed modes Xi (x = Xi w^-2 Xi^T P b), and by preconditioned Richardson
+    y <- y + Q^T (K - sigma M)^-1 (r) on the rest, Q^T removing the rigid and computed modes; each pass
+    divides the error of an eigencomponent w^2 by (w^2 - sigma) / (-sigma) >= 1 - sigma / w_(m+1)^2."""
+    MU = np.asarray(M @ U)
+    AU = U.T @ MU
+    b = np.asarray(b, dtype=float).reshape(K.shape[0], -1)
+    b = b - MU @ np.linalg.solve(AU, U.T @ b)  # P b: self-equilibrated
+    MX = np.asarray(M @ Xi)
+
+    def q(y):  # remove the rigid and the computed modes (M-orthogonal projection)
+        y = y - U @ np.linalg.solve(AU, MU.T @ y)
+        return y - Xi @ (MX.T @ y)
+
+    x = Xi @ ((Xi.T @ b) / w2[:, None]) if Xi.shape[1] else np.zeros_like(b)
+    r0 = b - MX @ (Xi.T @ b)  # the load on the remaining modes
+    y = np.zeros_like(b)
+    r = r0
+    scale = np.linalg.norm(r0, axis=0).max()
+    for it in range(STATIC_MAXITER):
+        y = y + q(lu.solve(np.asfortranarray(r)))
+        r = r0 - K @ y
+        if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+            break
+    else:
+        raise RuntimeError(f"static solve did not converge in {STATIC_MAXITER} passes (residual "
+                           f"{np.linalg.norm(r, axis=0).max() / scale:.1e})")
+    x = x + y
+    x = x - U @ np.linalg.solve(AU, MU.T @ x)
+    return x - U @ np.linalg.solve(AU, MU.T @ x)
 
 
 def node_kernels(fe: SolidFE, Yf: np.ndarray, Ur: np.ndarray):
@@ -250,9 +273,18 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     K = (c.T.T @ fe.K @ c.T).tocsr()
     M = (c.T.T @ fe.M @ c.T).tocsr()
     t["constraints"] = time.perf_counter()
-    G = FreeFlexibility(K, M, c.U)
-    t["factor_static"] = time.perf_counter()
-    F = G(c.L.T.toarray())  # free attachment modes F = G_e L^T
+    w2_est = ritz_estimate(fe)
+    sigma = -SHIFT_FRACTION * w2_est
+    lu = _splu(K - sigma * M)
+    t["factor"] = time.perf_counter()
+    AU = c.U.T @ (M @ c.U)
+    n_keep = n_modes
+    Xi_all, w2_all = free_free_modes(K, M, c.U, AU, lu, None if n_modes is None else max(n_modes, DEFLATE),
+                                     cutoff_hz, sigma, w2_est)
+    Xi, w2 = (Xi_all[:, :n_keep], w2_all[:n_keep]) if n_keep is not None else (Xi_all, w2_all)
+    t["modes"] = time.perf_counter()
+    F = free_static(K, M, c.U, lu, Xi_all, w2_all, c.L.T.toarray())  # free attachment modes F = G_e L^T
+    del lu
     F_BB = c.L @ F
     F_BB = 0.5 * (F_BB + F_BB.T)
     d = 1.0 / np.sqrt(np.abs(np.diag(F_BB)))
@@ -261,12 +293,6 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
                          "set moves rigidly with another's")
     YB = np.linalg.solve(F_BB, F.T).T
     t["attachment"] = time.perf_counter()
-    lam = lowest_eigenvalue_estimate(G, K, M, np.asarray(M @ c.U[:, 3:].sum(axis=1)).ravel()
-                                     + np.asarray(M @ np.linspace(-1.0, 1.0, K.shape[0])).ravel())
-    del G
-    sigma = -SHIFT_FRACTION * lam
-    Xi, w2 = free_free_modes(K, M, c.U, c.U.T @ (M @ c.U), n_modes, cutoff_hz, sigma)
-    t["modes"] = time.perf_counter()
     Y = np.concatenate([YB, Xi - YB @ (c.L @ Xi)], axis=1)
     Kb, Mb = Y.T @ (K @ Y), Y.T @ (M @ Y)
     dm = 1.0 / np.sqrt(np.diag(Mb))

@@ -78,39 +78,61 @@ def linear_corner_mesh(mesh):
 CHUNK = 1024  # elements per batch of element matrices (hex27: 1024 x 81 x 81 doubles = 54 MB)
 
 
-def _elasticity(scalar, material: Material):
-    """K (3N, 3N, node-major) and M_s (N, N) from scikit-fem's scalar basis (shape functions, gradients
-    and quadrature weights), element matrices by einsum (scikit-fem's own vector assembly loops over
-    every pair of local dofs in Python: 18 s of fixed cost on hex27):
+def _elasticity(m, e, material: Material):
+    """K (3N, 3N, node-major) and M_s (N, N) on the scikit-fem mesh m with element e, and the FE node
+    coordinates (N, 3): scikit-fem's reference shape functions, quadrature and dof numbering, the
+    isoparametric map of the linear geometry and the element matrices by einsum here (scikit-fem's own
+    assembly recomputes the map per shape function and loops over every pair of local dofs in Python:
+    18 s of fixed cost on hex27, 48 s for 56k dofs; equal to it to 1e-15, tests/test_solids.py):
         K_(ia)(jb) = int lambda d_a phi_i d_b phi_j + mu (delta_ab grad phi_i . grad phi_j + d_b phi_i d_a phi_j),
         M_s,ij = int rho phi_i phi_j."""
+    from skfem.assembly import Dofs
+    from skfem.quadrature import get_quadrature
+
     E, nu = material.E, material.nu
     lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
-    nloc = len(scalar.basis)
-    phi = np.stack([np.asarray(scalar.basis[i][0]) for i in range(nloc)])  # (nloc, nel, nq)
-    dphi = np.stack([scalar.basis[i][0].grad for i in range(nloc)])  # (nloc, 3, nel, nq)
-    dx = scalar.dx  # (nel, nq)
-    dofs = scalar.element_dofs  # (nloc, nel)
-    N = scalar.N
-    nel = dx.shape[0]
-    rows, cols, kv, mv = [], [], [], []
+    geo = m.elem()  # the linear geometry element, local corner order of m.t
+    Xq, wq = get_quadrature(e.refdom, 2 * e.maxdeg)
+    nloc, ncor = e.doflocs.shape[0], m.t.shape[0]
+    phi = np.stack([e.lbasis(Xq, i)[0] for i in range(nloc)])  # (nloc, nq)
+    dphi_ref = np.stack([e.lbasis(Xq, i)[1] for i in range(nloc)])  # (nloc, 3, nq)
+    dgeo = np.stack([geo.lbasis(Xq, c)[1] for c in range(ncor)])  # (ncor, 3, nq)
+    Xe = m.p.T[m.t.T]  # (nel, ncor, 3)
+    dofs = Dofs(m, e).element_dofs  # (nloc, nel)
+    nel = Xe.shape[0]
+    N = int(dofs.max()) + 1
+    # FE node coordinates: the reference dof locations through the geometry map
+    ngeo = np.stack([geo.lbasis(e.doflocs.T, c)[0] for c in range(ncor)])  # (ncor, nloc)
+    coords = np.zeros((N, 3))
+    coords[dofs.T.ravel()] = np.einsum("eca,ci->eia", Xe, ngeo).reshape(-1, 3)
+    rows, cols, kv, mv, mr, mc = [], [], [], [], [], []
     vd = (3 * dofs.T[:, :, None] + np.arange(3)).reshape(nel, 3 * nloc)  # (nel, 3 nloc) vector dofs, (i, a)
     for s in range(0, nel, CHUNK):
         c = slice(s, min(s + CHUNK, nel))
-        A = np.einsum("iaeq,jbeq,eq->eiajb", dphi[:, :, c], dphi[:, :, c], dx[c], optimize=True)
+        J = np.einsum("eca,cbq->eqab", Xe[c], dgeo)  # dx_a / dxi_b
+        det = np.linalg.det(J)
+        bad = np.any(det * np.sign(det[:, :1]) <= 0, axis=1)  # a sign change inside an element: folded
+        if np.any(bad):  # (the sign itself is the corner order's convention: |det J| is the volume factor)
+            raise ValueError(f"mesh: {int(bad.sum())} element(s) folded or degenerate")
+        det = np.abs(det)
+        dphi = np.einsum("ibq,eqba->eqia", dphi_ref, np.linalg.inv(J), optimize=True)  # (ne, nq, nloc, 3)
+        dx = det * wq  # (ne, nq)
+        ne, nq = dx.shape
+        D = dphi.reshape(ne, nq, 3 * nloc)
+        A = np.matmul(D.transpose(0, 2, 1), D * dx[:, :, None]).reshape(ne, nloc, 3, nloc, 3)  # int d_a phi_i d_b phi_j
         Ke = lam * A + mu * A.transpose(0, 1, 4, 3, 2)
         Ke += mu * np.einsum("eicjc->eij", A)[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
         ne = Ke.shape[0]
-        Ke = Ke.reshape(ne, 3 * nloc, 3 * nloc)
         rows.append(np.repeat(vd[c], 3 * nloc, axis=1).ravel())
         cols.append(np.tile(vd[c], (1, 3 * nloc)).ravel())
-        kv.append(Ke.ravel())
-        mv.append(material.rho * np.einsum("ieq,jeq,eq->eij", phi[:, c], phi[:, c], dx[c], optimize=True).ravel())
+        kv.append(Ke.reshape(ne, -1).ravel())
+        mv.append(material.rho * np.matmul(phi[None] * dx[:, None, :], phi.T).ravel())
+        d = dofs.T[c]
+        mr.append(np.repeat(d, nloc, axis=1).ravel())
+        mc.append(np.tile(d, (1, nloc)).ravel())
     K = sp.coo_matrix((np.concatenate(kv), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * N, 3 * N)).tocsr()
-    d = dofs.T
-    Ms = sp.coo_matrix((np.concatenate(mv), (np.repeat(d, nloc, axis=1).ravel(), np.tile(d, (1, nloc)).ravel())),
-                       shape=(N, N)).tocsr()
-    return K, Ms
+    Ms = sp.coo_matrix((np.concatenate(mv), (np.concatenate(mr), np.concatenate(mc))), shape=(N, N)).tocsr()
+    return K, Ms, coords
 
 
 def assemble(mesh, material: Material, element: str, node_sets=None, source: str = "") -> SolidFE:
@@ -118,7 +140,6 @@ def assemble(mesh, material: Material, element: str, node_sets=None, source: str
     node_sets: name -> meshio point indices; mapped to FE nodes, and every edge/face node of a quadratic
     element whose corners all lie in the set joins it (a face selection keeps its mid nodes)."""
     import meshio
-    from skfem import Basis
     from skfem.io.meshio import from_meshio
 
     points, kind, cells, new = linear_corner_mesh(mesh)
@@ -129,16 +150,17 @@ def assemble(mesh, material: Material, element: str, node_sets=None, source: str
     if m.p.shape[1] != len(points) or np.abs(m.p.T - points).max() > 0.0:
         raise ValueError("internal: scikit-fem reordered the mesh vertices")
     e = _element(element)
-    scalar = Basis(m, e)
-    K, Ms = _elasticity(scalar, material)
-    coords = scalar.doflocs.T.copy()
+    K, Ms, coords = _elasticity(m, e, material)
+    from skfem.assembly import Dofs
+
+    dof = Dofs(m, e)
     sets = {}
     for name, idx in (node_sets or {}).items():
         v = new[np.asarray(idx, dtype=int)]
         inset = np.zeros(m.p.shape[1], dtype=bool)
         inset[v[v >= 0]] = True
         nodes = [np.flatnonzero(inset)]
-        for dofs, verts in ((scalar.edge_dofs, getattr(m, "edges", None)), (scalar.facet_dofs, m.facets)):
+        for dofs, verts in ((dof.edge_dofs, getattr(m, "edges", None)), (dof.facet_dofs, m.facets)):
             if dofs.size and verts is not None:
                 full = inset[verts].all(axis=0)
                 nodes.append(dofs[:, full].ravel())
