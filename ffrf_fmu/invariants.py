@@ -1,6 +1,6 @@
 """Inertia invariants of a superelement and the magnitude indicators of Witteveen & Pichler (2019),
 "On the relevance of inertia related terms in the equations of motion of a flexible body in the
-floating frame of reference formulation" (formulation.md section 7; docs/inertia-terms.md).
+floating frame of reference formulation" (docs/background.md; docs/inertia-terms.md).
 
 Modes. Witteveen assumes mass-normalized free(-surface) modes, origin at the CM, principal axes,
 and notes (his 3.7, ref. [8]) that any shape basis can be transformed into such a base. We take
@@ -47,7 +47,6 @@ import scipy.linalg as sla
 from .fe import FEModel
 from .fe.beam import tensor_kernel
 from .model import Body, Scene
-from .runtime.drives import evaluate
 
 DEFLECTION = 0.01  # characteristic amplitude: largest elastic displacement = 1 % of the superelement length
 NEGLIGIBLE = 0.01  # an indicator below 1 % means the term changes what it is compared with by < 1 %
@@ -234,22 +233,13 @@ def indicators(inv: Invariants, spin_rate: float | None = None, spin_axis=None) 
     return out
 
 
-def scene_spin(scene: Scene, n_max: int = 100_001) -> tuple[float | None, np.ndarray | None, str]:
-    """(spin rate, axis, source) of a scene: max |phi'| over the scene of its rotation drives
-    (time grid of the scene's step, at most n_max points), else the initial angular velocity,
-    else (None, None, "none")."""
-    best = (0.0, None, "none")
-    t = np.linspace(0.0, scene.duration, min(n_max, int(round(scene.duration / scene.step)) + 1))
-    for d in scene.drives:
-        if d.rotation is not None:
-            tf = d.rotation.angle
-            rate = max(abs(evaluate(tf.kind, dict(tf.params), float(ti))[1]) for ti in t)
-            if rate > best[0]:
-                best = (rate, np.asarray(d.rotation.axis, dtype=float), f"drive {d.port}.rotation ({tf.kind})")
-    if best[1] is None and any(scene.initial.angular_velocity):
-        w = np.asarray(scene.initial.angular_velocity, dtype=float)
-        best = (float(np.linalg.norm(w)), w, "initial angular_velocity")
-    return (best[0], best[1] / np.linalg.norm(best[1]), best[2]) if best[1] is not None else (None, None, "none")
+def scene_spin(scene: Scene) -> tuple[float | None, np.ndarray | None, str]:
+    """(peak spin rate, unit axis, source) of a scene (spin.scene_spin: its fastest rotation drive, else
+    its initial angular velocity), else (None, None, "none")."""
+    from .spin import scene_spin as spin_of
+
+    s = spin_of(scene)
+    return (s.peak, s.axis, s.source) if s is not None else (None, None, "none")
 
 
 def body_inertia_report(

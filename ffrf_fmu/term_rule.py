@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .model import Body, Scene
-from .runtime.drives import evaluate
+from .spin import scene_spin
 
 INFO_TOLERANCE = 0.01  # `info` states the rule's pick at this tolerance (advise takes the user's)
 TERM_SHARE = 0.5  # a term set may leave at most this share of the tolerance to the terms it lacks
@@ -33,19 +33,11 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     from .runtime.body import BodySystem
     from .runtime.terms import FULL_TERMS
 
-    best = None
-    t = np.linspace(0.0, scene.duration, min(20_001, int(round(scene.duration / scene.step)) + 1))
-    for d in scene.drives:
-        if d.rotation is not None:
-            tf = d.rotation.angle
-            rate = max(abs(evaluate(tf.kind, dict(tf.params), float(ti))[1]) for ti in t)
-            if rate > 0 and (best is None or rate > best[0]):
-                best = (rate, np.asarray(d.rotation.axis, dtype=float), d.port)
-    if best is None:
+    spin = scene_spin(scene)
+    if spin is None or spin.port is None:
         return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on",
                 "free_axial_rotation": free_axial_rotation(body, scene)}
-    rate, axis, port = best
-    axis = axis / np.linalg.norm(axis)
+    rate, axis, port = spin.peak, spin.axis, spin.port
     data, _ = build_body(body, stiffening=stiffening, inertia=True)
     node = data.port(port).node
     x_port = data.node_positions[node]

@@ -1,4 +1,4 @@
-"""The FMU variables of a body (shared/spec/ports.md): names, causality, units, descriptions.
+"""The FMU variables of a body (docs/fmu.md): names, causality, units, descriptions.
 
 One table, `body_variables`, drives everything: the slave registers it with pythonfmu, the
 builder writes the unit definitions and the ModelStructure from it, validate.py and master/
@@ -8,14 +8,16 @@ read names from it. Shipped inside every FMU: the standard library and the runti
 Value references are the positions in the returned list. Index conventions: `P.r[i]` i = 1..3,
 `P.R[i,j]` = component i (world axis) of nodal axis j, both 1-based. The names are made by
 `port_variable` / `port_variables` (and `component_name` for the non-port vectors) and read back
-by `parse_port_variable`, here only: the standalone run's columns, the master's connections, the
-fmpy input tables and the studies all use these.
+by `parse_port_variable`, all in runtime/outputs.py (imported here): the standalone run's columns,
+the master's connections, the fmpy input tables and the studies all use these.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from xml.etree.ElementTree import Element, SubElement
 
+from ..runtime.outputs import (ENERGIES, FIELDS, PORT_FIELD_ORDER, _indices, component_name, field_shape,  # noqa: F401
+                               parse_port_variable, port_variable, port_variables)
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
 
@@ -57,27 +59,8 @@ def equations_text(terms: str, full_terms, stiffening: bool) -> str:
             + ("on (centrifugal correction modes, W1 inertia, second-order membrane strain; built into the reduced data)."
                if stiffening else "off."))
 
-# (shape, unit, meaning) of the six fields of a port
-FIELDS = {
-    "r": ((3,), "m", "position of the nodal frame origin, world axes"),
-    "R": ((3, 3), None, "rotation matrix of the nodal frame: R[i,j] = world component i of nodal axis j"),
-    "v": ((3,), "m/s", "velocity of the node, world axes"),
-    "w": ((3,), "rad/s", "angular velocity of the nodal frame, world axes"),
-    "f": ((3,), "N", "force the environment applies ON the body at the node, world axes"),
-    "t": ((3,), "N.m", "moment the environment applies ON the body at the node, world axes"),
-    "a": ((3,), "m/s2", "acceleration of the node, world axes"),
-    "dw": ((3,), "rad/s2", "angular acceleration of the nodal frame, world axes"),
-}
 PART_FIELDS = {"translation": ("r", "v", "f", "a"), "rotation": ("R", "w", "t", "dw")}
-PORT_FIELD_ORDER = ("r", "R", "v", "w", "f", "t", "a", "dw")
 MOTION_ONLY = ("a", "dw")  # inputs of motion-driven parts; a force-driven part has no such variable
-
-ENERGIES = {
-    "kinetic_rigid": "kinetic energy of the rigid (CM frame) motion of all superelements",
-    "kinetic_elastic": "kinetic energy of the elastic velocity field, 1/2 r^T M r",
-    "strain": "strain energy of the elastic deformation, 1/2 q^T K q",
-    "work_external": "work done on the body by the port loads and gravity since initialization",
-}
 
 # The rules below are the one source of what the FMU does between communication points: the
 # variable descriptions, the modelDescription text (builder.DESCRIPTION) and docs/fmu.md quote them
@@ -121,47 +104,6 @@ INPUT_RULE = {
 }
 
 
-def component_name(base: str, index: tuple[int, ...]) -> str:
-    """The name of one component: ("tip.R", (0, 1)) -> "tip.R[1,2]" (0-based index, 1-based name)."""
-    return f"{base}[{','.join(str(i + 1) for i in index)}]"
-
-
-def _indices(shape: tuple[int, ...]) -> list[tuple[int, ...]]:
-    """Component indices of a (3,) vector or a (3, 3) matrix, row-major."""
-    return [(i,) for i in range(3)] if shape == (3,) else [(i, j) for i in range(3) for j in range(3)]
-
-
-def field_shape(field: str) -> tuple[int, ...]:
-    """(3,) or (3, 3) of a port field, also of the node frame fields "node.r", "node.R" of a compliant part."""
-    return FIELDS[field.rpartition(".")[2]][0]
-
-
-def port_variable(port: str, field: str, index: tuple[int, ...]) -> str:
-    """FMU variable name of one component of a port field: ("hub", "R", (0, 1)) -> "hub.R[1,2]"."""
-    return component_name(f"{port}.{field}", index)
-
-
-def port_variables(port: str, field: str) -> list[str]:
-    """Every component name of a port field in value-reference order (R row-major: R[1,1], R[1,2], ...).
-    `port` may carry an instance prefix ("A.hub"): the master's connections name variables so."""
-    return [component_name(f"{port}.{field}", idx) for idx in _indices(field_shape(field))]
-
-
-def parse_port_variable(name: str) -> tuple[str, str, tuple[int, ...]]:
-    """Inverse of `port_variable`: "tip.R[1,2]" -> ("tip", "R", (0, 1)), "hub.node.w[3]" ->
-    ("hub", "node.w", (2,)). ValueError for a name that is not a port field component."""
-    port, dot, rest = name.partition(".")
-    base, bracket, idx = rest.partition("[")
-    try:
-        index = tuple(int(i) - 1 for i in idx[:-1].split(","))
-        ok = dot and bracket and idx.endswith("]") and index and len(index) == len(field_shape(base))
-    except (KeyError, ValueError):
-        ok = False
-    if not ok or not all(0 <= i < 3 for i in index):
-        raise ValueError(f"{name!r} is not a port variable name (PORT.FIELD[i] or PORT.R[i,j], 1-based)")
-    return port, base, index
-
-
 @dataclass(frozen=True)
 class Variable:
     name: str
@@ -180,7 +122,7 @@ class Variable:
 
 
 def port_field_causality(translation: str, rotation: str, field: str) -> str:
-    """'input' or 'output' for one field of a port with the given part causalities (ports.md)."""
+    """'input' or 'output' for one field of a port with the given part causalities (docs/fmu.md)."""
     part = "translation" if field in PART_FIELDS["translation"] else "rotation"
     motion = (translation if part == "translation" else rotation) in ("motion", "compliant")  # compliant: motion in
     is_load = field in ("f", "t")

@@ -50,9 +50,10 @@ import time
 
 import numpy as np
 
-from ..fmu.variables import port_variables
 from ..model import Body, Scene
 from ..runtime import drives
+from ..runtime.outputs import port_variables
+from ..runtime.steps import divides, whole_steps
 
 NEWTON_REL_TOL = 1e-7  # see the module docstring: measured, not Exudyn's defaults
 NEWTON_ABS_TOL = 1e-6
@@ -203,8 +204,8 @@ def simulate(body: Body, scene: Scene, n_elements: int, step: float | None = Non
     from exudyn.itemInterface import SensorNode
 
     h = float(step or scene.step)
-    n_steps = int(round(scene.duration / h))
-    if n_steps < 1 or abs(n_steps * h - scene.duration) > 1e-9 * scene.duration:
+    n_steps = whole_steps(scene.duration, h).n
+    if not divides(scene.duration, h):
         raise ValueError(f"exudyn peer: step {h:g} s does not divide the duration {scene.duration:g} s")
     SC, mbs, port_nodes, keep = build(body, scene, n_elements)
     ovt = exu.OutputVariableType
@@ -275,8 +276,8 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
     import traceback
 
     from .. import simulate as sim
-    from ..studies.runners import body_data, tip_trajectory
     from ..model import load_model, scene_body
+    from ..reduction import build_scene_body
 
     out = {"values": dict(values), "runner": "exudyn", "completed": False, "failure": None}
     try:
@@ -286,11 +287,11 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
         h = float(values.get("step") or sc.step)
         out["resolved"] = {"elements": n_el, "step": h}
         res = simulate(scene_body(model.body, sc), sc, n_el, h)
-        result = sim.SimulationResult(res.t, columns(res), {}, body_data(model, sc))
+        result = sim.SimulationResult(res.t, columns(res), {}, build_scene_body(model.body, sc)[0])
         out |= {"wall_time_s": res.wall_time_s, "cpu_time_s": res.cpu_time_s, "completed": res.completed,
                 "failure": res.failure, "t_end_s": float(res.t[-1]),
                 "newton_iterations_mean": res.newton_iterations_mean, "metrics": sim.metrics(result, sc),
-                "t": np.asarray(res.t), "d": tip_trajectory(result, sc)}
+                "t": np.asarray(res.t), "d": sim.tip_trajectory(result, sc)}
     except Exception as e:  # noqa: BLE001 - a configuration that cannot run is a chart row, not a crash
         out["failure"] = f"{type(e).__name__}: {e}"
         out["traceback"] = traceback.format_exc(limit=4)

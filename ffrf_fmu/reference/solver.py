@@ -54,6 +54,8 @@ from ..model import Body, Scene, scene_body
 from ..runtime.drives import evaluate
 from .beam import BeamElements
 from ..runtime.rotation import cross, expm, skew, tangent
+from ..runtime.outputs import tip_from_hub as eq92_tip_from_hub
+from ..runtime.steps import whole_steps
 
 # an energy error (|kinetic + strain - work - initial| / energy level) above this makes the run suspect:
 # the solver warns, and the chart and the spin map mark what they compared against it
@@ -479,8 +481,7 @@ def simulate_reference(
     sc = _Scene(mesh, body, scene)
     T_end = float(scene.duration if duration is None else duration)
     h = float(scene.step if step is None else step)
-    nsteps = max(1, int(math.ceil(T_end / h - 1e-9)))
-    h = T_end / nsteps
+    nsteps, h = whole_steps(T_end, h)
     rho = float(scene.rho_inf if rho_inf is None else rho_inf)
     am = (2 * rho - 1) / (rho + 1)
     af = rho / (rho + 1)
@@ -824,11 +825,12 @@ def static_reference(
 
 
 def tip_from_hub(result: ReferenceResult, hub: str = "hub", tip: str = "tip") -> np.ndarray:
-    """Elastic tip displacement seen from the hub, eq. (92): R_hub^T (r_tip - r_hub) - X_tip.
+    """Elastic tip displacement seen from the hub, eq. (92) (runtime/outputs.py tip_from_hub):
+    R_hub^T (r_tip - r_hub) - X_tip.
 
     X_tip is the tip's reference position relative to the hub's (world-aligned reference frame,
     so the components are along the model axes at rest). Shape (nt, 3).
     """
     ph, pt = result.ports[hub], result.ports[tip]
     X_tip = result.port_reference[tip] - result.port_reference[hub]
-    return np.einsum("nji,nj->ni", ph["R"], pt["r"] - ph["r"]) - X_tip
+    return eq92_tip_from_hub(ph["R"], ph["r"], pt["r"], X_tip)

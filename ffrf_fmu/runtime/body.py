@@ -1,5 +1,5 @@
 """A flexible body: a chain of two-field superelements joined by spatial coordinates
-(formulation.md sections 3-5; geradin eqs. 69, 77-80, 89-91), its state, initial conditions and
+(geradin eqs. 69, 77-80, 89-91), its state, initial conditions and
 outputs. The equations are in runtime/equations.py (plain, one superelement at a time) and
 runtime/fused.py (all superelements at once, the fast path); the time step in runtime/integrator.py;
 where each unknown lives in runtime/layout.py.
@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from .data import BodyData
-from . import stiffening
+from . import outputs, stiffening
 from .fused import FusedResidual
 from .held import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
@@ -503,9 +503,9 @@ class BodySystem(GeneralizedAlpha):
         return scatter(Fz), scatter(Fy)
 
     # ----------------------------------------------------------------- outputs
-    OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")  # the columns of `port_array`, 3 or 9 each
-    OUTPUT_WIDTH = 24  # columns of `port_array` per port
-    ENERGY_FIELDS = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")  # the keys of `energies`
+    OUTPUT_FIELDS = outputs.OUTPUT_FIELDS  # the columns of `port_array`, 3 or 9 each
+    OUTPUT_WIDTH = outputs.OUTPUT_WIDTH  # columns of `port_array` per port
+    ENERGY_FIELDS = outputs.ENERGY_FIELDS  # the keys of `energies`, in a row's order
 
     def port_array(self) -> np.ndarray:
         """(n_ports, 24) port outputs, one row per port in data.ports order: r, R (row-major), v, w, f, t."""

@@ -9,7 +9,8 @@ from .inputs import scene_inputs, scene_schedule
 from .loop import (InitializationFailure, Progress, build_system, free_body_state, record, run, run_scene,
                    whole_steps)
 from .plots import plot
-from .quantities import dominant_frequency, elastic_tip, end_ports, energy_balance, metrics, tip_from_cm
+from .quantities import (dominant_frequency, elastic_tip, end_ports, energy_balance, metrics, tip_from_cm,
+                         tip_trajectory)
 from .reference_run import run_reference
 from .results import (ENERGIES, FREE_BODY_FIELDS, SimulationResult, column_names, free_body_columns,
                       free_body_keys, free_body_series, variable_names)
@@ -18,6 +19,6 @@ __all__ = [
     "ENERGIES", "FREE_BODY_FIELDS", "InitializationFailure", "Progress", "SimulationResult", "build_system",
     "column_names", "dominant_frequency", "elastic_tip", "end_ports", "energy_balance", "free_body_columns",
     "free_body_keys", "free_body_series", "free_body_state", "metrics", "plot", "record", "run",
-    "run_reference", "run_scene", "scene_inputs", "scene_schedule", "tip_from_cm", "variable_names",
+    "run_reference", "run_scene", "scene_inputs", "scene_schedule", "tip_from_cm", "tip_trajectory", "variable_names",
     "whole_steps",
 ]

@@ -4,7 +4,6 @@ the summary with the run's timings and metrics."""
 from __future__ import annotations
 
 import dataclasses
-import math
 import sys
 import time
 import warnings
@@ -16,6 +15,7 @@ from ..model import Model, Scene, load_model
 from ..runtime.body import BodySystem
 from ..runtime.data import BodyData
 from ..runtime.ports import StepFailure
+from ..runtime.steps import divides, whole_steps
 from .inputs import scene_inputs, scene_schedule
 from .quantities import energy_balance, metrics
 from .results import SimulationResult, column_names, free_body_columns
@@ -79,17 +79,6 @@ def record(system: BodySystem) -> np.ndarray:
     return system.output_row()
 
 
-def whole_steps(duration: float, step: float) -> tuple[int, float]:
-    """(n, h): n steps of h = duration / n, the largest h <= step that divides the duration (as the
-    reference solver does); a duration within 1e-9 relative of a whole number of steps keeps the step."""
-    ratio = duration / step
-    n = round(ratio)
-    if n >= 1 and abs(ratio - n) <= 1e-9 * ratio:
-        return int(n), step
-    n = max(1, math.ceil(ratio))
-    return n, duration / n
-
-
 def free_body_state(system: BodySystem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(CM, inertia tensor about the CM, linear momentum, angular momentum about the CM) of the body,
     world axes, as its equations hold them (BodySystem.mass_properties, momenta)."""
@@ -103,14 +92,15 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     """Step the body through the scene with the scene's constant step; record every step.
 
     A duration that is not a whole number of steps is never rounded: the step is reduced to
-    divide it (whole_steps), with a warning, and the summary gives both steps."""
+    divide it (runtime/steps.py whole_steps), with a warning, and the summary gives both steps."""
     start, cpu_start = time.perf_counter(), time.process_time()
     requested = scene.step
-    n_steps, h = whole_steps(scene.duration, scene.step)
-    if h != requested:
+    n_steps, h = whole_steps(scene.duration, requested)
+    if not divides(scene.duration, requested):
         warnings.warn(f"scene {scene.name!r}: duration {scene.duration:g} s is not a whole number of steps of "
                       f"{requested:g} s ({scene.duration / requested:.6g}): step reduced to {h:.6g} s "
                       f"({n_steps} steps)", UserWarning, stacklevel=2)
+    if h != requested:  # reduced, or the same step to round-off: the run ends at the duration
         scene = dataclasses.replace(scene, step=h)
     system, inputs = build_system(body, scene, origin, backend)
     setup = time.perf_counter() - start  # the body's equations, its image and C body, the initial state

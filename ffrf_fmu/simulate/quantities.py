@@ -7,6 +7,7 @@ import numpy as np
 
 from ..model import Scene
 from ..runtime.data import BodyData
+from ..runtime.outputs import tip_from_hub
 from ..runtime.rotation import logm
 from .results import SimulationResult, free_body_keys, free_body_series
 
@@ -21,8 +22,7 @@ def elastic_tip(result: SimulationResult, hub: str, tip: str) -> np.ndarray:
     """Eq. (92): d = R_hub^T (x_tip - x_hub) - X_tip, X_tip the tip seen from the hub at rest."""
     body = result.body
     X = body.node_positions[body.port(tip).node] - body.node_positions[body.port(hub).node]
-    R = result.port(hub, "R")
-    return np.einsum("nji,nj->ni", R, result.port(tip, "r") - result.port(hub, "r")) - X
+    return tip_from_hub(result.port(hub, "R"), result.port(hub, "r"), result.port(tip, "r"), X)
 
 
 def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float) -> float:
@@ -74,6 +74,16 @@ def tip_from_cm(result: SimulationResult) -> np.ndarray:
     e3 = e3 / np.linalg.norm(e3, axis=1)[:, None]
     e2 = np.cross(e3, e1)
     return np.column_stack([np.zeros(len(r)), np.einsum("ni,ni->n", r, e2), np.einsum("ni,ni->n", r, e3)])
+
+
+def tip_trajectory(result: SimulationResult, scene: Scene) -> np.ndarray:
+    """The elastic tip trajectory a chart compares, (n, 3): for a free body (metrics kind 'momentum') the
+    tip seen from the body's CM frame (tip_from_cm), else the tip seen from the hub section (eq. 92)
+    between the body's end ports."""
+    if scene.metrics.kind == "momentum":
+        return tip_from_cm(result)
+    hub, tip = end_ports(result.body)
+    return elastic_tip(result, hub, tip)
 
 
 def metrics(result: SimulationResult, scene: Scene) -> dict:

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import Model, Scene, scene_body
-from ..runtime.body import BodySystem
-from ..fmu.variables import port_variables
+from ..runtime.outputs import OUTPUT_FIELDS, port_variables
 from .quantities import energy_balance, metrics
 from .results import FREE_BODY_FIELDS, SimulationResult, free_body_columns
 
@@ -27,7 +26,7 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
     shell = BodyData(name=body.name, superelements=(), node_positions=nodes, ports=ports)
     columns = {}
     for p in ports:
-        for fld in BodySystem.OUTPUT_FIELDS:
+        for fld in OUTPUT_FIELDS:
             arr = ref.ports[p.name][fld].reshape(len(ref.t), -1)
             columns.update(zip(port_variables(p.name, fld), arr.T))
     for k in ("kinetic", "strain", "work_external"):

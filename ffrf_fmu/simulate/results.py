@@ -8,23 +8,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..runtime.body import BodySystem
 from ..runtime.data import BodyData
-from ..fmu.variables import ENERGIES as VARIABLE_ENERGIES, field_shape, port_variables
-
-ENERGIES = tuple(VARIABLE_ENERGIES)
-assert ENERGIES == BodySystem.ENERGY_FIELDS  # the energies of BodySystem.output_row, in the variables' order
+from ..runtime.outputs import ENERGY_FIELDS as ENERGIES, OUTPUT_FIELDS, field_shape, port_variables, row_columns
 
 
 def variable_names(port: str) -> list[str]:
-    """FMU variable names of one port's outputs (ports.md), in the columns order of
+    """FMU variable names of one port's outputs (docs/fmu.md), in the columns order of
     BodySystem.port_array."""
-    return [name for fld in BodySystem.OUTPUT_FIELDS for name in port_variables(port, fld)]
+    return [name for fld in OUTPUT_FIELDS for name in port_variables(port, fld)]
 
 
 def column_names(body: BodyData) -> list[str]:
-    names = [n for p in body.ports for n in variable_names(p.name)]
-    return names + [f"energy.{k}" for k in ENERGIES] + ["solver.newton_iterations"]
+    """The columns of a run's rows (record): runtime/outputs.py row_columns of the body's ports."""
+    return row_columns([p.name for p in body.ports])
 
 
 @dataclass

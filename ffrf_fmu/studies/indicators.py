@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ..model import Body
+from ..runtime.steps import divides, whole_steps
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy 2 renamed trapz
 
@@ -80,7 +81,7 @@ def excitation(scene, tolerance: float) -> tuple[float, list[str]]:
     """(highest excitation frequency [Hz], the contributions as text)."""
     from ..runtime.drives import evaluate
 
-    n = min(200_001, int(round(scene.duration / scene.step)) + 1)
+    n = min(200_001, whole_steps(scene.duration, scene.step).n + 1)
     t = np.linspace(0.0, scene.duration, n)
     dt = t[1] - t[0]
     parts: list[tuple[float, str]] = []
@@ -192,32 +193,18 @@ def nice_step(h_max: float, duration: float) -> float:
     mant = (1, 1.25, 1.6, 2, 2.5, 3.2, 4, 5, 6.4, 8)
     cands = sorted({float(f"{m * 10.0**k:.6g}") for k in range(e - 3, e + 1) for m in mant}, reverse=True)
     for h in cands:
-        if h <= h_max * (1 + 1e-12) and abs(duration / h - round(duration / h)) < 1e-9 * duration / h:
+        if h <= h_max * (1 + 1e-12) and divides(duration, h):
             return float(f"{h:.6g}")
     return float(f"{h_max:.3g}")
 
 
-def spin_history(scene, n_max: int = 200_001):
-    """(t, rate, acc, axis, source) of the scene's fastest rotation drive, or of its initial spin
-    (constant rate, no acceleration); None when nothing spins."""
-    from ..runtime.drives import evaluate
+def spin_history(scene):
+    """(t, rate, acc, axis, source) of the scene's spin (spin.scene_spin: its fastest rotation drive, or its
+    initial spin, a constant rate without acceleration); None when nothing spins."""
+    from ..spin import scene_spin
 
-    t = np.linspace(0.0, scene.duration, min(n_max, int(round(scene.duration / scene.step)) + 1))
-    best = None
-    for d in scene.drives:
-        if d.rotation is None:
-            continue
-        tf = d.rotation.angle
-        vals = np.array([evaluate(tf.kind, dict(tf.params), float(x))[1:] for x in t])
-        if best is None or np.max(np.abs(vals[:, 0])) > np.max(np.abs(best[1])):
-            best = (t, vals[:, 0], vals[:, 1], np.asarray(d.rotation.axis, float), f"drive {d.port}.rotation ({tf.kind})")
-    if best is None and any(scene.initial.angular_velocity):
-        w = np.asarray(scene.initial.angular_velocity, dtype=float)
-        best = (t, np.full_like(t, np.linalg.norm(w)), np.zeros_like(t), w, "initial angular velocity")
-    if best is None or not np.any(best[1]):
-        return None
-    t, rate, acc, axis, src = best
-    return t, rate, acc, axis / np.linalg.norm(axis), src
+    s = scene_spin(scene)
+    return None if s is None else (s.t, s.rate, s.acceleration, s.axis, s.source)
 
 
 def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:

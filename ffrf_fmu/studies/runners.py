@@ -22,6 +22,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..model import Model, Scene, load_model
+from ..runtime.outputs import tip_from_hub
+from ..runtime.steps import whole_steps
 from .grid import value_overrides
 
 
@@ -41,18 +43,6 @@ def body_data(model: Model, scene: Scene):
     from ..reduction import build_scene_body
 
     return build_scene_body(model.body, scene)[0]
-
-
-def tip_trajectory(result, scene: Scene) -> np.ndarray:
-    """The elastic tip trajectory a chart compares, (n, 3): for a free body (metrics kind 'momentum') the
-    tip seen from the body's CM frame (simulate.tip_from_cm), else the tip seen from the hub section
-    (eq. 92) between the body's end ports."""
-    from ..simulate import elastic_tip, end_ports, tip_from_cm
-
-    if scene.metrics.kind == "momentum":
-        return tip_from_cm(result)
-    hub, tip = end_ports(result.body)
-    return elastic_tip(result, hub, tip)
 
 
 def transverse(d: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -94,7 +84,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
             raise SetupError(f"unknown runner {runner!r}")
         out["metrics"] = sim.metrics(res, sc)
         out["t"] = np.asarray(res.t)
-        out["d"] = tip_trajectory(res, sc)
+        out["d"] = sim.tip_trajectory(res, sc)
     except Exception as e:  # noqa: BLE001 - a configuration that cannot run is a row, not a crash
         out["failure"] = f"{type(e).__name__}: {e}"
         out["traceback"] = traceback.format_exc(limit=4)
@@ -137,7 +127,7 @@ def run_reference(model_path: str, scene_name: str | None, base_overrides: Seque
     the scene's [reference] step, else the scene's step). Returns {"t", "d" (tip_trajectory), "metrics", "wall_time_s",
     "n_elements", "step", "energy_error", "warning"}; the solver's energy warning is returned in
     "warning" (in a worker process a Python warning would be lost)."""
-    from ..simulate import run_reference as reference_result
+    from ..simulate import run_reference as reference_result, tip_trajectory
 
     model = load_model(model_path, base_overrides)
     sc = model.scene(scene_name)
@@ -211,11 +201,11 @@ def run_beam(model: Model, scene: Scene, *, stop_deflection: float | None = None
     X = body.node_positions[n_tip] - body.node_positions[n_hub]
     axis = X / np.linalg.norm(X)
     limit = model.body.length if stop_deflection is None else stop_deflection
-    n_steps = int(round(scene.duration / scene.step))
+    n_steps = whole_steps(scene.duration, scene.step).n
 
     def sample():
         o = system.outputs()
-        d = o[hub].R.T @ (o[tip].r - o[hub].r) - X
+        d = tip_from_hub(o[hub].R, o[hub].r, o[tip].r, X)
         e = system.energies()
         tot = e["kinetic_rigid"] + e["kinetic_elastic"] + e["strain"]
         return float(transverse(d, axis)), tot, e["work_external"]
