@@ -1,4 +1,4 @@
-"""The reduced superelement chain linearized at rest, in physical coordinates (formulation.md
+"""The reduced superelement chain linearized at rest, in physical coordinates (docs/background.md
 section 6 checks: natural frequencies, static tip deflection).
 
 Per superelement the FE displacement is rigid motion of the CM frame plus the reduced elastic
@@ -110,7 +110,7 @@ def static_displacements(body: BodyData, loads: dict[int, np.ndarray], fixed: np
 
 
 # ---------------------------------------------------------------------------------------------
-# The runtime equations linearized about a steady spin (shared/spec/stiffening.md check)
+# The runtime equations linearized about a steady spin (docs/background.md, rotating cantilever)
 #
 # A body whose motion-driven ports spin at a constant world rate w (about an axis through the world
 # origin) has a relative equilibrium: in the spinning frame nothing moves. With the unknowns of
@@ -207,7 +207,7 @@ def spin_modes(system, omega: float, axis=(0.0, 0.0, 1.0), f_max: float = 50.0):
 
 
 # ---------------------------------------------------------------------------------------------
-# Each mode about the steady spin with its direction (shared/spec/stiffening.md: out of the plane of
+# Each mode about the steady spin with its direction (docs/background.md: out of the plane of
 # rotation omega^2 = omega_0^2 + K Omega^2, in the plane omega^2 = omega_0^2 + (K - 1) Omega^2; the
 # two first frequencies differ by the centrifugal softening Omega^2 of the in-plane motion, 1.6 x at
 # 4 rad/s on B1). A mode's direction is where its boundary nodes move, relative to the spin axis a

@@ -57,7 +57,7 @@ class Section:
 
 @dataclass(frozen=True)
 class Port:
-    """A named boundary node of the body and the causality of its two parts (ports.md)."""
+    """A named boundary node of the body and the causality of its two parts (docs/fmu.md)."""
 
     name: str
     node: int  # boundary node index 0..superelements (negative counts from the end), normalized >= 0
@@ -130,7 +130,7 @@ class Body:
 class TimeFunction:
     """A scalar time function s(t) with its first two derivatives (see drives.py for kinds).
 
-    kind: "constant" (value), "haug_spinup" (omega, T: angle profile of Wu-Haug, benchmarks.md B1),
+    kind: "constant" (value), "haug_spinup" (omega, T: angle profile of Wu-Haug, docs/background.md B1),
     "ramp" (rate, t_start), "window" (value, t_start, t_end: value inside [t_start, t_end), else 0),
     "sine" (amplitude, frequency_hz, phase).
     """
@@ -401,7 +401,7 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
     pt = r.table(t.get("ports", {}), "body.ports", None)
     for pname, p in pt.items():
         pp = join("body.ports", pname)
-        if not _NAME.match(pname):  # becomes an FMU variable prefix (ports.md)
+        if not _NAME.match(pname):  # becomes an FMU variable prefix (docs/fmu.md)
             r.fail(pp, "expected a port name of letters, digits and _ (it prefixes FMU variable names)")
         r.table(p, pp, PORT_KEYS, required=("node",))
         node = r.integer(p, pp, "node", PORT_KEYS["node"], low=-math.inf)

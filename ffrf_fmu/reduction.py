@@ -1,4 +1,4 @@
-"""Superelement reduction of geradin section 7 (formulation.md section 2).
+"""Superelement reduction of geradin section 7 (docs/background.md).
 
 Basis (eq. 76): free attachment modes with inertia relief recast on the boundary displacements,
 plus free-free vibration modes, all mass-orthogonal to the rigid modes about the CM (eq. 74),
@@ -51,7 +51,7 @@ def mass_projector(M: np.ndarray, U: np.ndarray) -> np.ndarray:
 def free_free_modes(fe: FEModel, U: np.ndarray, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
     """First n_modes elastic modes of K x = w^2 M x (6 rigid ones dropped), mass-normalized and
     projected explicitly against the rigid modes: the raw eigenvectors are orthogonal to U only
-    to ~1e-8 when the axial stiffness dwarfs the bending one (formulation.md section 2).
+    to ~1e-8 when the axial stiffness dwarfs the bending one (docs/background.md).
 
     Returns (Xi (n_dof, n_modes), omega^2 (n_modes,)).
     """

@@ -40,7 +40,7 @@ def test_period_error_of_the_integrator():
     assert abs(ad.period_error(4.0 * h, 0.8)) == pytest.approx(1e-3, rel=1e-6)
 
 
-# shared/spec/stiffening.md, B1 data (80 Euler-Bernoulli elements): Omega [rad/s] -> (flap, in-plane) [Hz]
+# docs/background.md, B1 data (80 Euler-Bernoulli elements): Omega [rad/s] -> (flap, in-plane) [Hz]
 STIFFENING_TABLE = {4.0: (0.8305, 0.5334), 8.0: (1.4329, 0.6573), 12.0: (2.0611, 0.7748)}
 
 

@@ -19,7 +19,7 @@ def run(*args):
 
 
 # First bending frequency of the body with its motion-driven port parts fixed, against the
-# closed forms of shared/spec/benchmarks.md: B1 cantilever (hub clamped) 0.4640 Hz, B2
+# closed forms of docs/background.md: B1 cantilever (hub clamped) 0.4640 Hz, B2
 # hinged-free (root on the spherical joint) 1.7435 Hz, both Euler-Bernoulli. 0.5 % covers what
 # the model adds to the closed form: shear flexibility and rotary inertia (B1's are small: the
 # beam is slender) and the modal truncation of 6 modes per superelement.

@@ -1,6 +1,6 @@
 """Two-field superelement dynamics: Jacobian, linearization, and the published benchmarks B1, B2, B4.
 
-Reference values: shared/spec/benchmarks.md (Geradin, two-field FFRF paper, sections 9.1-9.2).
+Reference values: docs/background.md (Geradin, two-field FFRF paper, sections 9.1-9.2).
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def test_linearized_dynamics_reproduce_modal_frequencies():
     dynamic = np.sort(np.abs(lam.imag[lam.imag > 1e-3])) / (2 * np.pi)
     modal = natural_frequencies(body)
     np.testing.assert_allclose(dynamic[:10], modal[:10], rtol=1e-6)
-    assert dynamic[0] == pytest.approx(0.4640, rel=5e-3)  # benchmarks.md B1 closed form
+    assert dynamic[0] == pytest.approx(0.4640, rel=5e-3)  # docs/background.md B1 closed form
 
 
 def _b1(superelements: int):
@@ -62,7 +62,7 @@ PAPER_TABLE_1 = {1: 0.6015, 2: 0.5520, 4: 0.5386}
 def test_b1_max_tip_deflection_matches_paper_table_1(b1_runs, n):
     """Term set `linear`, 6 modes, h = 2 ms, rho_inf = 0.8, as in the paper. Measured gaps to Table 1:
     -0.07 %, -0.29 %, -0.37 % for 1, 2, 4 SE (docs/benchmarks.md; the paper does not give its FE mesh
-    per superelement nor its rotary inertia, we use 22.7e-6, benchmarks.md note 2). 0.5 %: above
+    per superelement nor its rotary inertia, we use 22.7e-6, docs/background.md, B1 note 2). 0.5 %: above
     those gaps, and a window that tells the chains apart: the neighbouring chain is >= 2.4 % away
     (2 SE 0.5520 vs 4 SE 0.5386) and the converged nonlinear beam (0.5319, 64 elements) is 1.2 %
     below the 4-SE value, so a chain that recovered the full stiffening would fail."""
@@ -125,7 +125,7 @@ def b2_run():
 
 
 def test_b2_published_values(b2_run):
-    """Paper 9.1 with our reconstruction of the load windows (benchmarks.md B2).
+    """Paper 9.1 with our reconstruction of the load windows (docs/background.md B2).
     omega_z after the torque: 3 % (rigid estimate 2000/66183 = 0.0302 is itself 2.4 % above the
     printed 0.0295); mean omega_y after the tip impulse: 5 %; hinged-free frequency 1.74 Hz: 2 %."""
     m = b2_run.summary["metrics"]

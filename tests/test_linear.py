@@ -1,4 +1,4 @@
-"""The reduced chain linearized at rest (formulation.md section 6: modal and static checks)."""
+"""The reduced chain linearized at rest (docs/background.md: modal and static checks)."""
 import numpy as np
 import pytest
 
@@ -22,9 +22,9 @@ def chain(section, L, n_se, n_el, root=("motion", "motion"), modes=6):
 def test_b1_cantilever_first_frequency(b1, n_se, n_el):
     section, L = b1
     f = natural_frequencies(chain(section, L, n_se, n_el))
-    # closed form (benchmarks.md B1) 0.4640 Hz, Euler-Bernoulli; shear (Phi ~ 6e-5) and rotary
+    # closed form (docs/background.md B1) 0.4640 Hz, Euler-Bernoulli; shear (Phi ~ 6e-5) and rotary
     # inertia lower it by < 1e-4, reduction and mesh errors measured < 1e-4: 0.5 % is the bound
-    # of formulation.md section 6. Both bending planes (EI2 = EI3) give the same frequency.
+    # of docs/background.md. Both bending planes (EI2 = EI3) give the same frequency.
     assert f[0] == pytest.approx(0.4640, rel=5e-3)
     assert f[1] == pytest.approx(f[0], rel=1e-9)
 
@@ -33,7 +33,7 @@ def test_b2_hinged_free_first_frequency(b2):
     section, L = b2
     data = chain(section, L, 2, 8, root=("motion", "force"))
     f = natural_frequencies(data)
-    # closed form 1.7435 Hz (benchmarks.md B2, Euler-Bernoulli, no rotary inertia); the rotary
+    # closed form 1.7435 Hz (docs/background.md B2, Euler-Bernoulli, no rotary inertia); the rotary
     # inertia rho I of the section lowers it by ~5e-4 (measured 1.74263 Hz): 0.5 % bound.
     # The three free rotations about the hinge are rigid and left out (< 0.01 Hz).
     assert f[0] == pytest.approx(1.7435, rel=5e-3)

@@ -16,7 +16,7 @@ from ffrf_fmu.reference.beam import BeamElements, coefficients
 from ffrf_fmu.reference.convergence import b1_body, b1_scene
 from ffrf_fmu.runtime.rotation import expm, logm, skew, tangent
 
-# B1 (benchmarks.md): L = 8, EA = 5.03e6, GA = 1.94e6, EI = 566, m = 0.201
+# B1 (docs/background.md): L = 8, EA = 5.03e6, GA = 1.94e6, EI = 566, m = 0.201
 L_B1, EA_B1, GA_B1, EI_B1, M_B1 = 8.0, 5.03e6, 1.94e6, 566.0, 0.201
 
 

@@ -1,5 +1,5 @@
 """The runtime equations linearized about a steady spin (linear.steady_spin, linear.spin_modes):
-the rotating cantilever of shared/spec/stiffening.md (docs/accuracy.md, "Rotating cantilever") and
+the rotating cantilever of docs/background.md (docs/accuracy.md, "Rotating cantilever") and
 the centrifugal softening that the gyroscopic terms carry inside a superelement
 (docs/inertia-terms.md, "coned_beam")."""
 import numpy as np
@@ -12,7 +12,7 @@ from ffrf_fmu.model import Body, Port
 from ffrf_fmu.reduction import build_body
 from ffrf_fmu.runtime.body import BodySystem
 
-# stiffening.md: B1 data, 80 Euler-Bernoulli elements, clamped hub, spin about Z (normal to the beam)
+# docs/background.md, rotating cantilever: B1 data, 80 Euler-Bernoulli elements, clamped hub, spin about Z (normal to the beam)
 # Omega [rad/s]: (flap [Hz], in-plane [Hz])
 ROTATING_CANTILEVER = {2.0: (0.5793, 0.4840), 4.0: (0.8305, 0.5334), 8.0: (1.4329, 0.6573)}
 
@@ -62,7 +62,7 @@ def test_inplane_softening_inside_the_superelement_is_the_gyroscopic_terms(b1):
 
 
 def test_without_stiffening_one_superelement_cannot_reproduce_the_table(b1):
-    """stiffening.md: one linear SE has the softening without the K_G term: far too soft in the plane
+    """docs/background.md, rotating cantilever: one linear SE has the softening without the K_G term: far too soft in the plane
     at 4 rad/s (measured 0.4193 Hz against 0.5334, -21 %) and unstable at 8 rad/s."""
     section, _ = b1
     system = _system(section, (1, 0, 0), 1, stiffening=False)

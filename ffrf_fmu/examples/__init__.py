@@ -2,7 +2,7 @@
 
 `build_hub_drive(dest)`: the B5 hub drive (hub inertia, motor, PI speed controller tracking the
 Wu-Haug spin-up profile, torsional shaft to the beam root), a pythonfmu FMU whose script is
-`hub_drive_slave.py`. Its `hub` port follows shared/spec/ports.md, so
+`hub_drive_slave.py`. Its `hub` port follows docs/fmu.md, so
 `master.CoSimulation.connect_ports("beam", "hub", "drive", "hub")` joins it to a beam FMU whose hub
 rotation is force-driven (models/haug_beam.toml, scene hub_free). Parameters (`drive.J`, `drive.k`,
 `drive.c`, `drive.Kp`, `drive.Ki`, `profile.omega`, `profile.T`, `solver.substep`) are FMU
@@ -21,7 +21,7 @@ HUB_DRIVE_SOURCE = HERE / "hub_drive_slave.py"
 
 def hub_drive_names() -> tuple[str, str]:
     """(module, class) names of the hub drive FMU: unique per version of its source, so that two
-    builds from different code never collide in one process (ports.md)."""
+    builds from different code never collide in one process (docs/fmu.md)."""
     digest = hashlib.sha256(HUB_DRIVE_SOURCE.read_bytes()).hexdigest()[:10]
     return f"ffrf_hub_drive_{digest}", f"FfrfHubDrive_{digest}"
 

@@ -3,10 +3,10 @@ fixed bearing, driven by a motor under a PI speed controller that tracks the Wu-
 speed profile, and joined to the beam root by a torsional shaft (stiffness k, damping c).
 
 Built by `ffrf_fmu.examples.build_hub_drive`, which renames the module and the class with a digest
-of this file (pythonfmu FMUs whose scripts share a name collide in one process, ports.md). Only
+of this file (pythonfmu FMUs whose scripts share a name collide in one process, docs/fmu.md). Only
 the standard library and pythonfmu are imported: the FMU runs wherever pythonfmu runs.
 
-Port `hub` follows shared/spec/ports.md, seen from the drive:
+Port `hub` follows docs/fmu.md, seen from the drive:
 - translation force-driven: outputs hub.r = 0, hub.v = 0 (the bearing holds the hub axis at the
   origin), input hub.f (force of the beam on the hub: taken by the bearing, unused);
 - rotation motion-driven: inputs hub.R, hub.w = the beam root frame and angular velocity (world
@@ -19,7 +19,7 @@ Equations (about the world Z axis, which is the drive axis):
     tau_s    = k (theta - theta_b) + c (omega - omega_b)            shaft torque on the beam
     tau_m    = Kp (omega_ref(t) - omega) + Ki z                      PI motor torque
     J dtheta/dt = J omega,  J domega/dt = tau_m - tau_s,  dz/dt = omega_ref(t) - omega
-omega_ref is the Wu-Haug spin-up rate (benchmarks.md B1): omega_f (tau - sin(2 pi tau)/(2 pi)),
+omega_ref is the Wu-Haug spin-up rate (docs/background.md B1): omega_f (tau - sin(2 pi tau)/(2 pi)),
 tau = t/T, then omega_f. Inputs between communication points (same rule as the body FMUs,
 docs/fmu.md): the values set before doStep(t_c, H) are the values at t_c; the beam angle is
 extrapolated with its rate, theta_b(t) = theta_b(t_c) + omega_b(t_c) (t - t_c), omega_b held.
@@ -62,7 +62,7 @@ OUTPUTS = {
 
 
 def speed_reference(t, omega, T):
-    """Wu-Haug spin-up rate (benchmarks.md B1, with the 1/(2 pi)^2 factor of the angle law)."""
+    """Wu-Haug spin-up rate (docs/background.md B1, with the 1/(2 pi)^2 factor of the angle law)."""
     if t >= T:
         return omega
     tau = max(t, 0.0) / T
@@ -73,7 +73,7 @@ class HubDrive(Fmi2Slave):
 
     author = "ffrf-fmu"
     DESCRIPTION = ("Hub inertia + motor + PI speed controller (Wu-Haug speed profile) + torsional shaft to "
-                   "the beam root. Port hub (ports.md): rotation motion-driven (inputs R, w of the beam root; "
+                   "the beam root. Port hub (docs/fmu.md): rotation motion-driven (inputs R, w of the beam root; "
                    "output t = moment of the beam on the hub), translation force-driven (r = v = 0 outputs, "
                    "f input unused). Inputs are values at t_c; the beam angle is extrapolated with its rate "
                    "over the step. RK4 substeps. Outputs at the step end, no direct feedthrough.")

@@ -1,4 +1,4 @@
-"""Linear finite element models behind a small interface (formulation.md section 1).
+"""Linear finite element models behind a small interface (docs/background.md).
 
 Reduction (ffrf_fmu.reduction) only sees `FEModel`: node coordinates, K, M and the
 translational mass kernel. Beams are one producer (fe.beam); imported K/M of solids or

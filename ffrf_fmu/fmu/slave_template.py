@@ -4,7 +4,7 @@ The script holds exactly one class deriving directly from Fmi2Slave (pythonfmu f
 by that pattern) and delegates everything to `BodyCoSim` in the FMU's own copy of the runtime,
 the package `{package}` in the FMU resources. Both the script module and the package carry a
 per-FMU hash in their names: Python caches modules by name per process, so two body FMUs in one
-process must never share either name (ports.md).
+process must never share either name (docs/fmu.md).
 
 No exception leaves a method that pythonfmu's C++ wrapper calls: pythonfmu turns one into
 fmi2Fatal and releases the instance's Python objects without forgetting them, so the next call

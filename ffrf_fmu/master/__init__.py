@@ -36,7 +36,7 @@ split beam unstable (added-mass effect) whatever the step.
 `interface_jacobian=True` is linearly implicit coupling with a coupling Jacobian from the FMUs'
 directional derivatives or from finite differences (master/interface.py).
 
-`body_port_links` wires two body ports (ports.md): the motion-driven side receives the frame of
+`body_port_links` wires two body ports (docs/fmu.md): the motion-driven side receives the frame of
 the force-driven side; the force-driven side receives minus the reaction of the motion-driven
 side (the force on one body is the opposite of the force on the other).
 """

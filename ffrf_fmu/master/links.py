@@ -1,4 +1,4 @@
-"""Connections between FMU variables: held signals and body-port motions (ports.md), and the
+"""Connections between FMU variables: held signals and body-port motions (docs/fmu.md), and the
 wiring of two body ports."""
 from __future__ import annotations
 

@@ -128,7 +128,7 @@ class CoSimulation(InterfaceJacobian):
         self.links.append(Held(src, dst, float(gain)))
 
     def connect_ports(self, a: str, port_a: str, b: str, port_b: str | None = None) -> None:
-        """Join a body port of FMU a to a body port of FMU b (both parts; ports.md causality)."""
+        """Join a body port of FMU a to a body port of FMU b (both parts; docs/fmu.md causality)."""
         port_b = port_b or port_a
         ca = port_causality(self.instances[a], port_a)
         cb = port_causality(self.instances[b], port_b)

@@ -1,4 +1,4 @@
-"""Convergence study of the full-order reference on B1 (Haug's rotating beam, benchmarks.md).
+"""Convergence study of the full-order reference on B1 (Haug's rotating beam, docs/background.md).
 
     ffrf-fmu convergence [--quick] [--elements 4,8,16,32] [--steps 0.01,0.005,0.002]
 

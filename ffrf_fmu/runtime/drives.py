@@ -31,7 +31,7 @@ def evaluate(kind: str, params: dict, t: float) -> tuple[float, float, float]:
     if kind == "constant":
         return p["value"], 0.0, 0.0
     if kind == "haug_spinup":
-        # benchmarks.md B1, with the 1/(2 pi)^2 factor that geradin eq. (93) misprints
+        # docs/background.md B1, with the 1/(2 pi)^2 factor that geradin eq. (93) misprints
         w, T = p["omega"], p["T"]
         if t < T:
             tau = t / T

@@ -196,7 +196,7 @@ def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP
     # (69a): m v0dot - m g_grav
     F[ex0] = m * v0dot - m * np.asarray(gravity, dtype=float)
     Fz[ex0, cv0] = m * I3
-    for term in g_terms:  # further elastic forces, e.g. geometric stiffening (stiffening.md)
+    for term in g_terms:  # further elastic forces, e.g. geometric stiffening (docs/background.md, rotating cantilever)
         g_t, dgz_t, dgy_t = term(se, kin, v, zdot, vdot)
         g, dg_z, dg_y = g + g_t, dg_z + dgz_t, dg_y + dgy_t
     F[eeta] = g[6 * nb :]

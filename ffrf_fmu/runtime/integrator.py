@@ -1,5 +1,5 @@
 """Time integration of a body: first-order generalized-alpha on the Lie group, Newton on the rates,
-modified Newton with the factorization carried along the rigid rotation (formulation.md section 5;
+modified Newton with the factorization carried along the rigid rotation (docs/background.md;
 docs/equations.md, "Integrator").
 
 Jansen-Whiting-Hulbert generalized-alpha in the linear multistep form of Bruls & Arnold (2008),

@@ -1,7 +1,7 @@
 """Where the unknowns of a body live: the global vector, each superelement's local slots, the
 superelement matrices stacked, and small helpers for named blocks of flat buffers.
 
-Unknowns (formulation.md section 3; geradin section 8.3, spatial coordinates)
+Unknowns (docs/background.md; geradin section 8.3, spatial coordinates)
     per boundary node P:   frame w_P = (x_P, R_P) (world position, rotation)
     per superelement e:    CM frame (x0, R0), modal amplitudes eta                    [configuration]
                            velocities v0 (world), Omega0 (body), r_bar = [r_B; r_eta] [independent field]

@@ -1,4 +1,4 @@
-"""Port values exchanged with the environment (ports.md): all vectors in world axes, SI."""
+"""Port values exchanged with the environment (docs/fmu.md): all vectors in world axes, SI."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -2,7 +2,7 @@
 scenes and ports of the bundled models the maps rely on and the maps' default sweeps. The map
 code takes these as parameters (settings); only the defaults come from here.
 
-Benchmarks: shared/spec/benchmarks.md (B1 Wu-Haug spin-up, B2 spherical beam, B3 the spin-up
+Benchmarks: docs/background.md (B1 Wu-Haug spin-up, B2 spherical beam, B3 the spin-up
 beyond the first bending frequency, B5 beam + hub drive); the maps and why these values:
 docs/stability.md.
 """
