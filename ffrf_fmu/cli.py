@@ -14,10 +14,15 @@ import json
 import sys
 
 # BLAS threads: pinned to one when the package is imported (ffrf_fmu/__init__.py)
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
-from .model import Model, ModelError, Scene, load_model, scene_body
-from .validate import DEFAULT_ATOL, DEFAULT_RTOL
+# Start-up: a command imports what it uses, inside its function (`ffrf-fmu --help` imports no numpy;
+# benchmarks/cli_startup.py). Only the error type every command catches is imported here.
+from .checked_toml import ModelError
+from .validate import DEFAULT_ATOL, DEFAULT_RTOL  # validate.py imports numpy only when it runs
+
+if TYPE_CHECKING:
+    from .model import Model, Scene
 
 PROG = "ffrf-fmu"
 _COMMANDS: list[tuple[Callable, tuple]] = []
@@ -85,6 +90,8 @@ def command(*arguments):
 
 
 def _load(args) -> tuple[Model, Scene]:
+    from .model import load_model
+
     model = load_model(args.model, args.overrides)
     return model, model.scene(args.scene)
 
@@ -126,6 +133,7 @@ def info(args) -> int:
     n_body_dofs = 6 * n_nodes + 6 * len(ses) + sum(s["n_modes"] for s in ses)
     fixed = [f"{p.name}.{part}" for p in ports for part in ("translation", "rotation") if getattr(p, part) == "motion"]
     from .invariants import body_inertia_report, scene_spin  # Witteveen's invariants and indicators
+    from .model import scene_body
 
     spin, axis, spin_source = scene_spin(scene)
     inertia = body_inertia_report(scene_body(body, scene), spin, axis,
@@ -298,6 +306,8 @@ def stability(args) -> int:
     out = Path(args.output)
     values = tuple(float(x) for x in args.values.split(",")) if args.values else None
     if not args.plot_only:
+        from .model import load_model
+
         model = load_model(args.model, args.overrides)
         log = lambda m: print(m, flush=True)  # noqa: E731
         try:

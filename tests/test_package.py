@@ -152,3 +152,35 @@ def test_one_blas_thread_for_blas_loaded_after_import():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
                          cwd=ROOT)
     assert out.stdout.strip() == "[1]", out.stdout
+
+
+def test_readme_layout_names_every_module():
+    """README's layout names every module there is (by its file name in backquotes; a package by its
+    directory): a module added without a line there fails here."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    layout = readme[readme.index("## Layout"):]
+    missing = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if "__pycache__" in path.parts:
+            continue
+        rel = path.relative_to(PACKAGE)
+        if path.name == "__init__.py":
+            named = f"{rel.parent.name}/" in layout if rel.parent.parts else True
+        else:
+            named = f"`{path.name}`" in layout or f"{path.name}`" in layout or f"/{path.name}`" in layout
+        if not named:
+            missing.append(str(rel))
+    assert missing == [], f"README's layout does not name: {missing}"
+
+
+def test_help_imports_no_numpy():
+    """`ffrf-fmu --help` builds every subcommand's parser and imports nothing a command does not use
+    (no numpy, scipy, matplotlib, dask, fmpy): its start-up is the interpreter's plus the argument
+    tables (benchmarks/cli_startup.py)."""
+    code = ("import sys, runpy\nsys.argv = ['ffrf-fmu', '--help']\n"
+            "try:\n    runpy.run_module('ffrf_fmu', run_name='__main__')\nexcept SystemExit:\n    pass\n"
+            "heavy = ('numpy', 'scipy', 'matplotlib', 'dask', 'fmpy', 'pythonfmu', 'numba')\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy), file=sys.stderr)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert "usage: ffrf-fmu" in out.stdout
+    assert out.stderr.strip() == "[]", out.stderr
