@@ -147,11 +147,13 @@ def parse_override_value(text: str) -> Any:
         return text
 
 
-def apply_overrides(raw: dict, overrides: Sequence[str], file: str, aliases: dict[str, tuple[str, ...]]) -> dict[str, str]:
+def apply_overrides(raw: dict, overrides: Sequence[str], file: str, aliases: dict[str, tuple[str, ...]],
+                    retired: dict[str, str] | None = None) -> dict[str, str]:
     """Write `key=value` overrides into the raw tables (validated with the rest afterwards).
 
-    aliases: short keys -> dotted paths ("scenes.*" = every scene). Returns {dotted path: override
-    text}, so that a message about an overridden key says so.
+    aliases: short keys -> dotted paths ("scenes.*" = every scene); retired: short keys no longer
+    accepted -> the message that names what to write instead. Returns {dotted path: override text},
+    so that a message about an overridden key says so.
     """
     origins: dict[str, str] = {}
     for text in overrides:
@@ -161,6 +163,8 @@ def apply_overrides(raw: dict, overrides: Sequence[str], file: str, aliases: dic
             raise ModelError(f"{file}: --set {text!r}: expected key=value, e.g. step=1e-3")
         if "." in key:
             targets = (key,)
+        elif retired and key in retired:
+            raise ModelError(f"{file}: --set {text}: {retired[key]}")
         elif key in aliases:
             targets = aliases[key]
         else:

@@ -341,12 +341,20 @@ TIME_FUNCTION_DEFAULTS = {"sine": {"phase": 0.0}, "ramp": {"t_start": 0.0}}
 # Short `--set` keys -> dotted paths; "scenes.*" means every scene.
 OVERRIDE_ALIASES = {
     "superelements": ("body.superelements",),
-    "elements": ("body.elements_per_superelement",),
+    "elements_per_superelement": ("body.elements_per_superelement",),
     "modes": ("body.modes",),
     "length": ("body.length",),
     "rotary_inertia": ("body.section.m22", "body.section.m33"),
     **{k: (f"body.section.{k}",) for k in SECTION_KEYS},
     **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening", "full_terms")},
+}
+
+# Short keys refused, with what to write instead: `elements` meant the elements of each superelement
+# here, the reference beam's total in [scenes.NAME.reference] and in the peers' sweeps
+RETIRED_ALIASES = {
+    "elements": "the short key `elements` is ambiguous (per superelement here, the whole beam for the reference "
+                "and the peers): write elements_per_superelement=N for each superelement's FE elements, or "
+                "scenes.NAME.reference.elements=N for the full-order reference beam",
 }
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -361,7 +369,7 @@ def load_model(path, overrides: Sequence[str] = ()) -> Model:
         raise ModelError(f"{file}: cannot read the model file: {e.strerror or e}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ModelError(f"{file}: not valid TOML: {e}") from None
-    r = Reader(file, apply_overrides(raw, overrides, file, OVERRIDE_ALIASES))
+    r = Reader(file, apply_overrides(raw, overrides, file, OVERRIDE_ALIASES, RETIRED_ALIASES))
     r.table(raw, "", TOP_KEYS, required=("body", "scenes"))
     default_name = re.sub(r"\W", "_", Path(path).stem)
     body = _parse_body(r, raw["body"], default_name if _NAME.match(default_name) else "body", file)

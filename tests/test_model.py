@@ -59,7 +59,7 @@ def test_bundled_models_load():
 def test_overrides():
     m = load_model(
         MODELS / "haug_beam.toml",
-        ["superelements=2", "modes=4", "elements=6", "rotary_inertia=22.7e-3", "step=1e-3",
+        ["superelements=2", "modes=4", "elements_per_superelement=6", "rotary_inertia=22.7e-3", "step=1e-3",
          "rho_inf=0.5", "terms=gyroscopic", 'terms="gyroscopic"', "duration=5",
          "scenes.spinup.drives.hub.rotation.angle.omega=6"],
     )
@@ -70,6 +70,13 @@ def test_overrides():
     for s in m.scenes:  # scene keys apply to every scene
         assert (s.step, s.rho_inf, s.terms, s.duration) == (1e-3, 0.5, "gyroscopic", 5.0)
     assert dict(m.scene("spinup").drives[0].rotation.angle.params)["omega"] == 6.0
+
+
+def test_ambiguous_elements_key_is_refused_naming_both_meanings():
+    """`--set elements=N` meant elements per superelement, while [scenes.NAME.reference] elements and the
+    peers' `elements` count the whole beam: the short key is refused with the two spellings to use."""
+    with pytest.raises(ModelError, match=r"elements_per_superelement=N .* scenes\.NAME\.reference\.elements=N"):
+        load_model(MODELS / "haug_beam.toml", ["elements=6"])
 
 
 def test_bad_override_names_the_key():
