@@ -146,17 +146,20 @@ def test_b1_stiffened_superelements_match_the_converged_beam(b1_stiff, b1_refere
 
 
 def test_b1_one_stiffened_superelement_has_the_slow_oscillation_and_the_stretch(b1_stiff, b1_reference):
-    """1 SE: the in-plane oscillation after spin-up within 2 % of the reference's (measured 0.5351 vs
-    0.5329 Hz; the stiffening.md linearized cantilever gives 0.5334 Hz at 4 rad/s, a linear 1 SE
-    0.425 Hz) and the centrifugal stretch of the tip at t = 20 s within 2 % (measured +0.3 %; without
-    stiffening a superelement misses 1/(4 n^2) of it: 23 % measured for 1 SE)."""
+    """1 SE: the in-plane oscillation after spin-up within 0.8 % of the reference's and the centrifugal
+    stretch of the tip at t = 20 s within 0.6 % (docs/equations.md, "Geometric stiffening": measured
+    +0.41 % (0.5351 vs 0.5329 Hz) and +0.34 %; each bound is the measured error plus 0.25 % points,
+    more than round-off or a step path can move it and less than any physics lost: a linear 1 SE is
+    at 0.425 Hz (-20 %) and misses 1/(4 n^2) of the stretch, 23 % for 1 SE). The reference's own
+    frequency agrees with the linearized rotating cantilever (docs/background.md, 0.5334 Hz at
+    4 rad/s) to 0.3 % (measured -0.09 %; 5 s of signal, 2.7 periods, for the fit)."""
     t_ref, d_ref = b1_reference
     t, d = _tip(b1_stiff[1])
     f_ref = sim.dominant_frequency(t_ref[t_ref > 15], d_ref[t_ref > 15, 1], 0.1, 3.0)
     f = sim.dominant_frequency(t[t > 15], d[t > 15, 1], 0.1, 3.0)
-    assert f == pytest.approx(f_ref, rel=0.02)
-    assert f_ref == pytest.approx(0.5334, rel=0.01)  # stiffening.md table, in-plane at 4 rad/s
-    assert d[-1, 0] == pytest.approx(d_ref[-1, 0], rel=0.02)
+    assert f == pytest.approx(f_ref, rel=0.008)
+    assert f_ref == pytest.approx(0.5334, rel=0.003)  # docs/background.md, rotating cantilever table, in-plane at 4 rad/s
+    assert d[-1, 0] == pytest.approx(d_ref[-1, 0], rel=0.006)
 
 
 def test_fmu_carries_stiffening_and_matches_standalone(tmp_path):
@@ -203,12 +206,13 @@ def test_b1_energy_balance_with_stiffening(b1_stiff):
 B3_OMEGA = "scenes.spinup_fast.drives.hub.rotation.angle.omega"
 
 
-@pytest.mark.parametrize("omega", [8.0, 12.0, 14.0])
-def test_b3_one_stiffened_superelement_follows_the_beam_past_the_first_frequency(omega):
+@pytest.mark.parametrize("omega, tol", [(8.0, 0.007), (12.0, 0.0105), (14.0, 0.013)])
+def test_b3_one_stiffened_superelement_follows_the_beam_past_the_first_frequency(omega, tol):
     """B3 (spin-up to omega, up to 4.8 times the first cantilever frequency 2.92 rad/s): one
     superelement with stiffening, 2 modes, h = 10 ms, completes and its max tip deflection is within
-    2 % of the full-order beam's (16 elements; measured +0.44 %, +0.78 %, +1.03 % at 8, 12, 14 rad/s;
-    a linear single superelement fails past 8-10 rad/s, docs/stability.md)."""
+    tol of the full-order beam's (16 elements; docs/equations.md measured +0.44 %, +0.78 %, +1.03 % at
+    8, 12, 14 rad/s; tol = measured + 0.25 % points, as in the B1 test above; a linear single
+    superelement fails past 8-10 rad/s, docs/stability.md)."""
     from ffrf_fmu.reference import simulate_reference, tip_from_hub
 
     ov = [f"{B3_OMEGA}={omega}"]
@@ -217,7 +221,7 @@ def test_b3_one_stiffened_superelement_follows_the_beam_past_the_first_frequency
     run = sim.run_scene("models/haug_beam.toml", "spinup_fast", ov + ["superelements=1", "modes=2", "step=0.01", "stiffening=true"])
     assert run.summary["completed"]
     _, d = _tip(run)
-    assert np.abs(d[:, 1]).max() == pytest.approx(np.abs(tip_from_hub(ref)[:, 1]).max(), rel=0.02)
+    assert np.abs(d[:, 1]).max() == pytest.approx(np.abs(tip_from_hub(ref)[:, 1]).max(), rel=tol)
 
 
 # ----------------------------------------------------------------------------- term set `full`
