@@ -7,6 +7,18 @@
 
 #include "body.h"
 
+/* In an address-sanitizer build every array of the arena is followed by a poisoned red zone, so that a
+ * write past an array's end is reported instead of landing silently in its neighbour. */
+#if defined(__SANITIZE_ADDRESS__)
+void __asan_poison_memory_region(void const volatile *addr, size_t size); /* the sanitizer's runtime (its header
+                                                                           * is not shipped by every compiler) */
+#define POISON(addr, size) __asan_poison_memory_region((addr), (size))
+#define REDZONE 32
+#else
+#define POISON(addr, size) ((void)(addr), (void)(size))
+#define REDZONE 0
+#endif
+
 /* ------------------------------------------------------------------ the image */
 
 #define MAGIC "FFRFBODY"
@@ -457,7 +469,7 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     /* one allocation for every array of the body's own, 16-byte aligned each */
     size_t total = 0, se_bytes = ffrf_se_work_bytes(d);
     for (size_t i = 0; i < COUNT(OWN); i++)
-        total += (kind_bytes(OWN[i].kind) * (size_t)spec_count(d, &OWN[i]) + 15) / 16 * 16;
+        total += (kind_bytes(OWN[i].kind) * (size_t)spec_count(d, &OWN[i]) + 15) / 16 * 16 + REDZONE;
     total += (se_bytes + 15) / 16 * 16;
     b->arena = calloc(1, total ? total : 16);
     if (!b->arena) {
@@ -466,8 +478,10 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     }
     char *at = b->arena;
     for (size_t i = 0; i < COUNT(OWN); i++) {
+        size_t bytes = kind_bytes(OWN[i].kind) * (size_t)spec_count(d, &OWN[i]), span = (bytes + 15) / 16 * 16 + REDZONE;
         *field(b, &OWN[i]) = at;
-        at += (kind_bytes(OWN[i].kind) * (size_t)spec_count(d, &OWN[i]) + 15) / 16 * 16;
+        POISON(at + bytes, span - bytes);
+        at += span;
     }
     b->work.se = ffrf_se_work_bind(at, d);
     reset_state(b, es);
@@ -514,7 +528,8 @@ int ffrf_body_get_scalar(const ffrf_body *b, const char *name, double *value)
     struct { const char *name; double value; } s[] = {
         {"t", b->state.t}, {"iterations", b->state.iterations}, {"tol", b->tol}, {"max_iter", b->max_iter},
         {"rho_inf", b->rho_inf}, {"am", b->am}, {"af", b->af}, {"gamma", b->gamma},
-        {"lu_version", (double)b->lu.version}, {"N", d->N}, {"E", d->E}, {"n", d->n}, {"nb", d->nb}, {"nm", d->nm},
+        {"lu_version", (double)b->lu.version}, {"refreshed", (double)b->lu.refreshed}, {"N", d->N}, {"E", d->E},
+        {"n", d->n}, {"nb", d->nb}, {"nm", d->nm},
         {"ny", d->ny}, {"nf", d->nf}, {"n_ports", d->n_ports}, {"n_springs", d->n_springs},
     };
     for (size_t i = 0; i < COUNT(s); i++)
