@@ -161,6 +161,15 @@ def info(args) -> int:
         # the first bending frequency of each direction at the top spin (the body linearized about its steady spin)
         inertia["stiffened_frequencies_hz"] = advice.indicators["stiffened_frequencies_hz"]
         inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
+    quality = None
+    if body.solid is not None:  # what an FE analyst checks beside a reduced solid (solid/quality.py)
+        from .solid.quality import effective_mass, frequency_report
+
+        red = reductions[0]
+        top = float(red.data.frequencies_hz[-1]) if len(red.data.frequencies_hz) else 0.0
+        cut = 2.0 * top if top else None
+        quality = {"cutoff_hz": cut, "modes": frequency_report(red, cut) if cut else [],
+                   "effective_mass_fraction": effective_mass(red, cut if cut else None)}
     if args.json:
         out = {
             "model": model.path,
@@ -174,6 +183,7 @@ def info(args) -> int:
             "fixed": fixed,
             "frequencies_hz": freqs,
             "inertia": inertia,
+            **({"reduction_quality": quality} if quality is not None else {}),
         }
         json.dump(out, sys.stdout, indent=2)
         print()
@@ -208,6 +218,12 @@ def info(args) -> int:
     print(f"  body: {n_body_dofs} coordinates = {n_nodes} boundary frames x 6 + {len(ses)} CM frames x 6 "
           f"+ {n_body_dofs - 6 * (n_nodes + len(ses))} modal; fixed: {', '.join(fixed) or 'nothing (free-free)'}")
     print(f"  body frequencies [Hz]: {_hz(freqs, 8)}")
+    if quality is not None and quality["modes"]:
+        print(f"  reduction quality up to {quality['cutoff_hz']:.4g} Hz (2 x the highest kept mode; docs/solids.md): "
+              "full -> reduced [Hz] (MAC)")
+        print("    " + ", ".join(f"{m['full_hz']:.4g} -> {m['reduced_hz']:.4g} ({m['mac']:.3f})" for m in quality["modes"]))
+        print("  effective mass held at a port, modes up to the cutoff (x, y, z, rx, ry, rz): "
+              + "; ".join(f"{k} " + " ".join(f"{v:.2f}" for v in fr) for k, fr in quality["effective_mass_fraction"].items()))
     worst = lambda key: max(s.get(key, 0.0) for s in inertia["superelements"])  # noqa: E731
     print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} "
           f"deflection):\n    about the worst axis W1 q/I0 {worst('W1q_over_I0_axis'):.1e}, "
@@ -234,6 +250,31 @@ def info(args) -> int:
     rec = inertia["recommended"]
     print(f"  recommended at tolerance {rec['tolerance']:.0%} (ffrf-fmu advise): {rec['superelements']} SE, term set "
           f"{rec['terms']}, stiffening {'on' if rec['stiffening'] else 'off'}: {rec['reason']}")
+    return 0
+
+
+@command(
+    *MODEL_ARGS,
+    arg("--out", metavar="DIR", required=True, help="directory for modal.csv and the VTK series (BODY.pvd, BODY_*.vtu)"),
+    arg("--every", type=int, default=10, metavar="N", help="record every N-th step (default 10)"),
+    arg("--no-vtk", action="store_true", help="write the modal coordinates only"),
+)
+def recover(args) -> int:
+    """Run a solid's scene and write its modal coordinates (modal.csv) and deformed mesh (VTK for ParaView)."""
+    model, scene = _load(args)
+    if args.every < 1:
+        raise ModelError(f"--every: expected a positive integer, got {args.every}")
+    from pathlib import Path
+
+    from .solid.recovery import run_recorded, write_modal_csv, write_vtk
+
+    rec, red, data = run_recorded(model, scene.name, every=args.every)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_modal_csv(rec, red, out / "modal.csv")
+    print(f"{out / 'modal.csv'}: {len(rec.t)} states, {rec.q.shape[1]} elastic coordinates")
+    if not args.no_vtk:
+        print(f"{write_vtk(rec, red, out, data.name)}: {len(rec.t)} meshes of {red.fe.n_nodes} nodes")
     return 0
 
 

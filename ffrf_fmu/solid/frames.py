@@ -4,7 +4,8 @@ Node sets (`select`): a named set of the mesh or export, or a geometric selectio
     plane    {point, normal, tol}        |(X - point) . n| <= tol
     cylinder {point, axis, radius, tol}  | |(X - point) x a| - radius | <= tol
     box      {min, max}                  min <= X <= max (componentwise)
-    near     {point | set, radius}       within radius of the point (of any node of the named set)
+    near     {point | set, radius, normal}  within radius of the point (of any node of the named set);
+                                         with normal: only in the plane through it (the first set node)
 Coupling (docs/solids.md):
     rigid      (RBE2): the set moves as a rigid body with the frame, u_i = u_f + theta_f x (X_i - X_f);
                stiffens the body near the port.
@@ -75,7 +76,11 @@ def select_nodes(coords: np.ndarray, node_sets: dict, select: dict, scale: float
             centres = np.asarray(v["point"], float)[None]
         d = np.min(np.linalg.norm(X[:, None, :] - centres[None], axis=2), axis=1) if len(centres) < 64 else \
             np.array([np.linalg.norm(centres - x, axis=1).min() for x in X])
-        idx = np.flatnonzero(d <= float(v["radius"]) + tol)
+        near = d <= float(v["radius"]) + tol
+        if "normal" in v:  # only in the plane through the centre(s) with this normal (a face around a named node)
+            n = _unit(v["normal"], "near.normal")
+            near &= np.abs((X - centres[0]) @ n) <= tol
+        idx = np.flatnonzero(near)
     if idx.size == 0:
         raise ValueError(f"selection {kind} = {v!r} holds no node")
     return np.unique(idx)
