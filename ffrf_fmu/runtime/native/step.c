@@ -24,6 +24,34 @@
 
 /* ------------------------------------------------------------------ LU with partial pivoting */
 
+/* y[i] += x[i] a and y[i] -= x[i] a for i < n (x, y not overlapping): the inner loops of the LU and its
+ * solve, written two entries at a time so that the compiler's SLP vectorizer packs them at -O2 (half
+ * the time of the factorization); each entry's operations are those of the plain loop, the results the
+ * same bits. */
+static void axpy(int n, double a, const double *restrict x, double *restrict y)
+{
+    int i = 0;
+    for (; i + 1 < n; i += 2) {
+        double y0 = y[i] + x[i] * a, y1 = y[i + 1] + x[i + 1] * a;
+        y[i] = y0;
+        y[i + 1] = y1;
+    }
+    if (i < n)
+        y[i] += x[i] * a;
+}
+
+static void axmy(int n, double a, const double *restrict x, double *restrict y)
+{
+    int i = 0;
+    for (; i + 1 < n; i += 2) {
+        double y0 = y[i] - x[i] * a, y1 = y[i + 1] - x[i + 1] * a;
+        y[i] = y0;
+        y[i + 1] = y1;
+    }
+    if (i < n)
+        y[i] -= x[i] * a;
+}
+
 /* LU of the n x n matrix A in place, A stored transposed (aT[col][row] = A[row][col], i.e. A in
  * column-major order as LAPACK wants it), row interchanges into piv (0-based). LAPACK's unblocked
  * dgetf2, step for step: column j's pivot is the first entry of largest |a| on or below the diagonal
@@ -71,8 +99,7 @@ static int lu_factor(double *aT, int *piv, int n)
             double *ck = aT + (size_t)k * n;
             double temp = -ck[j];
             if (temp != 0.0) /* (dger skips a zero column of y) */
-                for (int i = j + 1; i < n; i++)
-                    ck[i] += colj[i] * temp;
+                axpy(n - j - 1, temp, colj + j + 1, ck + j + 1);
         }
     }
     return info;
@@ -91,17 +118,13 @@ static void lu_solve(const double *luT, const int *piv, double *b, int n)
         }
     }
     for (int j = 0; j < n; j++) { /* unit lower triangle, column by column: L[i, j] = luT[j, i] */
-        double bj = b[j];
         const double *row = luT + (size_t)j * n;
-        for (int i = j + 1; i < n; i++)
-            b[i] -= row[i] * bj;
+        axmy(n - j - 1, b[j], row + j + 1, b + j + 1);
     }
     for (int j = n - 1; j >= 0; j--) { /* upper triangle */
         const double *row = luT + (size_t)j * n;
         b[j] /= row[j];
-        double bj = b[j];
-        for (int i = 0; i < j; i++)
-            b[i] -= row[i] * bj;
+        axmy(j, b[j], row, b);
     }
 }
 
