@@ -53,6 +53,16 @@ def tip_deflection(R_hub: np.ndarray, r_hub: np.ndarray, r_tip: np.ndarray, X_ti
     return transverse(d, X_tip / np.linalg.norm(X_tip))
 
 
+def hub_profile(model, beam: CoupledBeam) -> dict:
+    """The parameters of the driven scene's hub spin-up (haug_spinup: omega, T)."""
+    sc = model.scene(beam.driven_scene)
+    drive = next((d for d in sc.drives if d.port == beam.hub and d.rotation), None)
+    if drive is None or drive.rotation.angle.kind != "haug_spinup":
+        raise ValueError(f"scene {sc.name}: the co-simulation map needs a haug_spinup rotation drive on port "
+                         f"{beam.hub!r} (CosimSettings.beam)")
+    return dict(drive.rotation.angle.params)
+
+
 @dataclass
 class CosimSettings:
     steps: tuple[float, ...] = COSIM_STEPS
@@ -141,13 +151,7 @@ class CosimCase:
             raise ValueError(f"unknown co-simulation case {kind!r}: motor or split")
 
     def _profile(self, model) -> dict:
-        """The parameters of the driven scene's hub spin-up (haug_spinup: omega, T)."""
-        sc = model.scene(self.beam.driven_scene)
-        drive = next((d for d in sc.drives if d.port == self.beam.hub and d.rotation), None)
-        if drive is None or drive.rotation.angle.kind != "haug_spinup":
-            raise ValueError(f"scene {sc.name}: the co-simulation map needs a haug_spinup rotation drive on port "
-                             f"{self.beam.hub!r} (CosimSettings.beam)")
-        return dict(drive.rotation.angle.params)
+        return hub_profile(model, self.beam)
 
     # ----------------------------------------------------------------------------- split helpers
     def _phi(self, t: np.ndarray) -> np.ndarray:
@@ -159,14 +163,15 @@ class CosimCase:
         from ...runtime.drives import evaluate
         from ...runtime.rotation import expm
 
-        names_R, names_w = _vec(prefix, "hub", "R"), _vec(prefix, "hub", "w")
+        names_R, names_w, names_dw = _vec(prefix, "hub", "R"), _vec(prefix, "hub", "w"), _vec(prefix, "hub", "dw")
         names_r, names_v = _vec(prefix, "hub", "r"), _vec(prefix, "hub", "v")
 
-        def f(t):
-            phi, dphi, _ = evaluate("haug_spinup", self.profile, t)
+        def f(t):  # the drive with its acceleration: the body extrapolates it to second order (docs/cosim.md)
+            phi, dphi, ddphi = evaluate("haug_spinup", self.profile, t)
             R = expm(np.array([0.0, 0.0, phi]))
             out = dict(zip(names_R, R.ravel()))
             out.update(zip(names_w, (0.0, 0.0, dphi)))
+            out.update(zip(names_dw, (0.0, 0.0, ddphi)))
             out.update(zip(names_r, (0.0, 0.0, 0.0)))
             out.update(zip(names_v, (0.0, 0.0, 0.0)))
             return out

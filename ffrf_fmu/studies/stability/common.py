@@ -9,7 +9,7 @@ import numpy as np
 from ..table import read_rows, write_rows
 
 MAP_CSV, SERIES = "map.csv", "series.npz"
-TEXT_COLUMNS = ("model", "terms", "failure", "benchmark", "scene", "case", "scheme")
+TEXT_COLUMNS = ("model", "terms", "failure", "benchmark", "scene", "case", "scheme", "verdict")
 
 
 def write_map(out_dir, rows: list[dict], series: dict[str, np.ndarray]) -> None:

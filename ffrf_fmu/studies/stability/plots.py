@@ -98,47 +98,68 @@ def plot_integrator(rows: list[dict], path) -> None:
     plt.close(fig)
 
 
+def cosim_verdict(row: dict) -> str:
+    """A map row's verdict; rows written before the verdict column: from `unstable` and the errors
+    against cosim.ACCURACY_BOUND."""
+    from .cosim import ACCURACY_BOUND
+
+    v = row.get("verdict")
+    if isinstance(v, str) and v:
+        return v
+    if is_true(row["unstable"]):
+        return "unstable"
+    errs = [row.get(k) for k in ("rel_error", "speed_rel_error")]
+    errs = [float(e) for e in errs if e is not None and e == e]
+    return "inaccurate" if errs and max(errs) > ACCURACY_BOUND else "stable"
+
+
 def plot_cosim(rows: list[dict], path) -> None:
+    """Per case a grid scheme x H: stable cells coloured by their error, inaccurate ones (completed,
+    error above cosim.ACCURACY_BOUND) hatched orange with the error, unstable ones red."""
     plt = _plt()
     from matplotlib.colors import LogNorm
+    from .cosim import ACCURACY_BOUND
 
     cases = [c for c in ("motor", "split") if any(r["case"] == c for r in rows)]
-    fig, axes = plt.subplots(len(cases), 1, figsize=(10, 3.6 * len(cases)), squeeze=False)
-    titles = {"motor": "B5 beam FMU + hub drive FMU (shaft k = {k:g} N m/rad, hub J = {J:g} kg m^2): error of the tip deflection",
-              "split": "B1 beam split in two body FMUs at its middle node: error of the tip deflection"}
+    fig, axes = plt.subplots(len(cases), 1, figsize=(10, 3.9 * len(cases)), squeeze=False)
+    titles = {"motor": "B5 beam FMU + hub drive FMU (shaft k = {k:g} N m/rad, hub J = {J:g} kg m^2): error against the monolithic run",
+              "split": "B1 beam split in two body FMUs at its middle node: error against the one-body run"}
     for ax, case in zip(axes[:, 0], cases):
         rs = [r for r in rows if r["case"] == case and r["scheme"] != REFERENCE]
         schemes = [s[0] for s in COSIM_SCHEMES + (IMPLICIT, INTERFACE_JACOBIAN, COMPLIANT) if any(r["scheme"] == s[0] for r in rs)]
         steps = sorted({r["H"] for r in rs})
         grid = np.full((len(schemes), len(steps)), np.nan)
-        label = {}
+        verdict, label = {}, {}
         for r in rs:
             i, j = schemes.index(r["scheme"]), steps.index(r["H"])
-            grid[i, j] = -1.0 if is_true(r["unstable"]) else max(r["rel_error"], 1e-9)
-            if is_true(r["unstable"]) and "did not converge" in str(r["failure"]):
+            verdict[i, j] = v = cosim_verdict(r)
+            errs = [float(r[k]) for k in ("rel_error", "speed_rel_error") if r.get(k) is not None and r[k] == r[k]]
+            grid[i, j] = max(max(errs) if errs else np.nan, 1e-9)
+            if v == "unstable" and "did not converge" in str(r["failure"]):
                 label[i, j] = "not converged"
-        for r in rows:
-            if (r["case"] == case == "motor" and r["scheme"] == REFERENCE and IMPLICIT[0] in schemes
-                    and r["H"] in steps):
-                label[schemes.index(IMPLICIT[0]), steps.index(r["H"])] = "reference"
-        shown = np.where(grid > 0, grid, np.nan)
-        im = ax.imshow(shown, aspect="auto", cmap="viridis", norm=LogNorm(vmin=1e-6, vmax=1.0))
+        shown = np.array([[grid[i, j] if verdict.get((i, j)) == "stable" else np.nan for j in range(len(steps))]
+                          for i in range(len(schemes))]).reshape(len(schemes), len(steps))
+        im = ax.imshow(shown, aspect="auto", cmap="viridis", norm=LogNorm(vmin=1e-6, vmax=ACCURACY_BOUND))
         for i in range(len(schemes)):
             for j in range(len(steps)):
-                v = grid[i, j]
-                if np.isnan(v):
-                    ax.text(j, i, label.get((i, j), "-"), ha="center", va="center", color="gray", fontsize=8)
-                elif v < 0:
+                v, e = verdict.get((i, j)), grid[i, j]
+                if v is None:
+                    ax.text(j, i, "-", ha="center", va="center", color="gray", fontsize=8)
+                elif v == "unstable":
                     ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color="tab:red"))
                     ax.text(j, i, label.get((i, j), "unstable"), ha="center", va="center", color="white", fontsize=8,
                             weight="bold")
+                elif v == "inaccurate":
+                    ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="moccasin", edgecolor="tab:orange",
+                                               hatch="//", lw=0))
+                    ax.text(j, i, f"inaccurate\n{e:.1e}", ha="center", va="center", color="black", fontsize=7)
                 else:
-                    ax.text(j, i, f"{v:.1e}", ha="center", va="center", color="white" if v < 1e-2 else "black", fontsize=8)
+                    ax.text(j, i, f"{e:.1e}", ha="center", va="center", color="white" if e < 1e-3 else "black", fontsize=8)
         ax.set_xticks(range(len(steps)), [f"{1000 * h:g} ms" for h in steps])
         ax.set_yticks(range(len(schemes)), schemes, fontsize=8)
         ax.set_xlabel("communication step H")
         ax.set_title(titles[case].format(k=DRIVE["drive.k"], J=DRIVE["drive.J"]), fontsize=9)
-        fig.colorbar(im, ax=ax, label="relative error")
+        fig.colorbar(im, ax=ax, label=f"error (stable: completed and <= {ACCURACY_BOUND:g})")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -10,7 +10,7 @@ import tempfile
 from pathlib import Path
 from typing import Sequence
 
-from . import compliant_b5
+from . import compliant_b5, monolithic
 from .benchmarks import CoupledBeam
 from .case import COSIM_SCHEMES, RUN_SETTINGS, CosimCase, CosimSettings
 
@@ -53,9 +53,9 @@ def run_task(model_path: str, overrides: Sequence[str], opts: dict) -> dict:
     settings = CosimSettings(**raw, overrides=tuple(overrides))
     kind, H, label = opts["case"], float(opts["H"]), opts["scheme"]
     case, extra = _case(kind, model_path, settings)
-    if label == REFERENCE:
-        run = (case.run(H, "gauss-seidel", iterations=settings.implicit_iterations) if kind == "motor"
-               else case.run(H, one_body=True))
+    if label == REFERENCE:  # one standalone run of the whole system (monolithic.py)
+        run = (monolithic.b5_monolithic(model_path, settings, H) if kind == "motor"
+               else monolithic.split_monolithic(model_path, settings, H))
     elif label == COMPLIANT[0]:  # the shaft moves into the beam FMU (docs/cosim.md)
         if "compliant" not in extra:
             extra["compliant"] = compliant_b5.build(model_path, extra["fmu_dir"], settings)
