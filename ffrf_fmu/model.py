@@ -180,6 +180,10 @@ class Initial:
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    state: str = "rest"  # INITIAL_STATES: where the body starts (initial_state.py)
+
+
+INITIAL_STATES = ("rest", "static", "steady_spin")
 
 
 @dataclass(frozen=True)
@@ -334,6 +338,7 @@ INITIAL_KEYS = {
     "velocity": "3 numbers [m/s] (default [0, 0, 0])",
     "angular_velocity": "3 numbers [rad/s] (default [0, 0, 0])",
     "port_displacements": "a table PORT = [dx, dy, dz] [m]",
+    "state": 'one of "rest" (default), "static", "steady_spin"',
 }
 CAUSALITY_KEYS = {"translation": PORT_KEYS["translation"], "rotation": PORT_KEYS["rotation"]}
 # Optional time-function parameters; every other parameter in drives.KINDS is required.
@@ -757,7 +762,13 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         r.vec3(it, ip, "velocity", INITIAL_KEYS["velocity"], (0.0, 0.0, 0.0)),
         r.vec3(it, ip, "angular_velocity", INITIAL_KEYS["angular_velocity"], (0.0, 0.0, 0.0)),
         tuple(displacements),
+        it.get("state", "rest"),
     )
+    if initial.state not in INITIAL_STATES:
+        r.expected(join(ip, "state"), INITIAL_KEYS["state"], initial.state)
+    if initial.state != "rest" and (displacements or any(initial.velocity) or any(initial.angular_velocity)):
+        r.fail(join(ip, "state"), f"state {initial.state!r} sets the body's deformation and velocities itself: "
+               "no port_displacements, velocity or angular_velocity with it")
 
     duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=positive)
     outputs = t.get("outputs", [])
