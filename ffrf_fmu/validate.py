@@ -168,7 +168,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
 
     from fmpy import read_model_description
 
-    run = run_fmu(fmu_path, sc, scene_inputs(body, sc), H)
+    run = run_fmu(fmu_path, sc, scene_inputs(body, sc, load_interval=(0.0, H)), H)  # loads held over (t, t + H]
     t_fmu, fmu_cols, reached, wall_fmu, log = run.t, run.columns, run.reached, run.wall_time_s, run.log
     outputs = [v.name for v in read_model_description(str(fmu_path)).modelVariables if v.causality == "output"]
     ref_ok = bool(ref.summary.get("completed", True))

@@ -1,7 +1,8 @@
 """One way to run a body FMU under fmpy through a scene: validate, chart, the tests and the
 benchmarks call `run_fmu`.
 
-The scene's port inputs (simulate.scene_inputs) are sampled on the communication grid t_k = k H
+The scene's port inputs (simulate.scene_inputs; a load window as its mean over (t_k, t_k + H], the
+communication step its value is held for, so its impulse is exact) are sampled on the communication grid t_k = k H
 and given to fmpy.simulate_fmu as an input table with output_interval = H: fmpy sets the values at
 t_k before each doStep(t_k, H), so the FMU sees the exact signal values at the communication
 points and applies its own rule in between (docs/fmu.md). The scene's solver and initial values
@@ -123,11 +124,11 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
     strictly increasing times and takes the input columns from the signal at the recorded times."""
     import fmpy
 
-    if inputs is None:
+    H = float(comm_step) if comm_step else scene.step
+    if inputs is None:  # a load window's mean over the communication step its value is held for
         from ..simulate import scene_inputs
 
-        inputs = scene_inputs(fmu_body(fmu_path), scene)
-    H = float(comm_step) if comm_step else scene.step
+        inputs = scene_inputs(fmu_body(fmu_path), scene, load_interval=(0.0, H))
     if record is None:
         record = [v.name for v in _variables(fmu_path) if v.causality in ("input", "output")]
     n = int(round(scene.duration / H))

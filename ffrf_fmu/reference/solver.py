@@ -51,7 +51,7 @@ from scipy.linalg import lapack
 
 
 from ..model import Body, Scene, scene_body
-from ..runtime.drives import evaluate
+from ..runtime.drives import evaluate, window_share
 from .beam import BeamElements
 from ..runtime.rotation import cross, expm, skew, tangent
 from ..runtime.outputs import tip_from_hub as eq92_tip_from_hub
@@ -317,13 +317,17 @@ class _Scene:
         self.f_gravity = fg
         self.Lam0 = mesh.Lam0
 
-    def loads_at(self, t: float, nn: int):
+    def loads_at(self, t: float, nn: int, h: float = 0.0):
+        """Nodal loads applied at the end t of a step of h: each window's mean over the step (t - h, t]
+        (drives.window_share; the body's runs do the same), so that the impulse is the load times the
+        window's length for any step; h = 0: the value at t."""
         F = np.zeros((nn, 3))
         T = np.zeros((nn, 3))
         for k, f, m, t0, t1 in self.loads:
-            if t0 <= t < t1:
-                F[k] += f
-                T[k] += m
+            share = window_share(t0, t1, t - h, t)
+            if share:
+                F[k] += share * f
+                T[k] += share * m
         return F, T
 
     def impose(self, t: float, x, R, v, vd) -> None:
@@ -390,7 +394,7 @@ class StaticResult(NamedTuple):
     R: np.ndarray  # (n_nodes, 3, 3) node rotations relative to the reference (R = I unloaded)
 
 
-def _port_outputs(mesh, sc, times, X, Rp, V, Rres):
+def _port_outputs(mesh, sc, times, X, Rp, V, Rres, h: float = 0.0):
     """Port histories from stored node histories (vectorized over time).
 
     X (nt, nn, 3), Rp (nt, np, 3, 3) section frames of the port nodes, V (nt, nn, 6),
@@ -403,7 +407,7 @@ def _port_outputs(mesh, sc, times, X, Rp, V, Rres):
         tr, ro = sc.causality[p.name]
         R = Rp[:, j]
         if (tr == "force" or ro == "force") and loads is None:
-            FT = [sc.loads_at(float(t), mesh.nn) for t in times] if sc.loads else None
+            FT = [sc.loads_at(float(t), mesh.nn, h) for t in times] if sc.loads else None
             loads = (np.array([a[0] for a in FT]), np.array([a[1] for a in FT])) if FT else (None, None)
         if tr == "motion":
             f = Rres[:, j, :3].copy()
@@ -507,7 +511,7 @@ def simulate_reference(
     v[:, 3:] = np.einsum("nji,j->ni", R, w0)
     vd = np.zeros((nn, 6))
     sc.impose(0.0, x, R, v, vd)
-    F, T = sc.loads_at(0.0, nn)
+    F, T = sc.loads_at(0.0, nn, h)  # a window from t = 0 acts over the first step, not before it
     fint, st = _internal(mesh, x, R)
     fa = _applied(sc, R, F, T)
     r = mesh.mass_times(vd) + fint - fa
@@ -557,7 +561,7 @@ def simulate_reference(
     for n in range(nsteps):
         t1 = times[n + 1]
         x0, R0, v0_, vd0, a0 = x, R, v, vd, a
-        F, T = sc.loads_at(t1, nn)
+        F, T = sc.loads_at(t1, nn, h)
         base_inc = v0_ + h * (0.5 - bet) * a0
         base_v = v0_ + h * (1 - gam) * a0
         base_a = (af * vd0 - am * a0) / (1 - am)
@@ -664,7 +668,7 @@ def simulate_reference(
         if progress is not None and ((n + 1) % every == 0 or n + 1 == nsteps):
             progress(float(t1), T_end)
 
-    P = _port_outputs(mesh, sc, times, nodes_r, Rp_hist, V_hist, res_hist)
+    P = _port_outputs(mesh, sc, times, nodes_r, Rp_hist, V_hist, res_hist, h)
     e_kin = mesh.kinetic_energy(V_hist)
     # energy error of the run: |kinetic + strain - work - initial energy| relative to the largest
     # energy level;

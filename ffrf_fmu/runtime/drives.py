@@ -52,3 +52,15 @@ def evaluate(kind: str, params: dict, t: float) -> tuple[float, float, float]:
         w = 2.0 * math.pi * f
         return a * math.sin(w * t + ph), a * w * math.cos(w * t + ph), -a * w * w * math.sin(w * t + ph)
     raise ValueError(f"unknown time function kind {kind!r}; known: {sorted(KINDS)}")
+
+
+def window_share(t_start: float, t_end: float, t0: float, t1: float) -> float:
+    """The share of the step (t0, t1] that the load window [t_start, t_end) covers: a piecewise-constant
+    load applied at a step's end t1 (where the integrator enforces the equations) as its mean over the
+    step, so that the impulse the body receives is the load times the window's length to round-off for
+    any step, whether or not the steps land on the window's ends (docs/equations.md, "Loads between
+    steps"). t1 == t0: whether t0 lies in the window. The C runtime's twin: advance.c."""
+    h = t1 - t0
+    if h <= 0.0:
+        return 1.0 if t_start <= t0 < t_end else 0.0
+    return max(0.0, min(t1, t_end) - max(t0, t_start)) / h

@@ -18,10 +18,17 @@ def _tf(fn, t):
     return drives.evaluate(fn.kind, dict(fn.params), t)
 
 
-def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, PortValues]]:
-    """Port inputs of a scene as a function of time: drives on motion parts, loads on force parts."""
+def scene_inputs(body: BodyData, scene: Scene, load_interval: tuple[float, float] | None = None
+                 ) -> Callable[[float], dict[str, PortValues]]:
+    """Port inputs of a scene as a function of time: drives on motion parts (their values at t), loads on
+    force parts as each window's mean over the interval (t + a, t + b], (a, b) = load_interval: by default
+    (-scene.step, 0), the step that ends at t, where the integrator enforces the equations, so that a
+    window's impulse is its load times its length to round-off whether or not the steps land on its ends
+    (runtime/drives.window_share; docs/equations.md, "Loads between steps"). An FMU's input table takes
+    (0, H): the value set at a communication point t is held over the communication step (t, t + H]."""
     drive_of = {d.port: d for d in scene.drives}
     loads = scene.loads
+    a, b = (-scene.step, 0.0) if load_interval is None else load_interval
 
     def inputs(t: float) -> dict[str, PortValues]:
         out = {}
@@ -45,9 +52,10 @@ def scene_inputs(body: BodyData, scene: Scene) -> Callable[[float], dict[str, Po
                     pv.R, pv.w, pv.dw = np.eye(3), np.zeros(3), np.zeros(3)
             f, m = np.zeros(3), np.zeros(3)
             for ld in loads:
-                if ld.port == p.name and ld.t_start <= t < ld.t_end:
-                    f += ld.force
-                    m += ld.moment
+                share = drives.window_share(ld.t_start, ld.t_end, t + a, t + b) if ld.port == p.name else 0.0
+                if share:
+                    f += share * np.asarray(ld.force, float)
+                    m += share * np.asarray(ld.moment, float)
             if p.translation == "force":
                 pv.f = f
             if p.rotation == "force":

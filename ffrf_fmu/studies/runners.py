@@ -104,7 +104,7 @@ def run_fmu_configuration(model_path, model: Model, sc: Scene, overrides, body, 
     with tempfile.TemporaryDirectory(prefix="ffrf_chart_fmu_") as tmp:
         fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
                                backend=backend)
-        run = run_fmu(fmu, sc, scene_inputs(body, sc))
+        run = run_fmu(fmu, sc, scene_inputs(body, sc, load_interval=(0.0, sc.step)))  # held over (t, t + H]
     return run.result(body), run.wall_time_s, run.cpu_time_s
 
 

@@ -83,8 +83,9 @@ static void put_rotation(ffrf_body *b, int motion, idx_t k, idx_t s, const doubl
 
 /* The inputs of a step at time t from a scene's schedule (simulate.scene_schedule, after the ports'
  * (node, mode, spring) = runtime/held.py port_codes): what simulate.scene_inputs gives and
- * BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant. kernel.py `_scheduled_inputs`. */
-void ffrf_scheduled_inputs(ffrf_body *b, double t)
+ * BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant. A load window acts with its
+ * mean over the step (t - h, t] (drives.window_share: the impulse is exact for any step). */
+void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
 {
     const ffrf_data *D = &b->data;
     const ffrf_schedule *sc = &b->schedule;
@@ -127,15 +128,16 @@ void ffrf_scheduled_inputs(ffrf_body *b, double t)
     }
     for (int ld = 0; ld < b->dims.n_loads; ld++) {
         const double *win = sc->load_window + 2 * ld, *fm = sc->load_fm + 6 * ld;
-        if (win[0] <= t && t < win[1]) {
+        double share = (fmin(t, win[1]) - fmax(t - h, win[0])) / h;
+        if (share > 0.0) {
             idx_t j = sc->load_port[ld];
             idx_t k = D->port_node[j];
             const idx_t *mode = D->port_mode + 2 * j;
             for (int i = 0; i < 3; i++) {
                 if (mode[0] == 0)
-                    f_in[3 * k + i] += fm[i];
+                    f_in[3 * k + i] += share * fm[i];
                 if (mode[1] == 0)
-                    t_in[3 * k + i] += fm[3 + i];
+                    t_in[3 * k + i] += share * fm[3 + i];
             }
         }
     }
@@ -309,7 +311,7 @@ int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, doubl
     for (int k = 0; k < n; k++) {
         double t1 = b->state.t + h;
         if (kind == FFRF_SCHEDULED)
-            ffrf_scheduled_inputs(b, t1);
+            ffrf_scheduled_inputs(b, t1, h);
         else if (kind == FFRF_HELD)
             ffrf_held_inputs(b, t1, t_c);
         int st = ffrf_step(b, h, b->state.iterations);

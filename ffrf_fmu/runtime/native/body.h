@@ -212,7 +212,7 @@ void ffrf_springs_apply(ffrf_body *b, const double *p, const double *yd, const d
 int ffrf_step(ffrf_body *b, double h, int last_it);
 
 /* ---- advance.c: inputs by kind, output rows, many steps in one call ---- */
-void ffrf_scheduled_inputs(ffrf_body *b, double t);
+void ffrf_scheduled_inputs(ffrf_body *b, double t, double h);
 void ffrf_held_inputs(ffrf_body *b, double t, double t_c);
 /* One output row (simulate.record's layout): per port r, R, v, w, f, t (24), then kinetic_rigid,
  * kinetic_elastic, strain, work_external, iterations. */
