@@ -143,7 +143,7 @@ def test_long_modules_say_why():
 def test_one_blas_thread_for_blas_loaded_after_import():
     """`import ffrf_fmu` after numpy, then scipy.linalg (which loads scipy's own OpenBLAS): every BLAS
     runs one thread. With threadpoolctl's limit alone, scipy's OpenBLAS started one thread per core
-    and a spinning worker doubled a short run's CPU time (docs/benchmarks.md, CPU above wall)."""
+    and a spinning worker doubled a short run's CPU time (ffrf_fmu/__init__.py)."""
     code = ("import numpy, ffrf_fmu, scipy.linalg\n"
             "from threadpoolctl import threadpool_info\n"
             "print(sorted({i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'}))")
@@ -184,3 +184,14 @@ def test_help_imports_no_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert "usage: ffrf-fmu" in out.stdout
     assert out.stderr.strip() == "[]", out.stderr
+
+
+def test_only_the_optional_peer_is_skipped_when_missing():
+    """README: no test skips for a missing declared dependency; the optional extra `peers` (exudyn) is
+    the one package a test may skip without."""
+    import re
+
+    skipped = set()
+    for path in (ROOT / "tests").glob("*.py"):
+        skipped |= set(re.findall(r"importorskip\(\s*[\"']([\w.]+)[\"']", path.read_text(encoding="utf-8")))
+    assert skipped <= {"exudyn"}, skipped

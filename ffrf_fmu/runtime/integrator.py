@@ -353,7 +353,7 @@ class GeneralizedAlpha:
     # accelerations are 1e4-1e8 tolerances (tol/beta) at B1's h = 2 ms, H = 5-100 h, a quadratic rate predictor
     # cannot follow them, and every internal step takes 2 iterations whatever the matrix (a kept one contracts
     # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.007-0.013
-    # (docs/benchmarks.md, "Held inputs: why every internal step takes 2 Newton iterations")
+    # (docs/benchmarks.md, "Newton iterations under held inputs")
     REFRESH_AFTER = (2, 3)
     # contraction (a kept matrix's second increment over its first, or the dropped matrix's first increment
     # against the new one's, each per step) up to which a matrix serves the next step as it is. On B1 an FMU
