@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import Scene
 from .runtime.drives import evaluate
 from .runtime.steps import whole_steps
 
@@ -40,12 +39,13 @@ class SpinHistory:
         return float(np.max(np.abs(self.rate)))
 
 
-def spin_grid(scene: Scene) -> np.ndarray:
-    """The times the spin is sampled at: the scene's steps, at most SPIN_GRID_POINTS points."""
+def spin_grid(scene) -> np.ndarray:
+    """The times the spin is sampled at: the scene's (model.Scene) steps, at most SPIN_GRID_POINTS points.
+    (No import of model.py: spin.py sits below it, and model's readers import this.)"""
     return np.linspace(0.0, scene.duration, min(SPIN_GRID_POINTS, whole_steps(scene.duration, scene.step).n + 1))
 
 
-def scene_spin(scene: Scene) -> SpinHistory | None:
+def scene_spin(scene) -> SpinHistory | None:
     """The scene's spin: its rotation drive with the highest peak rate (the first of equals), else its
     initial angular velocity (a constant rate), else None (nothing spins)."""
     t = spin_grid(scene)

@@ -18,6 +18,7 @@ import numpy as np
 
 from ...fmu.variables import port_variables
 from ...model import load_model
+from ...runtime.outputs import tip_from_hub
 from ..runners import transverse
 from .benchmarks import B5, CoupledBeam
 
@@ -49,7 +50,7 @@ def _rotz(phi: np.ndarray) -> np.ndarray:
 
 def tip_deflection(R_hub: np.ndarray, r_hub: np.ndarray, r_tip: np.ndarray, X_tip: np.ndarray) -> np.ndarray:
     """Transverse elastic tip deflection (eq. 92) from the hub frame and the tip position histories."""
-    d = np.einsum("nji,nj->ni", R_hub, r_tip - r_hub) - X_tip
+    d = tip_from_hub(R_hub, r_hub, r_tip, X_tip)
     return transverse(d, X_tip / np.linalg.norm(X_tip))
 
 
