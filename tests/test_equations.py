@@ -84,7 +84,7 @@ def test_term_hooks_add_an_elastic_force_in_both_paths():
         dg_y[:, :, : L.nc] = K_x @ D["Dq"]
         return g, np.zeros_like(dg_y), dg_y
 
-    s.fused = FusedResidual(s.layout, s.stack, s.coupling, s.coriolis, g_terms=(fused_term,))
+    s.fused = FusedResidual(s.layout, s.stack, s.inertia_coupling, s.coriolis, g_terms=(fused_term,))
     args = (s.xN, s.RN, s.x0, s.R0, s.eta, s.v, s.yd)
     F1, Fz1, Fy1 = s._local(*args, True)
     F2, Fz2, Fy2 = stiffer._local(*args, True)

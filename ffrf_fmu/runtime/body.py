@@ -91,9 +91,9 @@ class BodySystem(GeneralizedAlpha):
             raise ValueError(f"unknown full_terms {sorted(unknown)}; choose from {FULL_TERMS}")
         self.full_terms = tuple(full_terms)
         # the gyroscopic set's two parts: the S(q) coupling (55) in (77), the G(W0) Coriolis (53) in (78)-(79)
-        self.coupling = terms == "gyroscopic" or (terms == "full" and "inertia_coupling" in self.full_terms)
+        self.inertia_coupling = terms == "gyroscopic" or (terms == "full" and "inertia_coupling" in self.full_terms)
         self.coriolis = terms == "gyroscopic" or (terms == "full" and "coriolis" in self.full_terms)
-        self.gyro = self.coupling and self.coriolis  # the whole gyroscopic set
+        self.gyro = self.inertia_coupling and self.coriolis  # the whole gyroscopic set
         # geometric stiffening (runtime/stiffening.py): on when the reduced data carries it; the
         # deformation-dependent inertia (Witteveen's I0 + W1 q + q W2 q) with the `full` term set
         ses = data.superelements
@@ -117,7 +117,7 @@ class BodySystem(GeneralizedAlpha):
         if self.W1 is not None:
             g_term, row_term = stiffening.fused_hooks(self.W1, L.nc, self.vk_a, self.vk_B, self.W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        self.fused = FusedResidual(L, S, self.coupling, self.coriolis, **hooks)
+        self.fused = FusedResidual(L, S, self.inertia_coupling, self.coriolis, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
@@ -570,7 +570,7 @@ class BodySystem(GeneralizedAlpha):
         The elastic velocity field carries no momentum about each CM (69h), so these are sums over CMs."""
         p = self.mass[:, None] * self.v[:, 0:3]
         hc = np.einsum("eij,ejk,ek->ei", self.R0, self.J0, self.v[:, 3:6])
-        if self.coupling:
+        if self.inertia_coupling:
             q = self.elastic_coordinates()
             s = np.einsum("ei,ekij,ej->ek", self.v[:, 6:], self.G, q)
             hc = hc + np.einsum("eij,ej->ei", self.R0, s)

@@ -41,12 +41,13 @@ class FusedResidual:
     node rows; a `row_terms` value (E, nv + nc) adds to the local rows [kinematic | dynamic] directly.
     """
 
-    def __init__(self, layout: Layout, stack: SuperelementStack, coupling: bool, coriolis: bool, g_terms=(), row_terms=()):
-        """coupling, coriolis: the two parts of the gyroscopic terms (docs/inertia-terms.md, switches):
+    def __init__(self, layout: Layout, stack: SuperelementStack, inertia_coupling: bool, coriolis: bool, g_terms=(),
+                 row_terms=()):
+        """inertia_coupling, coriolis: the two parts of the gyroscopic terms (docs/inertia-terms.md, switches):
         the inertia coupling s = S(q) r (55) in the angular momentum of (77), and the elastic Coriolis
         G(W0) (53) in (78)-(79). The term set `gyroscopic` has both."""
-        self.layout, self.coupling, self.coriolis = layout, coupling, coriolis
-        self._G_terms = coupling or coriolis  # G_k q, G_k r: read by either part
+        self.layout, self.inertia_coupling, self.coriolis = layout, inertia_coupling, coriolis
+        self._G_terms = inertia_coupling or coriolis  # G_k q, G_k r: read by either part
         self.g_terms, self.row_terms = tuple(g_terms), tuple(row_terms)
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = stack.K, stack.M, stack.G, stack.mass, stack.J0, stack.X_B
         self.se_nodes = stack.nodes
@@ -175,7 +176,7 @@ class FusedResidual:
             if self.coriolis:
                 Le[u["Gq"], o["kq"]] = np.eye(n)  # + G(W0) q
                 Le[u["Gr"]] += gsel  # g + G(W0) r
-            if self.coupling:
+            if self.inertia_coupling:
                 Le[u["s"], o["h_ang"]] = I3
                 Le[u["sdot"], o["eT0"]] = I3
         # SEs with bitwise-equal data share one operator: one 2D matmul instead of a per-SE stack
@@ -379,7 +380,7 @@ class FusedResidual:
         # W0 x h_ang: d/dW0 = -skew(h_ang); d/dOmega0 = skew(W0) J0
         Fz[:, oT0 : oT0 + 3, cT0] -= skew(s["h_ang"])
         Fy[:, oT0 : oT0 + 3, V + 3 : V + 6] += W0x @ self.J0
-        if self.coupling:
+        if self.inertia_coupling:
             Gq, Gr = s["Gq"], s["Gr"]
             rb, rbd, q, qd = s["rb"], s["rbd"], s["q"], s["qd"]
             Grd = np.einsum("ekij,ej->eik", self.G, rbd)

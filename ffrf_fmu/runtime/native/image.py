@@ -79,7 +79,7 @@ def body_entries(system) -> dict[str, np.ndarray]:
     and Newton policy, the ports, the compliances and the reference state (runtime/native/body.h)."""
     L = system.layout
     E, n = L.n_se, L.n
-    gyro = (1 if system.coriolis else 0) | (2 if system.coupling else 0)  # FFRF_CORIOLIS | FFRF_COUPLING
+    gyro = (1 if system.coriolis else 0) | (2 if system.inertia_coupling else 0)  # FFRF_CORIOLIS | FFRF_COUPLING
     ports = system.data.ports
     springs = [p for p in ports if p.name in system.compliant]
     node, mode, spring = system._held_codes
