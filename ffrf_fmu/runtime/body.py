@@ -17,6 +17,7 @@ from .fused import FusedResidual
 from .held import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
+from .factorization import STATE_FLAG, NativeFactor, is_native
 from .coupling import add_springs
 from .ports import PortValues, StepFailure
 from .rotation import ROTATION_TOL, cross, is_rotation, vect
@@ -191,7 +192,8 @@ class BodySystem(GeneralizedAlpha):
 
     def _flat_state(self, with_lu: bool) -> np.ndarray:
         parts = [getattr(self, k).ravel() for k in self._STATE_FIELDS]  # (the method: np.ravel costs 1 us more each)
-        scalars = np.array([self.t, self.work, self.power, self.iterations, with_lu and self._lu is not None])
+        has_lu = 0.0 if not with_lu or self._lu is None else STATE_FLAG if is_native(self._lu) else 1.0
+        scalars = np.array([self.t, self.work, self.power, self.iterations, has_lu])
         if with_lu and self._lu is not None:
             lu, piv, beta, R_ref, serves = self._lu
             parts += [lu.ravel(), piv.astype(float), [beta], R_ref.ravel(), [serves]]
@@ -217,14 +219,15 @@ class BodySystem(GeneralizedAlpha):
         if state.size != expected:
             raise ValueError(f"state has {state.size} entries, this body needs {expected}")
         self.t, self.work, self.power = state[0], state[1], state[2]
-        self.iterations, has_lu = int(state[3]), bool(state[4])
+        self.iterations, has_lu = int(state[3]), state[4]
         i = 5
         for k, size in zip(self._STATE_FIELDS, sizes):
             setattr(self, k, state[i : i + size].reshape(getattr(self, k).shape).copy())
             i += size
         self._lu = None
         if has_lu:
-            lu = np.asfortranarray(state[i : i + n * n].reshape(n, n))
+            lu = state[i : i + n * n].reshape(n, n)
+            lu = lu.copy().view(NativeFactor) if has_lu == STATE_FLAG else np.asfortranarray(lu)
             piv = state[i + n * n : i + n * n + n].astype(np.int32)
             beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 : i + n * n + n + 10].reshape(3, 3).copy()
             self._lu = (lu, piv, beta, R_ref, bool(state[i + n * n + n + 10]))

@@ -32,6 +32,7 @@ from scipy.linalg.lapack import dgetrs as getrs
 from .coupling import add_springs
 from .held import inputs as held_inputs
 from .ports import PortValues, StepFailure
+from .factorization import is_native
 from .rotation import expm, skew, tangent
 
 
@@ -213,6 +214,8 @@ class GeneralizedAlpha:
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
         stale, trusted = None, False  # (REFRESH_AFTER)
+        if is_native(self._lu):  # the C runtime's factors are not LAPACK's: a fresh matrix
+            self._lu = None
         replay = next(self.newton_replay.decisions) if commit_config and self.newton_replay is not None else None
         if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
             if self._lu[4]:

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..ports import StepFailure
 from . import build
+from ..factorization import NativeFactor
 from .image import body_image
 
 GIVEN, SCHEDULED, HELD = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
@@ -172,8 +173,11 @@ class NativeStep:
         if lu is None:
             m[0] = 0.0
             return
-        if lu[0] is not self._lu_out:  # a factorization of the numpy path, set_state or an older snapshot
-            self.luT[...] = lu[0].T
+        if not isinstance(lu[0], NativeFactor):  # the numpy path's dense LU is not the C runtime's: a fresh matrix
+            m[0] = 0.0
+            return
+        if lu[0] is not self._lu_out:  # from set_state or an older snapshot
+            self.luT[...] = lu[0]
             self.piv[...] = lu[1]
             m[2:11] = np.ravel(lu[3])
             self._lu_out, self._piv_out, self._lu_version = lu[0], lu[1], self.body.get("lu_version")
@@ -201,7 +205,7 @@ class NativeStep:
         if m[0]:
             version = B.get("lu_version")
             if version != self._lu_version:  # refreshed: a copy, so that snapshots keep theirs
-                self._lu_out, self._lu_version = np.asfortranarray(self.luT.T), version
+                self._lu_out, self._lu_version = self.luT.copy().view(NativeFactor), version
                 self._piv_out = self.piv.copy()
             system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), bool(m[11]))
         else:

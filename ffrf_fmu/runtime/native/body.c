@@ -137,7 +137,8 @@ static int parse(const unsigned char *image, size_t size, unsigned char **copy, 
 /* dimension codes of the shapes below (values >= 0 are literal sizes) */
 enum { d_N = -1, d_E = -2, d_n = -3, d_nb = -4, d_nm = -5, d_nc = -6, d_nv = -7, d_ny = -8, d_nf = -9, d_vk = -10,
        d_w1 = -11, d_w2 = -12, d_g = -13, d_world = -14, d_lin = -15, d_fixed = -16, d_mx = -17, d_mT = -18,
-       d_ports = -19, d_springs = -20, d_NE = -21, d_fields = -22, d_ncv = -23, d_mx3 = -24, d_row = -25 };
+       d_ports = -19, d_springs = -20, d_NE = -21, d_fields = -22, d_ncv = -23, d_mx3 = -24, d_row = -25,
+       d_int = -26, d_be = -27, d_bnd = -28 };
 
 static long long dim_value(const ffrf_dims *d, int code)
 {
@@ -167,6 +168,9 @@ static long long dim_value(const ffrf_dims *d, int code)
     case d_ncv: return (long long)d->nc + d->nv;
     case d_mx3: return 3LL * d->n_mx;
     case d_row: return (long long)FFRF_OUTPUT_WIDTH * d->n_ports + FFRF_N_ENERGIES + 1;
+    case d_int: return d->n_int;
+    case d_be: return d->n_be;
+    case d_bnd: return d->n_bnd;
     default: return code;
     }
 }
@@ -256,6 +260,12 @@ static const array_spec OWN[] = {
     {"luT_stale", 'd', AT(lu.luT_stale), S(d_nf, d_nf)},
     {"piv_stale", 'i', AT(lu.piv_stale), S(d_nf)},
     {"JT", 'd', AT(lu.JT), S(d_nf, d_nf)},
+    /* the partition of the Newton unknowns (factor.c) */
+    {"se_unknowns", 'q', AT(part.se_unknowns), S(d_E, d_int)},
+    {"se_bnd", 'q', AT(part.se_bnd), S(d_E, d_be)},
+    {"node_unknowns", 'q', AT(part.node_unknowns), S(d_bnd)},
+    {"factor_y", 'd', AT(part.y), S(d_int)},
+    {"factor_xB", 'd', AT(part.xB), S(d_bnd)},
     /* work */
     {"ydw", 'd', AT(work.ydw), S(d_ny)},
     {"p", 'd', AT(work.p), S(d_ny)},
@@ -338,9 +348,12 @@ static int dims_of(const entries *es, ffrf_dims *d, char *err, size_t len)
         return -1;
     d->nm = d->n - 6 * d->nb;
     d->n_loads = 0;
+    d->n_int = 6 + d->nm + d->nv;
+    d->n_be = 6 * d->nb;
+    d->n_bnd = d->nf - d->E * d->n_int;
     if (d->E < 1 || d->nb < 1 || d->nm < 0 || d->nc != 6 + d->nm + 6 * d->nb || d->nv != 6 + d->n ||
         d->ny != 6 * d->N + d->E * (6 + d->nm) + d->E * d->nv || d->nf > d->ny || d->n_lin != 3 * d->N + 3 * d->E +
-        d->E * d->nm + d->E * d->nv)
+        d->E * d->nm + d->E * d->nv || d->n_bnd < 0 || d->nb > 64 /* factor.c's boundary lists */)
         return fail(err, len, "%sbody image: inconsistent sizes (E %lld, n %lld, ...)", "", d->E, d->n);
     return 0;
 }
@@ -379,6 +392,57 @@ static int check_indices(const ffrf_body *b, char *err, size_t len)
     if (b->data.k3 < 0 || b->data.k3 > d->nf || b->data.k3 % 3)
         return fail(err, len, "%sbody image: k3 = %lld is not a multiple of 3 within the %lld unknowns", "", b->data.k3, d->nf);
     return 0;
+}
+
+/* Which Newton unknowns are each superelement's own (its CM frame, modal and velocity rates: every one
+ * free) and which are the boundary nodes' (factor.c); every Newton position belongs to exactly one. */
+static int partition(ffrf_body *b, char *err, size_t len)
+{
+    const ffrf_dims *d = &b->dims;
+    const ffrf_data *D = &b->data;
+    ffrf_partition *P = &b->part;
+    idx_t *owner = calloc((size_t)d->nf + 1, sizeof(idx_t)); /* 0 none, e + 1 internal of e, -1 node */
+    idx_t *node_index = calloc((size_t)d->nf + 1, sizeof(idx_t));
+    int status = 0;
+    if (!owner || !node_index) {
+        status = fail(err, len, "%sout of memory%lld%lld", "", 0, 0);
+        goto done;
+    }
+    for (int e = 0; e < d->E && !status; e++)
+        for (int i = 0; i < d->n_int; i++) {
+            idx_t g = i < 6 + d->nm ? D->cfg_map[(size_t)e * d->nc + i] : D->vel_map[(size_t)e * d->nv + i - 6 - d->nm];
+            idx_t p = D->newton_pos[g];
+            if (p >= d->nf || owner[p]) {
+                status = fail(err, len, "%sbody image: superelement %lld has a rate that is not its own unknown (rate %lld)",
+                              "", e, g);
+                break;
+            }
+            owner[p] = e + 1;
+            P->se_unknowns[(size_t)e * d->n_int + i] = p;
+        }
+    int k = 0;
+    for (int p = 0; p < d->nf && !status; p++)
+        if (!owner[p]) {
+            if (k == d->n_bnd) {
+                status = fail(err, len, "%sbody image: more node unknowns than %lld%lld", "", d->n_bnd, 0);
+                break;
+            }
+            node_index[p] = k;
+            P->node_unknowns[k++] = p;
+        }
+    for (int e = 0; e < d->E && !status; e++)
+        for (int i = 0; i < d->n_be; i++) {
+            idx_t g = 6 * D->se_nodes[(size_t)e * d->nb + i / 6] + i % 6, p = D->newton_pos[g];
+            if (p < d->nf && owner[p]) {
+                status = fail(err, len, "%sbody image: boundary rate %lld of superelement %lld is another's own", "", g, e);
+                break;
+            }
+            P->se_bnd[(size_t)e * d->n_be + i] = p < d->nf ? node_index[p] : -1;
+        }
+done:
+    free(owner);
+    free(node_index);
+    return status;
 }
 
 /* ------------------------------------------------------------------ create, free */
@@ -484,6 +548,8 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
         at += span;
     }
     b->work.se = ffrf_se_work_bind(at, d);
+    if (partition(b, err, err_len))
+        goto failed;
     reset_state(b, es);
     free(es);
     return b;

@@ -36,6 +36,9 @@ typedef struct {
     int n_mx;      /* motion-driven translations */
     int n_mT;      /* motion-driven rotation slots (3 per motion-driven rotation) */
     int n_fields;  /* fields of the Newton increments' scaling (max field_of + 1) */
+    int n_int;     /* internal unknowns of a superelement: 6 + nm + nv (factor.c) */
+    int n_be;      /* boundary dofs of a superelement: 6 nb */
+    int n_bnd;     /* free boundary-node unknowns: nf - E n_int */
     int n_ports;   /* ports, in the model's order */
     int n_springs; /* compliant ports */
     int n_loads;   /* load windows of a scene's schedule (0 outside a scheduled run) */
@@ -147,6 +150,14 @@ typedef struct {
                         * the scalar "refreshed": the decisions a test replays on the numpy path */
 } ffrf_lu;
 
+/* Which Newton unknowns are whose (factor.c): set at creation from the maps (body.c `partition`). */
+typedef struct {
+    idx_t *se_unknowns;   /* [E][n_int]  Newton positions of each superelement's own rates */
+    idx_t *se_bnd;        /* [E][n_be]   its boundary dofs' index among the node unknowns, -1: motion-driven */
+    idx_t *node_unknowns; /* [n_bnd]     Newton positions of the free boundary-node rates */
+    double *y, *xB;       /* [n_int], [n_bnd] work of the solve */
+} ffrf_partition;
+
 typedef struct ffrf_se_work ffrf_se_work; /* superelement.c: work arrays of one superelement */
 
 /* Work arrays of a step (newton_step's and step's locals, allocated at creation). */
@@ -172,6 +183,7 @@ struct ffrf_body {
     ffrf_schedule schedule;
     double *held;                     /* [n_ports][FFRF_HELD_WIDTH] an FMU's held input values */
     ffrf_lu lu;
+    ffrf_partition part;
     ffrf_work work;
     double tol;                       /* Newton tolerance */
     int max_iter;
@@ -187,6 +199,17 @@ void ffrf_logm(const double M[9], double out[3]);
 void ffrf_inv3(const double A[9], double out[9]);
 void ffrf_skew(const double a[3], double out[9]);
 void ffrf_cross(const double a[3], const double b[3], double out[3]);
+
+/* ---- step.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
+int ffrf_lu_factor(double *aT, int *piv, int n);
+void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
+
+/* ---- factor.c: the iteration matrix factored by its structure (superelements, then nodes) ---- */
+/* The factors of JT [nf][nf] (transposed) into store [nf * nf] and piv [nf]: 0, or -1 when a pivot is
+ * exactly zero (not factorable). */
+int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv);
+/* x <- J^-1 x in the Newton order, from ffrf_factor's store and piv. */
+void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, double *x);
 
 /* ---- superelement.c: the equations of one superelement and their assembly ---- */
 /* Bytes of work space one superelement needs (an ffrf_se_work and its arrays, suitably aligned), and

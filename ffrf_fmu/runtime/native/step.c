@@ -60,7 +60,7 @@ static void axmy(int n, double a, const double *restrict x, double *restrict y)
  * (dger with alpha = -1). Returns 0, or j + 1 for the first exactly zero pivot (LAPACK's info; the
  * factorization then is not usable). Replaces dgetrf (scipy's lu_factor), which runs this algorithm
  * blocked: the factors agree to round-off. */
-static int lu_factor(double *aT, int *piv, int n)
+int ffrf_lu_factor(double *aT, int *piv, int n)
 {
     const double sfmin = 2.2250738585072014e-308; /* dlamch('S'): DBL_MIN (1/DBL_MAX is smaller) */
     int info = 0;
@@ -107,7 +107,7 @@ static int lu_factor(double *aT, int *piv, int n)
 
 /* Solve J x = b in place from the LU of J (luT = the factors, transposed; piv 0-based): kernel.py
  * `_lu_solve` (LAPACK getrs' order: the interchanges, the unit lower triangle, the upper). */
-static void lu_solve(const double *luT, const int *piv, double *b, int n)
+void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n)
 {
     for (int i = 0; i < n; i++) {
         int k = piv[i];
@@ -131,8 +131,8 @@ static void lu_solve(const double *luT, const int *piv, double *b, int n)
 /* b = J^-1 F on the unknowns in the Newton order from the factorization (luT, piv) built at the first
  * CM frame's rotation ref (9, row-major), carried along the rigid rotation P = R_now ref^T (integrator
  * `_solve`): the equations are frame-indifferent, rotating every world triplet by P maps J to P J P^T. */
-static void corotated_solve(const double *luT, const int *piv, const double *ref, const double *R_now, const double *F,
-                            const idx_t *newton_idx, int k3, int nf, double *b)
+static void corotated_solve(const ffrf_body *bd, const double *luT, const int *piv, const double *ref, const double *R_now,
+                            const double *F, const idx_t *newton_idx, int k3, int nf, double *b)
 {
     double P[9];
     for (int i = 0; i < 3; i++)
@@ -145,7 +145,7 @@ static void corotated_solve(const double *luT, const int *piv, const double *ref
         for (int i = 0; i < 3; i++)
             b[t3 + i] = P[i] * x + P[3 + i] * y + P[6 + i] * z;
     }
-    lu_solve(luT, piv, b, nf);
+    ffrf_factor_solve(bd, luT, piv, b); /* factor.c: by superelements, then the nodes */
     for (int t3 = 0; t3 < k3; t3 += 3) { /* P J_ref^-1 P^T F */
         double x = b[t3], y = b[t3 + 1], z = b[t3 + 2];
         for (int i = 0; i < 3; i++)
@@ -333,11 +333,10 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
                 if (!(v - v == 0.0))
                     ok = 0;
             }
-            memcpy(L->luT, L->JT, (size_t)nf * nf * sizeof(double));
             L->version++;
             if (it + offset <= 64)
                 L->refreshed |= (uint64_t)1 << (it + offset - 1);
-            int status = ok ? lu_factor(L->luT, L->piv, nf) : -1;
+            int status = ok ? ffrf_factor(b, L->JT, L->luT, L->piv) : -1;
             if (status != 0) {
                 lu_meta[0] = 0.0;
                 info[0] = FFRF_NOT_FACTORED;
@@ -349,9 +348,9 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
             for (int i = 0; i < 9; i++)
                 lu_meta[2 + i] = R[9 * N + i];
         }
-        corotated_solve(L->luT, L->piv, lu_meta + 2, R + 9 * N, F, newton_idx, D->k3, nf, bx);
+        corotated_solve(b, L->luT, L->piv, lu_meta + 2, R + 9 * N, F, newton_idx, D->k3, nf, bx);
         if (use_stale)
-            corotated_solve(L->luT_stale, L->piv_stale, ref_stale, R + 9 * N, F, newton_idx, D->k3, nf, b_stale);
+            corotated_solve(b, L->luT_stale, L->piv_stale, ref_stale, R + 9 * N, F, newton_idx, D->k3, nf, b_stale);
         for (int i = 0; i < nf; i++)
             yd[newton_idx[i]] -= bx[i];
         for (int f = 0; f < n_fields; f++) /* the largest rate of each field, at the new iterate */
