@@ -296,7 +296,9 @@ def simulate(args) -> int:
     if args.solver == "reference":
         result = sim.run_reference(model, scene)
     else:
-        body_data, _ = _body_for_scene(model, scene)
+        from .body_cache import scene_body_data  # a body reduced before loads from the cache
+
+        body_data = scene_body_data(model.body, scene)
         try:
             result = sim.run(body_data, scene, origin=model.body.origin, progress=True, backend=args.backend)
         except sim.InitializationFailure as e:

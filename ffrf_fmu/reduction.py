@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-import scipy.linalg as sla
 
 from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
 from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
@@ -57,6 +56,8 @@ def free_free_modes(fe: FEModel, U: np.ndarray, n_modes: int) -> tuple[np.ndarra
     """
     if n_modes == 0:
         return np.zeros((fe.n_dof, 0)), np.zeros(0)
+    import scipy.linalg as sla  # (here: a cached body, body_cache.py, runs without importing scipy)
+
     try:
         w2, X = sla.eigh(fe.K, fe.M, subset_by_index=[6, 5 + n_modes])
     except np.linalg.LinAlgError as err:
@@ -73,6 +74,8 @@ def attachment_modes(fe: FEModel, U: np.ndarray, boundary: np.ndarray, support: 
     G_c is the flexibility with the dofs `support` held (any isostatic support: G_e does not
     depend on it, since P L_B^T is self-equilibrated). boundary, support: dof index arrays.
     """
+    import scipy.linalg as sla
+
     P = mass_projector(fe.M, U)
     free = np.setdiff1d(np.arange(fe.n_dof), support)
     load = P[:, boundary]  # P L_B^T
@@ -114,6 +117,8 @@ def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.nda
     largest shapes (build_body: every superelement of a body needs the same number), each still above
     CORRECTION_FLOOR of the largest response.
     """
+    import scipy.linalg as sla
+
     n_b = boundary.size
     P = mass_projector(fe.M, U)
     free = np.setdiff1d(np.arange(fe.n_dof), boundary[:6])

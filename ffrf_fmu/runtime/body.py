@@ -406,7 +406,10 @@ class BodySystem(GeneralizedAlpha):
         # consistent ydot_0: a backward-Euler micro-step (am = af = gamma = 1) from the initial state
         delta = 1e-6
         saved = self.get_state()
-        yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
+        if self._compiled is not None:  # in the C runtime (the numpy path's LU would import scipy for it)
+            yd0 = self._compiled.initial_rates(self, delta, fn)
+        else:
+            yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
         self.set_state(saved)
         # the micro-step's configuration rates are the velocities at t0 + delta, off by delta times the
         # acceleration (a body at rest under an initial tip load seemed to move, 1.76e-4 m/s per N on

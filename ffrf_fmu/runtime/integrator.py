@@ -26,8 +26,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 import numpy as np
-import scipy.linalg as sla
-from scipy.linalg.lapack import dgetrs as getrs
 
 from .coupling import add_springs
 from .held import inputs as held_inputs
@@ -421,7 +419,9 @@ class GeneralizedAlpha:
         """LU of the iteration matrix (unknowns in the Newton order), with the rotation of the first CM
         frame it was built at; not yet known to serve the next step (`_newton`)."""
         try:
-            lu, piv = sla.lu_factor(J, overwrite_a=True, check_finite=True)  # J is not used afterwards
+            from scipy.linalg import lu_factor  # (the numpy path only: a native run never imports scipy here)
+
+            lu, piv = lu_factor(J, overwrite_a=True, check_finite=True)  # J is not used afterwards
         except (ValueError, np.linalg.LinAlgError) as exc:
             self._lu = None
             raise StepFailure(t, f"iteration matrix cannot be factored: {exc}")
@@ -441,7 +441,9 @@ class GeneralizedAlpha:
         F = F[self._newton_idx]  # world triplets first
         Fw = F[:k3].reshape(-1, 3)
         Fw[...] = Fw @ P  # P^T F on each triplet
-        dx, info = getrs(lu, piv, F, overwrite_b=1)  # LAPACK directly: scipy's lu_solve wrapper costs more than the solve
+        from scipy.linalg.lapack import dgetrs
+
+        dx, info = dgetrs(lu, piv, F, overwrite_b=1)  # LAPACK directly: scipy's lu_solve wrapper costs more than the solve
         dw = dx[:k3].reshape(-1, 3)
         dw[...] = dw @ P.T  # P J_ref^-1 P^T F
         return dx

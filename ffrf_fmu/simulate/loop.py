@@ -183,11 +183,12 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
 
 def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False,
               backend: str = "native"):
-    """Load (if a path), build and reduce the body for the scene, run it standalone."""
-    from ..reduction import build_scene_body
+    """Load (if a path), build and reduce the body for the scene (or load it from the cache of reduced
+    bodies, body_cache.py), run it standalone."""
+    from ..body_cache import scene_body_data
 
     if not isinstance(model, Model):
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
-    body, _ = build_scene_body(model.body, scene)
+    body = scene_body_data(model.body, scene)
     return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)

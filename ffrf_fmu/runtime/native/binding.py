@@ -234,6 +234,16 @@ class NativeStep:
             raise exc
         return system.iterations
 
+    def initial_rates(self, system, h, inputs) -> np.ndarray:
+        """The rates of BodySystem.initialize's backward-Euler micro-step (am = af = gamma = 1) of h from
+        the body's state, as the numpy path's `_step(commit_config=False)` takes it: the current rates as
+        the predictor (the history set to them: (yd - yd_prev) 3 + yd_prev2 = yd), a fresh matrix, no
+        REFRESH_AFTER (iterations 0). The body's state then is the step's: the caller restores its own."""
+        system.yd_prev, system.yd_prev2 = system.yd.copy(), system.yd.copy()
+        system._lu, system.iterations = None, 0
+        self.step(system, h, inputs, 1.0, 1.0, 1.0)
+        return system.yd.copy()
+
     def run(self, system, h, schedule, rows, times, am, af, gamma):
         """len(rows) steps of h in ONE call, the inputs from the scene's schedule (simulate.scene_schedule;
         its first three arrays are the ports' codes, in the image) and every step recorded into rows
