@@ -141,7 +141,7 @@ class NativeStep:
     def __init__(self, system, sanitize: bool = False):
         self.body = B = NativeBody(body_image(system), sanitize)
         L = system.layout
-        N, E = L.n_nodes, L.n_se
+        N = L.n_nodes
         self.state = {k: B.array(k, np.shape(getattr(system, k))) for k in system._STATE_FIELDS}
         self.energy = B.array("energy")
         self.inputs = tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),

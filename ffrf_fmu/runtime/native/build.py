@@ -97,7 +97,7 @@ def library(sanitize: bool = False) -> Path:
     sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`)."""
     extra = SANITIZE if sanitize else ()
     cc = compiler()
-    digest = source_digest((*cc[-1:], *extra))
+    digest = source_digest((*cc[-1:], *FLAGS, *extra))
     for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
         d = root / "native" / (digest + ("-sanitize" if sanitize else ""))
         lib = d / _library_name()
