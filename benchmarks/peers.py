@@ -21,7 +21,8 @@ Two passes over the configurations:
   each run's error, which is deterministic (a rerun takes it from the store);
 - the timing rounds (--repeat N, default 3): every configuration that completed runs N more times,
   each a fresh run in this process (task.execute, never the store: a stored result's time is a time
-  of another run, perhaps another day's load). Round r visits ours and Exudyn's configurations
+  of another run, perhaps another day's load), or with --fresh-process in a new Python process each, as a
+  CLI run pays its first calls. Round r visits ours and Exudyn's configurations
   interleaved (spread evenly over the round, `interleaved`) and every other round in reverse order,
   so that a burst of load from the other jobs on the machine falls on both codes' runs, not on one
   side. Each configuration keeps the minimum wall and the minimum CPU time of its N runs
@@ -186,6 +187,18 @@ def timing_rounds(order: list[int], tasks, repeat: int, execute, log=None) -> di
             log(f"timing round {r + 1}/{repeat}: {len(order)} runs, {time.perf_counter() - t0:.0f} s, "
                 f"load average {_load()}")
     return runs
+
+
+def fresh_process(execute):
+    """execute(task) in a new Python process (spawned: it imports everything afresh), so that a timing run
+    pays what a CLI run pays in its first calls (loading the C runtime, Exudyn's set-up) inside its time."""
+    import multiprocessing
+
+    def run(task):
+        with multiprocessing.get_context("spawn").Pool(1) as pool:
+            return pool.apply(execute, (task,))
+
+    return run
 
 
 def _completed(runs: list[dict]) -> list[dict]:
@@ -405,6 +418,8 @@ def main(argv=None) -> int:
                     help="our runtime backend (native falls back to numpy, with a note, where the C runtime cannot be compiled)")
     ap.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                     help=f"timing runs per configuration, interleaved; each keeps the minimum (default {REPEAT})")
+    ap.add_argument("--fresh-process", action="store_true",
+                    help="each timing run in a new Python process (as a CLI run pays its first calls), not in this one")
     ap.add_argument("--quick", action="store_true", help="a small subset (smoke test): 2 of ours, 2 of Exudyn's, "
                     "16-element reference, no convergence check")
     ap.add_argument("-o", "--output", default="bench_peers", metavar="DIR")
@@ -437,7 +452,8 @@ def main(argv=None) -> int:
     timed_rows = [j for j, r in enumerate(rows) if r["completed"] and r["metric_error_rel"] is not None]
     order = interleaved([j for j in timed_rows if rows[j]["runner"] != "exudyn"],
                         [j for j in timed_rows if rows[j]["runner"] == "exudyn"])
-    runs = timing_rounds(order, tasks, args.repeat, execute, log=lambda m: print(m, flush=True))
+    runs = timing_rounds(order, tasks, args.repeat, fresh_process(execute) if args.fresh_process else execute,
+                         log=lambda m: print(m, flush=True))
     best = timed(rows, runs)
     rounds = [timed(rows, runs, round_of(r)) for r in range(args.repeat)]
     worst = timed(rows, runs, pessimistic("exudyn"))
@@ -448,7 +464,7 @@ def main(argv=None) -> int:
         args.model, args.scene, args.overrides, [int(n) for n in args.check_elements.split(",")], best, ref)
     ratios = ratio_table(best, rounds, worst, "exudyn")
     judged = verdict(best, rounds, worst, "exudyn")
-    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "load_average_start": load_start,
+    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "fresh_process": args.fresh_process, "load_average_start": load_start,
             "load_average_end": _load(), "accuracy_pass_s": t_accuracy, "total_wall_time_s": time.perf_counter() - t0,
             "timing_disagreements": wrong}
     text = markdown(best, ratios, check, meta, judged)
