@@ -11,10 +11,15 @@ import re
 import sys
 from typing import Any, Sequence
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
+
+def _tomllib():
+    """tomllib (tomli before Python 3.11), imported when a value is parsed: `ffrf-fmu --help` imports
+    this module for ModelError and needs no TOML parser."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    return tomllib
 
 
 class ModelError(ValueError):
@@ -141,6 +146,7 @@ class Reader:
 
 def parse_override_value(text: str) -> Any:
     """A TOML value (`8`, `2e-3`, `"gyroscopic"`, `[0, 0, -9.81]`); anything else is a bare string."""
+    tomllib = _tomllib()
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:

@@ -9,7 +9,6 @@ above it, read one at a time; the work itself is in the modules they call. Expec
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 
@@ -171,13 +170,15 @@ def info(args) -> int:
         quality = {"cutoff_hz": cut, "modes": frequency_report(red, cut) if cut else [],
                    "effective_mass_fraction": effective_mass(red, cut if cut else None)}
     if args.json:
+        from dataclasses import asdict
+
         out = {
             "model": model.path,
             "body": body.name,
             "scene": scene.name,
             "length": body.length,
             "nodes": n_nodes,
-            "ports": [dataclasses.asdict(p) for p in ports],
+            "ports": [asdict(p) for p in ports],
             "superelements": ses,
             "n_body_dofs": n_body_dofs,
             "fixed": fixed,

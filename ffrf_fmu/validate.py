@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import json
 import sys
-import tempfile
-import zipfile
 from pathlib import Path
 
 # numpy is imported by the functions that compute (the CLI reads the tolerances below without it)
@@ -110,6 +108,8 @@ def same_body(a, b, rtol: float = 1e-10) -> bool:
 def fmu_backend(fmu_path) -> str:
     """The backend the FMU steps on (its resources' config; numpy for FMUs built before the choice, and for
     those built for the retired numba backend)."""
+    import zipfile
+
     from .fmu.core import CONFIG_FILE
 
     with zipfile.ZipFile(fmu_path) as z:
@@ -120,6 +120,8 @@ def fmu_backend(fmu_path) -> str:
 def validate(source, *, scene: str | None = None, model=None, overrides=(), comm_step: float | None = None,
              report_dir=None, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, plots: bool = True) -> dict:
     """Run the validation; returns the report (also written to report_dir/report.json)."""
+    import tempfile
+
     from .fmu.builder import build_from_model
     from .fmu.run import fmu_body, run_fmu
     from .model import load_model
