@@ -165,3 +165,64 @@ def small_fmu(small):
     from ffrf_fmu.fmu.builder import build_from_model
 
     return build_from_model(small, small.parent / "small_spin.fmu", scene="spin")
+
+
+# A small solid bar (steel, 1 x 0.1 x 0.1 m, 4 quadratic serendipity hexahedra) on two end-face frames:
+# the hub rigidly linked, translation motion-driven and rotation force-driven (far_from_reference's
+# inputs), the tip averaging and force-driven.
+SOLID_BAR = """
+[body]
+name = "solid_bar"
+kind = "solid"
+modes = 3
+[body.mesh]
+box = { size = [1.0, 0.1, 0.1], divisions = [4, 1, 1], origin = [0.0, -0.05, -0.05] }
+element = "hex20"
+[body.material]
+E = 2.1e11
+nu = 0.3
+rho = 7850.0
+[body.ports.hub]
+select = { plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
+link = "rigid"
+point = [0.0, 0.0, 0.0]
+translation = "motion"
+rotation = "force"
+[body.ports.tip]
+select = { plane = { point = [1.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
+link = "averaging"
+point = [1.0, 0.0, 0.0]
+translation = "force"
+rotation = "force"
+[scenes.s]
+duration = 0.01
+step = 0.001
+"""
+
+
+def solid_bar_body(stiffening: bool = True, inertia: bool = True):
+    """(BodyData, SolidReduction) of SOLID_BAR, built once per process per option pair."""
+    key = (stiffening, inertia)
+    if key not in _SOLID_BARS:
+        import tempfile
+
+        from ffrf_fmu.model import load_model
+        from ffrf_fmu.reduction import build_body
+
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "solid_bar.toml")
+            with open(path, "w") as f:
+                f.write(SOLID_BAR)
+            body = load_model(path).body
+            data, (red,) = build_body(body, stiffening=stiffening, inertia=inertia)
+        _SOLID_BARS[key] = (data, red)
+    return _SOLID_BARS[key]
+
+
+_SOLID_BARS: dict = {}
+
+
+@pytest.fixture(scope="session")
+def solid_bar():
+    """solid_bar(stiffening=True, inertia=True) -> (BodyData, SolidReduction) of a small solid bar."""
+    return solid_bar_body

@@ -12,7 +12,8 @@ field's largest entry: a few blocks are sums that cancel analytically or nearly 
 e_T0 on x0dot, the coupling's r^T G_k applied to a rigid translation: 1e-21 to 7e-5 of their row
 field here), and their round-off is that of the cancelling terms, of their row's size. Measured over
 these 18 cases x 4 states x 2 superelements: at most 2.0e-13 of a block's scale (that block, full
-with W1 at a near state), 1.5e-14 for the F fields. W1 and W2 are scaled by 1e4 (any W is a valid
+with W1 at a near state), 1.5e-14 for the F fields. The same for a stiffened solid (the small bar of
+conftest.SOLID_BAR: one superelement on two frames, membrane tensors from its mesh). W1 and W2 are scaled by 1e4 (any W is a valid
 body for this identity) so that their blocks stand well above the floor. A missing or wrong term
 shows up as an O(1) relative difference in its blocks: `test_every_switch_is_seen` checks that the
 comparison fails against the oracle of the same body with any one switch off (measured: at least
@@ -55,10 +56,18 @@ STATES = [("far", 1), ("far", 2), ("near", 3), ("near", 4)]
 _DATA = {}
 
 
-def _data(b1, stiff: bool):
+def _data(b1, stiff):
     """Two superelements of B1's section (4 elements, 3 modes each) with the inertia data W1, W2
-    [and the stiffening data], W1 and W2 scaled by 1e4 (built once per module)."""
+    [and the stiffening data], W1 and W2 scaled by 1e4 (built once per module); stiff = "solid": the
+    small solid bar of conftest (one superelement on two frames, stiffening from its mesh)."""
     if stiff in _DATA:
+        return _DATA[stiff]
+    if stiff == "solid":
+        from conftest import solid_bar_body
+
+        data = solid_bar_body(True, True)[0]
+        ses = tuple(dataclasses.replace(se, W1=se.W1 * 1e4, W2=se.W2 * 1e4) for se in data.superelements)
+        _DATA[stiff] = dataclasses.replace(data, superelements=ses)
         return _DATA[stiff]
     section, length = b1
     body = Body("b", length, (0, 0, 0), (1, 0, 0), section, 2, 4, 3,
@@ -175,7 +184,7 @@ def _relative(a, b, scale: float) -> float:
     return d / scale if scale > 0 else (0.0 if d == 0 else np.inf)
 
 
-@pytest.mark.parametrize("stiff", [False, True], ids=["plain", "stiffening"])
+@pytest.mark.parametrize("stiff", [False, True, "solid"], ids=["plain", "stiffening", "solid-stiffening"])
 @pytest.mark.parametrize("term_set", list(TERM_SETS))
 def test_superelement_rows_and_blocks_match_the_oracle(term_set, stiff, b1, far_from_reference):
     worst = []
@@ -197,6 +206,17 @@ def test_every_switch_is_seen(switch, b1, far_from_reference):
     one switch off: every part of the equations the C runtime computes is compared. (The stiffened
     body carries W1 whatever the switches: inertia_W1 is seen on the plain one.)"""
     s, yd = _system("full", switch == "stiffening", STATES[2], b1, far_from_reference)
+    _every_switch_seen(s, yd, switch)
+
+
+def test_the_solid_membrane_strain_is_seen(b1, far_from_reference):
+    """The stiffened solid bar (conftest.SOLID_BAR): the comparison fails against the oracle without
+    its membrane tensors."""
+    s, yd = _system("full", "solid", STATES[2], b1, far_from_reference)
+    _every_switch_seen(s, yd, "stiffening")
+
+
+def _every_switch_seen(s, yd, switch):
     body = _Native(s)
     p, R = _stage(s)
     for e in range(s.layout.n_se):

@@ -31,6 +31,7 @@ class SolidFE:
     node_sets: dict = field(default_factory=dict)  # name -> (k,) int node indices
     source: str = ""  # where it came from (messages, reports)
     cells: tuple = ()  # ((meshio cell type, (n_cells, k) node indices), ...) for VTK output; () if none
+    strain: object = None  # mesh.MeshStrain of a mesh assembled here (geometric stiffening); None for an export
 
     @property
     def n_nodes(self) -> int:

@@ -78,15 +78,12 @@ def build_solid_body(body, stiffening: bool = False, inertia: bool = False):
 
     from ..checked_toml import ModelError
 
-    if stiffening:
-        raise ModelError(f"body {body.name!r} ({body.source}): geometric stiffening (scene key stiffening) is built "
-                         "from beam strain kernels; a solid has none: set stiffening = false")
     spec = body.solid
     try:  # a bad selection, a set that cannot hold a frame, a mechanism: the model's fault, said as such
         fe = solid_fe(spec)
         frames = solid_frames(spec, fe)
         red = reduce_solid(fe, frames, n_modes=body.modes if spec.cutoff_hz is None else None,
-                           cutoff_hz=spec.cutoff_hz, inertia=inertia)
+                           cutoff_hz=spec.cutoff_hz, inertia=inertia, stiffening=stiffening)
     except ValueError as e:
         raise ModelError(f"body {body.name!r} ({body.source}): {e}") from None
     data = BodyData(name=body.name, superelements=(red.data,),

@@ -27,6 +27,16 @@ class Material:
     rho: float  # density [kg/m^3]
 
 
+@dataclass(frozen=True, eq=False)
+class MeshStrain:
+    """What the element stresses of a mesh need (geometric stiffening, solid/stiffening.py): the
+    scikit-fem mesh, the element name and the material."""
+
+    mesh: object  # skfem.Mesh
+    element: str  # one of ELEMENTS
+    material: Material
+
+
 def _element(kind: str):
     from skfem import ElementHex1, ElementHex2, ElementHexS2, ElementTetP1, ElementTetP2
 
@@ -78,19 +88,16 @@ def linear_corner_mesh(mesh):
 CHUNK = 1024  # elements per batch of element matrices (hex27: 1024 x 81 x 81 doubles = 54 MB)
 
 
-def _elasticity(m, e, material: Material):
-    """K (3N, 3N, node-major) and M_s (N, N) on the scikit-fem mesh m with element e, and the FE node
-    coordinates (N, 3): scikit-fem's reference shape functions, quadrature and dof numbering, the
-    isoparametric map of the linear geometry and the element matrices by einsum here (scikit-fem's own
-    assembly recomputes the map per shape function and loops over every pair of local dofs in Python:
-    18 s of fixed cost on hex27, 48 s for 56k dofs; equal to it to 1e-15, tests/test_solids.py):
-        K_(ia)(jb) = int lambda d_a phi_i d_b phi_j + mu (delta_ab grad phi_i . grad phi_j + d_b phi_i d_a phi_j),
-        M_s,ij = int rho phi_i phi_j."""
+def element_geometry(m, e):
+    """The isoparametric map of the linear geometry, in chunks of CHUNK elements: yields
+    (c slice of elements, vd (ne, 3 nloc) vector dofs (i, a) node-major, dphi (ne, nq, nloc, 3) the
+    physical gradients of the shape functions at the quadrature points, dx (ne, nq) the weights
+    |det J| w_q); with the reference values phi (nloc, nq), the FE node coordinates (N, 3) and N first,
+    as (phi, coords, N, chunks). scikit-fem's reference shape functions, quadrature (degree 2 maxdeg)
+    and dof numbering. Raises ValueError on a folded element."""
     from skfem.assembly import Dofs
     from skfem.quadrature import get_quadrature
 
-    E, nu = material.E, material.nu
-    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
     geo = m.elem()  # the linear geometry element, local corner order of m.t
     Xq, wq = get_quadrature(e.refdom, 2 * e.maxdeg)
     nloc, ncor = e.doflocs.shape[0], m.t.shape[0]
@@ -105,26 +112,52 @@ def _elasticity(m, e, material: Material):
     ngeo = np.stack([geo.lbasis(e.doflocs.T, c)[0] for c in range(ncor)])  # (ncor, nloc)
     coords = np.zeros((N, 3))
     coords[dofs.T.ravel()] = np.einsum("eca,ci->eia", Xe, ngeo).reshape(-1, 3)
-    rows, cols, kv, mv, mr, mc = [], [], [], [], [], []
     vd = (3 * dofs.T[:, :, None] + np.arange(3)).reshape(nel, 3 * nloc)  # (nel, 3 nloc) vector dofs, (i, a)
-    for s in range(0, nel, CHUNK):
-        c = slice(s, min(s + CHUNK, nel))
-        J = np.einsum("eca,cbq->eqab", Xe[c], dgeo)  # dx_a / dxi_b
-        det = np.linalg.det(J)
-        bad = np.any(det * np.sign(det[:, :1]) <= 0, axis=1)  # a sign change inside an element: folded
-        if np.any(bad):  # (the sign itself is the corner order's convention: |det J| is the volume factor)
-            raise ValueError(f"mesh: {int(bad.sum())} element(s) folded or degenerate")
-        det = np.abs(det)
-        dphi = np.einsum("ibq,eqba->eqia", dphi_ref, np.linalg.inv(J), optimize=True)  # (ne, nq, nloc, 3)
-        dx = det * wq  # (ne, nq)
+
+    def chunks():
+        for s in range(0, nel, CHUNK):
+            c = slice(s, min(s + CHUNK, nel))
+            J = np.einsum("eca,cbq->eqab", Xe[c], dgeo)  # dx_a / dxi_b
+            det = np.linalg.det(J)
+            bad = np.any(det * np.sign(det[:, :1]) <= 0, axis=1)  # a sign change inside an element: folded
+            if np.any(bad):  # (the sign itself is the corner order's convention: |det J| is the volume factor)
+                raise ValueError(f"mesh: {int(bad.sum())} element(s) folded or degenerate")
+            dphi = np.einsum("ibq,eqba->eqia", dphi_ref, np.linalg.inv(J), optimize=True)  # (ne, nq, nloc, 3)
+            yield c, vd[c], dphi, np.abs(det) * wq
+
+    return phi, coords, N, chunks()
+
+
+def lame(material: Material) -> tuple[float, float]:
+    """Lame's lambda, mu of an isotropic material."""
+    E, nu = material.E, material.nu
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def _elasticity(m, e, material: Material):
+    """K (3N, 3N, node-major) and M_s (N, N) on the scikit-fem mesh m with element e, and the FE node
+    coordinates (N, 3): scikit-fem's reference shape functions, quadrature and dof numbering, the
+    isoparametric map of the linear geometry and the element matrices by einsum here (scikit-fem's own
+    assembly recomputes the map per shape function and loops over every pair of local dofs in Python:
+    18 s of fixed cost on hex27, 48 s for 56k dofs; equal to it to 1e-15, tests/test_solids.py):
+        K_(ia)(jb) = int lambda d_a phi_i d_b phi_j + mu (delta_ab grad phi_i . grad phi_j + d_b phi_i d_a phi_j),
+        M_s,ij = int rho phi_i phi_j."""
+    from skfem.assembly import Dofs
+
+    lam, mu = lame(material)
+    nloc = e.doflocs.shape[0]
+    dofs = Dofs(m, e).element_dofs  # (nloc, nel)
+    phi, coords, N, chunks = element_geometry(m, e)
+    rows, cols, kv, mv, mr, mc = [], [], [], [], [], []
+    for c, vdc, dphi, dx in chunks:
         ne, nq = dx.shape
         D = dphi.reshape(ne, nq, 3 * nloc)
         A = np.matmul(D.transpose(0, 2, 1), D * dx[:, :, None]).reshape(ne, nloc, 3, nloc, 3)  # int d_a phi_i d_b phi_j
         Ke = lam * A + mu * A.transpose(0, 1, 4, 3, 2)
         Ke += mu * np.einsum("eicjc->eij", A)[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
         ne = Ke.shape[0]
-        rows.append(np.repeat(vd[c], 3 * nloc, axis=1).ravel())
-        cols.append(np.tile(vd[c], (1, 3 * nloc)).ravel())
+        rows.append(np.repeat(vdc, 3 * nloc, axis=1).ravel())
+        cols.append(np.tile(vdc, (1, 3 * nloc)).ravel())
         kv.append(Ke.reshape(ne, -1).ravel())
         mv.append(material.rho * np.matmul(phi[None] * dx[:, None, :], phi.T).ravel())
         d = dofs.T[c]
@@ -167,7 +200,7 @@ def assemble(mesh, material: Material, element: str, node_sets=None, source: str
         sets[name] = np.unique(np.concatenate(nodes))
     Ms = sp.csr_matrix(Ms)
     return SolidFE(coords, sp.csr_matrix(0.5 * (K + K.T)), sp.kron(Ms, sp.identity(3), format="csr"), Ms, sets,
-                   source, ((ctype, cells),))
+                   source, ((ctype, cells),), MeshStrain(m, element, material))
 
 
 def read_mesh(path):

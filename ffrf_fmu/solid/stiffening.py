@@ -1,0 +1,93 @@
+"""Geometric stiffening of a solid superelement from the element stresses of its mesh
+(docs/equations.md, "Geometric stiffening of a solid").
+
+The Green-Lagrange strain of the superelement's own deformation u = Y q (Y the basis of eq. 76 on
+the FE dofs, q = q_bar) is E(u) = eps(u) + 1/2 grad u^T grad u, eps the linear strain. Its strain
+energy beyond the linear 1/2 q^T K q is
+
+    V2 = int sigma(eps) : E2 + 1/2 int E2 : C : E2,   E2 = 1/2 grad u^T grad u.
+
+In the energy inner product <e1, e2> = int e1 : C : e2 the linear strains of the basis, S q, span an
+r-dimensional space (r = n: every column of Y deforms). With an orthonormal basis E_k of it (E_k =
+S T_k, T = V L^-1/2 from K_bar = S^T C S = V L V^T),
+
+    a = L^1/2 V^T (r, n)      (a^T a = K_bar: the linear strain in the coordinates of E)
+    B_k = sum_j T_jk G_j,     G_j[i, l] = int sigma_j : sym(grad u_i^T grad u_l),  sigma_j = C eps(Y_j)
+
+so that sigma_k = 1/2 q^T B_k q = <E_k, E2(q)> and the beam's form holds exactly for the cubic term:
+    a q . sigma = 1/2 q^T (sum_j q_j G_j) q = int sigma(u) : E2(u)
+(G_j is the FE geometric stiffness of the stress of column j, projected on the basis). The quartic
+term 1/2 sigma . sigma is int E2 : C : E2 with E2 projected on span(S q) (the assumed strain of the
+beam: a basis of a few shapes cannot cancel an arbitrary E2 without locking). The steady-spin
+stiffness K_bar + sum_k (a q0)_k B_k is the FE model's K + K_G(sigma(Y q0)) on the basis.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+STRAIN_RANK_TOL = 1e-9  # energy eigenvalues below this fraction of the largest are round-off (rigid content)
+
+
+def membrane_tensors(strain, Yf: np.ndarray) -> dict:
+    """{"vk_a" (r, n), "vk_B" (r, n, n)} of the basis Yf (3 N, n) on the mesh of `strain`
+    (mesh.MeshStrain): module doc. Also "K_strain" (n, n) = S^T C S, which equals Y^T K Y (a check)."""
+    from .mesh import _element, element_geometry, lame
+
+    lam, mu = lame(strain.material)
+    n = Yf.shape[1]
+    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element))
+    if 3 * N != Yf.shape[0]:
+        raise ValueError(f"basis has {Yf.shape[0]} rows, the mesh {3 * N} dofs")
+    Ks = np.zeros((n, n))
+    G = np.zeros((n, n, n))
+    for _, vd, dphi, dx in chunks:
+        ne, nq, nloc, _ = dphi.shape
+        Ue = Yf[vd].reshape(ne, nloc, 3, n)
+        Gu = np.einsum("eiaj,eqib->eqjab", Ue, dphi, optimize=True).reshape(ne * nq, n, 3, 3)  # du_a/dX_b
+        w = dx.reshape(-1)
+        eps = 0.5 * (Gu + Gu.transpose(0, 1, 3, 2))
+        tr = np.einsum("gjaa->gj", eps)
+        sig = 2.0 * mu * eps + lam * tr[:, :, None, None] * np.eye(3)  # (g, n, 3, 3)
+        sw = sig * w[:, None, None, None]
+        Ks += np.einsum("gjab,giab->ji", sw, eps, optimize=True)
+        for b in range(3):  # G_j[i, l] = sum_g sum_bc (w sigma_j)[b, c] (Gu_i^T Gu_l)[b, c]
+            Gb = np.ascontiguousarray(Gu[:, :, :, b])  # (g, n, 3): column b of each grad u_i
+            for cc in range(3):
+                P = np.matmul(Gb, Gu[:, :, :, cc].transpose(0, 2, 1)).reshape(len(w), n * n)  # (Gu_i^T Gu_l)[b, c]
+                G += (sw[:, :, b, cc].T @ P).reshape(n, n, n)
+    Ks = 0.5 * (Ks + Ks.T)
+    G = 0.5 * (G + G.transpose(0, 2, 1))
+    lam_k, V = np.linalg.eigh(Ks)
+    keep = lam_k > STRAIN_RANK_TOL * lam_k.max()
+    lam_k, V = lam_k[keep], V[:, keep]
+    T = V / np.sqrt(lam_k)
+    a = np.sqrt(lam_k)[:, None] * V.T
+    B = np.einsum("jk,jil->kil", T, G)
+    return {"vk_a": a, "vk_B": 0.5 * (B + B.transpose(0, 2, 1)), "K_strain": Ks, "G_modes": G}
+
+
+def geometric_stiffness(strain, u: np.ndarray):
+    """The FE geometric stiffness K_G(sigma(u)) (3 N, 3 N, sparse) of the stress of the displacement
+    u (3 N,) on the mesh of `strain`: K_G[(i a), (l a)] = int grad phi_i . sigma grad phi_l (the full
+    model's stress stiffening, against which the reduced one is checked)."""
+    import scipy.sparse as sp
+
+    from .mesh import _element, element_geometry, lame
+
+    lam, mu = lame(strain.material)
+    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element))
+    rows, cols, vals = [], [], []
+    for _, vd, dphi, dx in chunks:
+        ne, nq, nloc, _ = dphi.shape
+        Ue = u[vd].reshape(ne, nloc, 3)
+        Gu = np.einsum("eia,eqib->eqab", Ue, dphi)
+        eps = 0.5 * (Gu + Gu.transpose(0, 1, 3, 2))
+        sig = 2.0 * mu * eps + lam * np.einsum("eqaa->eq", eps)[:, :, None, None] * np.eye(3)
+        Ke = np.einsum("eqib,eqbc,eqlc,eq->eil", dphi, sig, dphi, dx, optimize=True)  # (ne, nloc, nloc)
+        nodes = vd[:, 0::3] // 3
+        for a in range(3):
+            rows.append(np.repeat(3 * nodes + a, nloc, axis=1).ravel())
+            cols.append(np.tile(3 * nodes + a, (1, nloc)).ravel())
+            vals.append(Ke.ravel())
+    return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(3 * N, 3 * N)).tocsr()
