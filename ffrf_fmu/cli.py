@@ -564,21 +564,32 @@ def advise(args) -> int:
     arg("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
         help="override a model value (repeatable), e.g. --set superelements=2"),
     arg("-o", "--output", default=None, help="FMU file to write (default: <body name>.fmu in the current directory)"),
+    arg("--runtime", choices=("native", "python"), default="native",
+        help="native (default): the FMU in C over the C runtime, nothing needed beside it (docs/fmu.md); "
+             "python: the pythonfmu FMU (the host needs a Python with numpy and scipy)"),
+    arg("--platform", dest="platforms", action="append", choices=("linux64", "win64"), default=None,
+        help="native: binaries to include (repeatable; default linux64 and win64)"),
+    arg("--compiler", choices=("zig", "system"), default="zig",
+        help="native: zig (default, the ziglang package: every platform) or the system C compiler (linux64)"),
     arg("--backend", choices=("numpy",), default="numpy",
-        help="numpy: the pythonfmu FMU's slave steps on the reference implementation"),
+        help="python runtime: numpy, the pythonfmu FMU's slave steps on the reference implementation"),
 )
 def build(args) -> int:
     """Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
-    from .fmu.builder import BuildError, build_from_model, read_fmu_config
+    from .fmu.builder import BuildError, build_from_model
 
     try:
         out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
-                               backend=args.backend)
+                               backend=args.backend, runtime=args.runtime,
+                               platforms=tuple(args.platforms or ("linux64", "win64")), compiler=args.compiler)
     except (ModelError, BuildError, OSError) as e:
         print(f"{PROG} build: error: {e}", file=sys.stderr)
         return 2
-    cfg = read_fmu_config(out)
-    print(f"wrote {out} (model identifier {cfg['names']['class']}, scene {cfg['build'].get('scene')!r})")
+    from fmpy import read_model_description
+
+    md = read_model_description(str(out))
+    print(f"wrote {out} ({args.runtime} runtime, model identifier {md.coSimulation.modelIdentifier}, "
+          f"scene {args.scene or 'the first'!r})")
     return 0
 
 

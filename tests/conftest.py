@@ -161,10 +161,11 @@ def small(tmp_path_factory, small_toml):
 
 @pytest.fixture(scope="module")
 def small_fmu(small):
-    """The small beam's FMU for its scene `spin`."""
+    """The small beam's pythonfmu FMU for its scene `spin` (the package's original route, `--runtime python`;
+    the native FMU has its own tests: tests/test_native_fmu.py, and runs the fault table and the host tests)."""
     from ffrf_fmu.fmu.builder import build_from_model
 
-    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin")
+    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin", runtime="python")
 
 
 # A small solid bar (steel, 1 x 0.1 x 0.1 m, 4 quadratic serendipity hexahedra) on two end-face frames:

@@ -9,11 +9,21 @@
  *   fmi2_host faults BINARY RESOURCE_URI GUID VR_REAL VR_INT VR_BAD_PARAM BAD_VALUE
  *       Each bad call twice on one instance, printing "call status" lines, then free and unload.
  */
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(_WIN32) /* the same host for win64 (cross-compiled by zig, run in wine: tests/test_native_win64.py) */
+#include <windows.h>
+#define RTLD_NOW 0
+#define RTLD_LOCAL 0
+static void *dlopen(const char *path, int flags) { (void)flags; return (void *)LoadLibraryA(path); }
+static void *dlsym(void *lib, const char *name) { return (void *)GetProcAddress((HMODULE)lib, name); }
+static int dlclose(void *lib) { return !FreeLibrary((HMODULE)lib); }
+static const char *dlerror(void) { return "LoadLibrary failed"; }
+#else
+#include <dlfcn.h>
+#endif
 
 typedef void *fmi2Component;
 typedef unsigned int fmi2ValueReference;

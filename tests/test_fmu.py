@@ -112,7 +112,8 @@ def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
     from ffrf_fmu.runtime.terms import FULL_TERMS
 
     fmu = build_from_model(small, tmp_path / "full.fmu", scene="spin",
-                           overrides=["terms=full", 'full_terms=["inertia_W2", "coriolis"]', "stiffening=true"], backend="numpy")
+                           overrides=["terms=full", 'full_terms=["inertia_W2", "coriolis"]', "stiffening=true"], backend="numpy",
+                           runtime="python")
     md = read_model_description(str(fmu))
     text = equations_text("full", ("inertia_W2", "coriolis"), True)
     assert text in md.description
@@ -124,7 +125,7 @@ def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
     _inputs_at(inst, inputs(0.01))
     inst.fmu.doStep(0.0, 0.01, True)  # fmpy raises unless fmi2OK: the body runs `full` with these switches
     assert np.isfinite(inst.get(["tip.r[1]"])).all()
-    plain = build_from_model(small, tmp_path / "plain.fmu", scene="spin", backend="numpy")
+    plain = build_from_model(small, tmp_path / "plain.fmu", scene="spin", backend="numpy", runtime="python")
     assert equations_text("linear", FULL_TERMS, False) in read_model_description(str(plain)).description
 
 
@@ -171,8 +172,11 @@ def test_build_cli(small, tmp_path):
                          capture_output=True, text=True, timeout=300, cwd=tmp_path,
                          env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert out.returncode == 0, out.stderr
-    cfg = read_fmu_config(tmp_path / "B.fmu")
-    assert cfg["build"]["scene"] == "spinup" and cfg["build"]["overrides"] == ["modes=1"]
+    assert "native runtime" in out.stdout  # the default
+    with zipfile.ZipFile(tmp_path / "B.fmu") as z:
+        info = json.loads(z.read("documentation/build.json"))
+        assert sorted({n.split("/")[1] for n in z.namelist() if n.startswith("binaries/")}) == ["linux64", "win64"]
+    assert info["build"]["scene"] == "spinup" and info["build"]["overrides"] == ["modes=1"]
     out = subprocess.run([sys.executable, str(ROOT / "build_fmu.py"), str(small), "--scene", "nope", "-o", "x.fmu"],
                          capture_output=True, text=True, timeout=300, cwd=tmp_path,
                          env={**os.environ, "PYTHONPATH": str(ROOT)})
@@ -222,8 +226,8 @@ def test_two_body_fmus_in_one_process(small, tmp_path, small_toml):
     each FMU runs its own body in the same process."""
     other = tmp_path / "other.toml"
     other.write_text(small_toml(length=6.0))
-    fa = build_from_model(small, tmp_path / "a.fmu", scene="spin")
-    fb = build_from_model(other, tmp_path / "b.fmu", scene="spin")
+    fa = build_from_model(small, tmp_path / "a.fmu", scene="spin", runtime="python")
+    fb = build_from_model(other, tmp_path / "b.fmu", scene="spin", runtime="python")
     na, nb = read_fmu_config(fa)["names"], read_fmu_config(fb)["names"]
     assert na["module"] != nb["module"] and na["package"] != nb["package"] and na["class"] != nb["class"]
     ia, inputs_a, sc = _started(fa, "spin", small)

@@ -23,7 +23,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from ffrf_fmu.fmu.builder import BuildWarning, build_from_model, read_fmu_config
+from ffrf_fmu.fmu.builder import BuildError, build_from_model, read_fmu_config
 from ffrf_fmu.fmu.variables import DIRECTIONAL_DERIVATIVES
 from ffrf_fmu.master import FmuInstance
 from ffrf_fmu.runtime.rotation import expm, skew
@@ -33,9 +33,12 @@ H = 0.02  # two internal steps of the scene's 10 ms: the derivative is propagate
 LOADS = {"tip.f[1]": 1.0, "tip.f[3]": 2.0, "tip.t[1]": 0.1}
 
 
-@pytest.fixture(scope="module")
-def fmu(small_fmu):
-    return small_fmu
+@pytest.fixture(scope="module", params=["native", "python"])
+def fmu(request, small, small_fmu):
+    """The small beam's FMU of each runtime (the derivatives are the same rule in C and in Python)."""
+    if request.param == "python":
+        return small_fmu
+    return build_from_model(small, small.parent / "small_spin_native.fmu", scene="spin")
 
 
 def _run(inst, inputs, n):
@@ -66,16 +69,20 @@ def test_model_description_declares_derivatives_and_fmpy_validates_clean(fmu):
     for u in outputs:  # over a step every output depends on every input
         assert {d.name for d in u.dependencies} == inputs
     assert DIRECTIONAL_DERIVATIVES in md.description
-    assert read_fmu_config(fmu)["directional_derivatives"] is True
+    from ffrf_fmu.fmu.run import is_native
+
+    assert is_native(fmu) or read_fmu_config(fmu)["directional_derivatives"] is True
 
 
 def test_without_the_native_loader_no_derivatives_are_declared(small, tmp_path, monkeypatch):
-    """No C compiler, no native loader: pythonfmu's binary alone has no fmi2GetDirectionalDerivative,
+    """No C compiler: the pythonfmu build is an error (it made an FMU only Python hosts load, silently); asked
+    for without the native loader, pythonfmu's binary alone has no fmi2GetDirectionalDerivative,
     so the modelDescription declares none, and the outputs no dependencies (no direct feedthrough at
     the communication point)."""
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    with pytest.warns(BuildWarning, match="no native loader"):
-        path = build_from_model(small, tmp_path / "plain.fmu", scene="spin")
+    with pytest.raises(BuildError, match="native loader cannot be built"):  # never silently
+        build_from_model(small, tmp_path / "plain.fmu", scene="spin", runtime="python")
+    path = build_from_model(small, tmp_path / "plain.fmu", scene="spin", runtime="python", native_loader=False)
     md = read_model_description(path)
     assert not md.coSimulation.providesDirectionalDerivative
     assert all(u.dependencies == [] for u in md.outputs)

@@ -43,9 +43,18 @@ def model(tmp_path_factory, beam_toml):
     return path
 
 
+@pytest.fixture(scope="module", params=["native", "python"])
+def fmu(model, request):
+    """The FMU of scene `still` of each runtime (native: C over the C runtime; python: pythonfmu): the fault
+    table holds for both, status and message."""
+    return build_from_model(model, model.parent / f"still_{request.param}.fmu", scene="still",
+                            runtime=request.param, platforms=("linux64",))
+
+
 @pytest.fixture(scope="module")
-def fmu(model):
-    return build_from_model(model, model.parent / "still.fmu", scene="still")
+def python_fmu(model):
+    """The pythonfmu FMU alone (tests that reach into its Python runtime)."""
+    return build_from_model(model, model.parent / "still_python.fmu", scene="still", runtime="python")
 
 
 class Slave:
@@ -153,10 +162,10 @@ def test_stepping_on_after_a_discard_is_an_error_naming_it(fmu):
         s.close()
 
 
-def test_programming_error_inside_the_step_is_an_error_with_its_traceback(fmu, monkeypatch):
+def test_programming_error_inside_the_step_is_an_error_with_its_traceback(python_fmu, monkeypatch):
     """Discard only for numerical failures: an exception that is not a StepFailure (here a
     TypeError planted in the FMU's own copy of the runtime) is fmi2Error with the traceback."""
-    s = Slave(fmu)
+    s = Slave(python_fmu)
     try:
         assert s.start() == 0
         pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.body"))
@@ -192,13 +201,13 @@ def test_initial_port_displacement_reaches_the_fmu(model, tmp_path):
     assert run.columns["tip.r[2]"][0] - y_ref == pytest.approx(0.01, abs=1e-9)
 
 
-def test_fmu_limits_blas_to_one_thread_during_its_calls_only(fmu, monkeypatch):
+def test_fmu_limits_blas_to_one_thread_during_its_calls_only(python_fmu, monkeypatch):
     """BLAS threads (issue 12 item 2): one thread while the FMU steps (threadpoolctl, scoped), the
     host's own setting (here 2 threads) before and after the call."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
     blas_threads = lambda: {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
-    s = Slave(fmu)
+    s = Slave(python_fmu)
     try:
         assert s.start() == 0
         pkg = next(k for k in sys.modules if k.startswith("ffrf_rt_fault_beam_") and k.endswith(".runtime.body"))
@@ -340,12 +349,12 @@ def _hub_at_rest(core):
                                                      for n in names])
 
 
-def test_set_many_refuses_per_mode_with_the_same_list_again_and_instances_apart(fmu, tmp_path):
+def test_set_many_refuses_per_mode_with_the_same_list_again_and_instances_apart(python_fmu, tmp_path):
     """set_many keeps each value-reference list's index array and causalities (a host sets the same list
     every step): a list with a parameter is accepted in initialization and refused in step mode, one
     with an output always, in order up to the first refused value; a second instance of the same FMU
     keeps its own values."""
-    a, b = _core(fmu, tmp_path / "a"), _core(fmu, tmp_path / "b")
+    a, b = _core(python_fmu, tmp_path / "a"), _core(python_fmu, tmp_path / "b")
     rho, f1, r1 = a.by_name["solver.rho_inf"], a.by_name["tip.f[1]"], a.by_name["tip.r[1]"]
     for core in (a, b):
         core.setup_experiment(0.0)
@@ -365,7 +374,7 @@ def test_set_many_refuses_per_mode_with_the_same_list_again_and_instances_apart(
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered")
-def test_finite_checks_refuse_nan_and_inf_but_not_a_sum_that_overflows(fmu, tmp_path):
+def test_finite_checks_refuse_nan_and_inf_but_not_a_sum_that_overflows(python_fmu, tmp_path):
     """The doStep's finite checks sum first (a NaN or inf makes the sum non-finite): an input or
     state of huge finite values whose sum overflows passes, one NaN or inf anywhere is refused."""
     from types import SimpleNamespace
@@ -378,7 +387,7 @@ def test_finite_checks_refuse_nan_and_inf_but_not_a_sum_that_overflows(fmu, tmp_
     for outputs, yd in ((np.array([1.0, np.nan]), huge), (huge, np.array([0.0, -np.inf]))):
         with pytest.raises(StepFailure, match="the state is not finite"):
             BodyCoSim._check_finite(SimpleNamespace(t=0.1, yd=yd), outputs)
-    core = _core(fmu, tmp_path)
+    core = _core(python_fmu, tmp_path)
     f1, f2 = core.by_name["tip.f[1]"], core.by_name["tip.f[2]"]
     core.values[[f1, f2]] = 1e308
     assert core._held_inputs(0.0)[1] == ""

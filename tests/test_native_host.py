@@ -1,6 +1,7 @@
 """A body FMU in a host with no Python in it (issue 12 item 1): tests/fmi2_host.c, compiled here
 with the system C compiler, dlopens the FMU's binary without LD_PRELOAD, steps it, frees it,
-dlcloses it and exits. pythonfmu's binary alone has undefined Py* symbols (PythonFMU issue #202)
+dlcloses it and exits. The native FMU (fmu/native) runs so in a host started with `env -i` (the
+system PATH only). For the pythonfmu FMU: pythonfmu's binary alone has undefined Py* symbols (PythonFMU issue #202)
 and corrupts the heap at exit (PythonFMU issue #228); the FMU's native loader
 (ffrf_fmu/fmu/native_loader.c) handles both. The numbers must be bit-identical to fmpy's run of the
 same FMU with the same calls.
@@ -32,29 +33,47 @@ OUTPUTS = ["tip.r[1]", "tip.r[2]", "tip.r[3]", "tip.v[3]", "hub.f[3]", "hub.t[2]
 FORCE = 1.0  # N on tip.f[3] from initialization on: the B1 beam bends under it while the hub holds still
 
 
+_BUILT: dict = {}
+
+
+def _b1(runtime, tmp_path_factory):
+    """The B1 FMU of a runtime (models/haug_beam.toml, spinup: 4 superelements, 6 modes, h = 2 ms), unzipped,
+    and the compiled host; built once per runtime."""
+    if runtime not in _BUILT:
+        d = tmp_path_factory.mktemp(f"host_{runtime}")
+        fmu = build_from_model(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup", runtime=runtime,
+                               platforms=("linux64",))
+        unzip = Path(extract(str(fmu), str(d / "B1")))
+        host = d / "fmi2_host"
+        done = subprocess.run([CC, "-O1", "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"],
+                              capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        _BUILT[runtime] = (fmu, unzip, host, read_model_description(str(fmu)))
+    return _BUILT[runtime]
+
+
+@pytest.fixture(scope="module", params=["native", "python"])
+def b1(request, tmp_path_factory):
+    """The B1 FMU of each runtime: the native one runs in a host started with an empty environment (env -i,
+    the system PATH only: no Python anywhere in the process), the pythonfmu one with the test's environment."""
+    return _b1(request.param, tmp_path_factory)
+
+
 @pytest.fixture(scope="module")
-def b1(tmp_path_factory):
-    """The B1 FMU (models/haug_beam.toml, spinup: 4 superelements, 6 modes, h = 2 ms), unzipped,
-    and the compiled host."""
-    d = tmp_path_factory.mktemp("native")
-    fmu = build_from_model(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup")
-    unzip = Path(extract(str(fmu), str(d / "B1")))
-    host = d / "fmi2_host"
-    done = subprocess.run([CC, "-O1", "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    md = read_model_description(str(fmu))
-    return fmu, unzip, host, md
+def b1_python(tmp_path_factory):
+    return _b1("python", tmp_path_factory)
 
 
 def _host(b1, *args, env_extra=None):
     fmu, unzip, host, md = b1
     binary = unzip / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    cmd = [str(host), args[0], str(binary), (unzip / "resources").as_uri(), md.guid, *map(str, args[1:])]
+    if (unzip / "resources" / "body.bin").exists():  # native: nothing of this process's environment
+        return subprocess.run(["env", "-i", "PATH=/usr/bin:/bin", *cmd], capture_output=True, text=True, timeout=600)
     env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME",
                                                             "FFRF_FMU_LIBPYTHON")}
     env.update(env_extra or {})
-    return subprocess.run([str(host), args[0], str(binary), (unzip / "resources").as_uri(), md.guid, *map(str, args[1:])],
-                          capture_output=True, text=True, timeout=600, env=env)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
 
 
 def _vr(md, names):
@@ -153,18 +172,18 @@ def test_bad_calls_in_a_c_host_are_errors_and_never_crash(b1):
     assert "unknown value reference(s) [1000000]" in done.stderr
 
 
-def test_libpython_override_is_used_and_a_bad_one_is_reported(b1):
+def test_libpython_override_is_used_and_a_bad_one_is_reported(b1_python):
     """FFRF_FMU_LIBPYTHON replaces the recorded libpython: a file that is not there makes
     fmi2Instantiate return NULL with the path and the loader's reason in the log (no crash)."""
-    fmu, unzip, host, md = b1
+    fmu, unzip, host, md = b1_python
     args = ("run", 1, 2e-3, 1, 1, _vr(md, ["tip.f[3]"])[0], FORCE, _vr(md, ["tip.r[3]"])[0])
-    bad = _host(b1, *args, env_extra={"FFRF_FMU_LIBPYTHON": "/nonexistent/libpython3.so"})
+    bad = _host(b1_python, *args, env_extra={"FFRF_FMU_LIBPYTHON": "/nonexistent/libpython3.so"})
     assert bad.returncode == 5, bad.stderr  # the host's exit code for a NULL instance
     assert "cannot load libpython (/nonexistent/libpython3.so; set FFRF_FMU_LIBPYTHON to override)" in bad.stderr
-    recorded = (unzip / "resources" / "ffrf_libpython.txt").read_text().strip()
-    good = _host(b1, *args, env_extra={"FFRF_FMU_LIBPYTHON": recorded})
+    recorded = (unzip / "resources" / "ffrf_libpython.txt").read_text().splitlines()[0]  # line 2: the Python home
+    good = _host(b1_python, *args, env_extra={"FFRF_FMU_LIBPYTHON": recorded})
     assert good.returncode == 0, good.stderr
-    assert np.array_equal(_parse(good.stdout)[(0, 0)], _fmpy_run_outputs(b1, 1, 2e-3, ["tip.r[3]"]))
+    assert np.array_equal(_parse(good.stdout)[(0, 0)], _fmpy_run_outputs(b1_python, 1, 2e-3, ["tip.r[3]"]))
 
 
 ECOS_RUN = r"""
@@ -210,3 +229,29 @@ def test_b1_runs_1s_in_ecos_out_of_process_bit_identical_to_fmpy(b1, tmp_path):
     got = json.loads(done.stdout.strip().splitlines()[-1])
     assert got["t"] == pytest.approx(1.0, abs=1e-9)
     assert np.array_equal(np.array(got["out"]), _fmpy_run(b1, steps, H))
+
+
+@pytest.mark.parametrize("form", ["file:/abs", "missing folder", "empty environment"])
+def test_resource_forms_and_an_empty_environment_in_a_c_host(b1, form, tmp_path):
+    """Both runtimes in a C host: `file:/abs` (a form FMI 2.0 hosts use) runs; a missing resources folder
+    makes fmi2Instantiate return NULL with the folder named (pythonfmu's binary segfaulted the host on
+    both); and a host started with `env -i PATH=/usr/bin:/bin`, where Debian's python3 comes first on PATH,
+    runs (the pythonfmu FMU's loader sets PYTHONHOME to the recorded Python's home: without it the
+    embedded interpreter took its prefix from that python3 and found no standard library)."""
+    fmu, unzip, host, md = b1
+    binary = unzip / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    uri = {"file:/abs": f"file:{unzip / 'resources'}", "missing folder": (tmp_path / "nowhere").as_uri(),
+           "empty environment": (unzip / "resources").as_uri()}[form]
+    args = [str(host), "run", str(binary), uri, md.guid, "5", "0.002", "1", "1", str(_vr(md, ["tip.f[3]"])[0]),
+            str(FORCE), str(_vr(md, ["tip.r[3]"])[0])]
+    done = subprocess.run(["env", "-i", "PATH=/usr/bin:/bin", *args], capture_output=True, text=True, timeout=600)
+    if form == "missing folder":
+        assert done.returncode == 5, done.stderr  # the host's exit code for a NULL instance
+        assert str(tmp_path / "nowhere") in done.stderr and "missing" in done.stderr
+        return
+    assert done.returncode == 0, done.stderr[-3000:]
+    got, ref = _parse(done.stdout)[(0, 0)], _fmpy_run_outputs(b1, 5, 0.002, ["tip.r[3]"])
+    if (unzip / "resources" / "body.bin").exists():
+        assert np.array_equal(got, ref)
+    else:  # numpy's BLAS in the empty environment picks its own thread count: the last bits may differ
+        assert np.allclose(got, ref, rtol=1e-12, atol=0.0) and ref[0] > 1e-4

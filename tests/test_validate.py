@@ -46,7 +46,7 @@ def test_the_standalone_run_steps_on_the_fmus_backend(tmp_path, small_toml):
     that FMU and standalone compare the same equations' code."""
     model = tmp_path / "small.toml"
     model.write_text(small_toml())
-    fmu = build_from_model(model, tmp_path / "small.fmu", scene="spin", backend="numpy")
+    fmu = build_from_model(model, tmp_path / "small.fmu", scene="spin", backend="numpy", runtime="python")
     rep = validate(fmu, model=model, scene="spin", plots=False)
     assert rep["passed"]
     assert rep["backend"] == {"fmu": "numpy", "standalone": "numpy"}

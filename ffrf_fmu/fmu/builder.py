@@ -44,7 +44,7 @@ from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
 from ..runtime.terms import FULL_TERMS, TERM_SETS
 from .variables import (DERIVATIVE_CHANNEL, DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS,
-                        equations_text)
+                        equations_text, identifier)
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
@@ -91,7 +91,7 @@ def python_facts() -> dict:
     dirs = [str(Path(m.__file__).resolve().parent.parent) for m in (numpy, scipy)]
     dirs += [d for d in site.getsitepackages() if d not in dirs]
     return {"version": list(sys.version_info[:2]), "executable": sys.executable, "libpython": libpython,
-            "site_dirs": list(dict.fromkeys(dirs))}
+            "home": sys.base_prefix, "site_dirs": list(dict.fromkeys(dirs))}
 
 
 def c_compiler() -> str | None:
@@ -188,11 +188,6 @@ class SceneParameters:
         }
 
 
-def identifier(text: str) -> str:
-    s = re.sub(r"\W", "_", text)
-    return s if re.match(r"[A-Za-z_]", s) else f"b_{s}"
-
-
 def _sources(directory: Path, names=None) -> dict[str, str]:
     files = sorted(directory.glob("*.py")) if names is None else [directory / n for n in names]
     return {f.name: f.read_text(encoding="utf-8") for f in files}
@@ -261,7 +256,8 @@ def build_fmu(
     origin: body origin for the initial rigid velocity field (default: node 0 position).
     build_info: free JSON-able facts stored in the resources (model file, scene, overrides).
     native_loader: put the native loader in front of pythonfmu's binary (Linux, needs a C
-    compiler at build time; without one a BuildWarning says what the FMU then needs).
+    compiler at build time; without one a BuildError says so); False makes an FMU that only Python
+    hosts can load (no directional derivatives).
     backend: "numpy" (the slave steps on the reference implementation, shipped as Python modules).
     """
     if backend != "numpy":
@@ -287,6 +283,10 @@ def build_fmu(
     # the loader first: it is what provides fmi2GetDirectionalDerivative, which the modelDescription
     # then declares (the slave reads config["directional_derivatives"])
     loader_why = native_loader_problem(stage / "loader.so") if native_loader else "not asked for"
+    if native_loader and loader_why:  # an FMU only Python hosts can load is made when asked for, never silently
+        stage_dir.cleanup()
+        raise BuildError(f"the pythonfmu FMU's native loader cannot be built ({loader_why}): without it only Python "
+                         "hosts load the FMU; native_loader=False accepts that, or build the native FMU")
     config["directional_derivatives"] = not loader_why
     ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
     stiff = all(se.stiffening for se in data.superelements)
@@ -323,7 +323,8 @@ def build_fmu(
         (stage / CONFIG_FILE).write_text(json.dumps(config, indent=1), encoding="utf-8")
         py = python_facts()
         (stage / PYTHON_FILE).write_text(json.dumps(py, indent=1), encoding="utf-8")
-        (stage / LIBPYTHON_FILE).write_text((py["libpython"] or "") + "\n", encoding="utf-8")
+        # line 1: the libpython the loader loads; line 2: that Python's home, the loader's PYTHONHOME
+        (stage / LIBPYTHON_FILE).write_text((py["libpython"] or "") + "\n" + py["home"] + "\n", encoding="utf-8")
         script = stage / f"{module}.py"
         script.write_text(TEMPLATE.format(body=data.name, version=__version__, package=package, cls=cls),
                           encoding="utf-8")
@@ -347,7 +348,7 @@ def build_fmu(
                 del sys.modules[key]
         out = Path(out)
         if native_loader:
-            why = loader_why or install_loader(out, cls, stage / "loader.so")
+            why = install_loader(out, cls, stage / "loader.so")
             if why:
                 warnings.warn(f"{out.name}: no native loader ({why}); the FMU runs only in a host that has "
                               "Python loaded (fmpy), or with libpython in LD_PRELOAD", BuildWarning, stacklevel=2)
@@ -360,24 +361,35 @@ def build_fmu(
 # ---------------------------------------------------------------------------------------------
 # from a model file
 
+RUNTIMES = ("native", "python")
 
-def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numpy") -> Path:
-    """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters."""
+
+def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numpy",
+                     runtime: str = "native", platforms=("linux64",), compiler: str = "zig",
+                     log=None, native_loader: bool = True) -> Path:
+    """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters. runtime: "native"
+    (fmu/native: binaries for `platforms` by `compiler`, zig or system) or "python" (`build_fmu`, with `backend`)."""
+    if runtime not in RUNTIMES:
+        raise BuildError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
     from ..model import load_model
     from ..reduction import build_scene_body
 
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
     data, _ = build_scene_body(model.body, sc)
-    info = {
-        "model_file": str(Path(model_path).name),
-        "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
-        "scene": sc.name,
-        "overrides": list(overrides),
-        "scenes": [s.name for s in model.scenes],
-    }
+    info = {"model_file": str(Path(model_path).name), "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
+            "scene": sc.name, "overrides": list(overrides), "scenes": [s.name for s in model.scenes]}
+    if runtime == "native":
+        from .native import build_native_fmu
+        from .native.build import NativeBuildError
+
+        try:
+            return build_native_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin,
+                                    build_info=info, platforms=platforms, compiler=compiler, log=log)
+        except NativeBuildError as e:
+            raise BuildError(str(e)) from None
     return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
-                     backend=backend)
+                     backend=backend, native_loader=native_loader)
 
 
 def read_fmu_config(fmu_path) -> dict:

@@ -43,6 +43,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #define EXPORT __attribute__((visibility("default")))
 
@@ -173,8 +174,16 @@ static int load_real(void)
             snprintf(path, sizeof path, "%s/../../resources/ffrf_libpython.txt", dir);
             FILE *f = fopen(path, "r");
             if (f) {
+                char home[PATH_MAX] = "";
                 if (fgets(libpython, sizeof libpython, f)) libpython[strcspn(libpython, "\r\n")] = '\0';
+                /* the second line: that Python's home (sys.base_prefix). Set as PYTHONHOME (unless the host
+                 * set one), the embedded interpreter finds its standard library there, not in the prefix
+                 * of whatever python3 comes first on PATH ("No module named 'math'" with Debian's
+                 * python3.11 first on PATH and a pyenv 3.11 behind the FMU) */
+                if (fgets(home, sizeof home, f)) home[strcspn(home, "\r\n")] = '\0';
                 fclose(f);
+                struct stat st;
+                if (*home && !getenv("PYTHONHOME") && stat(home, &st) == 0) setenv("PYTHONHOME", home, 0);
             }
         }
         if (!*libpython) {
@@ -267,6 +276,63 @@ static fmi2Status finish(Instance *inst, fmi2Status s)
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
+/* The local folder of a resource location (file:///abs, file:/abs, file://localhost/abs, a plain absolute path;
+ * percent-escapes decoded) into out as "file://" + path, the one form pythonfmu reads; 0, or -1 with why in
+ * err (another host or scheme, a relative or badly escaped URI, a folder that is not there): pythonfmu
+ * crashed the host on file:/abs and on a missing folder. */
+static int resource_uri(const char *uri, char *out, size_t size, char *err, size_t err_size)
+{
+    if (!uri || !*uri) {
+        snprintf(err, err_size, "no resource location given: the FMU needs its resources folder");
+        return -1;
+    }
+    const char *p = uri;
+    if (strncmp(p, "file:", 5) == 0) {
+        p += 5;
+        if (strncmp(p, "//", 2) == 0) {
+            p += 2;
+            if (strncmp(p, "localhost/", 10) == 0) p += 9;
+            else if (*p != '/') {
+                snprintf(err, err_size, "resource location %.300s names another host: only local files can be read", uri);
+                return -1;
+            }
+        }
+    } else if (strstr(p, "://")) {
+        snprintf(err, err_size, "resource location %.300s: only file URIs are supported", uri);
+        return -1;
+    }
+    if (*p != '/') {
+        snprintf(err, err_size, "resource location %.300s is not an absolute file URI (file:///path)", uri);
+        return -1;
+    }
+    char path[PATH_MAX];
+    size_t k = 0;
+    for (; *p && k + 1 < sizeof path; p++) {
+        char c = *p;
+        if (c == '%') {
+            int hi, lo;
+            if (sscanf(p + 1, "%1x%1x", &hi, &lo) != 2 || !(hi | lo)) {
+                snprintf(err, err_size, "resource location %.300s has a bad percent-escape", uri);
+                return -1;
+            }
+            c = (char)(16 * hi + lo);
+            p += 2;
+        }
+        path[k++] = c;
+    }
+    path[k] = '\0';
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISDIR(st.st_mode)) {
+        snprintf(err, err_size, "resources folder %.300s (from %.300s) is missing or not a folder", path, uri);
+        return -1;
+    }
+    if (snprintf(out, size, "file://%s", path) >= (int)size) {
+        snprintf(err, err_size, "resource location %.300s is too long", uri);
+        return -1;
+    }
+    return 0;
+}
+
 EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                                      fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                                      fmi2Boolean visible, fmi2Boolean loggingOn)
@@ -286,11 +352,18 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         free(inst);
         return NULL;
     }
+    char uri[PATH_MAX + 16], why[1024];
+    if (resource_uri(fmuResourceLocation, uri, sizeof uri, why, sizeof why)) {
+        say(inst, fmi2Error, "fmi2Instantiate: %s", why);
+        free(inst->name);
+        free(inst);
+        return NULL;
+    }
     inst->own = inst->host;
     inst->own.logger = log_relay;
     inst->own.componentEnvironment = inst;
     /* pythonfmu always logs to the relay, which applies the host's switch */
-    inst->real = real_fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &inst->own, visible,
+    inst->real = real_fmi2Instantiate(instanceName, fmuType, fmuGUID, uri, &inst->own, visible,
                                       1);
     if (!inst->real) {
         free(inst->name);

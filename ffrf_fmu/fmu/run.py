@@ -46,10 +46,25 @@ class FmuRun:
         return SimulationResult(self.t, dict(self.columns), {}, body)
 
 
+NATIVE_RESOURCE = "resources/body.bin"
+
+
+def is_native(fmu_path) -> bool:
+    """The FMU is a native one (fmu/native: resources/body.bin), not a pythonfmu one (resources/body.npz)."""
+    with zipfile.ZipFile(fmu_path) as z:
+        return NATIVE_RESOURCE in z.namelist()
+
+
 def fmu_body(fmu_path):
-    """The reduced BodyData an FMU carries (resources/body.npz)."""
+    """The reduced BodyData a pythonfmu FMU carries (resources/body.npz); of a native FMU, its ports and
+    node positions only (fmu/native/resource.py read_body: the matrices stay in the runtime images)."""
     from ..runtime.data import BodyData
 
+    if is_native(fmu_path):
+        from .native.resource import read_body
+
+        with zipfile.ZipFile(fmu_path) as z:
+            return read_body(z.read(NATIVE_RESOURCE))
     with zipfile.ZipFile(fmu_path) as z, tempfile.TemporaryDirectory() as tmp:
         p = Path(tmp) / "body.npz"
         p.write_bytes(z.read("resources/body.npz"))

@@ -13,6 +13,7 @@ the master's connections, the fmpy input tables and the studies all use these.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from xml.etree.ElementTree import Element, SubElement
 
@@ -45,6 +46,12 @@ FULL_TERM_TEXT = {
     "inertia_coupling": "inertia_coupling (rotation-elastic coupling S(q) in the angular momentum)",
     "coriolis": "coriolis (elastic Coriolis force G(W0) on the elastic coordinates)",
 }
+
+
+def identifier(text: str) -> str:
+    """A C/Python identifier made of a body name (the FMU's model identifier, module and class names)."""
+    s = re.sub(r"\W", "_", text)
+    return s if re.match(r"[A-Za-z_]", s) else f"b_{s}"
 
 
 def equations_text(terms: str, full_terms, stiffening: bool) -> str:

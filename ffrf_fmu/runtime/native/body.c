@@ -682,9 +682,16 @@ int ffrf_body_set_state(ffrf_body *b, const double *in, size_t size)
     if (size != ffrf_body_state_size(b))
         return -1;
     const double *piv = in + size - nf, *meta = piv - nf * nf - 12;
-    for (size_t i = 0; i < nf && meta[0] != 0.0; i++) /* a pivot out of range would make a solve write outside the body */
-        if (!(piv[i] >= (double)i && piv[i] < (double)nf) || piv[i] != (double)(int)piv[i])
+    /* a pivot out of range would make a solve write outside the body: factor.c's pivots are local to their
+     * block (E blocks of n_int for the superelements' own unknowns, then one of n_bnd), each pivot j of a
+     * block of n in [j, n) */
+    for (size_t i = 0; i < nf && meta[0] != 0.0; i++) {
+        size_t block = (size_t)b->dims.E * (size_t)b->dims.n_int;
+        size_t j = i < block ? i % (size_t)b->dims.n_int : i - block;
+        size_t n = i < block ? (size_t)b->dims.n_int : (size_t)b->dims.n_bnd;
+        if (!(piv[i] >= (double)j && piv[i] < (double)n) || piv[i] != (double)(int)piv[i])
             return -2;
+    }
     if (!(in[1] >= 0.0 && in[1] < 1e9))
         return -2;
     b->state.t = *in++;

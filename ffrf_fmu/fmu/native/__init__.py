@@ -1,0 +1,229 @@
+"""The native body FMU: an FMI 2.0 co-simulation FMU in C over the C runtime, with nothing installed beside it.
+
+    binaries/linux64/<id>.so, binaries/win64/<id>.dll   fmi2Functions.c over model.c over runtime/native:
+                                                        body-independent, built once per source version and
+                                                        target into the cache (fmu/native/build.py)
+    resources/body.bin                                  the body: variables, maps and runtime images
+                                                        (fmu/native/resource.py), scrambled
+    documentation/index.html                            the body's datasheet
+    documentation/build.json                            how it was built (model file name and digest, scene)
+    modelDescription.xml
+
+No Python, numpy, .npz, model file or source in the FMU. `build_native_fmu` writes one; the pythonfmu
+route (fmu/builder.py `build_fmu`) stays for `--runtime python`.
+"""
+from __future__ import annotations
+
+import hashlib
+import html
+import json
+import os
+import uuid
+import zipfile
+from datetime import datetime, timezone
+from pathlib import Path
+from xml.etree.ElementTree import Element, SubElement, indent, tostring
+
+import numpy as np
+
+from ... import __version__
+from ...runtime.body import BodySystem
+from ...runtime.data import BodyData
+from ...runtime.terms import TERM_SETS
+from ..variables import (DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, UNITS,
+                         body_variables, equations_text, identifier)
+from . import build as native_build
+from .resource import ResourceContent, pack
+
+DESCRIPTION = (
+    "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
+    "All vectors in world axes, SI units. " + INPUTS_BETWEEN_COMMUNICATION_POINTS + " " + INTERNAL_STEPS + " "
+    "The run converges to the standalone run as H shrinks. Outputs are the values at "
+    "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
+    "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
+    "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "
+    "references and internal errors return fmi2Error with the cause logged. FMU state get/set/serialize "
+    "save the complete integrator state (serialized with a version and a checksum)."
+)
+RESOURCE_FILE = "body.bin"
+PLATFORMS = ("linux64", "win64")
+
+
+def _images(data: BodyData, config: dict) -> tuple[dict[str, bytes], BodySystem]:
+    """One runtime image per term set the body's data allows (full needs W1, W2), with the scene's
+    rho_inf and gravity (parameters: the FMU sets them again at initialization); and the default set's body."""
+    from ...runtime.native.image import body_image
+
+    images, default = {}, None
+    for terms in TERM_SETS:
+        if terms == "full" and any(se.W2 is None for se in data.superelements):
+            continue
+        system = BodySystem(data, terms=terms, rho_inf=config["rho_inf"], gravity=config["gravity"],
+                            full_terms=tuple(config["full_terms"]))
+        images[terms] = body_image(system)
+        if terms == config["terms"]:
+            default = system
+    return images, default
+
+
+def _start(v) -> str:
+    return str(int(v.start)) if v.type == "Integer" else repr(float(v.start))
+
+
+def model_description(variables, *, name: str, identifier: str, guid: str, description: str,
+                      experiment: dict | None) -> bytes:
+    """modelDescription.xml: the variables of fmu/variables.py with units and min/max, co-simulation
+    capabilities of the C layer, ModelStructure (every output depends on every input over a step:
+    one elastic body couples its ports; fmu/variables.py patch_model_description)."""
+    root = Element("fmiModelDescription", {
+        "fmiVersion": "2.0", "modelName": name, "guid": guid, "description": description,
+        "author": "ffrf-fmu", "version": __version__, "generationTool": f"ffrf-fmu {__version__} (native)",
+        "generationDateAndTime": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
+    SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
+    used = sorted({v.unit for v in variables if v.unit})
+    units = SubElement(root, "UnitDefinitions")
+    for u in used:
+        SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
+    cats = SubElement(root, "LogCategories")
+    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
+                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
+                      ("logAll", "everything else")):
+        SubElement(cats, "Category", {"name": cat, "description": text})
+    if experiment:
+        SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),
+                                               "stepSize": repr(experiment["step_size"])})
+    mv = SubElement(root, "ModelVariables")
+    for vr, v in enumerate(variables):
+        attrs = {"name": v.name, "valueReference": str(vr), "description": v.description, "causality": v.causality,
+                 "variability": v.variability}
+        if v.causality == "output":
+            attrs["initial"] = "calculated"
+        elif v.causality == "parameter":
+            attrs["initial"] = "exact"
+        sv = SubElement(mv, "ScalarVariable", attrs)
+        typ = {}
+        if v.unit:
+            typ["unit"] = v.unit
+        if v.start is not None:
+            typ["start"] = _start(v)
+        for key in ("min", "max"):
+            bound = getattr(v, key)
+            if bound is not None:
+                typ[key] = repr(float(bound)) if v.type == "Real" else str(int(bound))
+        SubElement(sv, v.type, typ)
+    structure = SubElement(root, "ModelStructure")
+    outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
+    inputs = [i + 1 for i, v in enumerate(variables) if v.causality == "input"]
+    if outputs:
+        o = SubElement(structure, "Outputs")
+        deps = {"dependencies": " ".join(map(str, inputs)), "dependenciesKind": " ".join(["dependent"] * len(inputs))}
+        for i in outputs:
+            SubElement(o, "Unknown", {"index": str(i), **deps})
+        iu = SubElement(structure, "InitialUnknowns")
+        for i in outputs:
+            SubElement(iu, "Unknown", {"index": str(i)})
+    indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8") + b"\n"
+
+
+def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict, images: dict) -> str:
+    """documentation/index.html: what a partner needs to know of the body without its matrices."""
+    mass, cm, J = system.mass_properties()
+    e = html.escape
+    rows = "".join(f"<tr><td>{e(p.name)}</td><td>{np.array2string(data.node_positions[p.node], precision=6)}</td>"
+                   f"<td>{e(p.translation)}</td><td>{e(p.rotation)}</td></tr>" for p in data.ports)
+    freqs = "".join(f"<tr><td>{k + 1}</td><td>{', '.join(f'{f:.6g}' for f in se.frequencies_hz)}</td></tr>"
+                    for k, se in enumerate(data.superelements))
+    stiff = all(se.stiffening for se in data.superelements)
+    scene = build_info.get("scene")
+    return f"""<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>{e(data.name)}: body datasheet</title></head>
+<body>
+<h1>Flexible body {e(data.name)}</h1>
+<p>FMI 2.0 co-simulation FMU made by ffrf-fmu {e(__version__)} (native runtime). The body is {len(data.superelements)}
+two-field floating-frame superelement(s), each a linear FE beam reduced to its boundary frames and free-free modes,
+moving with large rigid motions. All values SI, world axes, at the reference (undeformed) configuration.</p>
+<h2>Mass properties</h2>
+<p>Mass {mass:.9g} kg; centre of mass {np.array2string(cm, precision=9)} m;
+inertia about the centre of mass (kg m<sup>2</sup>):</p><pre>{np.array2string(J, precision=9)}</pre>
+<h2>Ports</h2>
+<table border="1"><tr><th>port</th><th>reference position (m)</th><th>translation</th><th>rotation</th></tr>{rows}</table>
+<h2>Free-free frequencies of the kept modes (Hz), per superelement</h2>
+<table border="1"><tr><th>superelement</th><th>frequencies</th></tr>{freqs}</table>
+<h2>Equations</h2>
+<p>{e(equations_text(config['terms'], config['full_terms'], stiff))}</p>
+<p>Term sets in this FMU (parameter solver.terms): {e(', '.join(f'{TERM_SETS.index(t)} = {t}' for t in images))}.</p>
+<h2>Validated for</h2>
+<p>Built from {e(str(build_info.get('model_file', 'a reduced body')))}{(', scene ' + e(str(scene))) if scene else ''}:
+internal step solver.step = {config['step']:g} s by default{(', ' + format(build_info['duration'], 'g') + ' s of simulated time') if build_info.get('duration') else ''}.
+Other scenes (speeds, loads, steps) are outside what was checked at build time: compare with a standalone run
+(<code>ffrf-fmu validate</code>) before relying on them.</p>
+<h2>Behaviour between communication points</h2>
+<p>{e(INPUTS_BETWEEN_COMMUNICATION_POINTS)}</p><p>{e(INTERNAL_STEPS)}</p><p>{e(DIRECTIONAL_DERIVATIVES)}</p>
+</body></html>
+"""
+
+
+def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: dict | None = None,
+                     platforms=PLATFORMS, compiler: str = "zig", log=None) -> Path:
+    """Write the native FMU of `data` to `dest` (a .fmu file name or a directory) and return its path.
+
+    params: builder.SceneParameters (parameter defaults); origin: the initial rigid velocity field's origin
+    (default: node 0); platforms: binaries to include (linux64, win64); compiler: "zig" (ziglang, every
+    platform) or "system" (linux64 only)."""
+    config = params.as_config()
+    build_info = dict(build_info or {})
+    if params.duration is not None:
+        build_info.setdefault("duration", float(params.duration))
+    dest = Path(dest)
+    if dest.suffix != ".fmu":
+        if dest.suffix and not dest.is_dir():
+            raise native_build.NativeBuildError(f"{dest}: an FMU file name must end in .fmu (or name a directory)")
+        dest = dest / f"{data.name}.fmu"
+    variables = body_variables(data.ports, data.node_positions, config)
+    images, system = _images(data, config)
+    if system is None:
+        raise native_build.NativeBuildError(f"term set {config['terms']!r} needs the inertia data W1, W2 (build the "
+                                            "body with them)")
+    from ...runtime.native.image import VERSION as RUNTIME_VERSION
+
+    origin = np.asarray(origin if origin is not None else data.node_positions[0], dtype=float)
+    ports_text = ", ".join(f"{p.name} (translation {p.translation}, rotation {p.rotation})" for p in data.ports)
+    stiff = all(se.stiffening for se in data.superelements)
+    description = (DESCRIPTION.format(body=data.name, n_se=len(data.superelements), ports=ports_text) + " "
+                   + equations_text(config["terms"], config["full_terms"], stiff) + " " + DIRECTIONAL_DERIVATIVES)
+    # the GUID: a digest of everything the binary reads (same body and settings, same GUID)
+    digest = hashlib.sha256()
+    for image in images.values():
+        digest.update(image)
+    digest.update(json.dumps({"config": config, "origin": origin.tolist(),
+                              "variables": [(v.name, v.causality, v.start) for v in variables]}).encode())
+    guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16], version=4)) + "}"
+    model_id = f"{identifier(data.name)}_{digest.hexdigest()[:8]}"
+    content = ResourceContent(guid=guid, about=f"body {data.name} (ffrf-fmu {__version__})", variables=variables,
+                              ports=list(data.ports), probes=list(config.get("probes", ())),
+                              node_positions=np.asarray(data.node_positions, dtype=float), origin=origin,
+                              images=images)
+    experiment = {"stop_time": float(params.duration), "step_size": float(params.step)} if params.duration else None
+    xml = model_description(variables, name=data.name, identifier=model_id, guid=guid, description=description,
+                            experiment=experiment)
+    binaries = {p: native_build.binary(p, compiler, log=log) for p in platforms}
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dest.with_name(dest.name + ".tmp")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", xml)
+        z.writestr(f"resources/{RESOURCE_FILE}", pack(content, RUNTIME_VERSION))
+        z.writestr("documentation/index.html", datasheet(data, system, config, build_info, images))
+        z.writestr("documentation/build.json", json.dumps({  # how it was made (no body data)
+            "ffrf_fmu_version": __version__, "runtime_version": RUNTIME_VERSION, "body": data.name,
+            "term_sets": list(images), "platforms": list(binaries), "compiler": compiler, "build": build_info},
+            indent=1))
+        for platform, path in binaries.items():
+            z.write(path, f"binaries/{platform}/{model_id}{native_build.TARGETS[platform].suffix}")
+    os.replace(tmp, dest)
+    return dest

@@ -1,0 +1,148 @@
+/* The body FMU's model interface: what an instance holds and does, below the thin FMI 2.0 layer of
+ * fmi2Functions.c (the layout of the Modelica Association's Reference-FMUs: fmi2Functions over a small
+ * model interface with one instance struct of named fields).
+ *
+ * The binary is body-independent: everything about the body comes from resources/body.bin
+ * (resource.c; written by ffrf_fmu/fmu/native/resource.py): the variable table of
+ * ffrf_fmu/fmu/variables.py, the maps from variables to the runtime's held inputs and output row, and
+ * one runtime image (runtime/native/image.py) per term set the FMU offers. The body steps in the C
+ * runtime (runtime/native), the same code as a standalone run.
+ *
+ * No global state: instances are independent. Allocation at instantiation and initialization only,
+ * never in doStep. */
+#ifndef FFRF_FMU_MODEL_H
+#define FFRF_FMU_MODEL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fmi2Functions.h"
+#include "ffrf_runtime.h"
+
+#define FMU_MESSAGE 1024          /* longest kept message (initialization failure, last discard) */
+#define FMU_FORMAT_VERSION 1      /* of resources/body.bin (resource.py FORMAT_VERSION) */
+#define FMU_STATE_VERSION 1       /* of a serialized FMU state */
+#define FMU_TERM_SETS 3           /* linear, gyroscopic, full (runtime/terms.py TERM_SETS) */
+
+enum { CAUS_INPUT = 0, CAUS_OUTPUT = 1, CAUS_PARAMETER = 2 };
+enum { TYPE_REAL = 0, TYPE_INTEGER = 1 };
+/* what a unit change of an input moves over a communication step of H (derivatives.py DERIVATIVE_STEPS):
+ * a load; a position or rotation (1); a rate (H); an acceleration (H^2 / 2) */
+enum { DKIND_LOAD = 0, DKIND_POSITION = 1, DKIND_RATE = 2, DKIND_ACCEL = 3 };
+enum { PART_FORCE = 0, PART_MOTION = 1, PART_COMPLIANT = 2 };
+
+typedef struct {
+    const char *name;
+    int type, causality, dkind;
+    double start;
+    int has_min, has_max;
+    double min, max;
+} fmu_variable;
+
+typedef struct {
+    const char *name;
+    int node, translation, rotation; /* PART_* */
+} fmu_port;
+
+/* resources/body.bin, read and checked (resource.c). Arrays point into `blob`. */
+typedef struct {
+    void *blob;                   /* the descrambled payload (one allocation) */
+    char guid[64];
+    char description[160];        /* the body's name and version line, for messages */
+    int n_vars;
+    fmu_variable *vars;
+    int n_ports;
+    fmu_port *ports;
+    const int32_t *held_vr;       /* [n_ports][FFRF_HELD_WIDTH] value reference read into each held column, -1 */
+    int n_out;
+    const int32_t *out_vr;        /* [n_out] output value references ... */
+    const int32_t *out_src;       /* [n_out] ... and their position in [output row, probes] */
+    int n_probes;
+    const int32_t *probe_seen;    /* [n_probes] port rows (eq. 92) */
+    const int32_t *probe_frame;
+    const double *probe_dX;       /* [n_probes][3] X_seen - X_frame */
+    int vr_step, vr_rho_inf, vr_terms, vr_iterations;
+    int vr_gravity[3], vr_velocity[3], vr_angular_velocity[3];
+    const int32_t *disp_vr;       /* [n_ports][3] initial.<port>.d, -1 */
+    const int32_t *coupling_vr;   /* [n_ports][12] <port>.coupling.{k, c, k_rot, c_rot}, -1 */
+    double origin[3];             /* of the initial rigid velocity field */
+    const void *image[FMU_TERM_SETS]; /* runtime image per term set (NULL: not in this FMU) */
+    size_t image_size[FMU_TERM_SETS];
+} fmu_description;
+
+typedef enum {
+    MODE_INSTANTIATED = 1, MODE_INITIALIZATION = 2, MODE_STEP = 4, MODE_TERMINATED = 8, MODE_ERROR = 16
+} fmu_mode;
+
+typedef struct {
+    char *name;                   /* instance name */
+    fmi2CallbackFunctions cb;
+    int logging;
+    fmu_description desc;
+    fmu_mode mode;
+    double *values;               /* [n_vars] every variable by value reference (Integers as doubles) */
+    double *start_values;         /* [n_vars] (fmi2Reset) */
+    double start_time, stop_time;
+    int has_stop;
+    ffrf_body *body;              /* created at initialization, for the term set of solver.terms */
+    int body_terms;
+    char failure[FMU_MESSAGE];    /* a failed initialization: every doStep reports it */
+    char discarded[FMU_MESSAGE];  /* the last discard's message while the FMU stays at its t_c */
+    int initialized;              /* initialized_with holds the inputs and parameters of the last initialization */
+    double *initialized_with;     /* [n_vars] */
+    double *held;                 /* [n_ports][FFRF_HELD_WIDTH] work: the held values of a step */
+    double *row;                  /* output row, then the probes [n_probes][3] */
+    size_t state_size;            /* ffrf_body_state_size */
+    double *rollback;             /* [state_size] the body at t_c of the current doStep */
+    double *ref_state;            /* [state_size] the body as created: the reference state initialization starts from */
+    /* the last successful communication step (directional derivatives) */
+    int have_last;
+    double last_tc, last_H;
+    int last_n;
+    double *last_state;           /* [state_size] */
+    double *last_values;          /* [n_vars] */
+    double *end_state;            /* [state_size] work of the derivatives */
+    double *deriv_values;         /* [n_vars] work */
+    double *deriv_sides;          /* [2][n_vars] work */
+} fmu_instance;
+
+/* resource.c */
+int fmu_resource_path(const char *uri, char *path, size_t len, char *err, size_t err_len);
+int fmu_description_load(fmu_description *d, const char *path, char *err, size_t err_len);
+void fmu_description_free(fmu_description *d);
+
+/* model.c: every function returns fmi2OK, fmi2Discard or fmi2Error and logs the cause */
+void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+fmi2Status model_setup(fmu_instance *m);
+void model_reset(fmu_instance *m);
+void model_free(fmu_instance *m);
+fmi2Status model_get_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Real value[]);
+fmi2Status model_get_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]);
+fmi2Status model_set_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]);
+fmi2Status model_set_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]);
+fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int type, const char *kind);
+fmi2Status model_exit_initialization(fmu_instance *m);
+fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
+fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReference unknown[], size_t n_unknown,
+                                        const fmi2ValueReference known[], size_t n_known, const fmi2Real seed[],
+                                        fmi2Real out[]);
+/* FMU state: a self-contained copy, and its serialized form (version, size, checksum) */
+size_t model_serialized_size(const fmu_instance *m);
+void model_serialize(const fmu_instance *m, unsigned char *out);
+fmi2Status model_deserialize(fmu_instance *m, const unsigned char *in, size_t size);
+fmi2Status model_serialized_check(fmu_instance *m, const unsigned char *in, size_t size); /* version, FMU, checksum */
+double model_time(const fmu_instance *m); /* the body's time: the last successful communication point */
+
+/* initialize.c: the consistent initial state from the held inputs at t0 and the parameters (BodySystem.initialize) */
+int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const double angular_velocity[3],
+                        const double origin[3], const double *port_displacements, const char *const *port_names,
+                        char *err, size_t err_len);
+
+/* py_repr: a double as Python's repr writes it (the messages quote parameters as the Python FMU did) */
+const char *py_repr(double x, char *buf, size_t len);
+
+#endif

@@ -1,0 +1,398 @@
+"""The native FMU (ffrf_fmu/fmu/native): a black box in C over the C runtime, nothing installed beside it.
+
+What is checked here and not by the fault table (tests/test_fmu_faults.py runs that on both runtimes):
+the FMU's contents (no Python, no .npz, no readable matrices, only fmi2 exports), fmpy's validation,
+the GUID, every resource-location form, calls in the wrong state, two instances, reset, state round
+trips and damaged serialized states, and the directional derivatives against two runs of the FMU.
+The binary is called through ctypes in this process (tests/test_native_host.py runs it in a C host).
+"""
+from __future__ import annotations
+
+import ctypes as C
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.validation import validate_fmu
+
+from ffrf_fmu.fmu.builder import build_from_model
+
+OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
+SCENES = """
+[scenes.still]
+duration = 0.2
+step = 0.01
+"""
+
+LOGGER = C.CFUNCTYPE(None, C.c_void_p, C.c_char_p, C.c_int, C.c_char_p, C.c_char_p, C.c_char_p)
+
+
+class Callbacks(C.Structure):
+    _fields_ = [("logger", LOGGER), ("allocateMemory", C.c_void_p), ("freeMemory", C.c_void_p),
+                ("stepFinished", C.c_void_p), ("componentEnvironment", C.c_void_p)]
+
+
+class Fmu:
+    """The FMU's binary loaded with ctypes: fmi2 calls by name, the messages logged per call."""
+
+    def __init__(self, unzipped: Path, md):
+        self.md, self.dir = md, unzipped
+        self.lib = C.CDLL(str(unzipped / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"))
+        self.log: list[tuple[int, str, str]] = []
+        self._logger = LOGGER(lambda env, name, status, cat, fmt, msg: self.log.append(
+            (status, (cat or b"").decode(), (msg or b"").decode())))
+        self.cb = Callbacks(self._logger, None, None, None, None)
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.lib.fmi2Instantiate.restype = C.c_void_p
+        self.lib.fmi2Instantiate.argtypes = [C.c_char_p, C.c_int, C.c_char_p, C.c_char_p, C.c_void_p, C.c_int, C.c_int]
+        for name in ("fmi2FreeInstance", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
+                     "fmi2Reset"):
+            getattr(self.lib, name).argtypes = [C.c_void_p]
+        self.lib.fmi2SetupExperiment.argtypes = [C.c_void_p, C.c_int, C.c_double, C.c_double, C.c_int, C.c_double]
+        self.lib.fmi2DoStep.argtypes = [C.c_void_p, C.c_double, C.c_double, C.c_int]
+        for name in ("fmi2GetReal", "fmi2SetReal"):
+            getattr(self.lib, name).argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_double)]
+        for name in ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"):
+            getattr(self.lib, name).argtypes = [C.c_void_p, C.c_void_p]
+        self.lib.fmi2SetFMUstate.argtypes = [C.c_void_p, C.c_void_p]
+        self.lib.fmi2SerializedFMUstateSize.argtypes = [C.c_void_p, C.c_void_p, C.POINTER(C.c_size_t)]
+        self.lib.fmi2SerializeFMUstate.argtypes = [C.c_void_p, C.c_void_p, C.c_char_p, C.c_size_t]
+        self.lib.fmi2DeSerializeFMUstate.argtypes = [C.c_void_p, C.c_char_p, C.c_size_t, C.POINTER(C.c_void_p)]
+        self.lib.fmi2GetDirectionalDerivative.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t,
+                                                          C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_double),
+                                                          C.POINTER(C.c_double)]
+
+    def uri(self) -> str:
+        return (self.dir / "resources").as_uri()
+
+    def instantiate(self, uri: str | None | bool = True, guid: str | None = None, name: str = "body"):
+        """uri: True for the FMU's own resources, None for a NULL location, else the text given."""
+        location = self.uri() if uri is True else uri
+        return self.lib.fmi2Instantiate(name.encode(), 1, (guid or self.md.guid).encode(),
+                                        None if location is None else location.encode(), C.byref(self.cb), 0, 1)
+
+    def start(self, c, values=None, stop=None):
+        assert self.lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, stop is not None, stop or 0.0) == OK
+        assert self.lib.fmi2EnterInitializationMode(c) == OK
+        if values:
+            assert self.set(c, values) == OK
+        return self.lib.fmi2ExitInitializationMode(c)
+
+    def set(self, c, values: dict) -> int:
+        vrs = (C.c_uint * len(values))(*[self.vr[n] for n in values])
+        return self.lib.fmi2SetReal(c, vrs, len(values), (C.c_double * len(values))(*values.values()))
+
+    def get(self, c, names) -> np.ndarray:
+        vrs = (C.c_uint * len(names))(*[self.vr[n] for n in names])
+        out = (C.c_double * len(names))()
+        assert self.lib.fmi2GetReal(c, vrs, len(names), out) == OK, self.log[-3:]
+        return np.array(out[:])
+
+    def derivative(self, c, unknowns, knowns, seeds):
+        u = (C.c_uint * len(unknowns))(*[self.vr[n] for n in unknowns])
+        k = (C.c_uint * len(knowns))(*[self.vr[n] for n in knowns])
+        out = (C.c_double * len(unknowns))()
+        status = self.lib.fmi2GetDirectionalDerivative(c, u, len(unknowns), k, len(knowns),
+                                                       (C.c_double * len(seeds))(*seeds), out)
+        return status, np.array(out[:])
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory, beam_toml):
+    path = tmp_path_factory.mktemp("native") / "native_beam.toml"
+    path.write_text(beam_toml(SCENES, name="native_beam"))
+    return path
+
+
+@pytest.fixture(scope="module")
+def fmu_path(model):
+    return build_from_model(model, model.parent / "still.fmu", scene="still", platforms=("linux64",))
+
+
+@pytest.fixture(scope="module")
+def fmu(fmu_path, tmp_path_factory):
+    d = Path(extract(str(fmu_path), str(tmp_path_factory.mktemp("unzipped"))))
+    return Fmu(d, read_model_description(str(fmu_path)))
+
+
+OUT = ["tip.r[1]", "tip.r[2]", "tip.r[3]", "tip.v[3]", "hub.f[3]", "hub.t[2]", "energy.strain", "energy.work_external"]
+
+
+def _run(fmu, c, steps, H=0.01, k0=0, load=None):
+    """steps doSteps of H from step k0 (t_c = k H: the same times whatever k0), the load set for each."""
+    for k in range(k0, k0 + steps):
+        if load is not None:
+            assert fmu.set(c, {"tip.f[3]": load(k * H)}) == OK
+        assert fmu.lib.fmi2DoStep(c, k * H, H, 1) == OK, fmu.log[-3:]
+    return fmu.get(c, OUT)
+
+
+def test_the_fmu_holds_no_python_no_npz_and_no_readable_matrices(fmu_path, model):
+    """A black box: modelDescription, the scrambled body.bin, the datasheet and binaries only; the bytes of
+    K's and M's rows appear nowhere in the FMU (stored or compressed), and the binary exports fmi2* only."""
+    from ffrf_fmu.model import load_model
+    from ffrf_fmu.reduction import build_scene_body
+
+    with zipfile.ZipFile(fmu_path) as z:
+        names = z.namelist()
+        blobs = [z.read(n) for n in names]
+    assert sorted({n.split("/")[0] for n in names}) == ["binaries", "documentation", "modelDescription.xml", "resources"]
+    assert not [n for n in names if n.endswith((".py", ".npz", ".toml", ".c", ".h", ".txt"))], names
+    assert [n for n in names if n.endswith(".json")] == ["documentation/build.json"]
+    mdl = load_model(model)
+    body, _ = build_scene_body(mdl.body, mdl.scene("still"))
+    raw = open(fmu_path, "rb").read()
+    for se in body.superelements:
+        for key in ("K", "M"):
+            row = np.ascontiguousarray(getattr(se, key))[-1, -4:].tobytes()  # a row's last 4 entries, 32 bytes
+            assert row not in raw and all(row not in b for b in blobs), key
+    html = next(b for n, b in zip(names, blobs) if n == "documentation/index.html").decode()
+    assert "Mass properties" in html and "Free-free frequencies" in html and "hub" in html
+    so = next(n for n in names if n.endswith(".so"))
+    nm = shutil.which("nm")
+    if nm:
+        with zipfile.ZipFile(fmu_path) as z, open(fmu_path.with_suffix(".so"), "wb") as f:
+            f.write(z.read(so))
+        lines = subprocess.run([nm, "-D", "--defined-only", str(fmu_path.with_suffix(".so"))], capture_output=True,
+                               text=True, check=True).stdout.splitlines()
+        exported = [ln.split()[-1] for ln in lines if ln.split()[-2] in "TDBR"]
+        assert exported and all(s.startswith("fmi2") for s in exported), exported
+
+
+def test_fmpy_validates_the_fmu_clean(fmu_path):
+    assert validate_fmu(str(fmu_path)) == []
+
+
+def test_wrong_guid_is_an_error_at_instantiation(fmu):
+    fmu.log.clear()
+    assert fmu.instantiate(guid="{00000000-0000-0000-0000-000000000000}") is None
+    (status, cat, msg), = fmu.log
+    assert status == ERROR and "wrong GUID {00000000-0000-0000-0000-000000000000}" in msg and fmu.md.guid in msg
+
+
+@pytest.mark.parametrize("form", ["file:///", "file:/", "file://localhost/", "escaped", "plain"])
+def test_every_local_resource_uri_form_is_accepted(fmu, tmp_path, form):
+    """file:///abs, file:/abs, file://localhost/abs, percent-escapes (a folder name with a space and a %),
+    and a plain absolute path: the FMU instantiates and runs."""
+    res = fmu.dir / "resources"
+    if form == "escaped":
+        odd = tmp_path / "my resources 100%"
+        shutil.copytree(res, odd)
+        uri = odd.as_uri()
+        assert "%20" in uri and "%25" in uri
+    else:
+        uri = {"file:///": f"file://{res}", "file:/": f"file:{res}", "file://localhost/": f"file://localhost{res}",
+               "plain": str(res)}[form]
+    c = fmu.instantiate(uri)
+    assert c, fmu.log[-2:]
+    try:
+        assert fmu.start(c, {"tip.f[3]": 1.0}) == OK
+        assert _run(fmu, c, 2)[2] > 0.0
+    finally:
+        fmu.lib.fmi2FreeInstance(c)
+
+
+@pytest.mark.parametrize("uri, cause", [
+    (None, "no resource location given"),
+    ("", "no resource location given"),
+    ("file:///nonexistent/resources", "the resources folder is missing or unreadable"),
+    ("file://otherhost/x/resources", "names host otherhost: only local files"),
+    ("http://example.com/resources", "only file URIs are supported"),
+    ("file:relative/resources", "is not an absolute file URI"),
+    ("file:///tmp/%zz", "bad percent-escape"),
+])
+def test_bad_resource_locations_are_refused_with_a_message(fmu, uri, cause):
+    fmu.log.clear()
+    assert fmu.instantiate(uri) is None
+    (status, _, msg), = fmu.log
+    assert status == ERROR and cause in msg, msg
+
+
+def test_a_damaged_resource_is_refused_with_a_message(fmu, tmp_path):
+    res = tmp_path / "res"
+    shutil.copytree(fmu.dir / "resources", res)
+    blob = bytearray((res / "body.bin").read_bytes())
+    blob[len(blob) // 2] ^= 1
+    (res / "body.bin").write_bytes(bytes(blob))
+    fmu.log.clear()
+    assert fmu.instantiate(res.as_uri()) is None
+    assert "is damaged (checksum mismatch)" in fmu.log[-1][2]
+
+
+@pytest.mark.parametrize("call", ["doStep_before_init", "setup_after_init", "get_before_init", "doStep_after_terminate",
+                                  "enter_twice", "derivative_before_step"])
+def test_calls_in_the_wrong_state_are_errors(fmu, call):
+    c = fmu.instantiate()
+    L = fmu.lib
+    try:
+        if call == "doStep_before_init":
+            assert L.fmi2DoStep(c, 0.0, 0.01, 1) == ERROR
+        elif call == "get_before_init":
+            vr = (C.c_uint * 1)(fmu.vr["tip.r[1]"])
+            assert L.fmi2GetReal(c, vr, 1, (C.c_double * 1)()) == ERROR
+            assert "fmi2GetReal is not allowed when the FMU is instantiated" in fmu.log[-1][2]
+        else:
+            assert fmu.start(c) == OK
+            if call == "setup_after_init":
+                assert L.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == ERROR
+            elif call == "enter_twice":
+                assert L.fmi2EnterInitializationMode(c) == ERROR
+            elif call == "derivative_before_step":
+                assert fmu.derivative(c, ["tip.r[3]"], ["tip.f[3]"], [1.0])[0] == ERROR
+                assert "no communication step to differentiate" in fmu.log[-1][2]
+            else:
+                assert L.fmi2DoStep(c, 0.0, 0.01, 1) == OK
+                assert L.fmi2Terminate(c) == OK
+                for _ in range(2):
+                    assert L.fmi2DoStep(c, 0.01, 0.01, 1) == ERROR
+                    assert "fmi2DoStep after fmi2Terminate" in fmu.log[-1][2]
+        assert fmu.log[-1][0] == ERROR and fmu.log[-1][1] == "logStatusError"
+    finally:
+        L.fmi2FreeInstance(c)
+
+
+def test_two_instances_reset_and_state_round_trips_are_bit_identical(fmu):
+    """Two instances stepped in turn give one instance's numbers; fmi2Reset gives a fresh run; a state
+    saved at 0.05 s and set after 0.1 s (directly, and through its serialized bytes into another instance)
+    gives the same continuation bit for bit."""
+    L = fmu.lib
+    load = lambda t: np.sin(20.0 * t)  # noqa: E731
+    ref_c = fmu.instantiate(name="ref")
+    assert fmu.start(ref_c) == OK
+    ref = _run(fmu, ref_c, 10, load=load)
+    a, b = fmu.instantiate(name="a"), fmu.instantiate(name="b")
+    try:
+        for c in (a, b):
+            assert fmu.start(c) == OK
+        for k in range(10):
+            for c in (a, b):
+                _run(fmu, c, 1, k0=k, load=load)
+        assert np.array_equal(fmu.get(a, OUT), ref) and np.array_equal(fmu.get(b, OUT), ref)
+        assert L.fmi2Reset(a) == OK
+        assert fmu.start(a) == OK
+        assert np.array_equal(_run(fmu, a, 10, load=load), ref)
+        # state round trips
+        assert L.fmi2Reset(a) == OK and fmu.start(a) == OK
+        _run(fmu, a, 5, load=load)
+        state = C.c_void_p()
+        assert L.fmi2GetFMUstate(a, C.byref(state)) == OK
+        _run(fmu, a, 5, k0=5, load=load)
+        assert L.fmi2SetFMUstate(a, state) == OK
+        assert np.array_equal(_run(fmu, a, 5, k0=5, load=load), ref)
+        size = C.c_size_t()
+        assert L.fmi2SerializedFMUstateSize(a, state, C.byref(size)) == OK
+        buf = C.create_string_buffer(size.value)
+        assert L.fmi2SerializeFMUstate(a, state, buf, size) == OK
+        other = C.c_void_p()
+        assert L.fmi2Reset(b) == OK  # b, freshly reset, takes the serialized state of a
+        assert L.fmi2DeSerializeFMUstate(b, buf, size, C.byref(other)) == OK
+        assert L.fmi2SetFMUstate(b, other) == OK
+        assert np.array_equal(_run(fmu, b, 5, k0=5, load=load), ref)
+        # a damaged serialized state is refused when read, naming why
+        raw = bytearray(buf.raw)
+        raw[len(raw) - 3] ^= 0x40
+        bad = C.c_void_p()
+        assert L.fmi2DeSerializeFMUstate(b, bytes(raw), size, C.byref(bad)) == ERROR
+        assert "checksum mismatch" in fmu.log[-1][2]
+        assert L.fmi2DeSerializeFMUstate(b, buf.raw[:-8], size.value - 8, C.byref(bad)) == ERROR
+        assert "wrong size" in fmu.log[-1][2]
+        for s in (state, other):
+            L.fmi2FreeFMUstate(a, C.byref(s))
+    finally:
+        for c in (a, b, ref_c):
+            L.fmi2FreeInstance(c)
+
+
+def test_directional_derivatives_equal_central_differences_of_two_runs(fmu):
+    """d(outputs at t_c + H)/d(tip.f[3]) of the last step, against two runs of that step from a saved state
+    with the load changed by +-0.01 N (the FMU's own step, relative 1e-2: derivatives.py DERIVATIVE_STEPS):
+    equal to 1e-7 of the largest derivative (what differs is the order of the same floating-point sums)."""
+    L = fmu.lib
+    c = fmu.instantiate()
+    try:
+        assert fmu.start(c, {"tip.f[3]": 1.0}) == OK
+        _run(fmu, c, 3)
+        state = C.c_void_p()
+        assert L.fmi2GetFMUstate(c, C.byref(state)) == OK
+        sides = []
+        for f in (1.01, 0.99):
+            assert L.fmi2SetFMUstate(c, state) == OK
+            assert fmu.set(c, {"tip.f[3]": f}) == OK
+            sides.append(_run(fmu, c, 1, k0=3))
+        fd = (sides[0] - sides[1]) / 0.02
+        assert L.fmi2SetFMUstate(c, state) == OK
+        assert fmu.set(c, {"tip.f[3]": 1.0}) == OK
+        end = _run(fmu, c, 1, k0=3)
+        status, d = fmu.derivative(c, OUT, ["tip.f[3]"], [1.0])
+        assert status == OK, fmu.log[-2:]
+        assert d[2] > 0.0  # pushing the tip up moves it up
+        assert np.allclose(d, fd, rtol=0, atol=1e-7 * np.max(np.abs(fd)))
+        assert np.array_equal(fmu.get(c, OUT), end)  # the derivative left the FMU where it was
+        # refused requests, each with its cause
+        assert fmu.derivative(c, OUT, ["tip.r[1]"], [1.0])[0] == ERROR
+        assert "tip.r[1] not input(s)" in fmu.log[-1][2]
+        assert fmu.derivative(c, ["solver.newton_iterations"], ["tip.f[3]"], [1.0])[0] == ERROR
+        assert "not Real output(s)" in fmu.log[-1][2]
+        assert fmu.derivative(c, OUT, ["tip.f[3]"], [float("nan")])[0] == ERROR
+        L.fmi2FreeFMUstate(c, C.byref(state))
+    finally:
+        L.fmi2FreeInstance(c)
+
+
+def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
+    """The standalone C runtime (runtime/native/binding.py, the library a standalone run steps in) created
+    from the FMU's own image and started from the FMU's initial state, stepped at H = h with the FMU's
+    input rule (held values of runtime/held.py, one `advance` of kind HELD per communication step): every
+    output of 20 steps under a varying tip load equals the FMU's, bit for bit. The FMI layer adds nothing
+    to the numbers."""
+    from ffrf_fmu.fmu.native.resource import images
+    from ffrf_fmu.runtime import held as held_columns
+    from ffrf_fmu.runtime.native.binding import HELD, NativeBody
+
+    L = fmu.lib
+    c = fmu.instantiate()
+    try:
+        assert fmu.start(c) == OK
+        state = C.c_void_p()
+        assert L.fmi2GetFMUstate(c, C.byref(state)) == OK
+        size = C.c_size_t()
+        assert L.fmi2SerializedFMUstateSize(c, state, C.byref(size)) == OK
+        buf = C.create_string_buffer(size.value)
+        assert L.fmi2SerializeFMUstate(c, state, buf, size) == OK
+        L.fmi2FreeFMUstate(c, C.byref(state))
+        n_body = int.from_bytes(buf.raw[16:24], "little")  # model.c: the serialized state's layout
+        body = NativeBody(images((fmu.dir / "resources" / "body.bin").read_bytes())["linear"])
+        body.set_state(np.frombuffer(buf.raw[len(buf.raw) - 8 * n_body:], dtype="<f8"))
+        ports = [("hub", "motion", "motion"), ("tip", "force", "force")]
+        names = [v.name for v in fmu.md.modelVariables if v.causality == "output" and v.type == "Real"]
+        held = body.array("held").reshape(len(ports), held_columns.WIDTH)
+        row = np.empty(24 * len(ports) + 5)
+        cols = {"r": (0, 3), "R": (3, 12), "v": (12, 15), "w": (15, 18), "f": (18, 21), "t": (21, 24)}
+        H = 0.01
+        for k in range(20):
+            f = (0.3 * np.sin(7.0 * k * H), 0.0, 2.0 * np.cos(5.0 * k * H))
+            assert fmu.set(c, {f"tip.f[{i + 1}]": f[i] for i in range(3)}) == OK
+            assert L.fmi2DoStep(c, k * H, H, 1) == OK
+            held[...] = 0.0  # hub at rest at its reference frame (the FMU's start values), the tip load held
+            held[0, held_columns.COLUMNS["R"]] = np.eye(3).ravel()
+            held[1, held_columns.COLUMNS["f"]] = f
+            done, status, _ = body.advance(HELD, 1, H, k * H, row, None)
+            assert (done, status) == (1, 0)
+            got = fmu.get(c, names)
+            for name, value in zip(names, got):
+                if name.startswith("energy."):
+                    j = 24 * len(ports) + ("kinetic_rigid", "kinetic_elastic", "strain", "work_external").index(name[7:])
+                else:
+                    p, field, idx = name.split(".")[0], name.split(".")[1].split("[")[0], name.split("[")[1][:-1]
+                    j0, j1 = cols[field]
+                    ix = [int(i) - 1 for i in idx.split(",")]
+                    j = 24 * [q[0] for q in ports].index(p) + j0 + (3 * ix[0] + ix[1] if len(ix) == 2 else ix[0])
+                assert value == row[j], (k, name, value, row[j])
+        assert np.abs(fmu.get(c, ["tip.r[3]"])).max() > 1e-4  # the load moved the tip: the comparison means something
+    finally:
+        L.fmi2FreeInstance(c)
