@@ -1,42 +1,32 @@
 #!/usr/bin/env python3
-"""Benchmark: B1 (4 superelements) through the FMU under fmpy vs the standalone run, per communication
-step, with the master's floor measured in the same run.
+"""Benchmark: the native B1 FMU (4 superelements x 6 modes, h = 2 ms) against the standalone run, in a plain C
+host and under fmpy, per communication step, with fmpy's zero-work floor measured in the same run.
 
     python benchmarks/fmu_overhead.py [--duration D] [--comm-step H [H ...]] [--model models/haug_beam.toml]
 
 Runs (best of --repeat interleaved runs of each; CPU time, the stable measure on a shared machine):
-  standalone   simulate.run on the reduced body (exact drive signals at every internal step; on numba
-               chunks of steps in one kernel call, the drives and the recording inside it)
-  core         the FMU's BodyCoSim in-process (the FMU's input rule, no FMI layers), per communication step H
-  fmu          the built FMU under fmpy.simulate_fmu (native loader + pythonfmu + our slave; fmpy's input
-               table, output_interval = H, every output recorded, debug logging on), per H
-  floor C      a zero-work C FMU with exactly our FMU's model variables (benchmarks/_fmu_floor.py), run
-               the same way: what fmpy alone costs per doStep for this interface
-  floor py     the same as a zero-work pythonfmu FMU: fmpy + pythonfmu's layer
-The FMU runs' CPU is that of fmpy.simulate_fmu (FmuRun.cpu_time_s: unzip, instantiate, initialize, the
-doSteps, terminate). Each FMU also runs --short doSteps at H = h: its fixed per-run cost is that short
-run minus its doSteps, and the per-doStep costs below exclude it (a user's run pays it once).
+  standalone   simulate.run on the C runtime (backend native: the scene's exact drive signals at every
+               internal step, recorded every step)
+  C host       benchmarks/fmu_host_bench.c: the FMU's binary in a C process (fmi2SetReal of the inputs at
+               t_c, fmi2DoStep, fmi2GetReal of every output, per communication step), and in the same
+               process the runtime library's body started from the FMU's initial state and stepped with the
+               held values the FMU's input rule makes of the same inputs (ffrf_body_advance HELD): the FMU
+               without its FMI layer, the same numbers
+  fmu          the FMU under fmpy.simulate_fmu (fmpy's input table, output_interval = H, every output
+               recorded, debug logging on)
+  floor C      a zero-work C FMU with exactly our FMU's model variables (benchmarks/_fmu_floor.py), run the
+               same way: what fmpy alone costs per doStep for this interface
+Also: the wall time of instantiate + initialize + the first doStep in the C host (its first repeat: the
+binary and the resources freshly read).
 
-Default duration: the scene's own (B1 spin-up 20 s), so that the fixed cost is amortized as in a user's
-run; --duration shortens. Per H (default h, 5 h, 10 h) the table gives per doStep: the standalone run's
-CPU per communication step, fmpy alone (floor C), pythonfmu's layer (floor py - floor C), our FMU's
-own cost (fmu - floor py) and its part beyond the standalone steps, core - standalone (the same
-in-process), then the whole-run ratio fmu/standalone (what a user sees) and the lower bounds
-(standalone + floor)/standalone that no FMU (C floor) or no pythonfmu FMU (py floor) can go below.
-
-BLAS runs one thread in every path (set here before numpy loads): the FMU limits itself to one
-(fmu/core.py), and a standalone run with two OpenBLAS threads on a busy 2-core machine measured 7x
-slower (0.97 against 0.13 ms CPU per step, 10:45 UTC 2026-11-25), which no ratio should contain.
+Targets (issue: the native FMU): C host / standalone <= 1.05 at H = h; under fmpy, fmu <= 1.1 x (standalone +
+floor C), the least any FMU of this interface costs there; instantiate + first doStep <= 20 ms.
 """
 from __future__ import annotations
 
-import os
-
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
-
 import argparse
-import dataclasses
+import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -50,42 +40,38 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _fmu_floor import c_floor, python_floor  # noqa: E402
-from ffrf_fmu.fmu.builder import build_from_model  # noqa: E402
-from ffrf_fmu.fmu.core import BodyCoSim  # noqa: E402
-from ffrf_fmu.runtime.compiled import parse_kernel_report  # noqa: E402
-from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.model import scene_body  # noqa: E402
-from ffrf_fmu.reduction import build_body  # noqa: E402
-from ffrf_fmu.simulate import run, scene_inputs  # noqa: E402
+from _fmu_floor import c_floor  # noqa: E402
+from ffrf_fmu.fmu.builder import build_from_model, c_compiler  # noqa: E402
+from ffrf_fmu.fmu.native.resource import held_map, images  # noqa: E402
 from ffrf_fmu.fmu.run import fmu_input_table, run_fmu  # noqa: E402
+from ffrf_fmu.fmu.variables import body_variables  # noqa: E402
+from ffrf_fmu.model import load_model, scene_body  # noqa: E402
+from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.runtime.native import build as runtime_build  # noqa: E402
+from ffrf_fmu.simulate import run, scene_inputs  # noqa: E402
+from ffrf_fmu.fmu.builder import SceneParameters  # noqa: E402
 
-FMUS = ("fmu", "floor py", "floor C")
 
-
-def run_core(fmu: Path, fmu_resources: Path, scene, inputs, H: float) -> tuple[float, float, int, float]:
-    """The FMU's BodyCoSim in-process: (wall, CPU, doSteps, mean over doSteps of their most Newton iterations).
-    The inputs are tabulated on the communication grid before the clock starts (fmpy does the same with
-    run_fmu's input table) and set with one set_many per doStep, as lists (pythonfmu passes lists)."""
-    core = BodyCoSim.from_resources(fmu_resources)
+def host_table(fmu: Path, body, scene, inputs, H: float, path: Path) -> int:
+    """The C host's input table (fmu_host_bench.c TABLE): per communication point the FMU's input values
+    and the held rows of runtime/held.py made of them. Returns the number of communication steps."""
+    md = read_model_description(str(fmu))
     n = int(round(scene.duration / H))
     table = fmu_input_table(fmu, inputs, H * np.arange(n + 1))
     names = [name for name in table.dtype.names if name != "time"]
-    vrs = [core.by_name[name] for name in names]
-    rows = np.column_stack([table[name] for name in names]).tolist()
-    w0, c0 = time.perf_counter(), time.process_time()
-    core.setup_experiment(0.0)
-    core.enter_initialization_mode()
-    core.set_many(vrs, rows[0])
-    core.exit_initialization_mode()
-    iterations = 0
-    for k in range(n):
-        core.set_many(vrs, rows[k])
-        rep = core.do_step(k * H, H)
-        if not rep.ok:
-            raise RuntimeError(rep.message)
-        iterations += rep.iterations
-    return time.perf_counter() - w0, time.process_time() - c0, n, iterations / n
+    by = {v.name: v.valueReference for v in md.modelVariables}
+    outs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+    variables = body_variables(body.ports, body.node_positions, SceneParameters.of_scene(scene).as_config())
+    hmap = held_map(variables, body.ports).ravel()
+    values = np.zeros(len(variables))
+    rows = []
+    for k in range(n + 1):
+        for name in names:
+            values[by[name]] = table[name][k]
+        rows.append(np.concatenate([[table[name][k] for name in names], np.where(hmap >= 0, values[hmap], 0.0)]))
+    head = [len(names), hmap.size, len(outs), *[by[nm] for nm in names], *outs]
+    np.concatenate([np.array(head, dtype=float), np.concatenate(rows)]).astype("<f8").tofile(path)
+    return n
 
 
 def main(argv=None) -> int:
@@ -95,87 +81,75 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=None, help="simulated time [s] (default: the scene's)")
     ap.add_argument("--comm-step", type=float, nargs="+", default=None,
                     help="communication steps H [s] (default: h, 5 h, 10 h with the scene's internal step h)")
-    ap.add_argument("--backend", choices=("native", "numpy"), default="native",
-                    help="the body's backend, the same for the standalone run and the FMU (default numba)")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each, interleaved; the best counts (default 3)")
-    ap.add_argument("--short", type=int, default=10, help="doSteps of the runs that give the fixed cost (default 10)")
     args = ap.parse_args(argv)
     overrides = [f"duration={args.duration}"] if args.duration else []
     model = load_model(args.model, overrides)
     scene = model.scene(args.scene)
     Hs = args.comm_step or [scene.step * m for m in (1, 5, 10)]
-    short = dataclasses.replace(scene, duration=args.short * scene.step)
     body, _ = build_body(scene_body(model.body, scene))
     inputs = scene_inputs(body, scene)
     best: dict = {}
-    doSteps, iters = {}, {}
+    first_wall = []
 
     def keep(key, cpu):
         best[key] = min(best.get(key, np.inf), cpu)
 
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = build_from_model(args.model, Path(tmp) / "body.fmu", scene=scene.name, overrides=overrides,
-                               backend=args.backend)
-        paths = {"fmu": fmu, "floor py": python_floor(fmu, tmp), "floor C": c_floor(fmu, tmp)}
-        zipfile.ZipFile(fmu).extractall(Path(tmp) / "x")
-        outputs = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]
-
-        def fmu_run(which, sc, H):
-            out = run_fmu(paths[which], sc, inputs, H, record=outputs)
-            if not out.reached:
-                raise RuntimeError(f"{which} at H = {H:g} s stopped early at t = {out.t[-1]}: {out.log[-1:]}")
-            return out
-
-        def fmu_cpu(which, sc, H):
-            return fmu_run(which, sc, H).cpu_time_s
-
-        # untimed first runs: the kernel compiles or loads from the disk cache once per process, in the
-        # standalone run and in the FMU's own copy of the runtime (its log says how long: kernel_report)
-        run(body, short, origin=model.body.origin, progress=False, backend=args.backend)
-        first = parse_kernel_report(fmu_run("fmu", short, scene.step).log)
-        for which in FMUS[1:]:
-            fmu_run(which, short, scene.step)
+        tmp = Path(tmp)
+        fmu = build_from_model(args.model, tmp / "body.fmu", scene=scene.name, overrides=overrides)
+        floor = c_floor(fmu, tmp)
+        x = tmp / "x"
+        zipfile.ZipFile(fmu).extractall(x)
+        md = read_model_description(str(fmu))
+        binary = x / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+        image = tmp / "image.bin"
+        image.write_bytes(images((x / "resources" / "body.bin").read_bytes())[scene.terms])
+        host = tmp / "fmu_host_bench"
+        done = subprocess.run([c_compiler(), "-std=c11", "-O2", "-o", str(host), str(ROOT / "benchmarks" / "fmu_host_bench.c"),
+                               "-ldl"], capture_output=True, text=True)
+        if done.returncode:
+            raise RuntimeError(done.stderr)
+        tables = {H: (tmp / f"table_{H:g}.bin") for H in Hs}
+        steps = {H: host_table(fmu, body, scene, inputs, H, tables[H]) for H in Hs}
+        outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+        run(body, scene, origin=model.body.origin, progress=False)  # untimed: the runtime library loads
         for _ in range(max(1, args.repeat)):
             t0 = time.process_time()
-            ref = run(body, scene, origin=model.body.origin, progress=False, backend=args.backend)
+            ref = run(body, scene, origin=model.body.origin, progress=False)
             keep("standalone", time.process_time() - t0)
-            for which in FMUS:
-                keep((which, "short"), fmu_cpu(which, short, scene.step))
             for H in Hs:
-                _, cpu, doSteps[H], iters[H] = run_core(fmu, Path(tmp) / "x" / "resources", scene, inputs, H)
-                keep(("core", H), cpu)
-                for which in FMUS:
-                    keep((which, H), fmu_cpu(which, scene, H))
-    steps = int(round(scene.duration / scene.step))
+                done = subprocess.run([str(host), str(binary), (x / "resources").as_uri(), md.guid,
+                                       str(runtime_build.library(False)), str(image), str(tables[H]), str(steps[H]),
+                                       repr(H), "1", str(max(1, round(H / scene.step)))],
+                                      capture_output=True, text=True, timeout=3600)
+                if done.returncode:
+                    raise RuntimeError(f"fmu_host_bench exit {done.returncode}: {done.stderr[-2000:]}")
+                words = done.stdout.split()
+                got = dict(zip(words[::2], map(float, words[1::2])))
+                keep(("host", H), got["fmu_cpu"])
+                keep(("runtime", H), got["runtime_cpu"])
+                first_wall.append(got["first_wall"])
+                for which, path in (("fmu", fmu), ("floor C", floor)):
+                    out = run_fmu(path, scene, inputs, H, record=outputs)
+                    if not out.reached:
+                        raise RuntimeError(f"{which} at H = {H:g} s stopped early at t = {out.t[-1]}: {out.log[-1:]}")
+                    keep((which, H), out.cpu_time_s)
+    n_int = int(round(scene.duration / scene.step))
     cs = best["standalone"]
-    # fixed per-run cost of each FMU: its short run minus its doSteps at the per-doStep cost of the long run at h
-    h = min(Hs, key=lambda H: abs(H - scene.step))
-    fixed = {}
-    for which in FMUS:
-        per = (best[(which, h)] - best[(which, "short")]) / (doSteps[h] - args.short)
-        fixed[which] = best[(which, "short")] - args.short * per
-    per_doStep = {(w, H): (best[(w, H)] - fixed[w]) / doSteps[H] for w in FMUS for H in Hs}
     print(f"B1 {model.body.name}/{scene.name}: {len(body.superelements)} SE, {scene.duration:g} s, internal step h = "
-          f"{scene.step:g} s ({steps} steps); backend {args.backend} (standalone ran {ref.summary['backend']}), best of "
-          f"{args.repeat}, load average {os.getloadavg()[0]:.2f}, {time.strftime('%H:%M UTC', time.gmtime())}")
-    print(f"  standalone CPU {cs:.3f} s ({1e6 * cs / steps:.0f} us per internal step; Newton "
-          f"{ref.summary['newton_iterations_mean']:.3f} per step)")
-    print("  fixed cost per run (unzip, instantiate, initialize, first calls, terminate; from "
-          f"{args.short}-doStep runs): " + ", ".join(f"{w} {1e3 * fixed[w]:.1f} ms" for w in FMUS))
-    if first:
-        print(f"  (the first FMU run of a process also loads the kernel: {first[0]:.3f} s wall in its first kernel calls, "
-              f"{'compiled' if first[1] else 'from the disk cache'})")
-    print("  per doStep, CPU [us]:")
-    print("  | H | doSteps | standalone | fmpy alone (floor C) | pythonfmu layer (floor py - C) | ours (fmu - floor py) "
-          "| ours - standalone | core - standalone | fmu/standalone (whole run) | bound (standalone + floor C) "
-          "| bound (standalone + floor py) | Newton/doStep (worst) |")
-    print("  |---|---|---|---|---|---|---|---|---|---|---|---|")
+          f"{scene.step:g} s ({n_int} steps); standalone on {ref.summary['backend']}; best of {args.repeat}, load "
+          f"average {os.getloadavg()[0]:.2f}, {time.strftime('%H:%M UTC', time.gmtime())}")
+    print(f"  standalone CPU {cs:.3f} s ({1e6 * cs / n_int:.1f} us per internal step)")
+    print(f"  C host: instantiate + initialize + first doStep {1e3 * min(first_wall):.1f} ms wall (first run of "
+          f"each, best; worst {1e3 * max(first_wall):.1f} ms)")
+    print("  | H | doSteps | standalone CPU [s] | C host: FMU [s] | C host: runtime alone [s] | FMU / standalone (C host) "
+          "| FMU / runtime alone | fmpy: FMU [s] | fmpy: floor C [s] | fmpy FMU / (standalone + floor C) |")
+    print("  |---|---|---|---|---|---|---|---|---|---|")
     for H in Hs:
-        n = doSteps[H]
-        S, C, P, F = cs / n, per_doStep[("floor C", H)], per_doStep[("floor py", H)], per_doStep[("fmu", H)]
-        print(f"  | {1e3 * H:g} ms | {n} | {1e6 * S:.0f} | {1e6 * C:.0f} | {1e6 * (P - C):.0f} | {1e6 * (F - P):.0f} "
-              f"| {1e6 * (F - P - S):.0f} | {1e6 * (best[('core', H)] - cs) / n:.0f} | {best[('fmu', H)] / cs:.2f} "
-              f"| {(S + C) / S:.2f} | {(S + P) / S:.2f} | {iters[H]:.3f} |")
+        f, r, p, c = best[("host", H)], best[("runtime", H)], best[("fmu", H)], best[("floor C", H)]
+        print(f"  | {1e3 * H:g} ms | {steps[H]} | {cs:.3f} | {f:.3f} | {r:.3f} | {f / cs:.3f} | {f / r:.3f} | {p:.3f} "
+              f"| {c:.3f} | {p / (cs + c):.3f} |")
     return 0
 
 
