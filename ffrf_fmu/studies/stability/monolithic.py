@@ -55,7 +55,7 @@ def _profile(t: float, omega: float, T: float) -> tuple[float, float]:
 
 
 def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float | None = None,
-                  backend: str = "numba", k: float = SHAFT_K) -> CosimRun:
+                  backend: str = "native", k: float = SHAFT_K) -> CosimRun:
     """The B5 system (beam + shaft k + hub J + PI drive on the Wu-Haug profile settings.T, omega of
     the beam model's driven scene) as one run at step h (module doc). The CosimRun has the tip
     deflection against the beam root frame (eq. 92), the beam root's rate about Z and the shaft
@@ -170,7 +170,7 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
 
 
 def split_monolithic(model_path, settings: CosimSettings, h: float, duration: float | None = None,
-                     backend: str = "numba") -> CosimRun:
+                     backend: str = "native") -> CosimRun:
     """The split beam's monolithic reference: the one-body driven scene (the fast spin-up
     settings.split_T) run standalone at step h; tip deflection against the driven hub frame (no
     speed: the hub is driven; no interface moment: the cut is inside the one body)."""
