@@ -1,7 +1,9 @@
 """Reduction cost of a solid against its dof count (docs/solids.md, "Scale"): a steel bar 8 x 1 x 1 of
 quadratic hexahedra (hex27), divisions (4k, k, k), two averaging end-face frames, 8 free-free modes.
-Each size runs in a fresh process: wall time of assembly and of each reduction stage, and the peak
-resident memory of that process (ru_maxrss). Then the step cost of the reduced body at two mesh sizes:
+Each size runs in a fresh process: CPU time of the assembly and of each reduction stage (one thread:
+SuperLU and ARPACK are serial, BLAS is held to one thread; on an idle machine wall = CPU, on a shared
+one the wall time measures the load, printed beside it), and the peak resident memory of that process
+(ru_maxrss). Then the step cost of the reduced body at two mesh sizes:
 the same frames and modes give the same reduced sizes, so the same cost per step.
 
     python benchmarks/reduction_scale.py                 # k = 3, 5, 8, 10, 13 (4k to 230k dofs)
@@ -29,14 +31,16 @@ def one(k: int, modes: int = 8) -> dict:
     from ffrf_fmu.solid.frames import Frame, select_nodes
     from ffrf_fmu.solid.mesh import Material, assemble, box_points
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     fe = assemble(box_points((8.0, 1.0, 1.0), (4 * k, k, k)), Material(2e11, 0.3, 7800.0), "hex27")
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     frames = [Frame(n, select_nodes(fe.coords, {}, {"plane": {"point": [x, 0, 0], "normal": [1, 0, 0]}}, 8.0),
                     "averaging", np.array([x, 0.5, 0.5])) for n, x in (("a", 0.0), ("b", 8.0))]
+    c15 = time.process_time()
     red = reduce_solid(fe, frames, n_modes=modes)
-    t2 = time.perf_counter()
-    return {"k": k, "dofs": fe.n_dof, "assemble_s": t1 - t0, "reduce_s": t2 - t1, "stages_s": red.timings,
+    t2, c2 = time.perf_counter(), time.process_time()
+    return {"k": k, "dofs": fe.n_dof, "assemble_s": c1 - c0, "reduce_s": c2 - c15, "wall_s": t2 - t0,
+            "stages_s": red.timings,
             "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
             "f1_hz": float(red.data.frequencies_hz[0]), "reduced_n": red.data.n}
 
@@ -81,8 +85,9 @@ def main():
     if a.step is not None:
         print(json.dumps({"k": a.step, "s_per_step": step_cost(a.step)}))
         return
+    print(f"CPU seconds; load average at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print(f"{'k':>3} {'dofs':>8} {'assemble s':>11} {'reduce s':>9} {'LU s':>6} {'modes s':>8} {'static s':>9} "
-          f"{'peak MB':>8} {'f1 Hz':>9}")
+          f"{'peak MB':>8} {'wall s':>7} {'f1 Hz':>9}")
     for k in a.k:
         out = subprocess.run([sys.executable, __file__, "--one", str(k)], capture_output=True, text=True)
         if out.returncode:
@@ -91,7 +96,8 @@ def main():
         r = json.loads(out.stdout.strip().splitlines()[-1])
         s = r["stages_s"]
         print(f"{k:>3} {r['dofs']:>8} {r['assemble_s']:>11.1f} {r['reduce_s']:>9.1f} "
-              f"{s['factor']:>6.1f} {s['modes']:>8.1f} {s['attachment']:>9.1f} {r['peak_MB']:>8.0f} {r['f1_hz']:>9.3f}",
+              f"{s['factor']:>6.1f} {s['modes']:>8.1f} {s['attachment']:>9.1f} {r['peak_MB']:>8.0f} {r['wall_s']:>7.0f} "
+              f"{r['f1_hz']:>9.3f}",
               flush=True)
     for k in (min(a.k), max(a.k)):
         out = subprocess.run([sys.executable, __file__, "--step", str(k)], capture_output=True, text=True)
