@@ -18,6 +18,11 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
     from ..runtime.data import BodyData, PortData
 
     body = scene_body(model.body, scene)
+    if body.solid is not None:
+        from ..checked_toml import ModelError
+
+        raise ModelError(f"{model.path}: the full-order reference is the geometrically exact beam; a solid has none "
+                         "(docs/solids.md: its quality report compares the reduction with the full FE model)")
     n = n_elements or body.superelements * body.elements_per_superelement
     ref = simulate_reference(body, scene, n_elements=n, step=step)
     L, e = body.length, np.asarray(body.direction, float) / np.linalg.norm(body.direction)

@@ -120,6 +120,11 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         model = load_model(model, overrides)
     scene = model.scene(scene_name)
     body = scene_body(model.body, scene)
+    if body.solid is not None:
+        from ..checked_toml import ModelError
+
+        raise ModelError(f"{model.path}: advise sizes chains of beam superelements; a solid is one superelement: "
+                         "`ffrf-fmu info` prints its indicators and the term set the shared rule advises")
     ind: dict[str, Any] = {}
     why: dict[str, str] = {}
 
