@@ -39,7 +39,7 @@ import scipy.sparse.linalg as spla
 from .runtime.data import SuperelementData
 from .runtime.rotation import skew
 from .solid import SolidFE
-from .solid.frames import Frame, averaging_weights, check_set
+from .solid.frames import averaging_weights, check_set
 
 RIGID_GAP = 1e-4  # an elastic eigenvalue below this x the Ritz estimate of w_1^2 is a mechanism
 SHIFT_FRACTION = 0.1  # sigma = -SHIFT_FRACTION x (estimate of w_1^2): rigid and elastic eigenvalues well apart

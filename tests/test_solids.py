@@ -1,7 +1,6 @@
 """Solid bodies (docs/solids.md): scikit-fem assembly, partners' FE exports, interface frames and the
 sparse reduction (reduction_sparse.py) to one superelement the runtime takes unchanged."""
-import dataclasses
-import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,9 @@ from ffrf_fmu.solid.exports import read_abaqus, read_ansys, rigid_residual
 from ffrf_fmu.solid.frames import Frame, select_nodes
 from ffrf_fmu.solid.mesh import Material, assemble, box_points
 
-DATA = "models/data/"
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / "models"
+DATA = f"{MODELS}/data/"
 STEEL = Material(2e11, 0.3, 7800.0)
 
 
@@ -163,8 +164,8 @@ def test_rotor_exports_are_the_same_mesh_and_mass_and_stiffness_over_100():
 def test_rotor_models_frequencies_differ_by_ten():
     """The bundled rotor models reduce (bearing frames on the seats) and their frequencies differ by exactly
     sqrt(100) (the stiffness factor), mass and inertia agree."""
-    a = build_body(load_model("models/rotor_abaqus.toml").body)[0].superelements[0]
-    b = build_body(load_model("models/rotor_ansys.toml").body)[0].superelements[0]
+    a = build_body(load_model(MODELS / "rotor_abaqus.toml").body)[0].superelements[0]
+    b = build_body(load_model(MODELS / "rotor_ansys.toml").body)[0].superelements[0]
     assert a.mass == pytest.approx(b.mass, rel=1e-7)
     assert np.allclose(a.J0, b.J0, rtol=1e-6, atol=1e-9)
     assert np.allclose(a.frequencies_hz, 10.0 * b.frequencies_hz, rtol=1e-5)
@@ -243,16 +244,16 @@ def test_haug_solid_b1_within_one_percent_of_the_beam():
     from ffrf_fmu.simulate import run_scene
 
     short = ["duration=10"]  # the peak is at t = 8.1 s in both (spin-up to 15 s)
-    s = run_scene(load_model("models/haug_solid.toml", short), "spinup").summary["metrics"]["tip_deflection_max_m"]
-    b = run_scene(load_model("models/haug_beam.toml", ["superelements=1"] + short), "spinup").summary["metrics"][
+    s = run_scene(load_model(MODELS / "haug_solid.toml", short), "spinup").summary["metrics"]["tip_deflection_max_m"]
+    b = run_scene(load_model(MODELS / "haug_beam.toml", ["superelements=1"] + short), "spinup").summary["metrics"][
         "tip_deflection_max_m"]
     assert s == pytest.approx(b, rel=0.01)
 
 
 @pytest.mark.parametrize("model, overrides", [
-    ("models/haug_solid.toml", ["duration=2", "step=0.01"]),
-    ("models/rotor_abaqus.toml", ["duration=0.02", "step=2e-4"]),
-    ("models/rotor_ansys.toml", ["duration=0.02", "step=2e-4"]),
+    (MODELS / "haug_solid.toml", ["duration=2", "step=0.01"]),
+    (MODELS / "rotor_abaqus.toml", ["duration=0.02", "step=2e-4"]),
+    (MODELS / "rotor_ansys.toml", ["duration=0.02", "step=2e-4"]),
 ])
 def test_solid_fmu_equals_its_standalone_run(tmp_path, model, overrides):
     """Each bundled solid as an FMU (what `ffrf-fmu build` writes) under fmpy against its standalone run
@@ -272,7 +273,7 @@ def test_quality_report_kept_modes_exact_and_effective_mass():
     a port lie in [0, 1] and grow with the modes admitted (cutoff)."""
     from ffrf_fmu.solid.quality import effective_mass, frequency_report
 
-    _, (red,) = build_body(load_model("models/haug_solid.toml").body)
+    _, (red,) = build_body(load_model(MODELS / "haug_solid.toml").body)
     rows = frequency_report(red, 30.0)
     kept = [r for r in rows if r["kept"]]
     assert len(kept) == 6 and all(abs(r["error"]) < 1e-7 and r["mac"] > 1 - 1e-8 for r in kept)
@@ -293,7 +294,7 @@ def test_recovered_mesh_follows_the_port_frames(tmp_path):
 
     from ffrf_fmu.solid.recovery import deformed_positions, run_recorded, write_modal_csv, write_vtk
 
-    rec, red, data = run_recorded(load_model("models/haug_solid.toml", ["duration=1", "step=0.01"]), every=25)
+    rec, red, data = run_recorded(load_model(MODELS / "haug_solid.toml", ["duration=1", "step=0.01"]), every=25)
     assert np.allclose(deformed_positions(red, rec.x0[0], rec.R0[0], rec.q[0]), red.fe.coords, atol=1e-12)
     hub = red.frames[0]
     x = deformed_positions(red, rec.x0[-1], rec.R0[-1], rec.q[-1])[hub.nodes]

@@ -62,7 +62,7 @@ def effective_mass(red, cutoff_hz: float | None = None) -> dict:
     """{port: [fraction per direction x, y, z, rx, ry, rz]} of the reduced body held at that port, modes
     up to cutoff_hz (all when None) (module doc)."""
     d = red.data
-    nb, n = d.n_boundary, d.n
+    n = d.n
     mass, J0 = d.mass, d.J0
     MZ = np.zeros((6 + n, 6 + n))
     MZ[:3, :3] = mass * np.eye(3)
