@@ -396,3 +396,33 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
         assert np.abs(fmu.get(c, ["tip.r[3]"])).max() > 1e-4  # the load moved the tip: the comparison means something
     finally:
         L.fmi2FreeInstance(c)
+
+
+def test_instances_in_threads_run_apart(fmu):
+    """Two instances stepped at once from two threads (ctypes releases the GIL: the C code runs in parallel)
+    give the numbers of one instance run alone: no state is shared between instances."""
+    import threading
+
+    load = lambda t: np.cos(30.0 * t)  # noqa: E731
+    ref_c = fmu.instantiate(name="alone")
+    assert fmu.start(ref_c) == OK
+    ref = _run(fmu, ref_c, 20, load=load)
+    fmu.lib.fmi2FreeInstance(ref_c)
+    results, errors = {}, []
+
+    def worker(k):
+        try:
+            c = fmu.instantiate(name=f"thread{k}")
+            assert fmu.start(c) == OK
+            results[k] = _run(fmu, c, 20, load=load)
+            fmu.lib.fmi2FreeInstance(c)
+        except Exception as e:  # noqa: BLE001 - reported by the main thread
+            errors.append(e)
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    assert all(np.array_equal(results[k], ref) for k in range(2))
