@@ -48,6 +48,7 @@ struct ffrf_se_work {
     double *V, *Vd;                             /* [n2][3][3] */
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
+    int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
 };
 
 #define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
@@ -88,6 +89,10 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
     SE_ARRAY(HQ, 3 * n);
 #undef SE_ARRAY
+    if (w) w->nz = (int *)(void *)(mem + off);
+    off += se_round(n * nc * sizeof(int));
+    if (w) w->nz_count = (int *)(void *)(mem + off);
+    off += se_round(nc * sizeof(int));
     if (w) {
         w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
     }
@@ -269,6 +274,18 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     }
     for (int i = 0; i < nm; i++)
         Dq[6 * nb + i][6 + i] = 1.0;
+    /* The nonzero rows of each column of Dq and Dqd: both are sparse (a boundary row holds the CM
+     * frame's and its node's columns, a modal row one), and the products with them below run over these
+     * rows only. They skip exact zeros, so every sum is the full loop's to the bit. */
+    int *nzm = w->nz, *nzc = w->nz_count;
+    for (int j = 0; j < nc; j++) {
+        int cnt = 0;
+        for (int m = 0; m < n; m++)
+            if (Dq[m][j] != 0.0 || Dqd[m][j] != 0.0)
+                nzm[(size_t)j * n + cnt++] = m;
+        nzc[j] = cnt;
+    }
+#define NZ_ROWS(j, m) for (int t_ = 0, m = 0; t_ < nzc[j] && (m = nzm[(size_t)(j) * n + t_], 1); t_++)
     const int cv0 = nc, cO0 = nc + 3, cr = nc + 6;
     const int kq = 6, ex0 = nv, eT0 = nv + 3, eeta = nv + 6;
     for (int i = 0; i < 3; i++) {
@@ -281,7 +298,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] */
         for (int j = 0; j < nc; j++) {
             double s1 = 0.0, s2 = 0.0, s3 = 0.0;
-            for (int m = 0; m < n; m++) {
+            NZ_ROWS(j, m) {
                 s1 += Me[i][m] * Dq[m][j];
                 s2 += Me[i][m] * Dqd[m][j];
                 s3 += Ke[i][m] * Dq[m][j];
@@ -331,7 +348,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
             for (int j = 0; j < nc; j++) {
                 double s = 0.0;
-                for (int m = 0; m < n; m++)
+                NZ_ROWS(j, m)
                     s += GW[i][m] * Dq[m][j];
                 Fy[kq + i][j] += s;
             }
@@ -346,7 +363,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         for (int kk = 0; kk < 3; kk++) {
             for (int j = 0; j < nc; j++) {
                 double s1 = 0.0, s2 = 0.0, s3 = 0.0;
-                for (int m = 0; m < n; m++) {
+                NZ_ROWS(j, m) {
                     s1 += dsdq[kk][m] * Dq[m][j];
                     s2 += Grd[kk][m] * Dq[m][j];
                     s3 += dsdq[kk][m] * Dqd[m][j];
@@ -388,7 +405,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         for (int i = 0; i < n; i++) {
             for (int j = 0; j < nc; j++) {
                 double s = 0.0;
-                for (int m = 0; m < n; m++)
+                NZ_ROWS(j, m)
                     s += Kt[i][m] * Dq[m][j];
                 dgy[i][j] += s;
             }
@@ -514,7 +531,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
             for (int j = 0; j < nc; j++) {
                 double s1 = 0.0, s2 = 0.0;
-                for (int m = 0; m < n; m++) {
+                NZ_ROWS(j, m) {
                     double zw = eq[i][m];
                     for (int bb = 0; bb < 3; bb++)
                         zw += W0x[i][bb] * Z[bb][m];
@@ -526,6 +543,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
         }
     }
+#undef NZ_ROWS
 }
 
 void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double *yd, const double *R_,
