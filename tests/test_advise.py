@@ -265,8 +265,8 @@ def test_b4_free_tumble_check_holds_for_the_right_reason(tmp_path):
     """B4 (free beam released from a bent start to tumble): the primary metric is the frequency of the tip's
     vibration seen from the body's CM frame (out of the plane the axis sweeps). The advised configuration
     runs through (its Newton failed at 0.52 s while the start was taut) and `advise --check` holds at 1 %
-    against the full-order beam the scene names ([scenes.tumble.reference]: 32 elements, 2 ms, within 0.01 %
-    of 1 ms on the metric; 16 elements are +0.45 % stiff at rest); for the right
+    against the full-order beam the scene names ([scenes.tumble.reference]: 32 elements, 2 ms), refined until
+    the metric moves by less than a tenth of the tolerance (studies/resolve.py); for the right
     reason: the same run without stiffening is off by the tumble's stiffening (measured on these 3 s: advised
     -0.40 %, unstiffened -2.2 %; on the full 10 s 0.41 %)."""
     from ffrf_fmu.studies.runners import run_configuration
@@ -276,8 +276,9 @@ def test_b4_free_tumble_check_holds_for_the_right_reason(tmp_path):
     a = ad.advise(b4, "tumble", 0.01, overrides=ov)
     assert a.stiffening and a.terms == "gyroscopic" and not any("primary metric" in w for w in a.warnings)
     assert any("FMU does not output" in w for w in ad.advise(b4, "tumble", 0.01, overrides=ov, fmu=True).warnings)
-    res = ad.check(b4, "tumble", a, overrides=ov, out_dir=tmp_path)  # the reference the scene names
-    assert res["reference"]["n_elements"] == 32 and res["reference"]["step"] == 0.002
+    res = ad.check(b4, "tumble", a, overrides=ov, out_dir=tmp_path)  # from the reference the scene names, refined
+    assert res["reference"]["n_elements"] >= 32 and res["reference"]["step"] <= 0.002
+    assert res["reference_resolution"]["resolved"]  # it moved by < tolerance / 10 at its last refinement
     assert res["metric_name"] == "tip_from_cm_frequency_hz" and res["completed"]
     assert res["within_tolerance"] and res["metric_error_rel"] <= 0.0075
     values = {"superelements": str(a.superelements), "modes": str(a.modes), "terms": a.terms, "step": f"{a.step:g}",
