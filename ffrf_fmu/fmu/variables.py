@@ -267,10 +267,11 @@ def patch_model_description(root: Element, variables: list[Variable], derivative
     validate_fmu finds nothing to report.
 
     derivatives: the FMU provides directional derivatives (DIRECTIONAL_DERIVATIVES; needs the native
-    loader). Then providesDirectionalDerivative="true" and every output lists every input as a
-    dependency: over a communication step each output depends on each input (one elastic body couples
-    its ports). Without derivatives dependencies="": at the communication point there is no direct
-    feedthrough (setting an input changes no output before the next doStep)."""
+    loader): providesDirectionalDerivative="true". Every output has dependencies="": no direct
+    feedthrough (setting an input changes no output before the next doStep; outputs are the values
+    at the end of the last step, tests/test_model_structure.py perturbs every input to show it), so a
+    master that detects algebraic loops from the ModelStructure finds none. (The derivatives this
+    FMU provides are those of its last step's map, docs/fmu.md, not direct feedthrough.)"""
     by_name = {v.name: v for v in variables}
     used_units = set()
     mv = root.find("ModelVariables")
@@ -296,14 +297,12 @@ def patch_model_description(root: Element, variables: list[Variable], derivative
         root.remove(old)
     structure = SubElement(root, "ModelStructure")
     outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
-    inputs = [i + 1 for i, v in enumerate(variables) if v.causality == "input"]
     if derivatives:
         root.find("CoSimulation").set("providesDirectionalDerivative", "true")
     if outputs:
         o = SubElement(structure, "Outputs")
-        deps = {"dependencies": " ".join(map(str, inputs)), "dependenciesKind": " ".join(["dependent"] * len(inputs))}
         for i in outputs:
-            SubElement(o, "Unknown", {"index": str(i), **(deps if derivatives else {"dependencies": ""})})
+            SubElement(o, "Unknown", {"index": str(i), "dependencies": ""})
         iu = SubElement(structure, "InitialUnknowns")
         for i in outputs:
             SubElement(iu, "Unknown", {"index": str(i)})

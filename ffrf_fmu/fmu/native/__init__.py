@@ -73,8 +73,8 @@ def _start(v) -> str:
 def model_description(variables, *, name: str, identifier: str, guid: str, description: str,
                       experiment: dict | None) -> bytes:
     """modelDescription.xml: the variables of fmu/variables.py with units and min/max, co-simulation
-    capabilities of the C layer, ModelStructure (every output depends on every input over a step:
-    one elastic body couples its ports; fmu/variables.py patch_model_description)."""
+    capabilities of the C layer, ModelStructure (no output depends directly on an input:
+    fmu/variables.py patch_model_description)."""
     root = Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": name, "guid": guid, "description": description,
         "author": "ffrf-fmu", "version": __version__, "generationTool": f"ffrf-fmu {__version__} (native)",
@@ -118,12 +118,10 @@ def model_description(variables, *, name: str, identifier: str, guid: str, descr
         SubElement(sv, v.type, typ)
     structure = SubElement(root, "ModelStructure")
     outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
-    inputs = [i + 1 for i, v in enumerate(variables) if v.causality == "input"]
     if outputs:
         o = SubElement(structure, "Outputs")
-        deps = {"dependencies": " ".join(map(str, inputs)), "dependenciesKind": " ".join(["dependent"] * len(inputs))}
-        for i in outputs:
-            SubElement(o, "Unknown", {"index": str(i), **deps})
+        for i in outputs:  # no direct feedthrough (fmu/variables.py patch_model_description)
+            SubElement(o, "Unknown", {"index": str(i), "dependencies": ""})
         iu = SubElement(structure, "InitialUnknowns")
         for i in outputs:
             SubElement(iu, "Unknown", {"index": str(i)})
