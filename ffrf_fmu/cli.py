@@ -281,6 +281,43 @@ def recover(args) -> int:
 
 @command(
     *MODEL_ARGS,
+    arg("--rates", default="0:400:5", metavar="START:STOP:N | W1,W2", help="spin rates [rad/s]"),
+    arg("--modes", type=int, default=3, help="frequencies per rate (default 3)"),
+    arg("--terms", choices=("linear", "gyroscopic", "full"), help="term set of the reduced body (default: the scene's)"),
+    arg("--full", action="store_true", help="also the full FE model linearized about each steady spin (solids)"),
+    arg("-o", "--out", metavar="FIG.png", help="draw the diagram"),
+)
+def campbell(args) -> int:
+    """Campbell diagram: a body's frequencies about its steady spin against the spin rate (studies/campbell.py)."""
+    import numpy as np
+
+    from .studies.campbell import campbell as diagram, plot
+
+    model, scene = _load(args)
+    try:
+        if ":" in args.rates:
+            a, b, n = args.rates.split(":")
+            rates = np.linspace(float(a), float(b), int(n))
+        else:
+            rates = np.array([float(x) for x in args.rates.split(",")])
+    except ValueError:
+        raise ModelError(f"--rates: expected START:STOP:N or W1,W2,..., got {args.rates!r}") from None
+    try:
+        c = diagram(model, rates, n=args.modes, full=args.full, terms=args.terms, scene=scene.name)
+    except ValueError as e:
+        raise ModelError(str(e)) from None
+    print(f"{c.model}: spin about {list(c.axis)}, terms {c.terms}, stiffening {'on' if c.stiffening else 'off'}")
+    for note in c.notes.values():
+        print(f"  {note}")
+    print(c.table())
+    if args.out:
+        plot(c, args.out)
+        print(f"wrote {args.out}")
+    return 0
+
+
+@command(
+    *MODEL_ARGS,
     arg("--out", metavar="results.csv", help="write time, every port's frame, velocity and load, and the energies"),
     arg("--summary", metavar="summary.json", help="write wall time, steps, Newton iterations, energy balance, metrics"),
     arg("--plot", metavar="fig.png", help="plot the tip deflection (or port angular velocity) and the energies"),

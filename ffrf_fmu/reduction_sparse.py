@@ -257,45 +257,6 @@ def inertia_terms(Q, R):
     return G, C + C.transpose(0, 2, 1), 0.5 * (W2 + W2.transpose(1, 0, 3, 2))
 
 
-CORRECTION_THRESHOLD = 1e-3  # as reduction.CORRECTION_THRESHOLD: a centrifugal shape kept above this (M-norm)
-
-
-def centrifugal_loads(fe: SolidFE, Ur: np.ndarray) -> np.ndarray:
-    """(3 N, 6) the FE loads F_ab of the centrifugal field about the CM, one per product w_a w_b
-    (pairs 00, 11, 22, 01, 02, 12), as reduction.centrifugal_loads: F_ab = -(M_b U_ra + M_a U_rb) / 2,
-    M_k = M_s (x) e_k~ (solid/__init__.py), so that Y^T F_ab = W1[:, a, b] / 2."""
-    E = skew(np.eye(3))
-
-    def Mk(k, x):
-        xn = x.reshape(-1, 3)
-        return np.asarray(fe.M_scalar @ (xn @ E[k].T)).reshape(-1)
-
-    pairs = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
-    return np.stack([-0.5 * (Mk(b, Ur[:, a]) + Mk(a, Ur[:, b])) for a, b in pairs], axis=1)
-
-
-def correction_modes(fe: SolidFE, K, M, c: Constraints, lu, Xi_all, w2_all, YB, Xi, Ur) -> np.ndarray:
-    """Static correction modes for the centrifugal load about the CM (reduction.correction_modes, on the
-    sparse model): the free static responses x_ab = G_e F_ab, made zero on the frames with the
-    attachment columns (x - Y_B L x), M-orthogonalized against the kept modes and M-orthonormalized
-    (eigen-decomposition of their 6 x 6 M-Gram matrix); a shape is kept when its M-norm exceeds
-    CORRECTION_THRESHOLD of the largest response's. Returns (n_z, k)."""
-    F = c.T.T @ centrifugal_loads(fe, Ur)
-    x = free_static(K, M, c.U, lu, Xi_all, w2_all, F)
-    r = x - YB @ (c.L @ x)
-    Ym = Xi - YB @ (c.L @ Xi)
-    if Ym.shape[1]:
-        MYm = np.asarray(M @ Ym)
-        r -= Ym @ np.linalg.solve(Ym.T @ MYm, MYm.T @ r)
-    scale = np.sqrt(np.einsum("ij,ij->j", x, np.asarray(M @ x))).max()
-    if scale == 0.0:
-        return np.zeros((K.shape[0], 0))
-    g, V = np.linalg.eigh(r.T @ np.asarray(M @ r))
-    sv = np.sqrt(np.maximum(g, 0.0))
-    keep = sv > CORRECTION_THRESHOLD * scale
-    return r @ V[:, keep] / sv[keep]
-
-
 def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: float | None = None,
                  inertia: bool = False, stiffening: bool = False) -> SolidReduction:
     """One superelement of eq. (76) on the interface frames (module doc). n_modes or cutoff_hz choose
@@ -338,8 +299,11 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     t["attachment"] = time.process_time()
     Y = np.concatenate([YB, Xi - YB @ (c.L @ Xi)], axis=1)
     if stiffening:
+        from .solid.stiffening import correction_modes
+
         Uf0 = np.asarray(c.T @ c.U)
-        Y = np.concatenate([Y, correction_modes(fe, K, M, c, lu, Xi_all, w2_all, YB, Xi, Uf0[:, 3:])], axis=1)
+        static = lambda b: free_static(K, M, c.U, lu, Xi_all, w2_all, b)  # noqa: E731  G_e b, the same LU
+        Y = np.concatenate([Y, correction_modes(fe, M, c, static, YB, Xi, Uf0[:, 3:])], axis=1)
         t["correction"] = time.process_time()
     del lu
     Kb, Mb = Y.T @ (K @ Y), Y.T @ (M @ Y)

@@ -1,5 +1,6 @@
 """Geometric stiffening of a solid superelement from the element stresses of its mesh
-(docs/equations.md, "Geometric stiffening of a solid").
+(docs/equations.md, "Geometric stiffening of a solid"): the centrifugal correction modes the sparse
+reduction appends (correction_modes) and the second-order strain energy of the basis (membrane_tensors).
 
 The Green-Lagrange strain of the superelement's own deformation u = Y q (Y the basis of eq. 76 on
 the FE dofs, q = q_bar) is E(u) = eps(u) + 1/2 grad u^T grad u, eps the linear strain. Its strain
@@ -24,6 +25,50 @@ stiffness K_bar + sum_k (a q0)_k B_k is the FE model's K + K_G(sigma(Y q0)) on t
 from __future__ import annotations
 
 import numpy as np
+
+from . import SolidFE
+
+CORRECTION_THRESHOLD = 1e-3  # as reduction.CORRECTION_THRESHOLD: a centrifugal shape kept above this (M-norm)
+
+
+def centrifugal_loads(fe: SolidFE, Ur: np.ndarray) -> np.ndarray:
+    """(3 N, 6) the FE loads F_ab of the centrifugal field about the CM, one per product w_a w_b
+    (pairs 00, 11, 22, 01, 02, 12), as reduction.centrifugal_loads: F_ab = -(M_b U_ra + M_a U_rb) / 2,
+    M_k = M_s (x) e_k~ (solid/__init__.py), so that Y^T F_ab = W1[:, a, b] / 2."""
+    from ..runtime.rotation import skew
+
+    E = skew(np.eye(3))
+
+    def Mk(k, x):
+        xn = x.reshape(-1, 3)
+        return np.asarray(fe.M_scalar @ (xn @ E[k].T)).reshape(-1)
+
+    pairs = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+    return np.stack([-0.5 * (Mk(b, Ur[:, a]) + Mk(a, Ur[:, b])) for a, b in pairs], axis=1)
+
+
+def correction_modes(fe, M, c, static, YB, Xi, Ur) -> np.ndarray:
+    """Static correction modes for the centrifugal load about the CM (reduction.correction_modes, on the
+    sparse model; c the reduction's Constraints, M its mass in z, static(b) = G_e b the free static solve
+    of reduction_sparse.free_static): the free static responses x_ab = G_e F_ab, made zero on the frames with the
+    attachment columns (x - Y_B L x), M-orthogonalized against the kept modes and M-orthonormalized
+    (eigen-decomposition of their 6 x 6 M-Gram matrix); a shape is kept when its M-norm exceeds
+    CORRECTION_THRESHOLD of the largest response's. Returns (n_z, k)."""
+    F = c.T.T @ centrifugal_loads(fe, Ur)
+    x = static(F)
+    r = x - YB @ (c.L @ x)
+    Ym = Xi - YB @ (c.L @ Xi)
+    if Ym.shape[1]:
+        MYm = np.asarray(M @ Ym)
+        r -= Ym @ np.linalg.solve(Ym.T @ MYm, MYm.T @ r)
+    scale = np.sqrt(np.einsum("ij,ij->j", x, np.asarray(M @ x))).max()
+    if scale == 0.0:
+        return np.zeros((M.shape[0], 0))
+    g, V = np.linalg.eigh(r.T @ np.asarray(M @ r))
+    sv = np.sqrt(np.maximum(g, 0.0))
+    keep = sv > CORRECTION_THRESHOLD * scale
+    return r @ V[:, keep] / sv[keep]
+
 
 STRAIN_RANK_TOL = 1e-9  # energy eigenvalues below this fraction of the largest are round-off (rigid content)
 
