@@ -7,6 +7,7 @@ central differences, and the refusal for a solid given by its matrices only.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from ffrf_fmu.model import ModelError, load_model
 from ffrf_fmu.reduction import build_scene_body
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.solid.stiffening import geometric_stiffness, membrane_tensors
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
 def test_membrane_tensors_are_the_mesh_geometric_stiffness(solid_bar):
@@ -81,7 +84,7 @@ def test_newton_jacobian_of_a_stiffened_solid_matches_finite_differences(scale, 
 
 def test_a_solid_from_matrices_alone_refuses_stiffening():
     """A partner's export has no mesh stresses: `stiffening = true` is refused, saying why."""
-    m = load_model("models/rotor_abaqus.toml", ["stiffening=true"])
+    m = load_model(MODELS / "rotor_abaqus.toml", ["stiffening=true"])
     with pytest.raises(ModelError, match="matrices only: set stiffening = false"):
         build_scene_body(m.body, m.scenes[0])
 
@@ -99,7 +102,7 @@ def test_haug_solid_with_stiffening_follows_the_full_order_beam():
     2 % (measured -0.06 % and +1.0 %, 0.531471 m and 0.5385 Hz; without stiffening +12.6 % and -20 %)."""
     from ffrf_fmu.simulate import run_scene
 
-    r = run_scene(load_model("models/haug_solid.toml"), "spinup_stiffened")
+    r = run_scene(load_model(str(MODELS / "haug_solid.toml")), "spinup_stiffened")
     m = r.summary["metrics"]
     assert m["tip_deflection_max_m"] == pytest.approx(B1_REFERENCE_TIP_MAX_M, rel=0.01)
     assert m["in_plane_frequency_hz"] == pytest.approx(B1_REFERENCE_IN_PLANE_HZ, rel=0.02)
@@ -113,8 +116,8 @@ def _steady_spin(model, rates, overrides=()):
 
 
 @pytest.mark.parametrize("model, rates, overrides", [
-    ("models/plate.toml", (100.0, 200.0, 400.0), ()),
-    ("models/haug_solid.toml", (2.0, 4.0, 8.0), ()),
+    (str(MODELS / "plate.toml"), (100.0, 200.0, 400.0), ()),
+    (str(MODELS / "haug_solid.toml"), (2.0, 4.0, 8.0), ()),
 ])
 def test_first_frequency_about_the_steady_spin_matches_the_full_fe_model(model, rates, overrides):
     """The reduced solid (1 superelement, stiffening from its mesh, term set full) linearized about its
@@ -136,7 +139,7 @@ def test_rotor_campbell_from_exported_matrices_matches_the_full_export():
     pair 819.02 / 890.57 Hz against 818.52 / 890.02)."""
     from ffrf_fmu.studies.campbell import campbell
 
-    c = campbell(load_model("models/rotor_abaqus.toml"), (0.0, 200.0, 400.0), n=3, full=True, terms="full")
+    c = campbell(load_model(MODELS / "rotor_abaqus.toml"), (0.0, 200.0, 400.0), n=3, full=True, terms="full")
     assert not c.stiffening and "stress" in c.notes
     np.testing.assert_allclose(c.reduced, c.full, rtol=0.01)
     assert c.full[2, 2] - c.full[2, 1] > 0.08 * c.full[0, 1]  # the whirl pair splits with spin (Coriolis)
@@ -148,7 +151,7 @@ def test_campbell_command_draws_and_refuses_bad_rates(tmp_path):
     from ffrf_fmu.cli import main
 
     png = tmp_path / "c.png"
-    assert main(["campbell", "models/haug_solid.toml", "--rates", "0,4", "--modes", "1", "--full", "--terms", "full",
+    assert main(["campbell", str(MODELS / "haug_solid.toml"), "--rates", "0,4", "--modes", "1", "--full", "--terms", "full",
                  "-o", str(png)]) == 0
     assert png.stat().st_size > 10_000
-    assert main(["campbell", "models/haug_solid.toml", "--rates", "0:4"]) == 2
+    assert main(["campbell", str(MODELS / "haug_solid.toml"), "--rates", "0:4"]) == 2
