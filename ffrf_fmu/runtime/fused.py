@@ -1,5 +1,10 @@
-"""The residual of all superelements evaluated at once, fused into few numpy calls (the fast path;
-runtime/equations.py is its plain twin and test oracle, one superelement at a time).
+"""The residual of all superelements evaluated at once, fused into few numpy calls: the numpy path's
+evaluation (backend numpy, the reference run the C runtime is checked against; runtime/equations.py is
+its plain twin and test oracle, one superelement at a time). It stays beside the C runtime because the
+numpy path and the set-up use it where the C runtime has no entry point: the reference runs of the tests,
+BodySystem.initialize (the rigid field's elastic rates, the static equilibrium of displaced ports) and
+the linearizations of linear.py (frequencies, stability, the advisor); evaluated one superelement at a
+time by the oracle instead, those would run about E times more numpy calls.
 
 The body is small (E superelements of n ~ 20 dofs), so an evaluation costs numpy calls, not flops.
 Everything is evaluated for all superelements at once: the per-node quantities of (89) and (91) as
