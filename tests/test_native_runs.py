@@ -55,6 +55,10 @@ RUNS = {
     "disk_rotor-full": ("models/disk_rotor.toml", "spinup", ["terms=full", "duration=4.0", "scenes.spinup.drives.hub.rotation.angle="
                                                              '{ kind = "haug_spinup", omega = 0.9, T = 2.0 }'], "schedule"),
     "B5-compliant": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "schedule"),
+    # a solid stiffened from its mesh (membrane tensors r = n = 22), spun up to 300 rad/s in 40 ms
+    "plate-stiffening-full": ("models/plate.toml", "spin_kick", ["terms=full", "duration=0.06", "scenes.spin_kick.drives.hub."
+                                                                 'rotation.angle={ kind = "haug_spinup", omega = 300.0, T = 0.04 }'],
+                              "schedule"),
     "B5-compliant-held": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "held"),
 }
 KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t")

@@ -155,3 +155,15 @@ def test_campbell_command_draws_and_refuses_bad_rates(tmp_path):
                  "-o", str(png)]) == 0
     assert png.stat().st_size > 10_000
     assert main(["campbell", str(MODELS / "haug_solid.toml"), "--rates", "0:4"]) == 2
+
+
+def test_stiffened_solid_fmu_equals_its_standalone_run(tmp_path):
+    """haug_solid's stiffened scene as an FMU (the membrane tensors travel as reduced data) under fmpy
+    against its standalone run, the first 2 s, within validate's default tolerances."""
+    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.validate import validate
+
+    model, over = MODELS / "haug_solid.toml", ["duration=2"]
+    fmu = build_from_model(model, tmp_path / "s.fmu", scene="spinup_stiffened", overrides=over)
+    rep = validate(fmu, model=model, scene="spinup_stiffened", overrides=over, plots=False)
+    assert rep["fmu_reached_stop_time"] and rep["fmu_matches_model"] and rep["passed"]
