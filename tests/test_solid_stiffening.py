@@ -135,8 +135,9 @@ def test_first_frequency_about_the_steady_spin_matches_the_full_fe_model(model, 
 def test_rotor_campbell_from_exported_matrices_matches_the_full_export():
     """rotor_abaqus.toml (a partner's matrices: no stress stiffening in either model, said in the notes):
     the first three frequencies about the steady spin, term set full, within 1 % of the full exported
-    model's at 0, 200 and 400 rad/s (measured at most +0.67 %, the first mode at 400 rad/s; the whirl
-    pair 819.02 / 890.57 Hz against 818.52 / 890.02)."""
+    model's at 0, 200 and 400 rad/s (measured at most +0.66 %, the first mode at 400 rad/s: the shaft's
+    torsion, which the full linear export softens by W^2 for want of stress stiffening, docs/solids.md;
+    the whirl pair 819.02 / 890.57 Hz against 818.52 / 890.02)."""
     from ffrf_fmu.studies.campbell import campbell
 
     c = campbell(load_model(MODELS / "rotor_abaqus.toml"), (0.0, 200.0, 400.0), n=3, full=True, terms="full")
