@@ -304,7 +304,7 @@ def campbell(args) -> int:
         raise ModelError(f"--rates: expected START:STOP:N or W1,W2,..., got {args.rates!r}") from None
     try:
         c = diagram(model, rates, n=args.modes, full=args.full, terms=args.terms, scene=scene.name)
-    except ValueError as e:
+    except (ValueError, RuntimeError) as e:  # a scene without a spin drive; a steady spin not found
         raise ModelError(str(e)) from None
     print(f"{c.model}: spin about {list(c.axis)}, terms {c.terms}, stiffening {'on' if c.stiffening else 'off'}")
     for note in c.notes.values():

@@ -148,7 +148,7 @@ def test_rotor_campbell_from_exported_matrices_matches_the_full_export():
 
 def test_campbell_command_draws_and_refuses_bad_rates(tmp_path):
     """`ffrf-fmu campbell` prints the table (reduced against full), draws the PNG, and names a bad
-    --rates value (exit 2)."""
+    --rates value and a scene without a rotation drive (exit 2)."""
     from ffrf_fmu.cli import main
 
     png = tmp_path / "c.png"
@@ -156,6 +156,7 @@ def test_campbell_command_draws_and_refuses_bad_rates(tmp_path):
                  "-o", str(png)]) == 0
     assert png.stat().st_size > 10_000
     assert main(["campbell", str(MODELS / "haug_solid.toml"), "--rates", "0:4"]) == 2
+    assert main(["campbell", str(MODELS / "free_beam.toml"), "--rates", "0,4"]) == 2  # no rotation drive
 
 
 def test_stiffened_solid_fmu_equals_its_standalone_run(tmp_path):

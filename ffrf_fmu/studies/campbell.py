@@ -138,6 +138,9 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
         stiff = solid_fe(body.solid).strain is not None
     else:
         stiff = True
+    if not any(p.rotation == "motion" for p in body.ports):
+        raise ValueError(f"{model.body.source}: scene {scene.name!r} drives no port's rotation: a steady spin needs "
+                         "one (its rotation drive turns the body)")
     data, reds = build_body(body, stiffening=stiff, inertia=(terms or scene.terms) == "full")
     terms = terms or scene.terms
     rates = np.asarray(rates, dtype=float)
@@ -152,6 +155,8 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
             raise ValueError(f"{model.body.source}: no port is motion-driven: nothing holds the full model in the "
                              "spinning frame")
         fullf = full_frequencies(r.fe, r.frames, held, rates, axis, n, stiff)
+    if full and not solid:
+        notes["full"] = "no full FE model drawn: the comparison with the full model is for solids"
     if not stiff:
         notes["stress"] = "exported matrices: no stress stiffening in either model (spin softening and Coriolis only)"
     return Campbell(model.body.name, axis, rates, red, fullf, stiff, terms, notes)
