@@ -26,7 +26,7 @@ from ffrf_fmu.model import load_model
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "haug_beam.toml"
 CONFIGS = (["superelements=1", "modes=2", "step=0.002"], ["superelements=4", "modes=6", "step=0.002"],
-           ["superelements=8", "modes=2", "step=0.002"], ["superelements=1", "stiffening=true", "step=0.04"])
+           ["superelements=8", "modes=2", "step=0.002"], ["superelements=1", "modes=2", "stiffening=true", "step=0.04"])
 
 
 def measure(overrides, repeat):
