@@ -70,6 +70,7 @@ def correction_modes(fe, M, c, static, YB, Xi, Ur) -> np.ndarray:
     return r @ V[:, keep] / sv[keep]
 
 
+POINTS = 8192  # quadrature points per batch of membrane_tensors (n = 24: 8192 x 576 doubles = 38 MB per product)
 STRAIN_RANK_TOL = 1e-9  # energy eigenvalues below this fraction of the largest are round-off (rigid content)
 
 
@@ -85,21 +86,25 @@ def membrane_tensors(strain, Yf: np.ndarray) -> dict:
         raise ValueError(f"basis has {Yf.shape[0]} rows, the mesh {3 * N} dofs")
     Ks = np.zeros((n, n))
     G = np.zeros((n, n, n))
-    for _, vd, dphi, dx in chunks:
-        ne, nq, nloc, _ = dphi.shape
-        Ue = Yf[vd].reshape(ne, nloc, 3, n)
-        Gu = np.einsum("eiaj,eqib->eqjab", Ue, dphi, optimize=True).reshape(ne * nq, n, 3, 3)  # du_a/dX_b
-        w = dx.reshape(-1)
-        eps = 0.5 * (Gu + Gu.transpose(0, 1, 3, 2))
-        tr = np.einsum("gjaa->gj", eps)
-        sig = 2.0 * mu * eps + lam * tr[:, :, None, None] * np.eye(3)  # (g, n, 3, 3)
-        sw = sig * w[:, None, None, None]
-        Ks += np.einsum("gjab,giab->ji", sw, eps, optimize=True)
-        for b in range(3):  # G_j[i, l] = sum_g sum_bc (w sigma_j)[b, c] (Gu_i^T Gu_l)[b, c]
-            Gb = np.ascontiguousarray(Gu[:, :, :, b])  # (g, n, 3): column b of each grad u_i
-            for cc in range(3):
-                P = np.matmul(Gb, Gu[:, :, :, cc].transpose(0, 2, 1)).reshape(len(w), n * n)  # (Gu_i^T Gu_l)[b, c]
-                G += (sw[:, :, b, cc].T @ P).reshape(n, n, n)
+    for _, vd_c, dphi_c, dx_c in chunks:
+        nq = dphi_c.shape[1]
+        step = max(1, POINTS // nq)  # elements per batch: the (points, n^2) products stay ~POINTS x n^2 doubles
+        for e0 in range(0, len(vd_c), step):
+            vd, dphi, dx = vd_c[e0 : e0 + step], dphi_c[e0 : e0 + step], dx_c[e0 : e0 + step]
+            ne, _, nloc, _ = dphi.shape
+            Ue = Yf[vd].reshape(ne, nloc, 3, n)
+            Gu = np.einsum("eiaj,eqib->eqjab", Ue, dphi, optimize=True).reshape(ne * nq, n, 3, 3)  # du_a/dX_b
+            w = dx.reshape(-1)
+            eps = 0.5 * (Gu + Gu.transpose(0, 1, 3, 2))
+            tr = np.einsum("gjaa->gj", eps)
+            sig = 2.0 * mu * eps + lam * tr[:, :, None, None] * np.eye(3)  # (g, n, 3, 3)
+            sw = sig * w[:, None, None, None]
+            Ks += np.einsum("gjab,giab->ji", sw, eps, optimize=True)
+            for b in range(3):  # G_j[i, l] = sum_g sum_bc (w sigma_j)[b, c] (Gu_i^T Gu_l)[b, c]
+                Gb = np.ascontiguousarray(Gu[:, :, :, b])  # (g, n, 3): column b of each grad u_i
+                for cc in range(3):
+                    P = np.matmul(Gb, Gu[:, :, :, cc].transpose(0, 2, 1)).reshape(len(w), n * n)  # (Gu_i^T Gu_l)[b, c]
+                    G += (sw[:, :, b, cc].T @ P).reshape(n, n, n)
     Ks = 0.5 * (Ks + Ks.T)
     G = 0.5 * (G + G.transpose(0, 2, 1))
     lam_k, V = np.linalg.eigh(Ks)

@@ -170,7 +170,7 @@ def plot(c: Campbell, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    fig, ax = plt.subplots(figsize=(8.0, 4.4))
     for i in range(c.reduced.shape[1]):
         ax.plot(c.rates, c.reduced[:, i], "-", color=f"C{i}", label=f"mode {i + 1}, reduced")
         if c.full is not None:
@@ -184,7 +184,7 @@ def plot(c: Campbell, path) -> None:
     ax.set_ylabel("frequency in the spinning frame [Hz]")
     what = "geometric stiffening on" if c.stiffening else "no stress stiffening (exported matrices)"
     ax.set_title(f"{c.model}: Campbell diagram ({what}, terms {c.terms})", fontsize=9)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: no curve hidden
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
