@@ -198,3 +198,22 @@ def test_only_the_optional_peer_is_skipped_when_missing():
     for path in (ROOT / "tests").glob("*.py"):
         skipped |= set(re.findall(r"importorskip\(\s*[\"']([\w.]+)[\"']", path.read_text(encoding="utf-8")))
     assert skipped <= {"exudyn"}, skipped
+
+
+def test_no_file_outside_the_repository_is_cited():
+    """Code, tests, models and docs cite docs/ (docs/background.md carries what they need from the
+    reference material outside the repository), never a file there (ports.md, formulation.md,
+    stiffening.md, architecture.md, the reference benchmarks.md, ../shared)."""
+    import re
+
+    outside = re.compile(r"(?<![\w/])(ports|formulation|stiffening|architecture)\.md|shared/(spec|seeds)|\.\./shared"
+                         r"|(?<![\w/])benchmarks\.md (B\d|note)")
+    hits = []
+    for path in [*PACKAGE.rglob("*.py"), *PACKAGE.rglob("*.c"), *PACKAGE.rglob("*.h"), *(ROOT / "tests").glob("*.py"),
+                 *(ROOT / "models").glob("*.toml"), *(ROOT / "docs").glob("*.md"), ROOT / "README.md"]:
+        if path.name == "test_package.py":
+            continue
+        for n, line in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+            if outside.search(line):
+                hits.append(f"{path.relative_to(ROOT)}:{n}")
+    assert hits == [], hits

@@ -16,7 +16,7 @@ So the three run the same discrete map and agree to round-off (tests/test_ssp.py
 engine does on a step an FMU refuses: docs/cosim.md, "The engines".
 
 Connections join scalar variables; `expand` turns a port field (`beam.hub.R`) into its scalars
-(ports.md names, fmu/variables.port_variables) and `body_port_connections` wires two body ports
+(docs/fmu.md names, runtime/outputs.port_variables) and `body_port_connections` wires two body ports
 (master.body_port_links: the motion-driven side gets the frame and rates, the force-driven side
 minus the reaction) as plain connections, which is what an SSP engine can run.
 """
@@ -91,7 +91,7 @@ def _split(full: str) -> tuple[str, str]:
 
 def expand(full: str, variables: Sequence[str]) -> list[str]:
     """`inst.var` when var is one of `variables` (an FMU's names), else the scalars of a port field
-    `inst.port.field` (ports.md: r, v, a, f, t, w, dw as [1..3], R as [i,j] row by row)."""
+    `inst.port.field` (docs/fmu.md: r, v, a, f, t, w, dw as [1..3], R as [i,j] row by row)."""
     from ..fmu.variables import port_variables
 
     inst, var = _split(full)
