@@ -110,10 +110,9 @@ void model_reset(fmu_instance *m)
 static void free_state_buffers(fmu_instance *m)
 {
     free(m->rollback);
-    free(m->last_state);
     free(m->end_state);
     free(m->ref_state);
-    m->rollback = m->last_state = m->end_state = m->ref_state = NULL;
+    m->rollback = m->end_state = m->ref_state = NULL;
     m->state_size = 0;
 }
 
@@ -162,6 +161,7 @@ fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size
 }
 
 static int initialize(fmu_instance *m);
+static size_t small_copy(const ffrf_body *b, double *buf);
 
 static int inputs_changed(const fmu_instance *m)
 {
@@ -422,11 +422,10 @@ static int make_body(fmu_instance *m, char *why, size_t len)
             return 1;
         }
         size_t size = ffrf_body_state_size(b);
-        double *r = malloc(sizeof(double) * size), *l = malloc(sizeof(double) * size),
-               *e = malloc(sizeof(double) * size), *ref = malloc(sizeof(double) * size);
-        if (!r || !l || !e || !ref) {
+        double *r = malloc(sizeof(double) * size), *e = malloc(sizeof(double) * size),
+               *ref = malloc(sizeof(double) * size);
+        if (!r || !e || !ref) {
             free(r);
-            free(l);
             free(e);
             free(ref);
             ffrf_body_free(b);
@@ -440,10 +439,13 @@ static int make_body(fmu_instance *m, char *why, size_t len)
         m->body_terms = terms;
         m->state_size = size;
         m->rollback = r;
-        m->last_state = l;
         m->end_state = e;
         m->ref_state = ref;
         ffrf_body_get_state(b, ref);
+        /* small_copy writes get_state's first doubles (checked here on the fresh body), else whole copies */
+        size_t nf = (size_t)b->dims.nf, k = small_copy(b, e);
+        m->small_size = (k == size - nf * nf - nf && memcmp(e, ref, sizeof(double) * k) == 0) ? k : 0;
+        m->rollback_lu_valid = 0;
     }
     ffrf_body *b = m->body;
     b->rho_inf = m->values[d->vr_rho_inf];
@@ -525,6 +527,46 @@ fmi2Status model_exit_initialization(fmu_instance *m)
 }
 
 /* ------------------------------------------------------------------ stepping */
+
+/* The state of ffrf_body_get_state without the iteration matrix's factors, written in place over the
+ * first part of a whole state (t, iterations, energy, the state arrays, the factorization's 12 meta
+ * values; the factors luT and pivots follow). The factors are most of the state (226 KB of 235 KB for
+ * B1 4 SE x 6 modes) and change only when a step refreshes the matrix (its version changes): a doStep
+ * copies them only then, and the saved start stays the whole state, exactly (rollback, derivatives).
+ * Returns the doubles written; make_body checks that they are get_state's first ones. */
+static size_t small_copy(const ffrf_body *b, double *buf)
+{
+    const ffrf_dims *d = &b->dims;
+    const ffrf_state *st = &b->state;
+    const double *arrays[] = {st->xN, st->RN, st->x0, st->R0, st->eta, st->v, st->yd, st->yd_prev, st->yd_prev2,
+                              st->a, st->fN, st->tN, b->lu.meta};
+    const size_t sizes[] = {3 * (size_t)d->N, 9 * (size_t)d->N, 3 * (size_t)d->E, 9 * (size_t)d->E,
+                            (size_t)d->E * d->nm, (size_t)d->E * d->nv, (size_t)d->ny, (size_t)d->ny, (size_t)d->ny,
+                            (size_t)d->ny, 3 * (size_t)d->N, 3 * (size_t)d->N, 12};
+    buf[0] = st->t;
+    buf[1] = st->iterations;
+    buf[2] = st->energy[0];
+    buf[3] = st->energy[1];
+    size_t k = 4;
+    for (size_t i = 0; i < sizeof sizes / sizeof sizes[0]; i++) {
+        memcpy(buf + k, arrays[i], sizeof(double) * sizes[i]);
+        k += sizes[i];
+    }
+    return k;
+}
+
+/* the body's whole state at a step's start into m->rollback: the factors copied only when they changed */
+static void save_start(fmu_instance *m)
+{
+    ffrf_body *b = m->body;
+    if (m->small_size && m->rollback_lu_valid && b->lu.version == m->rollback_lu_version) {
+        small_copy(b, m->rollback);
+        return;
+    }
+    ffrf_body_get_state(b, m->rollback);
+    m->rollback_lu_version = b->lu.version;
+    m->rollback_lu_valid = 1;
+}
 
 /* the outputs of m->row (the body's output row, iterations last) and the probes (eq. 92):
  * d = R_f^T (r_s - r_f) - (X_s - X_f) */
@@ -650,7 +692,7 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
     /* n equal internal steps of at most solver.step (variables.INTERNAL_STEPS): never a sliver */
     double ratio = H / h, near = nearbyint(ratio);
     int n = fabs(ratio - near) < 1e-6 * fmax(1.0, ratio) ? (near < 1.0 ? 1 : (int)near) : (int)ceil(ratio);
-    ffrf_body_get_state(b, m->rollback);
+    save_start(m);
     int worst = 0;
     int failed = run_step(m, t_c, H, n, &worst, why, sizeof why);
     if (!failed && !finite_outputs(m)) {
@@ -659,15 +701,14 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
     }
     if (failed) {
         ffrf_body_set_state(b, m->rollback, m->state_size);
+        m->rollback_lu_valid = 0; /* set_state made a new matrix version */
         snprintf(m->discarded, sizeof m->discarded, "%s", why);
         fmu_log(m, fmi2Discard, "%s", why);
         return fmi2Discard;
     }
     b->state.t = t_end; /* the master's clock, not the sum of n rounded steps */
-    /* the step's start for the directional derivatives: its state (swapped, not copied) and its values */
-    double *swap = m->last_state;
-    m->last_state = m->rollback;
-    m->rollback = swap;
+    /* the step's start for the directional derivatives: its state (m->rollback, kept until the next doStep)
+     * and its values */
     memcpy(m->last_values, m->values, sizeof(double) * (size_t)m->desc.n_vars);
     m->last_tc = t_c;
     m->last_H = H;
@@ -757,7 +798,7 @@ fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReferenc
                 status = fmi2Error;
                 break;
             }
-            ffrf_body_set_state(b, m->last_state, m->state_size);
+            ffrf_body_set_state(b, m->rollback, m->state_size);
             if (run_step(m, m->last_tc, H, m->last_n, &worst, why, sizeof why)) {
                 fmu_log(m, fmi2Error, "directional derivative of the step from t = %.6g s failed at %s", m->last_tc,
                         why + 4);
@@ -772,6 +813,7 @@ fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReferenc
                 out[i] += (m->deriv_sides[unknown[i]] - m->deriv_sides[(size_t)nv + unknown[i]]) / (2.0 * eps);
     }
     ffrf_body_set_state(b, m->end_state, m->state_size);
+    m->rollback_lu_valid = 0; /* set_state made a new matrix version */
     ffrf_body_record(b, m->row); /* the row of the end of the step again (the outputs never changed) */
     return status;
 }

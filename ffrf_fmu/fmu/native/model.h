@@ -93,13 +93,15 @@ typedef struct {
     double *held;                 /* [n_ports][FFRF_HELD_WIDTH] work: the held values of a step */
     double *row;                  /* output row, then the probes [n_probes][3] */
     size_t state_size;            /* ffrf_body_state_size */
-    double *rollback;             /* [state_size] the body at t_c of the current doStep */
+    double *rollback;             /* [state_size] the body at t_c of the current doStep (whole: ffrf_body_get_state) */
+    uint64_t rollback_lu_version; /* the factors in rollback are those of this matrix version */
+    int rollback_lu_valid;        /* ... when set, and then a doStep copies only the rest (`small_copy`) */
+    size_t small_size;            /* the state's doubles before the factors (0: always copy the whole state) */
     double *ref_state;            /* [state_size] the body as created: the reference state initialization starts from */
     /* the last successful communication step (directional derivatives) */
     int have_last;
     double last_tc, last_H;
     int last_n;
-    double *last_state;           /* [state_size] */
     double *last_values;          /* [n_vars] */
     double *end_state;            /* [state_size] work of the derivatives */
     double *deriv_values;         /* [n_vars] work */
