@@ -445,6 +445,9 @@ def stability(args) -> int:
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
     arg("--plot-only", action="store_true", help="redraw DIR/chart.png from DIR/chart.csv and chart.json, run nothing"),
+    arg("--resolve", metavar="TOL", type=lambda text: _fraction(text), help="refine the reference (mesh, step) until the primary metric "
+        "moves by less than a tenth of TOL (e.g. 1%%) and measure against the refined one; the refinement table is "
+        "printed and kept in chart.json"),
     arg("--peer", choices=("exudyn",), help="also run a full-order peer code on the scene and draw its runs and "
         "Pareto front: exudyn = Exudyn's 3D geometrically exact beam (optional extra `peers`)"),
     arg("--peer-sweep", nargs="+", metavar="KEY=V1,V2", default=None,
@@ -469,7 +472,7 @@ def chart(args) -> int:
                        reference_elements=args.reference_elements, reference_step=args.reference_step,
                        out_dir=args.output, cost=args.cost, peer=args.peer,
                        peer_sweep=parse_values(args.peer_sweep, "--peer-sweep") if args.peer_sweep else None,
-                       scheduler=_scheduler(args), fresh=args.fresh)
+                       scheduler=_scheduler(args), fresh=args.fresh, resolve=args.resolve)
     except (GridError, SweepError, StoreVersionError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return 2
@@ -482,6 +485,10 @@ def chart(args) -> int:
               + ", ".join(f"{k} = {v:.6g}" for k, v in ref["metrics"].items() if isinstance(v, float)))
         if ref.get("warning"):
             print(f"WARNING: {ref['warning']}")
+    if out["meta"].get("reference_resolution"):
+        from .studies.resolve import Resolution, format_resolution
+
+        print(format_resolution(Resolution.from_dict(out["meta"]["reference_resolution"])))
     print(ch.format_table(out["rows"]))
     print(f"wrote {out['csv']}, {out['png']}, {out['json']}")
     return 0 if all(r["completed"] for r in out["rows"]) else 1

@@ -76,7 +76,8 @@ def directional_tip_metrics(t: np.ndarray, d: np.ndarray, scene, beam_axis, freq
     """The elastic tip deflection d (n, 3; seen from the hub, eq. 92) split by direction relative to the
     scene's spin axis (scene_spin_axis): tip_in_plane_max_m, tip_out_of_plane_max_m (maxima of |d . in_plane|,
     |d . out_of_plane|), and, with the scene's band_hz, the frequency of each direction's free vibration
-    after the last event that excites it (exciting_events) when the run lasts min_window_s longer:
+    after the last event that excites it (exciting_events) up to the next load's start, when that leaves
+    min_window_s:
     in_plane_frequency_hz, out_of_plane_frequency_hz (`frequency(t, y, f_min, f_max)`, the least-squares
     sinusoid of simulate.dominant_frequency). Empty without a spin axis."""
     axis = scene_spin_axis(scene)
@@ -88,9 +89,13 @@ def directional_tip_metrics(t: np.ndarray, d: np.ndarray, scene, beam_axis, freq
            "tip_out_of_plane_max_m": float(np.max(np.abs(parts["out-of-plane"])))}
     m = scene.metrics
     if m.band_hz:
+        starts = sorted(ld.t_start for ld in scene.loads)
         for direction, t_free in exciting_events(scene, plane).items():
-            after = t > t_free
-            if t[-1] > t_free + m.min_window_s and np.count_nonzero(after) > 8:
+            # free from its last exciting event to the next event of any kind (a later load moves the body
+            # in this direction too, through the coupling of the two)
+            t_next = next((ts for ts in starts if ts >= t_free), np.inf)
+            after = (t > t_free) & (t <= t_next)
+            if min(t[-1], t_next) >= t_free + m.min_window_s and np.count_nonzero(after) > 8:
                 key = direction.replace("-", "_") + "_frequency_hz"
                 out[key] = float(frequency(t[after], parts[direction][after], *m.band_hz))
     return out

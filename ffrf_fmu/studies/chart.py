@@ -186,7 +186,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
           overrides: Sequence[str] = (), fmu: bool = False, reference_elements: int | None = None,
           reference_step: float | None = None, workers: int | None = None, out_dir="chart",
           progress: bool = True, plot: bool = True, cost: str = "wall", peer: str | None = None,
-          peer_sweep=None, backend: str = "numpy", scheduler=None, fresh: bool = False) -> dict:
+          peer_sweep=None, backend: str = "numpy", scheduler=None, fresh: bool = False,
+          resolve: float | None = None) -> dict:
     """Run the sweep and the reference; write DIR/chart.csv, DIR/chart.json and DIR/chart.png.
 
     sweep: {key: [value texts]} or a list of such groups (union of their cartesian products;
@@ -198,6 +199,10 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     (studies/sweep.py: None = a local pool of `workers` processes, "local:N", a dask scheduler
     address); the results are stored in DIR/runs.jsonl and a rerun skips the finished ones
     (fresh: discard them first).
+
+    resolve: a tolerance; the reference is first refined (resolve.py) until the primary metric moves by
+    less than a tenth of it, and the chart measures against the refined one; chart.json holds the
+    refinement table, and every row says whether the reference was resolved (`reference_resolved`).
 
     Returns {"rows": [...], "reference": {...}, "csv", "png", "json", "meta", "tasks"}; tasks[j] is the
     run (task.Task) of rows[j], for a caller that runs it again (benchmarks/peers.py times it N times).
@@ -245,6 +250,15 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
     else:
         ref["cached"] = ref_task.key in outcome.from_store  # not run by this chart
     results = {job: outcome.results[t.key] for job, t in tasks.items()}
+    resolution = None
+    if resolve is not None and ref["completed"]:
+        from .resolve import resolve_reference
+
+        resolution, refined = resolve_reference(model_path, scene.name, resolve, overrides=overrides,
+                                                n_elements=reference_elements, step=reference_step, out_dir=out_dir,
+                                                sweep=SweepOptions(sched, False, progress))
+        if refined.get("completed"):
+            ref = {**refined, "cached": False}
 
     metric_name = primary_metric(scene)
     extra_keys = list(dict.fromkeys(k for c in configs for k in c if k not in SHOWN_KEYS))
@@ -256,7 +270,8 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
                "metric_reference": ref["metrics"].get(metric_name) if metric_name else None,
                "completed": bool(run["completed"]), "failure": run["failure"] or "",
                "t_end_s": run.get("t_end_s"), "reference_suspect": bool(ref.get("warning")),
-               "newton_iterations_mean": run.get("newton_iterations_mean"), "backend": run.get("backend")}
+               "newton_iterations_mean": run.get("newton_iterations_mean"), "backend": run.get("backend"),
+               "reference_resolved": None if resolution is None else resolution.resolved}
         if not out["completed"]:
             # the metric of a run that stopped early is not the scene's metric: no error against the
             # reference's (rms_error_rel stays: it compares the trajectory over the run's own span)
@@ -289,6 +304,7 @@ def chart(model_path, scene_name: str | None = None, sweep=None, *,
         "reference": {k: ref.get(k) for k in ("n_elements", "step", "wall_time_s", "cached", "failure",
                                               "energy_error", "warning")}
         | {"metrics": ref["metrics"]},
+        "reference_resolution": None if resolution is None else resolution.as_dict(),
         "code_version": code_version(), "scheduler": outcome.where,
         "runs_stored": outcome.stored, "runs_ran": outcome.ran, "runs_retried": outcome.retried,
         "failures": {f"{rows[j]['label']} ({r})": results[(i, r)].get("traceback") or rows[j]["failure"]

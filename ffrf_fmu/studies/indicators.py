@@ -238,7 +238,7 @@ def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:
             if "in-plane" in first and "out-of-plane" in first:
                 return {"in-plane": first["in-plane"], "out-of-plane": first["out-of-plane"],
                         "source": f"the reduced body with stiffening linearized about its steady spin at {spin:.3g} rad/s",
-                        "modes": [(m.frequency_hz, m.direction) for m in modes[:8]]}
+                        "modes": [(m.frequency_hz, m.direction) for m in modes[:12]]}
         except (RuntimeError, np.linalg.LinAlgError):
             pass
     w1 = 2 * math.pi * first_frequency(body)
