@@ -1,6 +1,8 @@
 """Loads between steps (docs/equations.md, "Loads between steps"): a load window's impulse is its load
 times its length to round-off for any step, in the standalone run (both backends), the full-order
 reference and an FMU's input table, whether or not the steps land on the window's ends."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -90,3 +92,23 @@ def test_compiled_backend_applies_the_window_mean_as_numpy_does(tmp_path, beam_t
     assert fz[2] == pytest.approx(2.0 * (0.014 - 0.013) / 0.007)  # the step (7, 14] ms: 1 ms of the window
     assert np.allclose(b.port("tip", "f")[:, 2], fz, rtol=1e-12, atol=1e-12)  # times summed alike up to round-off
     assert np.abs(b.port("tip", "r") - a.port("tip", "r")).max() < 1e-9
+
+
+@pytest.mark.parametrize("H", [0.01, 0.007, 0.03])
+def test_fmu_input_table_carries_the_windows_impulse(kick, H):
+    """Through an FMU the value set at a communication point t_k is held over (t_k, t_k + H] (docs/fmu.md):
+    fmu/run.py samples each window's mean over that step (scene_inputs(..., load_interval=(0, H))), so the
+    held force integrates to force x length for any H; the standalone inputs (the mean over the step ending
+    at t) carry the same impulse on their own grid."""
+    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.simulate import scene_inputs
+
+    model = load_model(kick)
+    scene = model.scene("kick")
+    body, _ = build_scene_body(model.body, scene)
+    held = scene_inputs(body, scene, load_interval=(0.0, H))
+    grid = np.arange(int(round(1.0 / H)) + 1) * H
+    impulse = sum(held(t)["b"].f[2] * H for t in grid[:-1])
+    assert impulse == pytest.approx(0.2, rel=1e-12)
+    ending = scene_inputs(body, dataclasses.replace(scene, step=H))
+    assert sum(ending(t)["b"].f[2] * H for t in grid[1:]) == pytest.approx(0.2, rel=1e-12)
