@@ -629,11 +629,16 @@ def build(args) -> int:
     except (ModelError, BuildError, OSError) as e:
         print(f"{PROG} build: error: {e}", file=sys.stderr)
         return 2
+    import json
+    import zipfile
+
     from fmpy import read_model_description
 
     md = read_model_description(str(out))
-    print(f"wrote {out} ({args.runtime} runtime, model identifier {md.coSimulation.modelIdentifier}, "
-          f"scene {args.scene or 'the first'!r})")
+    with zipfile.ZipFile(out) as z:  # the build facts: documentation/build.json (native), ffrf_fmu.json (python)
+        name = "documentation/build.json" if args.runtime == "native" else "resources/ffrf_fmu.json"
+        scene = json.loads(z.read(name))["build"].get("scene")
+    print(f"wrote {out} ({args.runtime} runtime, model identifier {md.coSimulation.modelIdentifier}, scene {scene!r})")
     return 0
 
 
