@@ -503,7 +503,20 @@ def simulate_reference(
 
     # ---------------- initial state: reference (or relaxed deformed) configuration, rigid velocity field,
     # drives at t=0
-    x, R = relaxed_shape(mesh, scene_body(body, scene), dict(scene.initial.port_displacements))
+    state = getattr(scene.initial, "state", "rest")
+    if state == "static":  # the static equilibrium under gravity and the loads acting at t = 0 (initial_state.py)
+        loads0: dict = {}
+        for ld in scene.loads:
+            share = window_share(ld.t_start, ld.t_end, 0.0, 0.0)
+            f0, m0 = loads0.get(ld.port, (np.zeros(3), np.zeros(3)))
+            loads0[ld.port] = (f0 + share * np.asarray(ld.force, float), m0 + share * np.asarray(ld.moment, float))
+        st = static_reference(scene_body(body, scene), loads0, None, n_elements, gravity=scene.gravity)
+        x, R = st.r.copy(), st.R @ mesh.Lam0
+    elif state != "rest":
+        raise ValueError(f"reference: initial state {state!r} is not available in the full-order beam (it starts at "
+                         "rest or at its static equilibrium)")
+    else:
+        x, R = relaxed_shape(mesh, scene_body(body, scene), dict(scene.initial.port_displacements))
     v = np.zeros((nn, 6))
     v0 = np.asarray(scene.initial.velocity, float)
     w0 = np.asarray(scene.initial.angular_velocity, float)
