@@ -63,7 +63,8 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
     try:
         system.initialize(
             0.0,
-            inputs,
+            scene_inputs(body, scene, load_interval=(0.0, 0.0)),  # the loads acting at t = 0: a consistent start
+            # (the initial rates see what an FMU sees with its inputs set at t = 0; docs/equations.md)
             velocity=init.velocity,
             angular_velocity=init.angular_velocity,
             port_displacements=dict(init.port_displacements),
