@@ -249,7 +249,8 @@ def info(args) -> int:
     else:
         print(f"  term effects not evaluated: {eff['status']}")
     rec = inertia["recommended"]
-    print(f"  recommended at tolerance {rec['tolerance']:.0%} (ffrf-fmu advise): {rec['superelements']} SE, term set "
+    how = "term_rule.choose_term_set" if body.solid is not None else "ffrf-fmu advise"
+    print(f"  recommended at tolerance {rec['tolerance']:.0%} ({how}): {rec['superelements']} SE, term set "
           f"{rec['terms']}, stiffening {'on' if rec['stiffening'] else 'off'}: {rec['reason']}")
     return 0
 
