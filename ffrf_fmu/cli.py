@@ -129,7 +129,8 @@ def info(args) -> int:
     body, ports = model.body, body_data.ports
     n_nodes = len(body_data.node_positions)
     # two-field coordinates: boundary frames (shared by neighbours), one CM frame per superelement, modes
-    n_body_dofs = 6 * n_nodes + 6 * len(ses) + sum(s["n_modes"] for s in ses)
+    # (with stiffening the modal coordinates hold the centrifugal correction modes beside the vibration modes)
+    n_body_dofs = 6 * n_nodes + 6 * len(ses) + sum(se.n - se.n_boundary for se in body_data.superelements)
     fixed = [f"{p.name}.{part}" for p in ports for part in ("translation", "rotation") if getattr(p, part) == "motion"]
     from .invariants import body_inertia_report, scene_spin  # Witteveen's invariants and indicators
     from .model import scene_body
