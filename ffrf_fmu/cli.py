@@ -617,8 +617,9 @@ def advise(args) -> int:
         help="native: binaries to include (repeatable; default linux64 and win64)"),
     arg("--compiler", choices=("zig", "system"), default="zig",
         help="native: zig (default, the ziglang package: every platform) or the system C compiler (linux64)"),
-    arg("--backend", choices=("numpy",), default="numpy",
-        help="python runtime: numpy, the pythonfmu FMU's slave steps on the reference implementation"),
+    arg("--backend", choices=("native", "numpy"), default="native",
+        help="python runtime: native (default), the slave steps in the C runtime shipped compiled in the FMU; "
+             "numpy, the reference implementation"),
 )
 def build(args) -> int:
     """Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""

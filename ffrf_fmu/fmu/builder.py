@@ -13,9 +13,14 @@ Layout of resources/ in the FMU (the FMU is a black box: no FE mesh, no model fi
 
 binaries/linux64/<id>.so is the native loader (native_loader.c, compiled here with the system C
 compiler): it loads libpython when the host has none and forwards the fmi2 calls to pythonfmu's
-binary, shipped next to it as <id>.pythonfmu.so. Without a C compiler the FMU keeps pythonfmu's
-binary alone (it then runs only in Python hosts, or with libpython in LD_PRELOAD) and the build
-says so.
+binary, shipped next to it as <id>.pythonfmu.so. Without a C compiler the build is an error unless
+native_loader=False asks for pythonfmu's binary alone (it then runs only in Python hosts). On backend
+native (the default) the slave steps in the C runtime, compiled here and shipped in the private package
+(runtime/native/prebuilt: runtime/native/build.py `ship`); where it does not load, the slave runs numpy
+and logs why.
+
+Over 400 lines: one module makes one kind of FMU from start to end (sources checked, loader, staging,
+pythonfmu's build, the loader installed); its parts share the staging directory and the names.
 
 <hash> is a digest of the reduced data, the configuration and the shipped sources, so two
 different bodies (or two versions of the code) never share a module name in one process.
@@ -53,7 +58,7 @@ LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
 PYTHON_FILE = "ffrf_python.json"
 LIBPYTHON_FILE = "ffrf_libpython.txt"
 ALLOWED_IMPORTS = {"numpy", "scipy"}
-OPTIONAL_IMPORTS = {"threadpoolctl"}  # allowed inside `try: ... except ImportError:` only
+OPTIONAL_IMPORTS = {"threadpoolctl", "ziglang"}  # allowed inside `try: ... except ImportError:` only
 
 DESCRIPTION = (
     "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
@@ -249,7 +254,7 @@ def build_fmu(
     origin=None,
     build_info: dict | None = None,
     native_loader: bool = True,
-    backend: str = "numpy",
+    backend: str = "native",
 ) -> Path:
     """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
 
@@ -258,15 +263,18 @@ def build_fmu(
     native_loader: put the native loader in front of pythonfmu's binary (Linux, needs a C
     compiler at build time; without one a BuildError says so); False makes an FMU that only Python
     hosts can load (no directional derivatives).
-    backend: "numpy" (the slave steps on the reference implementation, shipped as Python modules).
+    backend: "native" (the slave steps in the C runtime, compiled here and shipped) or "numpy" (the
+    reference implementation, shipped as Python modules).
     """
-    if backend != "numpy":
-        raise BuildError(f"the pythonfmu FMU's slave steps on backend numpy, got {backend!r}")
+    if backend not in ("native", "numpy"):
+        raise BuildError(f"the pythonfmu FMU's slave steps on backend native or numpy, got {backend!r}")
     from pythonfmu import FmuBuilder  # build-time only
 
     runtime_src = _sources(RUNTIME_DIR)
     if "body.py" not in runtime_src:
         raise BuildError(f"{RUNTIME_DIR}/body.py is missing: the body dynamics are not there")
+    if backend == "native":  # the binding's modules ship too (runtime/native/build.py `ship`), checked here
+        runtime_src.update({f"native/{k}": v for k, v in _sources(RUNTIME_DIR / "native").items()})
     fmu_src = _sources(Path(__file__).resolve().parent, SHIPPED_FMU_MODULES)
     check_shipped_imports({**{f"runtime/{k}": v for k, v in runtime_src.items()},
                            **{f"fmu/{k}": v for k, v in fmu_src.items()}})
@@ -315,7 +323,15 @@ def build_fmu(
         (pkg / "fmu").mkdir()
         (pkg / "__init__.py").write_text(f'"""Private runtime of FMU {cls} (ffrf-fmu {__version__})."""\n')
         for fname, text in runtime_src.items():
-            (pkg / "runtime" / fname).write_text(text, encoding="utf-8")
+            if "/" not in fname:  # runtime/native/ comes with its library below
+                (pkg / "runtime" / fname).write_text(text, encoding="utf-8")
+        if backend == "native":  # the C runtime compiled for this platform, beside its binding
+            from ..runtime.native import build as runtime_build
+
+            try:
+                runtime_build.ship(pkg / "runtime" / "native")
+            except runtime_build.BuildError as e:
+                raise BuildError(f"the C runtime cannot be compiled for the FMU ({e}); backend numpy needs none") from None
         (pkg / "fmu" / "__init__.py").write_text("")
         for fname, text in fmu_src.items():
             (pkg / "fmu" / fname).write_text(text, encoding="utf-8")
@@ -364,7 +380,7 @@ def build_fmu(
 RUNTIMES = ("native", "python")
 
 
-def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "numpy",
+def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "native",
                      runtime: str = "native", platforms=("linux64",), compiler: str = "zig",
                      log=None, native_loader: bool = True) -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters. runtime: "native"

@@ -35,6 +35,17 @@ from ..runtime.body import BodySystem
 from .derivatives import LastStep, directional_derivative
 from .variables import Variable, body_variables
 
+try:  # the C runtime's binding, imported with the FMU's first instance: a later instance importing it lazily
+    # (BodySystem on backend native) would look in the first instance's resources folder, which the host may
+    # have deleted (the package stays in sys.modules). A numpy-only FMU ships no runtime/native.
+    from ..runtime.native import binding as _native_binding
+    from ..runtime.native import build as _native_build
+
+    if (_native_build.HERE / _native_build.PREBUILT).is_dir():  # a shipped copy: its library loads now, too
+        _native_binding.load()
+except (ImportError, OSError):  # OSError: a shipped library that does not load here (BodySystem then says so)
+    _native_binding = None
+
 try:  # optional: one BLAS thread during the FMU's own calls only (docs/fmu.md, BLAS threads)
     from threadpoolctl import ThreadpoolController
 except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before numpy loads, when it can

@@ -285,6 +285,6 @@ def native_step(system, sanitize: bool = False) -> tuple[NativeStep | None, str 
     """(NativeStep, None), or (None, why) when the runtime cannot be compiled or loaded here."""
     try:
         return NativeStep(system, sanitize), None
-    except build.BuildError as e:
+    except (build.BuildError, OSError) as e:  # OSError: a library that does not load here (a shipped one)
         logging.getLogger("ffrf_fmu").warning("C runtime not available: %s", e)
         return None, str(e)

@@ -91,10 +91,17 @@ def compile_library(out: Path, cc: list[str] | None = None, extra: tuple[str, ..
         raise BuildError(f"{' '.join(cmd)} failed:\n{done.stderr.strip()[:4000]}")
 
 
+PREBUILT = "prebuilt"  # a compiled runtime shipped beside these modules (a pythonfmu FMU's private copy: `ship`)
+
+
 def library(sanitize: bool = False) -> Path:
     """The compiled runtime for this machine, compiled into the cache on first use (atomically: a
     process that loses a race uses the winner's file). sanitize: the address and undefined-behaviour
-    sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`)."""
+    sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`). A copy of this
+    package shipped in a pythonfmu FMU carries its library in prebuilt/ (`ship`): no compiler on the host."""
+    shipped = HERE / PREBUILT / _library_name()
+    if not sanitize and shipped.exists():
+        return shipped
     extra = SANITIZE if sanitize else ()
     cc = compiler()
     digest = source_digest((*cc[-1:], *FLAGS, *extra))
@@ -112,6 +119,15 @@ def library(sanitize: bool = False) -> Path:
         os.replace(tmp, lib)
         return lib
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
+
+
+def ship(dest: Path) -> None:
+    """This package's Python modules and the runtime compiled here (`library`) into dest, dest/prebuilt: the
+    C runtime of a pythonfmu FMU's private package (fmu/builder.py), loaded there without a compiler."""
+    (dest / PREBUILT).mkdir(parents=True, exist_ok=True)
+    for f in sorted(HERE.glob("*.py")):
+        shutil.copy(f, dest / f.name)
+    shutil.copy(library(), dest / PREBUILT / _library_name())
 
 
 def sanitizer_preload() -> str:
