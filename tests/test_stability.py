@@ -424,7 +424,7 @@ def test_split_beam_compliant_cut_fails_under_plain_jacobi(tmp_path):
     """The split beam with A's cut compliant (the rule of docs/cosim.md for H_c = H = 10 ms:
     omega_c = 50 rad/s) and B's cut force-driven, under plain Jacobi (the discrete map libcosim and
     ecos run): B, whose apparent mass at the cut is far below the rule's m_P once its free-free modes
-    are excited, refuses a step at 0.21 s (measured); a 16x softer cut lives to 0.77 s with 6.8 % of
+    are excited, refuses a step at 0.21 s (measured); a 16x softer cut lives to 0.76 s with 6.5 % of
     error already (docs/cosim.md table). 0.4 s: past the failure."""
     from ffrf_fmu.studies.stability import cut
 
