@@ -620,15 +620,19 @@ def advise(args) -> int:
     arg("--backend", choices=("native", "numpy"), default="native",
         help="python runtime: native (default), the slave steps in the C runtime shipped compiled in the FMU; "
              "numpy, the reference implementation"),
+    arg("--fmi", type=int, choices=(2, 3), default=2,
+        help="FMI version: 2 (default) or 3 (native runtime: port fields as arrays, binaries x86_64-linux and "
+             "x86_64-windows; docs/fmu.md)"),
 )
 def build(args) -> int:
-    """Build an FMI 2.0 co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
+    """Build an FMI 2.0 (or, with --fmi 3, 3.0) co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
     from .fmu.builder import BuildError, build_from_model
 
     try:
         out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
                                backend=args.backend, runtime=args.runtime,
-                               platforms=tuple(args.platforms or ("linux64", "win64")), compiler=args.compiler)
+                               platforms=tuple(args.platforms or ("linux64", "win64")), compiler=args.compiler,
+                               fmi=args.fmi)
     except (ModelError, BuildError, OSError) as e:
         print(f"{PROG} build: error: {e}", file=sys.stderr)
         return 2
@@ -641,7 +645,8 @@ def build(args) -> int:
     with zipfile.ZipFile(out) as z:  # the build facts: documentation/build.json (native), ffrf_fmu.json (python)
         name = "documentation/build.json" if args.runtime == "native" else "resources/ffrf_fmu.json"
         scene = json.loads(z.read(name))["build"].get("scene")
-    print(f"wrote {out} ({args.runtime} runtime, model identifier {md.coSimulation.modelIdentifier}, scene {scene!r})")
+    print(f"wrote {out} (FMI {md.fmiVersion}, {args.runtime} runtime, model identifier {md.coSimulation.modelIdentifier}, "
+          f"scene {scene!r})")
     return 0
 
 
@@ -656,6 +661,8 @@ def build(args) -> int:
     arg("--rtol", type=float, default=DEFAULT_RTOL, help=f"relative tolerance per output group (default {DEFAULT_RTOL:g})"),
     arg("--atol", type=float, default=DEFAULT_ATOL,
         help=f"absolute tolerance for groups that stay near zero (default {DEFAULT_ATOL:g})"),
+    arg("--fmi", type=int, choices=(2, 3), default=2,
+        help="FMI version of the FMU built from a model file (an .fmu given is run as the version it is)"),
 )
 def validate(args) -> int:
     """Run a scene through the FMU under fmpy and standalone, compare every output, write a report.
@@ -669,7 +676,8 @@ def validate(args) -> int:
 
     try:
         rep = run_validation(args.source, scene=args.scene, model=args.model, overrides=args.overrides,
-                             comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol)
+                             comm_step=args.comm_step, report_dir=args.report, rtol=args.rtol, atol=args.atol,
+                             fmi=args.fmi)
     except (ValidationError, FmuRunError, ModelError, BuildError, OSError) as e:
         print(f"{PROG} validate: error: {e}", file=sys.stderr)
         return 2

@@ -2,6 +2,7 @@
 
     ffrf-fmu validate MODEL.toml --scene NAME [--comm-step H] [--report DIR] [--set k=v ...]
     ffrf-fmu validate Body.fmu --model MODEL.toml --scene NAME [...]
+    ffrf-fmu validate MODEL.toml --fmi 3 ...     (the FMU built for FMI 3.0; an .fmu may be either version)
 
 Given a model file, the FMU is built from it first (into DIR). Given an .fmu, the model file is
 required (--model): the standalone reference needs the body, which an FMU deliberately does not
@@ -145,8 +146,10 @@ def fmu_backend(fmu_path) -> str:
 
 
 def validate(source, *, scene: str | None = None, model=None, overrides=(), comm_step: float | None = None,
-             report_dir=None, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, plots: bool = True) -> dict:
-    """Run the validation; returns the report (also written to report_dir/report.json)."""
+             report_dir=None, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, plots: bool = True,
+             fmi: int = 2) -> dict:
+    """Run the validation; returns the report (also written to report_dir/report.json). An .fmu may be FMI 2.0
+    or 3.0; from a model file the FMU is built for FMI version `fmi` (2 or 3)."""
     import tempfile
 
     from .fmu.builder import build_from_model
@@ -172,7 +175,8 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
         m0 = load_model(model_path, overrides)
         sc0 = m0.scene(scene)
         out_dir = report_dir or Path(tempfile.mkdtemp(prefix="ffrf_validate_"))
-        fmu_path = build_from_model(model_path, out_dir / f"{m0.body.name}.fmu", scene=sc0.name, overrides=overrides)
+        fmu_path = build_from_model(model_path, out_dir / f"{m0.body.name}.fmu", scene=sc0.name, overrides=overrides,
+                                    fmi=fmi)
         built = True
     mdl = load_model(model_path, overrides)
     sc = mdl.scene(scene)
@@ -201,7 +205,10 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
 
     run = run_fmu(fmu_path, sc, scene_inputs(body, sc, load_interval=(0.0, H)), H)  # loads held over (t, t + H]
     t_fmu, fmu_cols, reached, wall_fmu, log = run.t, run.columns, run.reached, run.wall_time_s, run.log
-    outputs = [v.name for v in read_model_description(str(fmu_path)).modelVariables if v.causality == "output"]
+    from .fmu.run import scalar_names  # FMI 3.0 arrays by their elements, named as in FMI 2.0
+
+    outputs = [n for v in read_model_description(str(fmu_path)).modelVariables if v.causality == "output"
+               for n in scalar_names(v)]
     ref_ok = bool(ref.summary.get("completed", True))
     compared = [n for n in outputs if n in ref.columns]
     groups = compare(t_fmu, fmu_cols, ref.t, ref.columns, compared, rtol, atol)

@@ -382,11 +382,14 @@ RUNTIMES = ("native", "python")
 
 def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "native",
                      runtime: str = "native", platforms=("linux64",), compiler: str = "zig",
-                     log=None, native_loader: bool = True) -> Path:
+                     log=None, native_loader: bool = True, fmi: int = 2) -> Path:
     """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters. runtime: "native"
-    (fmu/native: binaries for `platforms` by `compiler`, zig or system) or "python" (`build_fmu`, with `backend`)."""
+    (fmu/native: binaries for `platforms` by `compiler`, zig or system; FMI version `fmi`, 2 or 3) or "python"
+    (`build_fmu`, with `backend`; FMI 2.0 only)."""
     if runtime not in RUNTIMES:
         raise BuildError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
+    if fmi != 2 and (fmi != 3 or runtime != "native"):
+        raise BuildError(f"FMI version {fmi!r}: 2, or 3 with the native runtime only (pythonfmu makes FMI 2.0 FMUs)")
     from ..model import load_model
     from ..reduction import build_scene_body
 
@@ -401,7 +404,7 @@ def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()
 
         try:
             return build_native_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin,
-                                    build_info=info, platforms=platforms, compiler=compiler, log=log)
+                                    build_info=info, platforms=platforms, compiler=compiler, log=log, fmi=fmi)
         except NativeBuildError as e:
             raise BuildError(str(e)) from None
     return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,

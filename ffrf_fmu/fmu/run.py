@@ -88,7 +88,7 @@ def input_values(values: dict, names: Sequence[str]) -> list[float]:
 
 def fmu_input_table(fmu_path, inputs: Callable, times) -> np.ndarray:
     """fmpy input table: every FMU input sampled at `times` from inputs(t) -> {port: PortValues}."""
-    names = [v.name for v in _variables(fmu_path) if v.causality == "input"]
+    names = [n for v in _variables(fmu_path) if v.causality == "input" for n in scalar_names(v)]
     table = np.zeros(len(times), dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
     table["time"] = times
     # each name's (port, field) and flat index into that field (R[i,j] row-major): one gather per time
@@ -113,7 +113,7 @@ def fmu_input_table(fmu_path, inputs: Callable, times) -> np.ndarray:
 
 def scene_start_values(scene, fmu_path) -> dict:
     """The scene's solver and initial values as FMU parameter start values."""
-    names = {v.name for v in _variables(fmu_path)}
+    names = {n for v in _variables(fmu_path) for n in scalar_names(v)}
     sv = {"solver.step": scene.step, "solver.rho_inf": scene.rho_inf, "solver.terms": TERM_SETS.index(scene.terms)}
     for i in range(3):
         sv[component_name("gravity", (i,))] = scene.gravity[i]
@@ -128,6 +128,104 @@ def scene_start_values(scene, fmu_path) -> dict:
     return sv
 
 
+def fmi_version(fmu_path) -> str:
+    """"2.0" or "3.0": the fmiVersion of the FMU's modelDescription.xml."""
+    from fmpy import read_model_description
+
+    return read_model_description(str(fmu_path)).fmiVersion
+
+
+def scalar_names(variable) -> list[str]:
+    """The FMI 2.0 scalar names of an FMI 3.0 variable (fmpy's ModelVariable): `tip.R` [3, 3] ->
+    `tip.R[1,1]`, `tip.R[1,2]`, ... row-major (fmu/native `fmi3_variables`); a scalar keeps its name."""
+    shape = [int(d.start) for d in variable.dimensions]
+    if not shape:
+        return [variable.name]
+    return [component_name(variable.name, idx) for idx in np.ndindex(*shape)]
+
+
+def _run_fmu3(fmu_path, scene, table: np.ndarray, start_values: dict, record: Sequence[str], H: float, log: list):
+    """The FMI 3.0 FMU through the input table, as fmpy.simulate_fmu runs an FMI 2.0 co-simulation FMU
+    (fmpy's simulate_fmu records FMI 3.0 array outputs as one column each; this loop keeps the scalar
+    columns): parameters and the inputs at t_0 set in initialization mode, then per communication point
+    t_k the inputs at t_k, doStep(t_k, H), the outputs at t_k + H. Stops at the first doStep that is not
+    OK (a discard: the run's last sample is the last successful point). Returns (times, {scalar name: values})."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Slave
+
+    md = read_model_description(str(fmu_path))
+    tmp = tempfile.TemporaryDirectory(prefix="ffrf_fmu3_")
+    unzip = extract(str(fmu_path), tmp.name)
+    by_name = {v.name: v for v in md.modelVariables}
+    scalars = {v.name: scalar_names(v) for v in md.modelVariables}
+
+    def groups(names, type_="Float64"):
+        """(value references, scalar names in order) of the FMI 3.0 variables of `type_` holding `names`
+        (whole arrays)."""
+        wanted, refs, order = set(names), [], []
+        for v in md.modelVariables:
+            if v.causality != "independent" and v.type == type_ and wanted.intersection(scalars[v.name]):
+                refs.append(v.valueReference)
+                order.extend(scalars[v.name])
+        return refs, order
+
+    def log_message(env, status, category, message):
+        dec = lambda b: b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b)
+        log.append(f"[{dec(category)}] {dec(message)}")
+
+    fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName="ffrf")
+    fmu.instantiate(loggingOn=True, logMessage=log_message)
+    if not fmu.component:
+        tmp.cleanup()
+        raise FmuRunError(f"{fmu_path}: fmi3InstantiateCoSimulation failed: {' '.join(log[-3:])}")
+    inputs = [n for n in table.dtype.names[1:]]
+    in_refs, in_order = groups(inputs)
+    out_refs, out_order = groups(record)
+    int_refs, int_order = groups(record, "Int32")
+
+    def sample():
+        return [*fmu.getFloat64(out_refs, nValues=len(out_order)), *(fmu.getInt32(int_refs) if int_refs else [])]
+
+    float_params = {k: v for k, v in start_values.items() if by_name.get(k.partition("[")[0]) is None or
+                    by_name[k.partition("[")[0]].type == "Float64"}
+    try:
+        fmu.enterInitializationMode(startTime=0.0, stopTime=float(table["time"][-1]))
+        for name, value in start_values.items():
+            base = name.partition("[")[0]
+            v = by_name[base]
+            if v.type == "Int32":
+                fmu.setInt32([v.valueReference], [int(value)])
+        p_refs, p_order = groups([k for k in float_params])
+        if p_refs:  # a parameter array is set whole: its other elements keep their start values
+            current = dict(zip(p_order, fmu.getFloat64(p_refs, nValues=len(p_order))))
+            current.update(float_params)
+            fmu.setFloat64(p_refs, [float(current[n]) for n in p_order])
+        row = {n: float(table[n][0]) for n in inputs}
+        if in_refs:
+            fmu.setFloat64(in_refs, [row[n] for n in in_order])
+        fmu.exitInitializationMode()
+        times = [0.0]
+        values = [sample()]
+        for k in range(len(table) - 1):
+            t_c, t_next = float(table["time"][k]), float(table["time"][k + 1])
+            if in_refs:
+                fmu.setFloat64(in_refs, [float(table[n][k]) for n in in_order])
+            try:
+                fmu.doStep(t_c, t_next - t_c)
+            except Exception:  # fmpy raises on a discard or an error: the message is in the log
+                break
+            times.append(t_next)
+            values.append(sample())
+        fmu.terminate()
+    finally:
+        fmu.freeInstance()
+        fmu.freeLibrary()
+        tmp.cleanup()
+    data = np.array(values, dtype=float)
+    return np.array(times), {n: data[:, j] for j, n in enumerate(out_order + int_order) if n in set(record)}
+
+
 def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | None = None,
             record: Sequence[str] | None = None) -> FmuRun:
     """Run the FMU through `scene` under fmpy.simulate_fmu.
@@ -136,7 +234,8 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
     comm_step: communication step H (default: the scene's internal step); record: the variables to
     record (default: every input and output). fmpy records after doStep(t_c, H), when the inputs
     still hold the values set for t_c, and repeats the last sample after a discard: the run keeps
-    strictly increasing times and takes the input columns from the signal at the recorded times."""
+    strictly increasing times and takes the input columns from the signal at the recorded times. An FMI
+    3.0 FMU runs through the same table in `_run_fmu3`; its columns are the scalar names of FMI 2.0."""
     import fmpy
 
     H = float(comm_step) if comm_step else scene.step
@@ -144,8 +243,10 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
         from ..simulate import scene_inputs
 
         inputs = scene_inputs(fmu_body(fmu_path), scene, load_interval=(0.0, H))
+    fmi3 = fmi_version(fmu_path).startswith("3")
     if record is None:
-        record = [v.name for v in _variables(fmu_path) if v.causality in ("input", "output")]
+        record = [n for v in _variables(fmu_path) if v.causality in ("input", "output")
+                  for n in (scalar_names(v) if fmi3 else [v.name])]
     n = int(round(scene.duration / H))
     times = np.arange(n + 1) * H
     if times[-1] < scene.duration * (1 - 1e-12):
@@ -159,6 +260,16 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
         log.append(f"[{dec(category)}] {dec(message)}")
 
     t0, c0 = time.perf_counter(), time.process_time()
+    if fmi3:
+        t, columns = _run_fmu3(fmu_path, scene, table, start_values, [n for n in record if n not in table.dtype.names],
+                               H, log)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        recorded_inputs = [n for n in table.dtype.names[1:] if n in record]
+        if recorded_inputs:
+            exact = fmu_input_table(fmu_path, inputs, t)
+            columns.update({n: np.asarray(exact[n], dtype=float) for n in recorded_inputs})
+        reached = bool(abs(t[-1] - scene.duration) <= 1e-9 * max(1.0, scene.duration))
+        return FmuRun(t, columns, reached, wall, cpu, log)
     res = fmpy.simulate_fmu(str(fmu_path), start_time=0.0, stop_time=scene.duration, output_interval=H,
                             input=table, output=list(record), start_values=start_values, debug_logging=True,
                             logger=logger)

@@ -1,4 +1,4 @@
-"""The native body FMU: an FMI 2.0 co-simulation FMU in C over the C runtime, with nothing installed beside it.
+"""The native body FMU: an FMI 2.0 (or 3.0) co-simulation FMU in C over the C runtime, with nothing installed beside it.
 
     binaries/linux64/<id>.so, binaries/win64/<id>.dll   fmi2Functions.c over model.c over runtime/native:
                                                         body-independent, built once per source version and
@@ -9,6 +9,9 @@
     documentation/build.json                            how it was built (model file name and digest, scene)
     modelDescription.xml
 
+FMI 3.0 (`fmi=3`): the same resource and model, fmi3Functions.c in binaries/x86_64-linux/<id>.so and
+binaries/x86_64-windows/<id>.dll, and a modelDescription.xml whose port fields are arrays (`fmi3_variables`).
+
 No Python, numpy, .npz, model file or source in the FMU. `build_native_fmu` writes one; the pythonfmu
 route (fmu/builder.py `build_fmu`) stays for `--runtime python`.
 """
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import html
+from dataclasses import dataclass
 import json
 import os
 import uuid
@@ -129,7 +133,114 @@ def model_description(variables, *, name: str, identifier: str, guid: str, descr
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8") + b"\n"
 
 
-def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict, images: dict) -> str:
+@dataclass(frozen=True)
+class Fmi3Variable:
+    """One FMI 3.0 variable: a run of consecutive FMI 2.0 scalars of one name (`tip.R[1,1]` .. `tip.R[3,3]` is
+    `tip.R` of dimensions [3, 3], row-major, the order of the scalars) or a scalar; fmi3Functions.c
+    `build_arrays` groups the same way (consecutive, one base name, type and causality)."""
+
+    name: str
+    value_reference: int  # 1.. (0 is time)
+    first: int  # the FMI 2.0 value reference of its first element
+    shape: tuple[int, ...]  # () for a scalar
+    members: tuple  # the fmu/variables.py Variable of each element, in order
+
+
+def fmi3_variables(variables) -> list[Fmi3Variable]:
+    """The FMI 3.0 variables of the FMI 2.0 table `variables` (value references 1, 2, ...; 0 is time)."""
+    runs: list[list[int]] = []
+    for i, v in enumerate(variables):
+        if runs and "[" in v.name:
+            f = variables[runs[-1][0]]
+            if (v.name.partition("[")[0] == f.name.partition("[")[0] and "[" in f.name and v.type == f.type
+                    and v.causality == f.causality):
+                runs[-1].append(i)
+                continue
+        runs.append([i])
+    out = []
+    for k, run in enumerate(runs):
+        members = tuple(variables[i] for i in run)
+        first = members[0]
+        shape = () if "[" not in first.name else ((3, 3) if len(run) == 9 else (len(run),))
+        out.append(Fmi3Variable(first.name.partition("[")[0], k + 1, run[0], shape, members))
+    return out
+
+
+def _description3(members) -> str:
+    texts = {v.description for v in members}
+    if len(texts) == 1:
+        return members[0].description
+    # per-element texts (the probes: "axis 1 of the frame"): said once for the array
+    return members[0].description.replace("axis 1 of", "axes 1, 2, 3 (the elements) of")
+
+
+def model_description3(variables, *, name: str, identifier: str, token: str, description: str,
+                       experiment: dict | None) -> bytes:
+    """FMI 3.0 modelDescription.xml: the FMI 2.0 FMU's variables as arrays (`fmi3_variables`; Float64 and
+    Int32), units, descriptions, start, min and max as in 2.0, the independent variable `time` (value
+    reference 0), co-simulation without event mode or intermediate update, directional and adjoint
+    derivatives, the ModelStructure of 2.0 (every output depends on every input)."""
+    root = Element("fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": name, "instantiationToken": token, "description": description,
+        "author": "ffrf-fmu", "version": __version__, "generationTool": f"ffrf-fmu {__version__} (native)",
+        "generationDateAndTime": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "variableNamingConvention": "structured"})
+    SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canGetAndSetFMUState": "true", "canSerializeFMUState": "true", "providesDirectionalDerivatives": "true",
+        "providesAdjointDerivatives": "true", "providesPerElementDependencies": "false",
+        "canHandleVariableCommunicationStepSize": "true", "maxOutputDerivativeOrder": "0",
+        "providesIntermediateUpdate": "false", "mightReturnEarlyFromDoStep": "false",
+        "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
+        "providesEvaluateDiscreteStates": "false"})
+    used = sorted({v.unit for v in variables if v.unit})
+    units = SubElement(root, "UnitDefinitions")
+    for u in used:
+        SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
+    cats = SubElement(root, "LogCategories")
+    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
+                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
+                      ("logAll", "everything else")):
+        SubElement(cats, "Category", {"name": cat, "description": text})
+    if experiment:
+        SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),
+                                               "stepSize": repr(experiment["step_size"])})
+    mv = SubElement(root, "ModelVariables")
+    SubElement(mv, "Float64", {"name": "time", "valueReference": "0", "causality": "independent",
+                               "variability": "continuous", "unit": "s", "description": "simulation time"})
+    arrays = fmi3_variables(variables)
+    for a in arrays:
+        v = a.members[0]
+        attrs = {"name": a.name, "valueReference": str(a.value_reference), "description": _description3(a.members),
+                 "causality": v.causality, "variability": v.variability}
+        if v.causality == "output":
+            attrs["initial"] = "calculated"
+        elif v.causality == "parameter":
+            attrs["initial"] = "exact"
+        if v.unit:
+            attrs["unit"] = v.unit
+        for key in ("min", "max"):
+            bound = getattr(v, key)
+            if bound is not None:
+                attrs[key] = repr(float(bound)) if v.type == "Real" else str(int(bound))
+        if v.start is not None:
+            attrs["start"] = " ".join(_start(m) for m in a.members)
+        el = SubElement(mv, "Float64" if v.type == "Real" else "Int32", attrs)
+        for n in a.shape:
+            SubElement(el, "Dimension", {"start": str(n)})
+    structure = SubElement(root, "ModelStructure")
+    inputs = [str(a.value_reference) for a in arrays if a.members[0].causality == "input"]
+    outputs = [a for a in arrays if a.members[0].causality == "output"]
+    deps = {"dependencies": " ".join(inputs), "dependenciesKind": " ".join(["dependent"] * len(inputs))}
+    for a in outputs:
+        SubElement(structure, "Output", {"valueReference": str(a.value_reference), **deps})
+    for a in outputs:
+        SubElement(structure, "InitialUnknown", {"valueReference": str(a.value_reference)})
+    indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8") + b"\n"
+
+
+def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict, images: dict, fmi: int = 2) -> str:
     """documentation/index.html: what a partner needs to know of the body without its matrices."""
     mass, cm, J = system.mass_properties()
     e = html.escape
@@ -143,7 +254,7 @@ def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict
 <html><head><meta charset="utf-8"><title>{e(data.name)}: body datasheet</title></head>
 <body>
 <h1>Flexible body {e(data.name)}</h1>
-<p>FMI 2.0 co-simulation FMU made by ffrf-fmu {e(__version__)} (native runtime). The body is {len(data.superelements)}
+<p>FMI {fmi}.0 co-simulation FMU made by ffrf-fmu {e(__version__)} (native runtime). The body is {len(data.superelements)}
 two-field floating-frame superelement(s), each a linear FE beam reduced to its boundary frames and free-free modes,
 moving with large rigid motions. All values SI, world axes, at the reference (undeformed) configuration.</p>
 <h2>Mass properties</h2>
@@ -168,7 +279,7 @@ Other scenes (speeds, loads, steps) are outside what was checked at build time: 
 
 
 def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: dict | None = None,
-                     platforms=PLATFORMS, compiler: str = "zig", log=None) -> Path:
+                     platforms=PLATFORMS, compiler: str = "zig", log=None, fmi: int = 2) -> Path:
     """Write the native FMU of `data` to `dest` (a .fmu file name or a directory) and return its path.
 
     params: builder.SceneParameters (parameter defaults); origin: the initial rigid velocity field's origin
@@ -208,20 +319,28 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
                               node_positions=np.asarray(data.node_positions, dtype=float), origin=origin,
                               images=images)
     experiment = {"stop_time": float(params.duration), "step_size": float(params.step)} if params.duration else None
-    xml = model_description(variables, name=data.name, identifier=model_id, guid=guid, description=description,
-                            experiment=experiment)
-    binaries = {p: native_build.binary(p, compiler, log=log) for p in platforms}
+    if fmi == 3:
+        xml = model_description3(variables, name=data.name, identifier=model_id, token=guid,
+                                 description=description.replace("fmi2", "fmi3"), experiment=experiment)
+    elif fmi == 2:
+        xml = model_description(variables, name=data.name, identifier=model_id, guid=guid, description=description,
+                                experiment=experiment)
+    else:
+        raise native_build.NativeBuildError(f"FMI version must be 2 or 3, got {fmi!r}")
+    binaries = {p: native_build.binary(p, compiler, log=log, fmi=fmi) for p in platforms}
     dest.parent.mkdir(parents=True, exist_ok=True)
     tmp = dest.with_name(dest.name + ".tmp")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
         z.writestr(f"resources/{RESOURCE_FILE}", pack(content, RUNTIME_VERSION))
-        z.writestr("documentation/index.html", datasheet(data, system, config, build_info, images))
+        z.writestr("documentation/index.html", datasheet(data, system, config, build_info, images, fmi))
         z.writestr("documentation/build.json", json.dumps({  # how it was made (no body data)
             "ffrf_fmu_version": __version__, "runtime_version": RUNTIME_VERSION, "body": data.name,
-            "term_sets": list(images), "platforms": list(binaries), "compiler": compiler, "build": build_info},
+            "term_sets": list(images), "platforms": list(binaries), "compiler": compiler, "fmi_version": f"{fmi}.0",
+            "build": build_info},
             indent=1))
         for platform, path in binaries.items():
-            z.write(path, f"binaries/{platform}/{model_id}{native_build.TARGETS[platform].suffix}")
+            target = native_build.TARGETS[platform]
+            z.write(path, f"binaries/{target.platform if fmi == 2 else target.platform3}/{model_id}{target.suffix}")
     os.replace(tmp, dest)
     return dest

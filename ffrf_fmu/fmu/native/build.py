@@ -4,7 +4,8 @@ cache (`~/.cache/ffrf-fmu/fmu-binaries`, or under $FFRF_FMU_CACHE_DIR).
 
 Targets: linux64 (x86_64-linux-gnu.2.17: glibc 2.17 or newer, no libstdc++) and win64
 (x86_64-windows-gnu), both with `zig cc` of the PyPI package ziglang (it cross-compiles), or linux64 with
-the system C compiler when asked (compiler="system"). zig builds a target's C library once per machine
+the system C compiler when asked (compiler="system"). One binary per FMI version (fmi=2: fmi2Functions.c,
+fmi=3: fmi3Functions.c, over the same model and runtime). zig builds a target's C library once per machine
 (the first build of a target takes long: README, "Set up"); the build prints its progress meanwhile.
 """
 from __future__ import annotations
@@ -36,11 +37,12 @@ class Target:
     platform: str  # FMI 2.0 binaries/<platform>
     zig: str
     suffix: str
+    platform3: str  # FMI 3.0 binaries/<platform tuple>
 
 
 TARGETS = {
-    "linux64": Target("linux64", "x86_64-linux-gnu.2.17", ".so"),
-    "win64": Target("win64", "x86_64-windows-gnu", ".dll"),
+    "linux64": Target("linux64", "x86_64-linux-gnu.2.17", ".so", "x86_64-linux"),
+    "win64": Target("win64", "x86_64-windows-gnu", ".dll", "x86_64-windows"),
 }
 
 
@@ -48,9 +50,16 @@ class NativeBuildError(RuntimeError):
     """The native binary cannot be built (the message says why)."""
 
 
-def sources() -> list[Path]:
-    """The C sources compiled into an FMU binary (runtime first, then the FMI layer)."""
-    return sorted(RUNTIME.glob("*.c")) + sorted(HERE.glob("*.c"))
+FMI_VERSIONS = (2, 3)
+
+
+def sources(fmi: int = 2) -> list[Path]:
+    """The C sources compiled into an FMU binary (runtime first, then the model and the FMI layer of version
+    `fmi`: fmi2Functions.c or fmi3Functions.c, one per binary)."""
+    if fmi not in FMI_VERSIONS:
+        raise NativeBuildError(f"FMI version must be one of {FMI_VERSIONS}, got {fmi!r}")
+    layer = [f for f in sorted(HERE.glob("*.c")) if not (f.name.startswith("fmi") and f.name != f"fmi{fmi}Functions.c")]
+    return sorted(RUNTIME.glob("*.c")) + layer
 
 
 def headers() -> list[Path]:
@@ -60,7 +69,7 @@ def headers() -> list[Path]:
 def source_digest() -> str:
     """A digest of every source, header and flag: the cache key of the binaries (with target and compiler)."""
     h = hashlib.sha256(" ".join(FLAGS).encode())
-    for f in sources() + headers():
+    for f in sorted(RUNTIME.glob("*.c")) + sorted(HERE.glob("*.c")) + headers():
         h.update(f.name.encode() + b"\0" + f.read_bytes())
     return h.hexdigest()[:16]
 
@@ -113,14 +122,16 @@ def _run_with_progress(cmd: list[str], what: str, log, zig: bool) -> subprocess.
         thread.join()
 
 
-def binary(platform: str = "linux64", compiler: str = "zig", log=None, extra_flags=()) -> Path:
-    """The cached shared library of the native FMU for `platform` (built now if missing) and its path."""
+def binary(platform: str = "linux64", compiler: str = "zig", log=None, extra_flags=(), fmi: int = 2) -> Path:
+    """The cached shared library of the native FMU for `platform` and FMI version `fmi` (built now if missing)
+    and its path."""
     if platform not in TARGETS:
         raise NativeBuildError(f"unknown platform {platform!r}; choose from {sorted(TARGETS)}")
     target = TARGETS[platform]
     log = log or (lambda text: print(text, file=sys.stderr, flush=True))
     flags = [*FLAGS, *extra_flags]
-    key = hashlib.sha256(f"{source_digest()} {platform} {compiler} {' '.join(flags)}".encode()).hexdigest()[:16]
+    layer = "" if fmi == 2 else f" fmi{fmi}"  # FMI 2.0's key as before: its cached binaries stay valid
+    key = hashlib.sha256(f"{source_digest()} {platform} {compiler} {' '.join(flags)}{layer}".encode()).hexdigest()[:16]
     out = cache_dir() / key / f"ffrf_fmu{target.suffix}"
     if out.exists():
         return out
@@ -128,16 +139,16 @@ def binary(platform: str = "linux64", compiler: str = "zig", log=None, extra_fla
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         tmp_out = Path(tmp) / out.name
-        link = ["-shared", "-s", "-o", str(tmp_out)]  # stripped: no symbol but the exported fmi2 functions
+        link = ["-shared", "-s", "-o", str(tmp_out)]  # stripped: no symbol but the exported fmi2 (or fmi3) functions
         if target.platform == "linux64":
             link = ["-fPIC", *link, "-lm", "-Wl,--no-undefined"]
-        full = [*cmd, *flags, f"-I{RUNTIME}", f"-I{HERE}", *map(str, sources()), *link]
+        full = [*cmd, *flags, f"-I{RUNTIME}", f"-I{HERE}", *map(str, sources(fmi)), *link]
         t0 = time.monotonic()
-        done = _run_with_progress(full, f"native FMU binary {platform}", log, compiler == "zig")
+        done = _run_with_progress(full, f"native FMU binary {platform}{layer}", log, compiler == "zig")
         if done.returncode != 0:
             raise NativeBuildError(f"{' '.join(full)} failed:\n{done.stderr.strip()[:4000]}")
         os.replace(tmp_out, out)  # atomic: a concurrent build of the same key writes the same bytes
         elapsed = time.monotonic() - t0
         if elapsed > 3.0:
-            log(f"native FMU binary {platform}: built in {elapsed:.1f} s (cached in {out.parent})")
+            log(f"native FMU binary {platform}{layer}: built in {elapsed:.1f} s (cached in {out.parent})")
     return out

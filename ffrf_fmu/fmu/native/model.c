@@ -19,7 +19,7 @@ static const char *const TERM_NAMES[FMU_TERM_SETS] = {"linear", "gyroscopic", "f
 
 void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
 {
-    if (!m->cb.logger || (status == fmi2OK && !m->logging))
+    if ((!m->cb.logger && !m->sink) || (status == fmi2OK && !m->logging))
         return;
     char text[4 * FMU_MESSAGE];
     va_list ap;
@@ -28,8 +28,11 @@ void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
     va_end(ap);
     static const char *const categories[] = {"logAll", "logStatusWarning", "logStatusDiscard", "logStatusError",
                                              "logStatusFatal", "logAll"};
-    m->cb.logger(m->cb.componentEnvironment, m->name, status, categories[status <= fmi2Pending ? status : 0], "%s",
-                 text);
+    const char *category = categories[status <= fmi2Pending ? status : 0];
+    if (m->sink)
+        m->sink(m, (int)status, category, text);
+    else
+        m->cb.logger(m->cb.componentEnvironment, m->name, status, category, "%s", text);
 }
 
 const char *py_repr(double x, char *buf, size_t len)
@@ -86,7 +89,7 @@ fmi2Status model_setup(fmu_instance *m)
     m->row = calloc(n_row, sizeof(double));
     if (!m->values || !m->start_values || !m->initialized_with || !m->last_values || !m->deriv_values ||
         !m->deriv_sides || !m->held || !m->row) {
-        fmu_log(m, fmi2Error, "fmi2Instantiate: out of memory");
+        fmu_log(m, fmi2Error, "%sInstantiate: out of memory", FMU_API(m));
         return fmi2Error;
     }
     for (int i = 0; i < n; i++)
@@ -226,12 +229,12 @@ static fmi2Status set_values(fmu_instance *m, const fmi2ValueReference vr[], siz
 
 fmi2Status model_set_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Real value[])
 {
-    return set_values(m, vr, n, value, NULL, "fmi2SetReal");
+    return set_values(m, vr, n, value, NULL, m->fmi ? "fmi3SetFloat64" : "fmi2SetReal");
 }
 
 fmi2Status model_set_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[])
 {
-    return set_values(m, vr, n, NULL, value, "fmi2SetInteger");
+    return set_values(m, vr, n, NULL, value, m->fmi ? "fmi3SetInt32" : "fmi2SetInteger");
 }
 
 /* ------------------------------------------------------------------ parameters and inputs */
@@ -519,8 +522,8 @@ fmi2Status model_exit_initialization(fmu_instance *m)
     m->discarded[0] = 0;
     m->have_last = 0;
     if (failed) {
-        fmu_log(m, fmi2Error, "%s (fmi2Error; every doStep will return fmi2Error until the parameters are fixed and "
-                "the FMU is reset)", m->failure);
+        fmu_log(m, fmi2Error, "%s (%sError; every doStep will return %sError until the parameters are fixed and "
+                "the FMU is reset)", m->failure, FMU_API(m), FMU_API(m));
         return fmi2Error;
     }
     return fmi2OK;
@@ -758,7 +761,7 @@ fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReferenc
     if (!m->have_last || !m->body) {
         fmu_log(m, fmi2Error, "directional derivative: no communication step to differentiate (they are the "
                 "derivatives of the last successful doStep; none since initialization, a failed doStep or "
-                "fmi2SetFMUstate)");
+                "%s)", m->fmi ? "fmi3SetFMUState" : "fmi2SetFMUstate");
         return fmi2Error;
     }
     for (size_t i = 0; i < n_unknown; i++)
@@ -935,7 +938,7 @@ fmi2Status model_deserialize(fmu_instance *m, const unsigned char *in, size_t si
         /* the body of the state's term set, and its parameters, from the state's values */
         double *saved = malloc(8 * nv);
         if (!saved) {
-            fmu_log(m, fmi2Error, "fmi2SetFMUstate: out of memory");
+            fmu_log(m, fmi2Error, "%s: out of memory", m->fmi ? "fmi3SetFMUState" : "fmi2SetFMUstate");
             return fmi2Error;
         }
         memcpy(saved, m->values, 8 * nv);
@@ -975,7 +978,7 @@ fmi2Status model_deserialize(fmu_instance *m, const unsigned char *in, size_t si
                     "factorization's pivots are out of range)");
             m->initialized = 0;
             m->failure[0] = 0;
-            snprintf(m->failure, sizeof m->failure, "fmi2SetFMUstate: the body refused the state");
+            snprintf(m->failure, sizeof m->failure, "%s: the body refused the state", m->fmi ? "fmi3SetFMUState" : "fmi2SetFMUstate");
             return fmi2Error;
         }
         ffrf_body_record(m->body, m->row);

@@ -22,6 +22,7 @@
 #define FMU_MESSAGE 1024          /* longest kept message (initialization failure, last discard) */
 #define FMU_FORMAT_VERSION 1      /* of resources/body.bin (resource.py FORMAT_VERSION) */
 #define FMU_STATE_VERSION 1       /* of a serialized FMU state */
+#define FMU_API(m) ((m)->fmi ? (m)->fmi : "fmi2") /* the FMI function prefix of messages */
 #define FMU_TERM_SETS 3           /* linear, gyroscopic, full (runtime/terms.py TERM_SETS) */
 
 enum { CAUS_INPUT = 0, CAUS_OUTPUT = 1, CAUS_PARAMETER = 2 };
@@ -77,6 +78,10 @@ typedef enum {
 typedef struct {
     char *name;                   /* instance name */
     fmi2CallbackFunctions cb;
+    /* the FMI layer above (NULL: FMI 2.0): fmi3Functions.c sets its prefix "fmi3" for the messages and a
+     * sink that hands them to its logMessage callback (fmi2's logger is then unused) */
+    const char *fmi;
+    void (*sink)(void *m, int status, const char *category, const char *message);
     int logging;
     fmu_description desc;
     fmu_mode mode;
