@@ -509,3 +509,35 @@ def test_validate_takes_an_fmi3_fmu(small, tmp_path, given):
     assert {"tip.r", "tip.v", "hub.f", "hub.t", "energies"} <= set(rep["groups"])
     if given == "model":
         assert read_model_description(str(next((tmp_path / "rep").glob("*.fmu")))).fmiVersion == "3.0"
+
+
+ECOS_RUN = """
+import json, sys
+from ffrf_fmu.engines import import_ecospy  # loads the tbb package's libtbb.so.12 first
+ecospy = import_ecospy()
+with ecospy.EcosSimulationStructure() as ss:
+    ss.add_model("body", sys.argv[1])
+    with ecospy.EcosSimulation(structure=ss, step_size=float(sys.argv[2])) as sim:
+        sim.init()
+        sim.step(int(sys.argv[3]))
+        out = {"t": sim.get_time(), "solver.step": sim.get_real("body::solver.step"),
+               "tip.r": sim.get_real("body::tip.r")}
+        sim.terminate()
+print(json.dumps(out))
+"""
+
+
+def test_ecos_runs_the_fmi3_fmu_but_reads_no_array(runs, tmp_path):
+    """How far ecos (ecospy, in process: its FMI 3.0 loader) reaches with the FMI 3.0 FMU: it loads, instantiates,
+    initializes and steps it (100 steps to t = 100 h) and reads a scalar (solver.step) right; an array it reads as
+    one real: `tip.r`, whose value is [8, 0, 0] (fmpy and the C host read it), comes back without an error as the
+    last value ecos read before (here solver.step's; 0.0 when it is the first read), and `tip.r[1]` is unknown to it. So ecos can neither set nor read a port of the FMI 3.0 FMU: use the FMI
+    2.0 FMU with ecos (tests/test_native_host.py)."""
+    three, _, _, sc = runs["B1"]
+    (tmp_path / "run.py").write_text(ECOS_RUN)
+    done = subprocess.run([sys.executable, str(tmp_path / "run.py"), str(three), str(sc.step), "100"],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    assert got["t"] == pytest.approx(100 * sc.step, abs=1e-12) and got["solver.step"] == sc.step
+    assert got["tip.r"] == got["solver.step"]  # a stale value: the array's first element is 8.0
