@@ -6,7 +6,11 @@
  *       doSteps of H from 0, print every element of each VR_OUT (N values) with %.17g on one line,
  *       then fmi3GetFMUState / two more doSteps / fmi3SetFMUState / the same two doSteps again and
  *       print "replay 1" when the outputs repeat bit for bit, fmi3Reset and "reset 0" when the outputs
- *       are readable again in initialization mode, free and unload. Any failed call: exit status 1.
+ *       are readable again in initialization mode, then bad calls (an unknown reference, a wrong count, a
+ *       set of an output, doStep in initialization mode, a damaged serialized state, a NULL state), each
+ *       twice, and "faults K" with K the number that returned fmi3Error; free and unload. Any failed
+ *       call of the good path: exit status 1.
+ *   BINARY "-" takes the fmi3 functions from the host itself (linked in, -rdynamic: the sanitizer build).
  */
 #include <stdarg.h>
 #include <stdio.h>
@@ -19,7 +23,7 @@ static void *symbol(void *lib, const char *name) { return (void *)GetProcAddress
 static void close_library(void *lib) { FreeLibrary((HMODULE)lib); }
 #else
 #include <dlfcn.h>
-static void *open_library(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static void *open_library(const char *path) { return strcmp(path, "-") ? dlopen(path, RTLD_NOW | RTLD_LOCAL) : dlopen(NULL, RTLD_NOW); }
 static void *symbol(void *lib, const char *name) { return dlsym(lib, name); }
 static void close_library(void *lib) { dlclose(lib); }
 #endif
@@ -65,6 +69,9 @@ int main(int argc, char **argv)
     LOAD(fmi3ResetTYPE, fmi3Reset)
     LOAD(fmi3TerminateTYPE, fmi3Terminate)
     LOAD(fmi3FreeInstanceTYPE, fmi3FreeInstance)
+    LOAD(fmi3SerializedFMUStateSizeTYPE, fmi3SerializedFMUStateSize)
+    LOAD(fmi3SerializeFMUStateTYPE, fmi3SerializeFMUState)
+    LOAD(fmi3DeserializeFMUStateTYPE, fmi3DeserializeFMUState)
     int steps = atoi(argv[4]);
     double H = atof(argv[5]);
     fmi3ValueReference vr_in = (fmi3ValueReference)strtoul(argv[6], NULL, 10);
@@ -109,11 +116,31 @@ int main(int argc, char **argv)
         CHECK(fmi3DoStep(c, k * H, H, fmi3False, &event, &terminate, &early, &last));
     CHECK(fmi3GetFloat64(c, out_vr, n_out, again, n_values));
     printf("replay %d\n", memcmp(out, again, sizeof(double) * n_values) == 0 && last == (steps + 2) * H);
+    size_t size = 0;
+    CHECK(fmi3SerializedFMUStateSize(c, state, &size));
+    unsigned char *bytes = malloc(size);
+    if (!bytes)
+        return 1;
+    CHECK(fmi3SerializeFMUState(c, state, bytes, size));
     CHECK(fmi3FreeFMUState(c, &state));
     CHECK(fmi3Terminate(c));
     CHECK(fmi3Reset(c));
     CHECK(fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0));
     printf("reset %d\n", (int)fmi3GetFloat64(c, out_vr, n_out, out, n_values));
+    int faults = 0;
+    fmi3ValueReference unknown = 1000000;
+    bytes[size / 2] ^= 1; /* the checksum no longer holds */
+    for (int twice = 0; twice < 2; twice++) {
+        fmi3FMUState damaged = NULL;
+        faults += fmi3GetFloat64(c, &unknown, 1, out, 1) == fmi3Error;
+        faults += fmi3GetFloat64(c, out_vr, 1, out, n_values + 1) == fmi3Error;
+        faults += fmi3SetFloat64(c, out_vr, 1, out, n_values) == fmi3Error; /* outputs cannot be set */
+        faults += fmi3DoStep(c, 0.0, H, fmi3True, &event, &terminate, &early, &last) == fmi3Error;
+        faults += fmi3DeserializeFMUState(c, bytes, size, &damaged) == fmi3Error && damaged == NULL;
+        faults += fmi3SetFMUState(c, NULL) == fmi3Error;
+    }
+    printf("faults %d\n", faults);
+    free(bytes);
     fmi3FreeInstance(c);
     close_library(lib);
     free(out);

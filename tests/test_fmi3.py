@@ -249,6 +249,7 @@ def test_b1_b2_fmi3_equal_fmi2_and_the_standalone_runtime_bit_for_bit(runs, name
     ({"solver.step": 1e9}, {}, 0.2, "solver.step = 1e+09 s is longer than the experiment"),
     ({"initial.v": [0.5, 0.0, 0.0]}, {}, None, "initial.v = [0.5, 0.0, 0.0] is set, but the translation of port hub is motion-driven"),
     ({"initial.w": [0.0, 0.0, 1.0]}, {}, None, "initial.w = [0.0, 0.0, 1.0] is set, but the rotation of port hub is motion-driven"),
+    ({"initial.tip.d": [0.0, math.nan, 0.0]}, {}, None, "initial.tip.d is not finite"),
 ])
 def test_invalid_parameters_make_exit_initialization_an_error(small, floats, ints, stop, cause, tmp_path):
     s = Slave3(small[0], tmp_path)
@@ -466,9 +467,35 @@ def test_b1_in_a_c_host_without_python_equals_fmpy(runs, tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     lines = done.stdout.splitlines()
     got = np.array([float(x) for x in lines[0].split()])
-    assert lines[1:] == ["replay 1", "reset 0"], lines
+    assert lines[1:] == ["replay 1", "reset 0", "faults 12"], lines
     ref = _fmpy_reference(three, tmp_path / "f", 100, H, outs)
     assert abs(got[2]) > 1e-4 and np.array_equal(got, ref), (got, ref)
+
+
+def test_the_c_host_under_the_sanitizers(small, tmp_path):
+    """tests/fmi3_host.c linked with the FMI 3.0 layer, the model and the C runtime, all under AddressSanitizer and
+    UndefinedBehaviorSanitizer (as tests/test_native_fuzz.py builds the FMI 2.0 FMU): the good path, state bytes,
+    reset and the bad calls twice, with no report and no leak."""
+    from ffrf_fmu.fmu.native import build as native_build
+
+    three = small[0]
+    md = read_model_description(str(three))
+    unzip = Path(extract(str(three), str(tmp_path / "u")))
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    exe = tmp_path / "fmi3_host_asan"
+    cmd = [cc, "-std=c11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+           "-fno-omit-frame-pointer", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-rdynamic",
+           f"-I{native_build.RUNTIME}", f"-I{NATIVE}", *map(str, native_build.sources(3)),
+           str(ROOT / "tests" / "fmi3_host.c"), "-lm", "-ldl", "-o", str(exe)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    args, _ = _host_args(md, 10, 0.01)
+    env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"}
+    done = subprocess.run([str(exe), "-", str(unzip / "resources") + "/", md.guid, *args], capture_output=True,
+                          text=True, timeout=900, env=env)
+    assert done.returncode == 0, done.stderr[-4000:]
+    assert "runtime error" not in done.stderr and "Sanitizer" not in done.stderr, done.stderr[-4000:]
+    assert done.stdout.splitlines()[1:] == ["replay 1", "reset 0", "faults 12"], done.stdout
 
 
 WINE = shutil.which("wine64") or shutil.which("wine")
@@ -491,7 +518,7 @@ def test_win64_fmi3_fmu_in_wine_equals_linux(small, tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     lines = done.stdout.replace("\r", "").splitlines()
     got = np.array([float(x) for x in lines[0].split()])
-    assert lines[1:] == ["replay 1", "reset 0"], lines
+    assert lines[1:] == ["replay 1", "reset 0", "faults 12"], lines
     assert np.array_equal(got, _fmpy_reference(fmu, tmp_path / "f", 20, 0.01, outs))
 
 

@@ -321,7 +321,8 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
     experiment = {"stop_time": float(params.duration), "step_size": float(params.step)} if params.duration else None
     if fmi == 3:
         xml = model_description3(variables, name=data.name, identifier=model_id, token=guid,
-                                 description=description.replace("fmi2", "fmi3"), experiment=experiment)
+                                 description=description.replace("fmi2", "fmi3").replace("SetFMUstate", "SetFMUState"),
+                                 experiment=experiment)
     elif fmi == 2:
         xml = model_description(variables, name=data.name, identifier=model_id, guid=guid, description=description,
                                 experiment=experiment)

@@ -1,6 +1,7 @@
 /* The body FMU's model interface: what an instance holds and does, below the thin FMI 2.0 layer of
- * fmi2Functions.c (the layout of the Modelica Association's Reference-FMUs: fmi2Functions over a small
- * model interface with one instance struct of named fields).
+ * fmi2Functions.c and the FMI 3.0 layer of fmi3Functions.c, one per binary (the layout of the Modelica
+ * Association's Reference-FMUs: fmi2Functions and fmi3Functions over a small model interface with one
+ * instance struct of named fields).
  *
  * The binary is body-independent: everything about the body comes from resources/body.bin
  * (resource.c; written by ffrf_fmu/fmu/native/resource.py): the variable table of
