@@ -87,28 +87,31 @@ def libcosim_run(fmus: dict[str, str], connections: list[tuple[str, str, float]]
                  H: float, duration: float, record: list[str], work_dir, sources=None):
     """Run FMUs {instance: fmu path} joined by `connections` under libcosim's fixed-step algorithm
     with communication step H; start_values and record as `instance.variable`; sources(t) ->
-    {`instance.variable`: value} set before each step (an override manipulator). The system goes
-    through an SSP package (master/ssp.py: the FMUs, the connections, start_values as parameters).
+    {`instance.variable`: value} set before each step (an override manipulator). The system is a
+    SystemStructure.ssd written by `write_ssd` next to copies of the FMUs (master/ssp.py writes
+    whole packages; it imports this module, not the other way round).
 
     Returns (times, {recorded name: values}, stopped, wall time of the stepping): one sample per
     step, at its end; stopped is "" or the step that failed."""
+    import shutil
     from pathlib import Path
-
-    from .master.ssp import Connection, System, write_ssp
 
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
-    n = int(round(duration / H))
-    system = System("ffrf", {k: str(v) for k, v in fmus.items()}, tuple(Connection(*c) for c in connections),
-                    dict(start_values), H, 0.0, n * H)
-    path = write_ssp(work / "system.ssp", system)
-    return libcosim_run_ssp(path, H, n, record, 0.0, sources)
+    comps = {}
+    for name, fmu in fmus.items():
+        shutil.copy(fmu, work / Path(fmu).name)
+        comps[name] = Path(fmu).name
+    ssd = write_ssd(work / "SystemStructure.ssd", comps, connections)
+    return libcosim_run_ssp(ssd, H, int(round(duration / H)), record, 0.0, sources, start_values)
 
 
-def libcosim_run_ssp(path, H: float, n: int, record: list[str], start: float = 0.0, sources=None):
-    """n steps of H of an SSP package under libcosim's fixed-step algorithm (libcosimpy
-    `CosimExecution.from_ssp_file`: components, connections with their linear transformations and
-    the package's parameter set as initial values); returns as `libcosim_run`."""
+def libcosim_run_ssp(path, H: float, n: int, record: list[str], start: float = 0.0, sources=None,
+                     start_values: dict[str, float] | None = None):
+    """n steps of H of an SSP package (or a SystemStructure.ssd) under libcosim's fixed-step
+    algorithm (libcosimpy `CosimExecution.from_ssp_file`: components, connections with their linear
+    transformations and the package's parameter set as initial values; start_values, if given, as
+    further initial values); returns as `libcosim_run`."""
     import time
 
     import numpy as np
@@ -126,6 +129,8 @@ def libcosim_run_ssp(path, H: float, n: int, record: list[str], start: float = 0
         inst, var = full.split(".", 1)
         return index[inst], refs[inst][var]
 
+    for full, value in (start_values or {}).items():
+        ex.real_initial_value(*ref(full), float(value))
     observer = CosimObserver.create_last_value()
     ex.add_observer(observer)
     manip = CosimManipulator.create_override()
