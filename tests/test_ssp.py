@@ -100,3 +100,25 @@ def test_cli_writes_a_package_from_port_fields_and_runs_it(package, tmp_path, ca
     rc = main(["system", "write", str(tmp_path / "y.ssp"), f"--fmu=beam={b5.fmus['beam']}", "--connect=beam.hub.t:beam.nope",
                "--step=0.01", "--stop=1"])
     assert rc == 2 and "beam.nope" in capsys.readouterr().err
+
+
+def test_split_beam_package_from_body_ports_fails_alike_in_master_and_libcosim(tmp_path):
+    """Two half-beam FMUs joined rigidly by `body_port_connections` (what `system write --ports`
+    does) in one package; the hub of A driven through input overrides (the fast spin-up). Plain
+    Jacobi in our master and libcosim: the same trajectory to 1e-9 and the same failing step (the
+    added-mass instability of docs/stability.md: at H = 2 ms a body refuses its step at 0.044 s)."""
+    from ffrf_fmu.studies import stability as st
+
+    s = st.CosimSettings()
+    case = st.CosimCase("split", MODELS / "haug_beam.toml", tmp_path / "fmus", s)
+    fmus = {k: str(v) for k, v in case.fmus.items()}
+    conns = ssp.body_port_connections("A", "cut", "B", "cut", fmus)
+    assert len(conns) == 24 and sum(c.factor == -1.0 for c in conns) == 6  # 12 frame/rate values, 6 reactions
+    system = ssp.System("split", fmus, tuple(conns), {"A.solver.step": 0.002, "B.solver.step": 0.002}, 0.002, 0.0, 0.06)
+    path = ssp.write_ssp(tmp_path / "split.ssp", system)
+    record = ["B.tip.r[2]", "A.cut.t[3]"]
+    runs = {e: ssp.run_ssp(path, e, record, sources=case._hub_sources("A"), work_dir=tmp_path / e) for e in ("master", "libcosim")}
+    m, lc = runs["master"], runs["libcosim"]
+    assert m.stopped and lc.stopped and len(m.t) == len(lc.t) and m.t[-1] == pytest.approx(0.044)
+    for n in record:
+        assert np.max(np.abs(lc.columns[n] - m.columns[n])) <= 1e-9 * np.max(np.abs(m.columns[n])), n
