@@ -454,7 +454,7 @@ def test_master_connect_ports_wiring_and_errors(small, tmp_path):
 def _fmu_result(fmu, sc, body, H):
     """FMU run under fmpy with every port field recorded; input columns from the signal itself
     (fmpy records inputs after doStep, still holding the values set for the step's start)."""
-    run = run_fmu(fmu, sc, scene_inputs(body, sc), H)
+    run = run_fmu(fmu, sc, scene_inputs(body, sc, load_interval=(0.0, H)), H)  # loads: their mean over (t, t + H]
     assert run.reached, run.log[-3:]
     return run.result(body)
 
@@ -500,11 +500,12 @@ def test_b1_fmu_matches_standalone_and_converges(tmp_path):
 def test_b2_fmu_matches_standalone_and_converges(tmp_path):
     """B2 (2 SE, root on the spherical joint, torque then tip load, both held inputs), with the
     load windows moved early (torque 0..1.0037 s, tip load 1.5037..1.7037 s, run 3 s) to keep the
-    test short; the window edges fall between steps so that the one-step offset between the FMU
-    (load held from the step's start) and the standalone run (load at the step's end) is the same
-    at every step size. At H = h the max transverse tip deflection seen from the root (eq. 92) is
-    within 0.1 % of the standalone run, and the largest pointwise deflection difference shrinks
-    with h = H (0.01 -> 0.005 s): both runs converge to the same solution."""
+    test short; the window edges fall between steps. The FMU is given each window's mean over the
+    communication step it holds the value for, the standalone run each window's mean over its step
+    (docs/equations.md, "Loads between steps"): at H = h both apply the same loads over the same steps
+    and the tip deflection seen from the root (eq. 92) agrees to round-off (measured 2e-13 and 7e-13 of
+    the peak at h = 0.01 and 0.005 s; before the window mean the FMU's held load ran one step ahead of
+    the standalone run's, 0.1 % on the peak)."""
     base = ["duration=3.0", "scenes.torque_then_tip.loads.0.t_end=1.0037",
             "scenes.torque_then_tip.loads.1.t_start=1.5037", "scenes.torque_then_tip.loads.1.t_end=1.7037"]
     diffs = []
@@ -521,7 +522,7 @@ def test_b2_fmu_matches_standalone_and_converges(tmp_path):
         assert abs(peak - peak_ref) <= 1e-3 * peak_ref, (h, peak, peak_ref)
         n = min(len(fr.t), len(ref.t))
         diffs.append(np.max(np.abs(d[:n] - d_ref[:n])) / peak_ref)
-    assert diffs[1] < 0.7 * diffs[0], diffs
+    assert max(diffs) < 1e-10, diffs
 
 
 @pytest.fixture(scope="module")

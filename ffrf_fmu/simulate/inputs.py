@@ -21,14 +21,15 @@ def _tf(fn, t):
 def scene_inputs(body: BodyData, scene: Scene, load_interval: tuple[float, float] | None = None
                  ) -> Callable[[float], dict[str, PortValues]]:
     """Port inputs of a scene as a function of time: drives on motion parts (their values at t), loads on
-    force parts as each window's mean over the interval (t + a, t + b], (a, b) = load_interval: by default
-    (-scene.step, 0), the step that ends at t, where the integrator enforces the equations, so that a
-    window's impulse is its load times its length to round-off whether or not the steps land on its ends
-    (runtime/drives.window_share; docs/equations.md, "Loads between steps"). An FMU's input table takes
-    (0, H): the value set at a communication point t is held over the communication step (t, t + H]."""
+    force parts. load_interval None: each load window's value at t (on when t_start <= t < t_end); (a, b):
+    each window's mean over (t + a, t + b] (runtime/drives.window_share). The standalone run steps with
+    (-h, 0), the step that ends at t, where the integrator enforces the equations, so that a window's impulse
+    is its load times its length to round-off whether or not the steps land on its ends (build_system;
+    docs/equations.md, "Loads between steps"); an FMU's input table takes (0, H): the value set at a
+    communication point t is held over the communication step (t, t + H] (fmu/run.py)."""
     drive_of = {d.port: d for d in scene.drives}
     loads = scene.loads
-    a, b = (-scene.step, 0.0) if load_interval is None else load_interval
+    a, b = (0.0, 0.0) if load_interval is None else load_interval
 
     def inputs(t: float) -> dict[str, PortValues]:
         out = {}

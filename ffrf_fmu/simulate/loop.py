@@ -58,13 +58,13 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
     (the reference)."""
     system = BodySystem(body, terms=scene.terms, full_terms=scene.full_terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend)
 
-    inputs = scene_inputs(body, scene)
+    inputs = scene_inputs(body, scene, load_interval=(-scene.step, 0.0))  # each window's mean over the step
     init = scene.initial
     try:
         system.initialize(
             0.0,
-            scene_inputs(body, scene, load_interval=(0.0, 0.0)),  # the loads acting at t = 0: a consistent start
-            # (the initial rates see what an FMU sees with its inputs set at t = 0; docs/equations.md)
+            scene_inputs(body, scene),  # the loads acting at t = 0: a consistent start (the initial rates see
+            # what an FMU sees with its inputs set at t = 0; docs/equations.md)
             velocity=init.velocity,
             angular_velocity=init.angular_velocity,
             port_displacements=dict(init.port_displacements),
