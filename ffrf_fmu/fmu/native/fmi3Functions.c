@@ -62,13 +62,13 @@ static const char *mode_name(fmu_mode mode)
     case MODE_INSTANTIATED:
         return "instantiated (before fmi3EnterInitializationMode)";
     case MODE_INITIALIZATION:
-        return "initialization mode";
+        return "in initialization mode";
     case MODE_STEP:
-        return "step mode";
+        return "in step mode";
     case MODE_TERMINATED:
         return "terminated (after fmi3Terminate)";
     default:
-        return "error";
+        return "in error (a failed instantiation or initialization: reset or free it)";
     }
 }
 
