@@ -146,8 +146,8 @@ def scalar_names(variable) -> list[str]:
 
 def _run_fmu3(fmu_path, scene, table: np.ndarray, start_values: dict, record: Sequence[str], H: float, log: list):
     """The FMI 3.0 FMU through the input table, as fmpy.simulate_fmu runs an FMI 2.0 co-simulation FMU
-    (fmpy's simulate_fmu records FMI 3.0 array outputs as one column each; this loop keeps the scalar
-    columns): parameters and the inputs at t_0 set in initialization mode, then per communication point
+    (fmpy's simulate_fmu records an FMI 3.0 array as one column of shape (3,); this loop keeps the scalar
+    columns and names of FMI 2.0): parameters and the inputs at t_0 set in initialization mode, then per communication point
     t_k the inputs at t_k, doStep(t_k, H), the outputs at t_k + H. Stops at the first doStep that is not
     OK (a discard: the run's last sample is the last successful point). Returns (times, {scalar name: values})."""
     from fmpy import extract, read_model_description
