@@ -652,7 +652,7 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
     if len(ports) < 2:
         r.fail("body.ports", f"a solid needs at least 2 ports (interface frames), got {len(ports)}")
     spec = SolidSpec(source, tuple(files), generated, element, material, cutoff, tuple(frames), units)
-    from .solid.body import solid_size  # the body's size: messages and scales of the tools that need one
+    from .solid.source import solid_size  # the body's size: messages and scales of the tools that need one
 
     try:
         length = solid_size(spec)

@@ -16,8 +16,9 @@ import numpy as np
 
 from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
 from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
-from .model import Body, ModelError, PART_CAUSALITIES, scene_body
-from .runtime.data import BodyData, PortData, SuperelementData
+from .model import Body, ModelError, scene_body
+from .port_data import compliance, port_data
+from .runtime.data import BodyData, SuperelementData
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,19 +255,6 @@ def reduce_superelement(
     )
 
 
-def _port_data(body: Body, n_nodes: int) -> tuple[PortData, ...]:
-    ports = []
-    for p in body.ports:
-        node = p.node + n_nodes if p.node < 0 else p.node
-        if not 0 <= node < n_nodes:
-            raise ModelError(f"{body.source}: port {p.name!r} node {p.node} outside 0..{n_nodes - 1}")
-        t, r = p.translation, p.rotation
-        if t not in PART_CAUSALITIES or r not in PART_CAUSALITIES:
-            raise ModelError(f"{body.source}: port {p.name!r} causality must be one of {PART_CAUSALITIES}")
-        ports.append(PortData(p.name, node, t, r))
-    return tuple(ports)
-
-
 def reduction_options(scene) -> dict:
     """build_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
     return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
@@ -352,32 +340,10 @@ def build_body(
         name=body.name,
         superelements=tuple(r.data for r in reductions),
         node_positions=node_positions,
-        ports=_port_data(body, n_se + 1),
+        ports=port_data(body, n_se + 1),
     )
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
-        data = dataclasses.replace(data, ports=tuple(_compliance(data, body, p) for p in data.ports))
+        data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
     return data, reductions
 
 
-def _compliance(data: BodyData, body: Body, p: PortData) -> PortData:
-    """Stiffness and damping of a compliant port (runtime/coupling.py): the rule of
-    `coupling.compliance_rule` for the port's `coupling.step`, explicit values where given."""
-    from .runtime.coupling import compliance_rule
-
-    if "compliant" not in (p.translation, p.rotation):
-        return p
-    c = dict(next(q for q in body.ports if q.name == p.name).coupling)
-    if "step" in c:
-        KC = compliance_rule(data, p.node, c["step"])
-    elif (p.translation == "compliant" and "stiffness" not in c) or (p.rotation == "compliant" and "rotational_stiffness" not in c):
-        raise ModelError(f"{body.source}: compliant port {p.name!r} needs coupling.step or explicit stiffness values")
-    else:
-        KC = np.zeros((4, 3))
-    for i, key in enumerate(("stiffness", "damping", "rotational_stiffness", "rotational_damping")):
-        if key in c:
-            KC[i] = c[key]
-    if p.translation != "compliant":
-        KC[0:2] = 0.0
-    if p.rotation != "compliant":
-        KC[2:4] = 0.0
-    return dataclasses.replace(p, compliance=tuple(float(x) for x in KC.ravel()))

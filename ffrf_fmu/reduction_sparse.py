@@ -346,28 +346,3 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
         block_diagonality_error=float(np.abs(Kb[:nb, nb:]).max(initial=0.0) / np.abs(Kb).max()),
         n_fe_dofs=fe.n_dof, fe=fe, frames=tuple(frames), timings=timings, shift=sigma,
     )
-
-
-def solid_invariants(red: SolidReduction):
-    """Witteveen's invariants (invariants.Invariants) of a reduced solid on its pseudo free-free modes
-    Phi = Y V, K_bar V = M_bar V diag(w^2) (as invariants.superelement_invariants for a beam), from the
-    sparse node mass. Its length is the diagonal of the nodes' bounding box (not the largest node
-    distance: that is O(n^2) on a mesh)."""
-    from .invariants import DEFLECTION, Invariants
-
-    fe = red.fe
-    w2, V = sla.eigh(red.data.K, red.data.M)
-    Phi = red.Y @ V
-    n = Phi.shape[1]
-    Ur = red.U[:, 3:]
-    Q, R = node_kernels(fe, Phi, Ur)
-    G, W1, W2 = inertia_terms(Q, R)
-    mass = float(red.data.mass)
-    disp = np.maximum(np.linalg.norm(Phi.reshape(fe.n_nodes, 3, n), axis=1).max(0), 1.0 / math.sqrt(mass))
-    length = float(np.linalg.norm(fe.coords.max(0) - fe.coords.min(0)))
-    return Invariants(
-        Phi=Phi, omega=np.sqrt(np.maximum(w2, 0.0)), n_vibration=len(red.data.frequencies_hz), mass=mass,
-        length=length, I0=red.data.J0, W1=W1, W2=W2, W3=G.transpose(2, 0, 1), C0=Ur.T @ (fe.M @ Phi),
-        G=0.5 * (G - G.transpose(0, 2, 1)), P=Q.transpose(2, 3, 0, 1), amplitude=DEFLECTION * length / disp,
-        dofs_per_node=3,
-    )

@@ -10,7 +10,8 @@ import scipy.sparse.linalg as spla
 from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.model import ModelError, Section, load_model
 from ffrf_fmu.reduction import build_body
-from ffrf_fmu.reduction_sparse import reduce_solid, solid_invariants
+from ffrf_fmu.invariants import solid_invariants
+from ffrf_fmu.reduction_sparse import reduce_solid
 from ffrf_fmu.solid import node_block_mass
 from ffrf_fmu.solid.exports import read_abaqus, read_ansys, rigid_residual
 from ffrf_fmu.solid.frames import Frame, select_nodes

@@ -4,56 +4,13 @@ scikit-fem, or a partner's export), its frames, and the reduced BodyData the run
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 
 import numpy as np
 
 from . import SolidFE
 from .frames import Frame, select_nodes
-
-
-def _generated_mesh(spec):
-    from .mesh import box_points, cylinder_points
-
-    kind, params = spec.generated
-    p = dict(params)
-    if kind == "box":
-        return box_points(p["size"], p["divisions"], p["origin"])
-    return cylinder_points(p["radius"], p["length"], p["radial"], p["axial"], p["origin"])
-
-
-@functools.lru_cache(maxsize=8)
-def solid_fe(spec) -> SolidFE:
-    """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
-    files = dict(spec.files)
-    if spec.source == "abaqus":
-        from .exports import read_abaqus
-
-        return read_abaqus(files["inp"], files["stiffness"], files["mass"])
-    if spec.source == "ansys":
-        from .exports import read_ansys
-
-        return read_ansys(files["stiffness"], files["mass"], files["mapping"], files["nodes"], files.get("elements"))
-    from .mesh import Material, assemble, read_mesh
-
-    if "mesh" in files:
-        mesh, sets = read_mesh(files["mesh"])
-        source = files["mesh"]
-    else:
-        mesh, sets, source = _generated_mesh(spec), {}, f"generated {spec.generated[0]}"
-    return assemble(mesh, Material(*spec.material), spec.element, sets, f"{source} ({spec.element})")
-
-
-def solid_size(spec) -> float:
-    """The diagonal of the bounding box of the solid's nodes [m] (the body's length scale)."""
-    if spec.generated:
-        p = dict(spec.generated[1])
-        if spec.generated[0] == "box":
-            return float(np.linalg.norm(p["size"]))
-        return float(np.hypot(2 * p["radius"], p["length"]))
-    X = solid_fe(spec).coords
-    return float(np.linalg.norm(X.max(0) - X.min(0)))
+from .source import solid_fe
 
 
 def solid_frames(spec, fe: SolidFE) -> tuple[Frame, ...]:
@@ -72,7 +29,7 @@ def solid_frames(spec, fe: SolidFE) -> tuple[Frame, ...]:
 
 def build_solid_body(body, stiffening: bool = False, inertia: bool = False):
     """(BodyData, (SolidReduction,)) of a solid body: one superelement on its port frames."""
-    from ..reduction import _compliance, _port_data
+    from ..port_data import compliance, port_data
     from ..reduction_sparse import reduce_solid
     from ..runtime.data import BodyData
 
@@ -88,7 +45,7 @@ def build_solid_body(body, stiffening: bool = False, inertia: bool = False):
         raise ModelError(f"body {body.name!r} ({body.source}): {e}") from None
     data = BodyData(name=body.name, superelements=(red.data,),
                     node_positions=np.array([f.point for f in frames]),
-                    ports=_port_data(body, len(frames)))
+                    ports=port_data(body, len(frames)))
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
-        data = dataclasses.replace(data, ports=tuple(_compliance(data, body, p) for p in data.ports))
+        data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
     return data, (red,)

@@ -133,7 +133,7 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
     solid = model.body.solid is not None
     body = scene_body(model.body, scene)
     if solid:
-        from ..solid.body import solid_fe
+        from ..solid.source import solid_fe
 
         stiff = solid_fe(body.solid).strain is not None
     else:

@@ -42,6 +42,7 @@ import numpy as np
 
 from ..model import Model, load_model
 from .chart_plot import COSTS, PEER_NAMES, plot_chart
+from .errors import errors, primary_metric  # noqa: F401 (chart.errors, chart.primary_metric: their callers)
 from .grid import GridError, combinations, value_overrides
 from .runners import resolved
 from .sweep import Scheduler, SweepOptions, parse_scheduler, sweep_into
@@ -54,12 +55,6 @@ SHOWN_KEYS = ("superelements", "modes", "terms", "step")
 
 class ChartError(GridError):
     """A chart cannot be set up (bad sweep, reference mesh incompatible with the model)."""
-
-
-def primary_metric(scene) -> str | None:
-    """The metric of the scene whose relative error charts report and advise budgets (its model
-    file's [scenes.NAME.metrics] primary), or None."""
-    return scene.metrics.primary or None
 
 
 def fmt_step(h: float) -> str:
@@ -84,29 +79,6 @@ def _failed_reference(failure: str, n_elements, step, scene) -> dict:
 
 
 # ------------------------------------------------------------------------------ errors, front
-def errors(run: dict, ref: dict, metric_name: str | None) -> dict:
-    """metric, metric_error_rel and rms_error_rel of one run against the reference (module doc)."""
-    out = {"metric": None, "metric_error_rel": None, "rms_error_rel": None}
-    if "d" not in run:
-        return out
-    if metric_name and metric_name in run.get("metrics", {}):
-        out["metric"] = m = float(run["metrics"][metric_name])
-        if metric_name in ref.get("metrics", {}):
-            m_ref = ref["metrics"][metric_name]
-            out["metric_error_rel"] = float(abs(m - m_ref) / abs(m_ref)) if m_ref else float(abs(m))
-    if "d" not in ref:  # the reference failed: no errors to measure
-        return out
-    t, d = run["t"], run["d"]
-    inside = t <= ref["t"][-1] * (1 + 1e-12)
-    t, d = t[inside], d[inside]
-    if len(t):
-        dr = np.column_stack([np.interp(t, ref["t"], ref["d"][:, i]) for i in range(3)])
-        scale = float(np.max(np.linalg.norm(ref["d"], axis=1)))
-        rms = float(np.sqrt(np.mean(np.sum((d - dr) ** 2, axis=1))))
-        out["rms_error_rel"] = rms / scale if scale > 0 else rms
-    return out
-
-
 def pareto_front(cost: Sequence[float], error: Sequence[float], same_error_rel: float = 0.0) -> list[int]:
     """Indices of the non-dominated points (no other point is both cheaper and more accurate),
     ordered by cost. NaN entries never belong to the front. same_error_rel: errors within this

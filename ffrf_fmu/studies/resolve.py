@@ -68,7 +68,7 @@ class Resolution:
 
 def _move(fine: dict, base: dict, metric_name: str | None) -> float | None:
     """The relative change of the metric (or of the trajectory, RMS over its peak) from base to fine."""
-    from .chart import errors
+    from .errors import errors
 
     if not (fine.get("completed", True) and base.get("completed", True)):
         return None
@@ -108,7 +108,7 @@ def resolve_reference(model_path, scene_name: str | None, tolerance: float, *, o
     reference's defaults, runners.reference_elements). Returns (Resolution, the reference result to
     judge against: runners.run_reference's dict)."""
     from ..model import load_model
-    from .chart import primary_metric
+    from .errors import primary_metric
     from .runners import reference_elements
     from .sweep import SweepOptions, sweep_into
     from .task import make_task

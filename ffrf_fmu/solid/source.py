@@ -1,0 +1,53 @@
+"""The FE model a solid's SolidSpec names (a generated or read mesh assembled with scikit-fem, or a
+partner's export) and its size: what model.py needs while it reads a model file, below solid/body.py
+(which reduces) so that reading a model never imports the reduction."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from . import SolidFE
+
+
+def _generated_mesh(spec):
+    from .mesh import box_points, cylinder_points
+
+    kind, params = spec.generated
+    p = dict(params)
+    if kind == "box":
+        return box_points(p["size"], p["divisions"], p["origin"])
+    return cylinder_points(p["radius"], p["length"], p["radial"], p["axial"], p["origin"])
+
+
+@functools.lru_cache(maxsize=8)
+def solid_fe(spec) -> SolidFE:
+    """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
+    files = dict(spec.files)
+    if spec.source == "abaqus":
+        from .exports import read_abaqus
+
+        return read_abaqus(files["inp"], files["stiffness"], files["mass"])
+    if spec.source == "ansys":
+        from .exports import read_ansys
+
+        return read_ansys(files["stiffness"], files["mass"], files["mapping"], files["nodes"], files.get("elements"))
+    from .mesh import Material, assemble, read_mesh
+
+    if "mesh" in files:
+        mesh, sets = read_mesh(files["mesh"])
+        source = files["mesh"]
+    else:
+        mesh, sets, source = _generated_mesh(spec), {}, f"generated {spec.generated[0]}"
+    return assemble(mesh, Material(*spec.material), spec.element, sets, f"{source} ({spec.element})")
+
+
+def solid_size(spec) -> float:
+    """The diagonal of the bounding box of the solid's nodes [m] (the body's length scale)."""
+    if spec.generated:
+        p = dict(spec.generated[1])
+        if spec.generated[0] == "box":
+            return float(np.linalg.norm(p["size"]))
+        return float(np.hypot(2 * p["radius"], p["length"]))
+    X = solid_fe(spec).coords
+    return float(np.linalg.norm(X.max(0) - X.min(0)))
