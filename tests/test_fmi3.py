@@ -498,6 +498,43 @@ def test_the_c_host_under_the_sanitizers(small, tmp_path):
     assert done.stdout.splitlines()[1:] == ["replay 1", "reset 0", "faults 12"], done.stdout
 
 
+def test_random_fmi3_call_sequences_under_the_sanitizers(small, tmp_path):
+    """tests/fmi3_fuzz.c (the FMI 3.0 twin of tests/fmi2_fuzz.c) with the FMI 3.0 layer, the model and the runtime
+    under ASan and UBSan: no report, no leak, no crash, no status outside fmi3OK..fmi3Error; and the sequences
+    reach stepping, state restores, derivatives and adjoints (the counts say so, or the fuzzing proved nothing)."""
+    from ffrf_fmu.fmu.native import build as native_build
+
+    three = small[0]
+    md = read_model_description(str(three))
+    unzip = Path(extract(str(three), str(tmp_path / "u")))
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    exe = tmp_path / "fmi3_fuzz"
+    cmd = [cc, "-std=c11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+           "-fno-omit-frame-pointer", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
+           f"-I{native_build.RUNTIME}", f"-I{NATIVE}", *map(str, native_build.sources(3)),
+           str(ROOT / "tests" / "fmi3_fuzz.c"), "-lm", "-o", str(exe)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+
+    def arrays(causality):
+        return ",".join(f"{v.valueReference}:{len(scalar_names(v))}" for v in md.modelVariables
+                        if v.causality == causality and v.type == "Float64")
+
+    env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0", "UBSAN_OPTIONS": "print_stacktrace=1"}
+    totals = {}
+    for seed in range(1, 5):
+        done = subprocess.run([str(exe), str(unzip / "resources") + "/", md.guid, str(seed), "1500", arrays("input"),
+                               arrays("output")], capture_output=True, text=True, timeout=900, env=env)
+        assert done.returncode == 0, f"seed {seed}: exit {done.returncode}\n{done.stderr[-4000:]}"
+        assert "runtime error" not in done.stderr and "Sanitizer" not in done.stderr, done.stderr[-4000:]
+        words = done.stdout.split()
+        for key, value in zip(words[::2], words[1::2]):
+            totals[key] = totals.get(key, 0) + int(value)
+    assert totals["steps_ok"] > 100 and totals["restored_ok"] > 10, totals
+    assert totals["derivatives_ok"] > 0 and totals["adjoints_ok"] > 0, totals
+    assert totals["discard"] > 0 and totals["error"] > 0, totals
+
+
 WINE = shutil.which("wine64") or shutil.which("wine")
 
 
