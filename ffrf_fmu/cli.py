@@ -586,16 +586,18 @@ def advise(args) -> int:
         print(ad.format_advice(advice, model.body.name, scene.name))
     if args.check:
         try:
-            res = ad.check(args.model, scene.name, advice, overrides=args.overrides,
-                           reference_elements=args.reference_elements, reference_step=args.reference_step,
-                           out_dir=args.output, chart_csv=args.chart,
-                           scheduler=_scheduler(args), fresh=args.fresh, progress=not args.json)
+            from .studies.check import check, format_check
+
+            res = check(args.model, scene.name, advice, overrides=args.overrides,
+                        reference_elements=args.reference_elements, reference_step=args.reference_step,
+                        out_dir=args.output, chart_csv=args.chart,
+                        scheduler=_scheduler(args), fresh=args.fresh, progress=not args.json)
         except (SweepError, StoreVersionError) as e:
             print(f"{PROG}: error: {e}", file=sys.stderr)
             return 2
         out["check"] = res
         if not args.json:
-            print(ad.format_check(res, advice.tolerance))
+            print(format_check(res, advice.tolerance))
     if args.json:
         json.dump(out, sys.stdout, indent=2, default=float)
         print()

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.studies import advise as ad
+from ffrf_fmu.studies.check import check, format_check
 from ffrf_fmu.studies import chart as ch
 from ffrf_fmu.model import load_model
 
@@ -217,13 +218,13 @@ def test_check_runs_on_the_sweep_layer_and_reuses_the_charts_reference(tmp_path)
     chart = ch.chart(B1, "spinup", {"superelements": ["1"], "modes": ["2"]}, overrides=ov, reference_elements=8,
                      workers=1, out_dir=tmp_path, progress=False, plot=False)
     a = ad.advise(B1, "spinup", 0.05, overrides=ov)
-    res = ad.check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path, refine=False)
+    res = check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path, refine=False)
     assert res["reference"]["cached"] and res["completed"] and res["within_tolerance"]
     assert res["metric_reference"] == chart["reference"]["metrics"]["tip_deflection_max_m"]
     # refined (the default): the chart's reference is the refinement's base, 16 elements and 1 ms its
     # refinements; measured moves 0.060 % (mesh) and 0.0002 % (step), both < 0.5 % = a tenth of 5 %:
     # resolved, judged against the finer mesh
-    refined = ad.check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
+    refined = check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
     table = refined["reference_resolution"]
     assert table["resolved"] and [(r["n_elements"], r["step"], r["refines"]) for r in table["rows"]] == [
         (8, 0.002, "base"), (16, 0.002, "mesh"), (8, 0.001, "step")]
@@ -231,7 +232,7 @@ def test_check_runs_on_the_sweep_layer_and_reuses_the_charts_reference(tmp_path)
     assert refined["reference"]["n_elements"] == 16 and refined["within_tolerance"]
     assert refined["metric_reference"] == table["rows"][1]["metric"]
     # the verdict is stored: a second check reads it (and runs nothing but the stored runs)
-    again = ad.check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
+    again = check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
     assert again["reference_resolution"] == table and again["reference"]["cached"]
     run = run_configuration(B1, "spinup", ov, {"superelements": str(a.superelements), "modes": str(a.modes),
                                                "terms": a.terms, "step": f"{a.step:g}",
@@ -264,11 +265,11 @@ def test_check_gives_no_verdict_on_an_unresolved_reference(tmp_path, monkeypatch
     monkeypatch.setattr(resolve, "MAX_ROUNDS", 1)
     ov = ["duration=1.5"]
     a = ad.advise(B1, "spinup", 0.002, overrides=ov)
-    res = ad.check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
+    res = check(B1, "spinup", a, overrides=ov, reference_elements=8, out_dir=tmp_path)
     table = res["reference_resolution"]
     assert not table["resolved"] and res["within_tolerance"] is None
     assert table["rows"][1]["move"] == pytest.approx(6.0e-4, rel=0.05)
-    text = ad.format_check(res, a.tolerance)
+    text = format_check(res, a.tolerance)
     assert "NOT resolved" in text and "no verdict" in text
     argv = ["advise", B1, "--scene", "spinup", "--tolerance", "0.2%", "--check", "--reference-elements", "8",
             "-o", str(tmp_path), *[x for o in ov for x in ("--set", o)]]
@@ -290,7 +291,7 @@ def test_b4_free_tumble_check_holds_for_the_right_reason(tmp_path):
     a = ad.advise(b4, "tumble", 0.01, overrides=ov)
     assert a.stiffening and a.terms == "gyroscopic" and not any("primary metric" in w for w in a.warnings)
     assert any("FMU does not output" in w for w in ad.advise(b4, "tumble", 0.01, overrides=ov, fmu=True).warnings)
-    res = ad.check(b4, "tumble", a, overrides=ov, out_dir=tmp_path)  # from the reference the scene names
+    res = check(b4, "tumble", a, overrides=ov, out_dir=tmp_path)  # from the reference the scene names
     # refined (resolve.py): 32 -> 64 elements moves the metric by 0.111 % (> 0.1 %), 64 -> 128 by 0.027 %, the
     # steps by <= 0.01 % (measured): judged against 128 elements at 2 ms, where the advice is 0.25 % off
     # (0.40 % against the unrefined 32 elements)

@@ -13,6 +13,7 @@ from ffrf_fmu import simulate as sim
 from ffrf_fmu.term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 from ffrf_fmu.model import load_model, scene_body
 from ffrf_fmu.studies import advise as ad
+from ffrf_fmu.studies.check import format_check
 from ffrf_fmu.studies import calibration as cal
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -119,5 +120,5 @@ def test_check_report_without_a_primary_metric():
            "cpu_time_s": 0.5, "metric_name": None, "metric": None, "metric_reference": None, "metric_error_rel": None,
            "rms_error_rel": 0.004, "within_tolerance": True,
            "reference": {"n_elements": 16, "step": 0.002, "wall_time_s": 3.0, "cached": True}}
-    text = ad.format_check(res, 0.01)
+    text = format_check(res, 0.01)
     assert "no primary metric; trajectory RMS error 0.40% (within 1.00%)" in text
