@@ -472,23 +472,40 @@ def test_b1_in_a_c_host_without_python_equals_fmpy(runs, tmp_path):
     assert abs(got[2]) > 1e-4 and np.array_equal(got, ref), (got, ref)
 
 
-def test_the_c_host_under_the_sanitizers(small, tmp_path):
+SANITIZE = ["-std=c11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+            "-fno-omit-frame-pointer", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror"]
+
+
+@pytest.fixture(scope="module")
+def sanitized(tmp_path_factory):
+    """The FMI 3.0 layer, the model and the C runtime compiled once under ASan and UBSan (objects), and a function
+    linking a test main with them."""
+    from ffrf_fmu.fmu.native import build as native_build
+
+    d = tmp_path_factory.mktemp("asan3")
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    done = subprocess.run([cc, *SANITIZE, "-c", f"-I{native_build.RUNTIME}", f"-I{NATIVE}",
+                           *map(str, native_build.sources(3))], capture_output=True, text=True, timeout=900, cwd=d)
+    assert done.returncode == 0, done.stderr[-3000:]
+    objects = sorted(map(str, d.glob("*.o")))
+
+    def link(main: str, out: Path, *extra) -> Path:
+        done = subprocess.run([cc, *SANITIZE, *extra, f"-I{NATIVE}", *objects, str(ROOT / "tests" / main), "-lm",
+                               "-ldl", "-o", str(out)], capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, done.stderr[-3000:]
+        return out
+
+    return link
+
+
+def test_the_c_host_under_the_sanitizers(small, sanitized, tmp_path):
     """tests/fmi3_host.c linked with the FMI 3.0 layer, the model and the C runtime, all under AddressSanitizer and
     UndefinedBehaviorSanitizer (as tests/test_native_fuzz.py builds the FMI 2.0 FMU): the good path, state bytes,
     reset and the bad calls twice, with no report and no leak."""
-    from ffrf_fmu.fmu.native import build as native_build
-
     three = small[0]
     md = read_model_description(str(three))
     unzip = Path(extract(str(three), str(tmp_path / "u")))
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    exe = tmp_path / "fmi3_host_asan"
-    cmd = [cc, "-std=c11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
-           "-fno-omit-frame-pointer", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-rdynamic",
-           f"-I{native_build.RUNTIME}", f"-I{NATIVE}", *map(str, native_build.sources(3)),
-           str(ROOT / "tests" / "fmi3_host.c"), "-lm", "-ldl", "-o", str(exe)]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
+    exe = sanitized("fmi3_host.c", tmp_path / "fmi3_host_asan", "-rdynamic")
     args, _ = _host_args(md, 10, 0.01)
     env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"}
     done = subprocess.run([str(exe), "-", str(unzip / "resources") + "/", md.guid, *args], capture_output=True,
@@ -498,23 +515,14 @@ def test_the_c_host_under_the_sanitizers(small, tmp_path):
     assert done.stdout.splitlines()[1:] == ["replay 1", "reset 0", "faults 12"], done.stdout
 
 
-def test_random_fmi3_call_sequences_under_the_sanitizers(small, tmp_path):
+def test_random_fmi3_call_sequences_under_the_sanitizers(small, sanitized, tmp_path):
     """tests/fmi3_fuzz.c (the FMI 3.0 twin of tests/fmi2_fuzz.c) with the FMI 3.0 layer, the model and the runtime
     under ASan and UBSan: no report, no leak, no crash, no status outside fmi3OK..fmi3Error; and the sequences
     reach stepping, state restores, derivatives and adjoints (the counts say so, or the fuzzing proved nothing)."""
-    from ffrf_fmu.fmu.native import build as native_build
-
     three = small[0]
     md = read_model_description(str(three))
     unzip = Path(extract(str(three), str(tmp_path / "u")))
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    exe = tmp_path / "fmi3_fuzz"
-    cmd = [cc, "-std=c11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
-           "-fno-omit-frame-pointer", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
-           f"-I{native_build.RUNTIME}", f"-I{NATIVE}", *map(str, native_build.sources(3)),
-           str(ROOT / "tests" / "fmi3_fuzz.c"), "-lm", "-o", str(exe)]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
+    exe = sanitized("fmi3_fuzz.c", tmp_path / "fmi3_fuzz")
 
     def arrays(causality):
         return ",".join(f"{v.valueReference}:{len(scalar_names(v))}" for v in md.modelVariables
