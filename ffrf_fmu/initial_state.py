@@ -41,12 +41,12 @@ def settle(system, scene, inputs, t0: float = 0.0, tol: float = 1e-10, max_iter:
     """Bring an initialized BodySystem (BodySystem.initialize at t0) to the scene's initial state
     (module doc); "rest" leaves it as it is. inputs: the scene's input function (simulate.scene_inputs);
     the loads taken are those acting at t0 itself (a window from t0 on: the equilibrium it holds)."""
-    from .linear import _spin_operator, _spin_rates
-    from .runtime.drives import window_share
-
     state = scene.initial.state
     if state == "rest":
         return
+    from .linear import _spin_operator, _spin_rates  # (scipy: only a scene that starts settled pays its import)
+    from .runtime.drives import window_share
+
     if any("compliant" in (p.translation, p.rotation) for p in system.data.ports):
         raise ValueError(f"scene {scene.name!r}: initial state {state!r} is not available with compliant ports")
     w = _spin(scene, t0) if state == "steady_spin" else np.zeros(3)
