@@ -427,24 +427,7 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
                 r.fail(join(pp, "node"), f"expected a node without a port, but port {other.name!r} is on node {node}")
         tr = r.string(p, pp, "translation", PORT_KEYS["translation"], "force", PART_CAUSALITIES)
         rot = r.string(p, pp, "rotation", PORT_KEYS["rotation"], "force", PART_CAUSALITIES)
-        coupling = ()
-        if "coupling" in p:
-            cp = join(pp, "coupling")
-            c = r.table(p["coupling"], cp, COUPLING_KEYS)
-            cvals = {}
-            if "step" in c:
-                cvals["step"] = r.real(c, cp, "step", COUPLING_KEYS["step"], ok=positive)
-            for key in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
-                if key in c:
-                    v = r.vec3(c, cp, key, COUPLING_KEYS[key])
-                    if min(v) < 0.0:
-                        r.fail(join(cp, key), f"expected {COUPLING_KEYS[key]}, got {list(v)}")
-                    cvals[key] = v
-            coupling = tuple(cvals.items())
-        if "compliant" in (tr, rot) and not coupling:
-            r.fail(pp, "a compliant part needs a coupling table: {step = H} (the rule of docs/cosim.md) or explicit "
-                   "stiffness/damping values")
-        ports.append(Port(pname, node, tr, rot, coupling))
+        ports.append(Port(pname, node, tr, rot, _port_coupling(r, p, pp, tr, rot)))
 
     length = r.real(t, b, "length", BODY_KEYS["length"], ok=positive)
     masses = []

@@ -1,4 +1,4 @@
-/* Many steps in one call (the C twin of runtime/kernel.py `advance` and its input functions): a
+/* Many steps in one call (the C twin of simulate.scene_inputs and runtime/held.py `inputs` with BodySystem.step): a
  * standalone run whose inputs are known functions of time (a scene's drives and loads) or an FMU's
  * communication step (inputs extrapolated from the values held at the communication point) takes its
  * steps here, the inputs evaluated and the output rows recorded without returning to the caller.
@@ -9,7 +9,7 @@
 
 #include "body.h"
 
-/* No fused multiply-adds: the results must match numba (which never contracts) to round-off. Clang (and zig cc,
+/* No fused multiply-adds: the results must match the numpy path (which never contracts) to round-off. Clang (and zig cc,
  * which targets the host CPU) contracts within expressions by default; GCC in ISO C mode does not. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
@@ -81,6 +81,22 @@ static void put_rotation(ffrf_body *b, int motion, idx_t k, idx_t s, const doubl
     }
 }
 
+/* A port's position r and world velocity v at the step's end: a motion-driven translation into the
+ * node's prescribed position xN_p[k] and rate zN_p[k, :3], else into the compliant spring's input slot s
+ * (r_in, v_in). Shared by the scene's schedule and the held inputs, as put_rotation. */
+static void put_translation(ffrf_body *b, int motion, idx_t k, idx_t s, const double r[3], const double v[3])
+{
+    for (int i = 0; i < 3; i++) {
+        if (motion) {
+            b->in.xN_p[3 * k + i] = r[i];
+            b->in.zN_p[6 * k + i] = v[i];
+        } else {
+            b->springs.r_in[3 * s + i] = r[i];
+            b->springs.v_in[3 * s + i] = v[i];
+        }
+    }
+}
+
 /* The inputs of a step at time t from a scene's schedule (simulate.scene_schedule, after the ports'
  * (node, mode, spring) = runtime/held.py port_codes): what simulate.scene_inputs gives and
  * BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant. A load window acts with its
@@ -89,8 +105,7 @@ void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
 {
     const ffrf_data *D = &b->data;
     const ffrf_schedule *sc = &b->schedule;
-    double *xN_p = b->in.xN_p, *zN_p = b->in.zN_p, *f_in = b->in.f_in, *t_in = b->in.t_in;
-    double *r_in = b->springs.r_in, *v_in = b->springs.v_in;
+    double *f_in = b->in.f_in, *t_in = b->in.t_in;
     double sv[2] = {0.0, 0.0}, th[3] = {0.0, 0.0, 0.0}, Rd[9] = {0.0}, wd[3] = {0.0, 0.0, 0.0};
     no_inputs(b);
     for (int j = 0; j < b->dims.n_ports; j++) {
@@ -102,16 +117,12 @@ void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
             sv[1] = 0.0;
             if (kind[0] >= 0)
                 time_function(kind[0], prm, t, sv);
+            double r[3], vv[3];
             for (int i = 0; i < 3; i++) {
-                double r = r0[i] + sv[0] * axis[i], vv = sv[1] * axis[i];
-                if (mode[0] == 1) {
-                    xN_p[3 * k + i] = r;
-                    zN_p[6 * k + i] = vv;
-                } else {
-                    r_in[3 * s + i] = r;
-                    v_in[3 * s + i] = vv;
-                }
+                r[i] = r0[i] + sv[0] * axis[i];
+                vv[i] = sv[1] * axis[i];
             }
+            put_translation(b, mode[0] == 1, k, s, r, vv);
         }
         if (mode[1] != 0) { /* R = exp(phi a), w = dphi a (world) */
             sv[0] = 0.0;
@@ -145,12 +156,11 @@ void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
 
 /* The inputs of a step at time t extrapolated from the held values (runtime/held.py `inputs`, read by
  * BodySystem._read_inputs): b->held one row per port, columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18,
- * dw 21, f 24, t 27); port modes 0 force, 1 motion, 2 compliant. kernel.py `_held_inputs`. */
+ * dw 21, f 24, t 27); port modes 0 force, 1 motion, 2 compliant. runtime/held.py `inputs`. */
 void ffrf_held_inputs(ffrf_body *b, double t, double t_c)
 {
     const ffrf_data *D = &b->data;
-    double *xN_p = b->in.xN_p, *zN_p = b->in.zN_p, *f_in = b->in.f_in, *t_in = b->in.t_in;
-    double *r_in = b->springs.r_in, *v_in = b->springs.v_in;
+    double *f_in = b->in.f_in, *t_in = b->in.t_in;
     double th[3], E[9], Rd[9], wd[3];
     no_inputs(b);
     double dt = t - t_c;
@@ -163,16 +173,12 @@ void ffrf_held_inputs(ffrf_body *b, double t, double t_c)
             for (int i = 0; i < 3; i++)
                 f_in[3 * k + i] = row[24 + i];
         } else {
+            double r[3], vv[3];
             for (int i = 0; i < 3; i++) {
-                double r = row[i] + row[3 + i] * dt + half * row[6 + i], vv = row[3 + i] + dt * row[6 + i];
-                if (mode[0] == 1) {
-                    xN_p[3 * k + i] = r;
-                    zN_p[6 * k + i] = vv;
-                } else {
-                    r_in[3 * s + i] = r;
-                    v_in[3 * s + i] = vv;
-                }
+                r[i] = row[i] + row[3 + i] * dt + half * row[6 + i];
+                vv[i] = row[3 + i] + dt * row[6 + i];
             }
+            put_translation(b, mode[0] == 1, k, s, r, vv);
         }
         if (mode[1] == 0) {
             for (int i = 0; i < 3; i++)
@@ -193,7 +199,7 @@ void ffrf_held_inputs(ffrf_body *b, double t, double t_c)
 
 /* One row of simulate.record: per port r, R (row-major), v, w = R W, f, t (BodySystem.port_array); the
  * energies kinetic_rigid, kinetic_elastic, strain, work_external (BodySystem.energies); the iterations of
- * the last step. kernel.py `_record`. */
+ * the last step. BodySystem.output_row. */
 void ffrf_record(const ffrf_body *b, double *row)
 {
     const ffrf_data *D = &b->data;
@@ -292,8 +298,8 @@ void ffrf_body_record(const ffrf_body *b, double *row)
 /* n steps of h from the body's time (`ffrf_step` each), their inputs by kind: FFRF_GIVEN as the caller
  * set them in b->in (BodySystem.step, n = 1), FFRF_SCHEDULED from the scene's schedule (every step's row
  * recorded into rows[k] and its time into times[k], simulate.record's layout), FFRF_HELD extrapolated
- * from the values held at t_c (an FMU's communication step; the last step's row into rows). kernel.py
- * `advance`. The time advances by one addition of h per step (the clock of `step`); b->state.iterations
+ * from the values held at t_c (an FMU's communication step; the last step's row into rows). The
+ * time advances by one addition of h per step (the clock of `step`); b->state.iterations
  * holds the last completed step's iterations. Returns the steps completed; *status the status of the
  * failed step (FFRF_OK if none; FFRF_BAD_STEP for h not positive and finite, nothing stepped), *worst
  * the most Newton iterations of a step. A failed step leaves the state at the last completed one, rows

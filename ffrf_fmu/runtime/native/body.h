@@ -216,13 +216,13 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
  * that space laid out in `mem` (allocated by body.c at creation, 16-byte aligned). */
 size_t ffrf_se_work_bytes(const ffrf_dims *d);
 ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d);
-/* kernel.py `_evaluate`: the assembled residual F [ny] with the loads f_load, t_load [N][3] at the
+/* The numpy path's `_iteration_matrix` (integrator.py): the assembled residual F [ny] with the loads f_load, t_load [N][3] at the
  * stage (p, yd, R [N+E][3][3], theta [N+E][3]) and, if jac, the transposed iteration matrix JT
  * [nf][nf] = (F_ydot + beta [F_y T, F_v])^T on the Newton unknowns (T [N+E][3][3] filled here). */
 void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load, const double *t_load,
                    const double *p, const double *yd, const double *R, const double *theta, int jac,
                    double beta, double *F, double *JT, double *Fl, double *Fz, double *Fy, double *T);
-/* kernel.py `_superelement`: the local rows F (nv + nc) of superelement e and, if jac, Fz, Fy
+/* runtime/equations.py `residual_and_jacobian` of one superelement: the local rows F (nv + nc) of superelement e and, if jac, Fz, Fy
  * [nv + nc][nc + nv]. */
 void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double *yd, const double *R,
                        int jac, double *F, double *Fz, double *Fy, ffrf_se_work *w);
@@ -230,7 +230,7 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
 /* ---- step.c: Newton, the generalized-alpha step, compliant springs, LU ---- */
 void ffrf_springs_apply(ffrf_body *b, const double *p, const double *yd, const double *R,
                         const double *T, int jac, double beta, double *F, double *JT);
-/* One step t -> t + h (kernel.py `step`); the state changes only if it succeeded. Returns the
+/* One step t -> t + h (integrator.py `_step`); the state changes only if it succeeded. Returns the
  * status (FFRF_OK ...); b->state.iterations holds its iterations. */
 int ffrf_step(ffrf_body *b, double h, int last_it);
 

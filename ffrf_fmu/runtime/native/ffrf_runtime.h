@@ -9,7 +9,7 @@
 
 #define FFRF_RUNTIME_VERSION 1        /* of this interface and of the body image format */
 
-/* statuses of a step (kernel.py's codes) */
+/* statuses of a step (the numpy path's StepFailure causes) */
 enum { FFRF_OK = 0, FFRF_NOT_FINITE = 1, FFRF_NOT_CONVERGED = 2, FFRF_NOT_FACTORED = 3, FFRF_ROTATION_ALIAS = 4,
        FFRF_BAD_STEP = 5 };
 /* the gyroscopic terms' two parts: the elastic Coriolis G(W0) (53), the inertia coupling S(q) r (55) */

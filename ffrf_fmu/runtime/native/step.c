@@ -1,4 +1,4 @@
-/* One generalized-alpha step of a body (the C twin of runtime/kernel.py `step` and its callees, which
+/* One generalized-alpha step of a body (the C twin of runtime/integrator.py `_step` and its callees, which
  * are the compiled twins of runtime/integrator.py `_step`, `_newton`, `_solve`, `_commit` and
  * runtime/coupling.py add_springs): the same loops, the same accumulation order and the same Newton
  * decisions, so that the results match the numpy path to round-off.
@@ -16,7 +16,7 @@
 
 #include "body.h"
 
-/* No fused multiply-adds: the results must match numba (which never contracts) to round-off. Clang (and zig cc,
+/* No fused multiply-adds: the results must match the numpy path (which never contracts) to round-off. Clang (and zig cc,
  * which targets the host CPU) contracts within expressions by default; GCC in ISO C mode does not. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
@@ -105,8 +105,8 @@ int ffrf_lu_factor(double *aT, int *piv, int n)
     return info;
 }
 
-/* Solve J x = b in place from the LU of J (luT = the factors, transposed; piv 0-based): kernel.py
- * `_lu_solve` (LAPACK getrs' order: the interchanges, the unit lower triangle, the upper). */
+/* Solve J x = b in place from the LU of J (luT = the factors, transposed; piv 0-based), in
+ * LAPACK getrs' order (the numpy path calls dgetrs: the interchanges, the unit lower triangle, the upper). */
 void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n)
 {
     for (int i = 0; i < n; i++) {
@@ -181,7 +181,7 @@ static void rotate_world(const idx_t *world_idx, int n_world, const double *Q, d
 
 /* The spring-dampers of compliant ports (runtime/coupling.py add_springs, the same terms): -f on the
  * node translation rows, -m on the node rotation rows, their derivatives into JT (transposed iteration
- * matrix) when jac, and the loads (force, moment; world) into b->springs.loads. kernel.py `_springs`. */
+ * matrix) when jac, and the loads (force, moment; world) into b->springs.loads. runtime/coupling.py `add_springs`. */
 void ffrf_springs_apply(ffrf_body *b, const double *p, const double *yd, const double *R, const double *T, int jac,
                         double beta, double *F, double *JT)
 {
@@ -270,7 +270,7 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
 }
 
 /* Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_newton`, the same decisions;
- * kernel.py `newton_step`).
+ * runtime/integrator.py `_newton`).
  *
  * In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
  * predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
@@ -419,7 +419,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
 /* ------------------------------------------------------------------ one step */
 
 /* One whole step t -> t + h (integrator `_step` with `_prepare_step`, `_commit`, body
- * `_update_port_loads`, `_external_power`; kernel.py `step`): the state arrays and the energy
+ * `_update_port_loads`, `_external_power`): the state arrays and the energy
  * [work, power] are updated in place, and only if Newton succeeded; so is b->state.iterations (the
  * step's iterations, a retry's failed attempt counted). The inputs are those of b->in (read by
  * `BodySystem._read_inputs`: current frames where no motion input); last_it the iterations of the last

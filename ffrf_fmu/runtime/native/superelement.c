@@ -1,9 +1,9 @@
 /* The equations of one superelement and their assembly into the body's residual and iteration
- * matrix: the C port of runtime/kernel.py `_superelement`, `_stiff_force`, `_stiff_tangent`,
+ * matrix: the C twin of runtime/equations.py `residual_and_jacobian` with runtime/stiffening.py (`_stiff_force`, `_stiff_tangent`,
  * `_jacobian` and `_evaluate` (runtime/equations.py is the oracle; equation numbers are those of
  * Geradin's two-field paper, docs/equations.md).
  *
- * The loops and the order of every sum are those of the numba kernel, statement by statement, so
+ * The loops and the order of every sum were those of the numba kernel this replaced, statement by statement, so
  * both agree to round-off: a C sum `s += a + b` is s + (a + b) as in Python. Build without
  * floating-point contraction (gcc's default in ISO mode, -std=c11; clang needs -ffp-contract=off)
  * for the results to be the kernel's to the last bit where the kernel's are LLVM's plain IEEE ones.
@@ -11,7 +11,7 @@
  * Arrays are viewed through pointers to variably modified types (double (*)[n]) so that indexing
  * reads like the kernel's (GW[i][j] for GW[i, j]); nothing is allocated here.
  *
- * Term sets (kernel.py): `linear` (gyro = 0), `gyroscopic` (gyro = CORIOLIS | COUPLING), `full`
+ * Term sets: `linear` (gyro = 0), `gyroscopic` (gyro = CORIOLIS | COUPLING), `full`
  * (either part of gyro, W1 possibly zero, W2 possibly absent: n_w2 = 0), each with or without the
  * geometric stiffening (stiff = 1: the deformation-dependent inertia W1 [W2] and, when vk_a has
  * rows, the membrane strain of runtime/stiffening.py).
@@ -20,7 +20,7 @@
 
 #include "body.h"
 
-/* Work arrays of `ffrf_superelement` and its Jacobian: kernel.py's `_Work`, same names and shapes
+/* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
  * (r: rows of vk_a, n2: n_w2). Bound once to a block that body.c allocates at creation. */
 struct ffrf_se_work {
     int n, nb, nc, nv, r, n2;                   /* the sizes the arrays were laid out for */
@@ -101,7 +101,7 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
 
 size_t ffrf_se_work_bytes(const ffrf_dims *d) { return se_layout(NULL, NULL, d); }
 
-/* The work struct at the start of `mem` and its arrays after it, all zero (kernel.py allocates them
+/* The work struct at the start of `mem` and its arrays after it, all zero (the numpy path allocates them
  * with np.zeros: an array a term set never writes reads as zero). */
 ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d)
 {
@@ -187,7 +187,7 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
- * (runtime/equations.py residual_and_jacobian, same algebra; kernel.py `_jacobian`). */
+ * (runtime/equations.py residual_and_jacobian, same algebra; fused.py `local_jacobian`). */
 static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, double *Fz_, double *Fy_)
 {
     const int gyro = b->data.gyro, stiff = b->data.stiff;
@@ -502,7 +502,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
     }
     if (stiff) { /* stiffening.rotation_rows derivatives */
-        /* Z here is w->HQ, dh/dq = de/dqdot (kernel.py: Z = w.HQ) */
+        /* Z here is w->HQ, dh/dq = de/dqdot (as fused.py's) */
         const double (*Z)[n] = (const double (*)[n])w->HQ;
         const double (*Jq)[3] = (const double (*)[3])w->Jq, (*Jqd)[3] = (const double (*)[3])w->Jqd;
         double (*eq)[n] = (double (*)[n])w->eq;
