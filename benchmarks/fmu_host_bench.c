@@ -4,12 +4,12 @@
  *   fmu_host_bench FMU_BINARY RESOURCE_URI GUID RUNTIME_LIBRARY IMAGE TABLE STEPS H REPEAT INTERNAL
  *
  * INTERNAL: internal steps per communication step (H / solver.step), as the FMU takes them.
- * TABLE (binary, little-endian doubles): n_in, n_held, n_out, then n_in value references, n_out value
+ * TABLE (binary, little-endian doubles): n_in, n_point, n_out, then n_in value references, n_out value
  * references (as doubles), then per communication step k = 0..STEPS: the n_in input values at t_k and the
- * n_held held values (runtime/held.py, one row per port) the FMU's input rule makes of them.
+ * n_point point values (runtime/input_rule.py, one row per port) the FMU's input rule makes of them.
  *   fmu      fmi2SetReal(inputs at t_k), fmi2DoStep(t_k, H), fmi2GetReal(outputs): the FMU as a master runs it
- *   runtime  the runtime library's body (from IMAGE, started from the FMU's initial state): held values at
- *            t_k, ffrf_body_advance(HELD, H / h steps), ffrf_body_record: the same numbers without the FMI layer
+ *   runtime  the runtime library's body (from IMAGE, started from the FMU's initial state): point values at
+ *            t_k, ffrf_body_advance(EXTRAPOLATED, H / h steps), ffrf_body_record: the same numbers without the FMI layer
  * Prints CPU seconds (CLOCK_PROCESS_CPUTIME_ID) of each loop (best of REPEAT), the wall time of instantiate +
  * initialize + the first doStep, and whether the last outputs of both are equal. */
 #define _POSIX_C_SOURCE 200809L
@@ -92,14 +92,14 @@ int main(int argc, char **argv)
     void *image = read_file(argv[5], &image_size);
     if (!table || !image)
         return 4;
-    int n_in = (int)table[0], n_held = (int)table[1], n_out = (int)table[2];
+    int n_in = (int)table[0], n_point = (int)table[1], n_out = (int)table[2];
     vr_t *vr_in = malloc(sizeof(vr_t) * n_in), *vr_out = malloc(sizeof(vr_t) * n_out);
     for (int i = 0; i < n_in; i++)
         vr_in[i] = (vr_t)table[3 + i];
     for (int i = 0; i < n_out; i++)
         vr_out[i] = (vr_t)table[3 + n_in + i];
     const double *rows = table + 3 + n_in + n_out;
-    const int width = n_in + n_held;
+    const int width = n_in + n_point;
     double *out = malloc(sizeof(double) * n_out), *out_rt = NULL;
 
     void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
@@ -173,15 +173,15 @@ int main(int argc, char **argv)
             return 12;
         size_t count;
         char kind;
-        double *held = body_array(b, "held", &count, &kind);
-        if (!held || (int)count != n_held)
+        double *point = body_array(b, "point_values", &count, &kind);
+        if (!point || (int)count != n_point)
             return 13;
         int n_int = atoi(argv[10]);
         if (!out_rt)
             out_rt = malloc(sizeof(double) * 4096);
         c0 = now(CLOCK_PROCESS_CPUTIME_ID);
         for (int k = 0; k < steps; k++) {
-            memcpy(held, rows + (size_t)k * width + n_in, sizeof(double) * n_held);
+            memcpy(point, rows + (size_t)k * width + n_in, sizeof(double) * n_point);
             int status = 0, worst = 0;
             if (body_advance(b, 2, n_int, H / n_int, k * H, out_rt, NULL, &status, &worst) != n_int || status)
                 return 14;

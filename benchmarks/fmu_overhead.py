@@ -10,7 +10,7 @@ Runs (best of --repeat interleaved runs of each; CPU time, the stable measure on
   C host       benchmarks/fmu_host_bench.c: the FMU's binary in a C process (fmi2SetReal of the inputs at
                t_c, fmi2DoStep, fmi2GetReal of every output, per communication step), and in the same
                process the runtime library's body started from the FMU's initial state and stepped with the
-               held values the FMU's input rule makes of the same inputs (ffrf_body_advance HELD): the FMU
+               point values the FMU's input rule makes of the same inputs (ffrf_body_advance EXTRAPOLATED): the FMU
                without its FMI layer, the same numbers
   fmu          the FMU under fmpy.simulate_fmu (fmpy's input table, output_interval = H, every output
                recorded, debug logging on)
@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _fmu_floor import c_floor  # noqa: E402
 from ffrf_fmu.fmu.builder import build_from_model, c_compiler  # noqa: E402
-from ffrf_fmu.fmu.native.resource import held_map, images  # noqa: E402
+from ffrf_fmu.fmu.native.resource import point_map, images  # noqa: E402
 from ffrf_fmu.fmu.run import fmu_input_table, run_fmu  # noqa: E402
 from ffrf_fmu.fmu.variables import body_variables  # noqa: E402
 from ffrf_fmu.model import load_model, scene_body  # noqa: E402
@@ -54,7 +54,7 @@ from ffrf_fmu.fmu.builder import SceneParameters  # noqa: E402
 
 def host_table(fmu: Path, body, scene, inputs, H: float, path: Path) -> int:
     """The C host's input table (fmu_host_bench.c TABLE): per communication point the FMU's input values
-    and the held rows of runtime/held.py made of them. Returns the number of communication steps."""
+    and the point values of runtime/input_rule.py made of them. Returns the number of communication steps."""
     md = read_model_description(str(fmu))
     n = int(round(scene.duration / H))
     table = fmu_input_table(fmu, inputs, H * np.arange(n + 1))
@@ -62,7 +62,7 @@ def host_table(fmu: Path, body, scene, inputs, H: float, path: Path) -> int:
     by = {v.name: v.valueReference for v in md.modelVariables}
     outs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
     variables = body_variables(body.ports, body.node_positions, SceneParameters.of_scene(scene).as_config())
-    hmap = held_map(variables, body.ports).ravel()
+    hmap = point_map(variables, body.ports).ravel()
     values = np.zeros(len(variables))
     rows = []
     for k in range(n + 1):

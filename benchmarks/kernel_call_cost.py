@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Benchmark: what one kernel call per communication step costs beyond the standalone run's steps
-(issue 10: an FMU at H = h pays one `BodySystem.run_held` call per internal step, `simulate.run`
+(issue 10: an FMU at H = h pays one `BodySystem.run_extrapolated` call per internal step, `simulate.run`
 one call per 500 steps).
 
     python benchmarks/kernel_call_cost.py [--duration 2] [--traffic-mb 1]
@@ -8,14 +8,14 @@ one call per 500 steps).
 B1 (4 SE x 6 modes, h = 2 ms, native, one BLAS thread), in this process, wall time of the calls
 alone (perf_counter around each; mean, median and minimum over the calls: the steps vary with their
 Newton iterations, the mean also with the machine's other jobs):
-  run 500       simulate.run's path: BodySystem.run_schedule, 500 steps per call (per step)
-  run 1         the same with one step per call
-  held n=0      BodySystem.run_held with no step to take: the call's own cost (its Python wrappers,
-                BodySystem.run_held and CompiledStep.run_held, and unboxing the kernel's ~75 argument arrays)
-  held warm     run_held of one step from the same state again and again (the state restored
-                between calls, outside the timing): the step with the kernel's data and code in cache
-  held cold     the same after writing --traffic-mb of memory between calls, as a host's code does
-                between doSteps (fmpy, pythonfmu, the slave)
+  run 500             simulate.run's path: BodySystem.run_schedule, 500 steps per call (per step)
+  run 1               the same with one step per call
+  extrapolated n=0    BodySystem.run_extrapolated with no step to take: the call's own cost (its Python wrappers,
+                      BodySystem.run_extrapolated and CompiledStep.run_extrapolated, and unboxing the kernel's ~75 argument arrays)
+  extrapolated warm   run_extrapolated of one step from the same state again and again (the state restored
+                      between calls, outside the timing): the step with the kernel's data and code in cache
+  extrapolated cold   the same after writing --traffic-mb of memory between calls, as a host's code does
+                      between doSteps (fmpy, pythonfmu, the slave)
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from ffrf_fmu.model import load_model, scene_body  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
-from ffrf_fmu.runtime import held  # noqa: E402
+from ffrf_fmu.runtime import input_rule  # noqa: E402
 from ffrf_fmu.simulate import build_system, record, scene_inputs, scene_schedule, whole_steps  # noqa: E402
 
 
@@ -59,14 +59,14 @@ def run_chunks(body, scene, chunk: int) -> list[float]:
     return out
 
 
-def held_calls(body, scene, n_steps: int, calls: int, traffic: np.ndarray | None) -> list[float]:
-    """Seconds per run_held(h, n_steps) call from one state mid-run (t = duration / 2), restored
+def step_calls(body, scene, n_steps: int, calls: int, traffic: np.ndarray | None) -> list[float]:
+    """Seconds per run_extrapolated(h, n_steps) call from one state mid-run (t = duration / 2), restored
     between calls; `traffic` written between calls when given."""
     system, inputs = build_system(body, scene, backend="native")
     h = scene.step
     for _ in range(int(round(scene.duration / 2 / h))):
-        system.run_held(h, 1, system.t, held.rows(body.ports, inputs(system.t)))
-    values, row = held.rows(body.ports, inputs(system.t)), np.empty(record(system).size)
+        system.run_extrapolated(h, 1, system.t, input_rule.point_values(body.ports, inputs(system.t)))
+    values, row = input_rule.point_values(body.ports, inputs(system.t)), np.empty(record(system).size)
     start, t_c = system.snapshot(), system.t
     out = []
     for _ in range(calls):
@@ -74,7 +74,7 @@ def held_calls(body, scene, n_steps: int, calls: int, traffic: np.ndarray | None
         if traffic is not None:
             traffic += 1.0
         t0 = time.perf_counter()
-        system.run_held(h, n_steps, t_c, values, row)
+        system.run_extrapolated(h, n_steps, t_c, values, row)
         out.append(time.perf_counter() - t0)
     return out
 
@@ -93,9 +93,9 @@ def main(argv=None) -> int:
     rows = {
         "run 500 (per step)": run_chunks(body, scene, 500),
         "run 1": run_chunks(body, scene, 1),
-        "held n=0": held_calls(body, scene, 0, args.calls, None),
-        "held warm": held_calls(body, scene, 1, args.calls, None),
-        f"held cold ({args.traffic_mb:g} MB between)": held_calls(body, scene, 1, args.calls,
+        "extrapolated n=0": step_calls(body, scene, 0, args.calls, None),
+        "extrapolated warm": step_calls(body, scene, 1, args.calls, None),
+        f"extrapolated cold ({args.traffic_mb:g} MB between)": step_calls(body, scene, 1, args.calls,
                                                                  np.zeros(int(args.traffic_mb * 1e6 / 8))),
     }
     print(f"B1 {scene.name}, h = {scene.step:g} s, native; load average {os.getloadavg()[0]:.2f}, "

@@ -2,7 +2,7 @@
 step size and the Jacobian-reuse rules (runtime/integrator.py THETA_REFRESH, REFRESH_AFTER).
 
     python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
-                                       [--refresh-after 2:3] [--duration 20] [--held 1,5,10]
+                                       [--refresh-after 2:3] [--duration 20] [--point-steps 1,5,10]
 
 Each run is the whole scene on the numpy backend (the native backend makes the same decisions):
 Newton iterations (residual evaluations, each with one solve) per step, factorizations of the
@@ -11,8 +11,8 @@ of successive increments beyond which the stored factorization is dropped within
 Newton keeps it otherwise; theta = 0 would be full Newton); REFRESH_AFTER = lo:hi drops it before a
 step that follows one of lo to hi iterations. Iteration counts, not times: they do not depend on the
 machine (benchmarks/newton_iterations.py measures times, against a baseline revision).
---held N1,N2,...: the FMU's input rule beside the exact drive: the inputs extrapolated from the
-values held at each communication point t_c = k N h (runtime/held.py, BodySystem.run_held), N internal
+--point-steps N1,N2,...: the FMU's input rule beside the exact drive: the inputs extrapolated from the
+point values at each communication point t_c = k N h (runtime/input_rule.py, BodySystem.run_extrapolated), N internal
 steps per communication step; the standalone column, then one per N (the thetas then take the first value
 only).
 """
@@ -34,13 +34,13 @@ sys.path.insert(0, str(HERE.parent))
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.reduction import build_body  # noqa: E402
-from ffrf_fmu.runtime import held  # noqa: E402
+from ffrf_fmu.runtime import input_rule  # noqa: E402
 from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
 
 
-def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float, held_n: int = 0):
+def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float, point_n: int = 0):
     model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
     scene = model.scene("spinup")
     body, _ = build_body(model.body)
@@ -59,17 +59,17 @@ def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int,
     n = round(duration / h)
     step = system.step
 
-    def counting_step(*args):  # BodySystem.run_held steps through this on the numpy backend
+    def counting_step(*args):  # BodySystem.run_extrapolated steps through this on the numpy backend
         iterations.append(step(*args))
         return iterations[-1]
 
     try:
-        if held_n:
+        if point_n:
             system.step = counting_step
-            for k in range(n // held_n):
-                t_c = k * held_n * h
-                system.run_held(h, held_n, t_c, held.rows(body.ports, inputs(t_c)))
-                system.t = t_c + held_n * h  # the master's clock, as an FMU's doStep
+            for k in range(n // point_n):
+                t_c = k * point_n * h
+                system.run_extrapolated(h, point_n, t_c, input_rule.point_values(body.ports, inputs(t_c)))
+                system.t = t_c + point_n * h  # the master's clock, as an FMU's doStep
         else:
             for _ in range(n):
                 iterations.append(system.step(h, inputs))
@@ -86,10 +86,14 @@ def main(argv=None) -> int:
     ap.add_argument("--thetas", default="0.1,0.25,0.5,0.9")
     ap.add_argument("--refresh-after", default="2:3")
     ap.add_argument("--duration", type=float, default=20.0)
-    ap.add_argument("--held", default="", help="internal steps per communication step of the FMU's input rule")
+    ap.add_argument("--point-steps", default="", help="internal steps per communication step of the FMU's input rule")
+    ap.add_argument("--held", help=argparse.SUPPRESS)  # the old spelling, refused below
     args = ap.parse_args(argv)
-    if args.held:
-        return held_table(args)
+    if args.held is not None:
+        ap.error("--held is now --point-steps (internal steps per communication step from the point values; "
+                 "'held' names inputs kept constant over a step)")
+    if args.point_steps:
+        return point_table(args)
     print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}; Newton iterations / factorizations per step")
     print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{'theta ' + t:>17}" for t in args.thetas.split(",")))
     for h in (float(x) for x in args.steps.split(",")):
@@ -107,10 +111,10 @@ def main(argv=None) -> int:
     return 0
 
 
-def held_table(args) -> int:
-    """--held: the standalone run (exact drive), then one column per number of internal steps per
+def point_table(args) -> int:
+    """--point-steps: the standalone run (exact drive), then one column per number of internal steps per
     communication step."""
-    ns = [0] + [int(x) for x in args.held.split(",")]
+    ns = [0] + [int(x) for x in args.point_steps.split(",")]
     theta = float(args.thetas.split(",")[0])
     print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}, theta {theta:g}; standalone (exact "
           "drive), then the FMU's input rule; Newton iterations / factorizations per internal step")

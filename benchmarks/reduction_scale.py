@@ -1,7 +1,7 @@
 """Reduction cost of a solid against its dof count (docs/solids.md, "Scale"): a steel bar 8 x 1 x 1 of
 quadratic hexahedra (hex27), divisions (4k, k, k), two averaging end-face frames, 8 free-free modes.
 Each size runs in a fresh process: CPU time of the assembly and of each reduction stage (one thread:
-SuperLU and ARPACK are serial, BLAS is held to one thread; on an idle machine wall = CPU, on a shared
+SuperLU and ARPACK are serial, BLAS is limited to one thread; on an idle machine wall = CPU, on a shared
 one the wall time measures the load, printed beside it), and the peak resident memory of that process
 (ru_maxrss). Then the step cost of the reduced body at two mesh sizes:
 the same frames and modes give the same reduced sizes, so the same cost per step.
@@ -47,7 +47,7 @@ def one(k: int, modes: int = 8) -> dict:
 
 
 def step_cost(k: int, steps: int = 400) -> float:
-    """CPU seconds per step of the reduced bar (frame a held, b free, under gravity) on the native (C)
+    """CPU seconds per step of the reduced bar (frame a fixed, b free, under gravity) on the native (C)
     backend: what a body's step costs with this mesh's reduction."""
     import numpy as np
 

@@ -224,7 +224,7 @@ def info(args) -> int:
         print(f"  reduction quality up to {quality['cutoff_hz']:.4g} Hz (2 x the highest kept mode; docs/solids.md): "
               "full -> reduced [Hz] (MAC)")
         print("    " + ", ".join(f"{m['full_hz']:.4g} -> {m['reduced_hz']:.4g} ({m['mac']:.3f})" for m in quality["modes"]))
-        print("  effective mass held at a port, modes up to the cutoff (x, y, z, rx, ry, rz): "
+        print("  effective mass clamped at a port, modes up to the cutoff (x, y, z, rx, ry, rz): "
               + "; ".join(f"{k} " + " ".join(f"{v:.2f}" for v in fr) for k, fr in quality["effective_mass_fraction"].items()))
     worst = lambda key: max(s.get(key, 0.0) for s in inertia["superelements"])  # noqa: E731
     print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} "

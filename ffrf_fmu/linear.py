@@ -66,7 +66,7 @@ def chain_matrices(body: BodyData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def motion_fixed_dofs(body: BodyData) -> np.ndarray:
-    """Dofs of the boundary nodes held by motion-driven port parts (translation 0-2, rotation 3-5)."""
+    """Dofs of the boundary nodes fixed by motion-driven port parts (translation 0-2, rotation 3-5)."""
     dofs = []
     for p in body.ports:
         if p.translation == "motion":
@@ -81,7 +81,7 @@ def _free(n_dof: int, fixed) -> np.ndarray:
 
 
 def natural_frequencies(body: BodyData, fixed: np.ndarray | None = None) -> np.ndarray:
-    """Natural frequencies (Hz, ascending) of the chain with `fixed` dofs held (default: the
+    """Natural frequencies (Hz, ascending) of the chain with `fixed` dofs removed (default: the
     motion-driven port parts); rigid-body (< 0.01 Hz) ones are left out."""
     K, M, _ = chain_matrices(body)
     free = _free(K.shape[0], motion_fixed_dofs(body) if fixed is None else fixed)
@@ -92,7 +92,7 @@ def natural_frequencies(body: BodyData, fixed: np.ndarray | None = None) -> np.n
 
 def static_displacements(body: BodyData, loads: dict[int, np.ndarray], fixed: np.ndarray | None = None) -> np.ndarray:
     """Boundary node displacements/rotations (n_nodes, 6) under nodal loads {node: [F, M]}
-    (world axes) with `fixed` dofs held (default: the motion-driven port parts)."""
+    (world axes) with `fixed` dofs removed (default: the motion-driven port parts)."""
     K, _, node_dofs = chain_matrices(body)
     f = np.zeros(K.shape[0])
     for node, load in loads.items():

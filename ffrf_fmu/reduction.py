@@ -72,7 +72,7 @@ def free_free_modes(fe: FEModel, U: np.ndarray, n_modes: int) -> tuple[np.ndarra
 def attachment_modes(fe: FEModel, U: np.ndarray, boundary: np.ndarray, support: np.ndarray) -> np.ndarray:
     """Free attachment modes with inertia relief F_B = G_e L_B^T, G_e = P^T G_c P.
 
-    G_c is the flexibility with the dofs `support` held (any isostatic support: G_e does not
+    G_c is the flexibility with the dofs `support` fixed (any isostatic support: G_e does not
     depend on it, since P L_B^T is self-equilibrated). boundary, support: dof index arrays.
     """
     import scipy.linalg as sla

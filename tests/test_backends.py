@@ -1,5 +1,5 @@
 """The C runtime (backend native, runtime/native) against the numpy reference backend where an FMU
-uses it (communication steps with held inputs), state and snapshot round trips, and the fallback when
+uses it (communication steps from point values), state and snapshot round trips, and the fallback when
 the C runtime cannot be compiled. Whole runs of every bundled benchmark, with the numpy run replaying
 the C run's Newton decisions, are tests/test_native_runs.py.
 
@@ -7,7 +7,7 @@ Tolerances: 1e-10 of each output field's largest value (over all ports) for the 
 (r, R, v, w); reaction loads are residual rows at the last evaluated Newton iterate, one increment
 before the accepted one (runtime/integrator.py `_newton`), differences of elastic forces of order
 K_bar q through the ill-conditioned iteration matrix (condition ~1e11 on B1), so their round-off is up
-to ~1e-6 of their own size: 2e-6 for them. The held-input runs are chosen so that no convergence test
+to ~1e-6 of their own size: 2e-6 for them. The extrapolated-input runs are chosen so that no convergence test
 sits at its threshold (there round-off can flip an iteration count).
 """
 from __future__ import annotations
@@ -20,10 +20,10 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import build_body, build_scene_body
-from ffrf_fmu.runtime import held
+from ffrf_fmu.runtime import input_rule
 from ffrf_fmu.runtime.body import BodySystem
 
-HELD_RUNS = {  # 1 s of each scene in communication steps of 5 internal steps
+EXTRAPOLATED_RUNS = {  # 1 s of each scene in communication steps of 5 internal steps
     "B1": ("models/haug_beam.toml", "spinup", ["superelements=2", "step=0.01", "duration=3.0"]),
     "B1-compliant": ("models/haug_beam.toml", "spinup", [
         'body.ports.hub.translation="compliant"', 'body.ports.hub.rotation="compliant"', "superelements=2",
@@ -36,17 +36,17 @@ KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t")
 
 
 
-@pytest.mark.parametrize("name", list(HELD_RUNS))
-def test_held_inputs_in_the_runtime_match_the_numpy_twin(name):
-    """An FMU's communication step in ONE call of the C runtime (BodySystem.run_held on native: the inputs
-    extrapolated from the held values inside it, advance.c ffrf_held_inputs) against one step call per
-    internal step with their numpy twin runtime/held.inputs (numpy backend): 1e-10 of the kinematic
+@pytest.mark.parametrize("name", list(EXTRAPOLATED_RUNS))
+def test_extrapolated_inputs_in_the_runtime_match_the_numpy_twin(name):
+    """An FMU's communication step in ONE call of the C runtime (BodySystem.run_extrapolated on native: the inputs
+    extrapolated from the point values inside it, advance.c ffrf_extrapolated_inputs) against one step call per
+    internal step with their numpy twin runtime/input_rule.extrapolate (numpy backend): 1e-10 of the kinematic
     outputs, 2e-6 of the loads (module docstring), equal iterations; 5 internal steps per
     communication step, so that the extrapolation spans several steps, over 1 s of the scene. The
     factorization of the last step is handed back to the body (the next call starts from it), built at
     the same step as numpy's (the first CM frame it was built at, to 1e-10: a step apart they differ by
     ~1e-5) and with the same verdict whether it serves the next step (integrator `_newton`)."""
-    path, scene, overrides = HELD_RUNS[name]
+    path, scene, overrides = EXTRAPOLATED_RUNS[name]
     model = load_model(path, overrides)
     sc = model.scene(scene)
     body, _ = build_scene_body(model.body, sc)
@@ -58,7 +58,7 @@ def test_held_inputs_in_the_runtime_match_the_numpy_twin(name):
         for k in range(int(round(1.0 / (n * h)))):
             t_c = k * n * h
             row = np.empty(sim.record(s).size)
-            worst.append(s.run_held(h, n, t_c, held.rows(body.ports, inputs(t_c)), row))
+            worst.append(s.run_extrapolated(h, n, t_c, input_rule.point_values(body.ports, inputs(t_c)), row))
             s.t = t_c + n * h  # the master's clock (fmu/core.py)
             rows.append(row)
         assert s.backend == backend

@@ -175,11 +175,11 @@ def test_fmi3_is_native_only():
 def test_b1_b2_fmi3_equal_fmi2_and_the_standalone_runtime_bit_for_bit(runs, name, tmp_path):
     """The scene through both FMUs at H = h (fmu/run.py: fmpy's simulate_fmu for 2.0, the same input table
     and order of calls for 3.0): every column equal. Then the standalone C runtime (runtime/native/binding.py)
-    from the FMI 3.0 FMU's initial state (its serialized state), stepped with the FMU's input rule (held
-    values at each t_c, one HELD advance per step): every output equal, bit for bit."""
+    from the FMI 3.0 FMU's initial state (its serialized state), stepped with the FMU's input rule (point
+    values at each t_c, one EXTRAPOLATED advance per step): every output equal, bit for bit."""
     from ffrf_fmu.fmu.native.resource import images
-    from ffrf_fmu.runtime import held as held_columns
-    from ffrf_fmu.runtime.native.binding import HELD, NativeBody
+    from ffrf_fmu.runtime import input_rule
+    from ffrf_fmu.runtime.native.binding import EXTRAPOLATED, NativeBody
     from ffrf_fmu.simulate.inputs import scene_inputs
     from ffrf_fmu.simulate.results import column_names
     from ffrf_fmu.fmu.run import fmu_body, fmu_input_table
@@ -215,22 +215,22 @@ def test_b1_b2_fmi3_equal_fmi2_and_the_standalone_runtime_bit_for_bit(runs, name
     names = column_names(body_data)
     outputs = {n for v in read_model_description(str(three)).modelVariables if v.causality == "output"
                for n in scalar_names(v)} - {"solver.newton_iterations"}
-    held = body.array("held").reshape(len(body_data.ports), held_columns.WIDTH)
+    point = body.array("point_values").reshape(len(body_data.ports), input_rule.WIDTH)
     row = np.empty(len(names))
     compared = 0
     given = {n for v in read_model_description(str(three)).modelVariables if v.causality == "input"
              for n in scalar_names(v)}
-    mask = np.zeros_like(held)  # an FMU holds its input variables only (a port's other fields stay 0)
+    mask = np.zeros_like(point)  # an FMU holds its input variables only (a port's other fields stay 0)
     for j, p in enumerate(body_data.ports):
-        for f, cols in held_columns.COLUMNS.items():
+        for f, cols in input_rule.COLUMNS.items():
             names_f = [n for n in given if n.startswith(f"{p.name}.{f}[")]
             mask[j, cols] = 1.0 if names_f else 0.0
     for k in range(len(b.t) - 1):
         # the communication points and steps the host gave: t_k = k h and H_k = t_(k+1) - t_k, which differs
         # from h in the last bits (fmpy steps so, and the FMU takes one internal step of H_k)
         t_c, H_k = b.t[k], b.t[k + 1] - b.t[k]
-        held[...] = held_columns.rows(body_data.ports, inputs(t_c)) * mask
-        done, status, _ = body.advance(HELD, 1, H_k, t_c, row, None)
+        point[...] = input_rule.point_values(body_data.ports, inputs(t_c)) * mask
+        done, status, _ = body.advance(EXTRAPOLATED, 1, H_k, t_c, row, None)
         assert (done, status) == (1, 0)
         for j, n in enumerate(names):
             if n in outputs:

@@ -436,15 +436,15 @@ def test_master_gauss_seidel_single_fmu_matches_simulate_fmu(small, small_fmu):
 
 
 def test_master_connect_ports_wiring_and_errors(small, tmp_path):
-    from ffrf_fmu.master import CoSimulationError, Held, Motion, body_port_links
+    from ffrf_fmu.master import CoSimulationError, Motion, Signal, body_port_links
 
     links = body_port_links("A", "cut", "B", "cut", {"translation": "force", "rotation": "force"},
                             {"translation": "motion", "rotation": "motion"})
     motion = [l for l in links if isinstance(l, Motion)]
-    held = [l for l in links if isinstance(l, Held)]
+    signals = [l for l in links if isinstance(l, Signal)]
     assert {m.kind for m in motion} == {"translation", "rotation"}
     assert motion[1].src_pos[1] == "A.cut.R[1,2]" and motion[1].dst_rate[2] == "B.cut.w[3]"
-    assert {(h.src, h.dst, h.gain) for h in held} >= {("B.cut.f[1]", "A.cut.f[1]", -1.0), ("B.cut.t[3]", "A.cut.t[3]", -1.0)}
+    assert {(h.src, h.dst, h.gain) for h in signals} >= {("B.cut.f[1]", "A.cut.f[1]", -1.0), ("B.cut.t[3]", "A.cut.t[3]", -1.0)}
     with pytest.raises(CoSimulationError, match="motion-driven on both sides"):
         body_port_links("A", "p", "B", "q", {"translation": "motion", "rotation": "force"},
                         {"translation": "motion", "rotation": "motion"})
@@ -574,17 +574,20 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
 
 def test_master_link_values():
     """The values the master gives a receiver (package doc of ffrf_fmu/master), without FMUs."""
-    from ffrf_fmu.master import Held, Motion
+    import ffrf_fmu.master as master
+    from ffrf_fmu.master import Motion, Signal
     from ffrf_fmu.runtime.rotation import expm
 
+    with pytest.raises(AttributeError, match="Held is now ffrf_fmu.master.Signal"):
+        master.Held  # the old name of the signal connection: "held" means an input kept over a step
     sim = CoSimulation({}, step=0.1)
-    held = Held("S.y", "R.u", gain=-2.0)
+    signal = Signal("S.y", "R.u", gain=-2.0)
     prev, cur, fresh = {"S.y": 1.0}, {"S.y": 3.0}, {"S.y": 4.0}
-    assert sim._stale(held, 0.1, prev, cur) == {"R.u": -6.0}
-    assert sim._fresh(held, 0.1, cur, fresh) == {"R.u": -8.0}
+    assert sim._stale(signal, 0.1, prev, cur) == {"R.u": -6.0}
+    assert sim._fresh(signal, 0.1, cur, fresh) == {"R.u": -8.0}
     sim.extrapolation = True
-    assert sim._stale(held, 0.1, prev, cur) == {"R.u": -2.0 * (3.0 + 0.5 * 2.0)}  # line through t_c - H, t_c at t_c + H/2
-    assert sim._fresh(held, 0.1, cur, fresh) == {"R.u": -2.0 * 3.5}  # explicit: mean of t_c and t_c + H
+    assert sim._stale(signal, 0.1, prev, cur) == {"R.u": -2.0 * (3.0 + 0.5 * 2.0)}  # line through t_c - H, t_c at t_c + H/2
+    assert sim._fresh(signal, 0.1, cur, fresh) == {"R.u": -2.0 * 3.5}  # explicit: mean of t_c and t_c + H
     # motion, fresh: the receiver's own extrapolation from what it gets ends on the source's frame
     H, w1 = 0.1, np.array([0.3, -0.2, 1.1])
     R1 = expm(np.array([0.4, 0.1, -0.7]))

@@ -71,7 +71,7 @@ def test_mass_properties_of_both_models_agree_and_the_reference_conserves_moment
 
 
 def test_initial_deformation_is_the_cantilevers_in_both_models():
-    """A port displaced by u is held along u only: the free beam with end b pulled sideways by u takes the
+    """A port displaced by u is fixed along u only: the free beam with end b pulled sideways by u takes the
     cantilever's shape (strain energy 3 EI |u|^2 / (2 L^3) = 0.00481 J) and its end moves in (shortens the
     chord) rather than stretching the beam; holding its whole translation stretched it (1 SE runtime: 0.0151 J,
     0.0103 J of it axial, which rang the axial modes after the release)."""

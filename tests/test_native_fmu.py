@@ -347,12 +347,12 @@ def test_directional_derivatives_equal_central_differences_of_two_runs(fmu):
 def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
     """The standalone C runtime (runtime/native/binding.py, the library a standalone run steps in) created
     from the FMU's own image and started from the FMU's initial state, stepped at H = h with the FMU's
-    input rule (held values of runtime/held.py, one `advance` of kind HELD per communication step): every
+    input rule (point values of runtime/input_rule.py, one `advance` of kind EXTRAPOLATED per communication step): every
     output of 20 steps under a varying tip load equals the FMU's, bit for bit. The FMI layer adds nothing
     to the numbers."""
     from ffrf_fmu.fmu.native.resource import images
-    from ffrf_fmu.runtime import held as held_columns
-    from ffrf_fmu.runtime.native.binding import HELD, NativeBody
+    from ffrf_fmu.runtime import input_rule
+    from ffrf_fmu.runtime.native.binding import EXTRAPOLATED, NativeBody
 
     L = fmu.lib
     c = fmu.instantiate()
@@ -370,7 +370,7 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
         body.set_state(np.frombuffer(buf.raw[len(buf.raw) - 8 * n_body:], dtype="<f8"))
         ports = [("hub", "motion", "motion"), ("tip", "force", "force")]
         names = [v.name for v in fmu.md.modelVariables if v.causality == "output" and v.type == "Real"]
-        held = body.array("held").reshape(len(ports), held_columns.WIDTH)
+        point = body.array("point_values").reshape(len(ports), input_rule.WIDTH)
         row = np.empty(24 * len(ports) + 5)
         cols = {"r": (0, 3), "R": (3, 12), "v": (12, 15), "w": (15, 18), "f": (18, 21), "t": (21, 24)}
         H = 0.01
@@ -378,10 +378,10 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
             f = (0.3 * np.sin(7.0 * k * H), 0.0, 2.0 * np.cos(5.0 * k * H))
             assert fmu.set(c, {f"tip.f[{i + 1}]": f[i] for i in range(3)}) == OK
             assert L.fmi2DoStep(c, k * H, H, 1) == OK
-            held[...] = 0.0  # hub at rest at its reference frame (the FMU's start values), the tip load held
-            held[0, held_columns.COLUMNS["R"]] = np.eye(3).ravel()
-            held[1, held_columns.COLUMNS["f"]] = f
-            done, status, _ = body.advance(HELD, 1, H, k * H, row, None)
+            point[...] = 0.0  # hub at rest at its reference frame (the FMU's start values), the tip load held
+            point[0, input_rule.COLUMNS["R"]] = np.eye(3).ravel()
+            point[1, input_rule.COLUMNS["f"]] = f
+            done, status, _ = body.advance(EXTRAPOLATED, 1, H, k * H, row, None)
             assert (done, status) == (1, 0)
             got = fmu.get(c, names)
             for name, value in zip(names, got):

@@ -17,7 +17,7 @@ they get test_backends.py's 2e-6 of their field's largest value; the energies 1e
 
 The C runs go through all three ways the body steps: a scene's schedule evaluated in C
 (BodySystem.run_schedule, one step per call), the inputs given per step (BodySystem.step, as a free
-body's run does) and an FMU's held inputs extrapolated in C (BodySystem.run_held).
+body's run does) and an FMU's point values extrapolated in C (BodySystem.run_extrapolated).
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import build_scene_body
-from ffrf_fmu.runtime import held
+from ffrf_fmu.runtime import input_rule
 from ffrf_fmu.runtime.integrator import NewtonDecisions, NewtonReplay
 
 COMPLIANT_B5 = [  # B5 (haug_beam hub_free) with the hub shaft as a compliant rotation, its far end driven
@@ -59,10 +59,10 @@ RUNS = {
     "plate-stiffening-full": ("models/plate.toml", "spin_kick", ["terms=full", "duration=0.06", "scenes.spin_kick.drives.hub."
                                                                  'rotation.angle={ kind = "haug_spinup", omega = 300.0, T = 0.04 }'],
                               "schedule"),
-    "B5-compliant-held": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "held"),
+    "B5-compliant-extrapolated": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "extrapolated"),
 }
 KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t")
-HELD_STEPS = 5  # internal steps per communication step of the held-input runs
+POINT_STEPS = 5  # internal steps per communication step of the held-input runs
 
 
 def _scene(name):
@@ -94,9 +94,9 @@ def _native_run(model, sc, body, how, n):
         elif how == "given":
             s.step(sc.step, inputs)
             rows[k + 1], times[k + 1] = sim.record(s), s.t
-        else:  # held: the values at the communication point t_c, extrapolated over HELD_STEPS steps
-            t_c = (k // HELD_STEPS) * HELD_STEPS * sc.step
-            s.run_held(sc.step, 1, t_c, held.rows(body.ports, inputs(t_c)), rows[k + 1])
+        else:  # extrapolated: the point values at t_c, extrapolated over POINT_STEPS steps
+            t_c = (k // POINT_STEPS) * POINT_STEPS * sc.step
+            s.run_extrapolated(sc.step, 1, t_c, input_rule.point_values(body.ports, inputs(t_c)), rows[k + 1])
             times[k + 1] = s.t
         decisions.append(_decisions(s))
     return rows, times, decisions
@@ -111,9 +111,9 @@ def _numpy_run(model, sc, body, how, n, decisions):
     rows, times = np.empty((n + 1, sim.record(s).size)), np.zeros(n + 1)
     rows[0] = sim.record(s)
     for k in range(n):
-        if how == "held":
-            t_c = (k // HELD_STEPS) * HELD_STEPS * sc.step
-            s.step(sc.step, held.inputs(body.ports, held.rows(body.ports, inputs(t_c)), t_c))
+        if how == "extrapolated":
+            t_c = (k // POINT_STEPS) * POINT_STEPS * sc.step
+            s.step(sc.step, input_rule.extrapolate(body.ports, input_rule.point_values(body.ports, inputs(t_c)), t_c))
         else:
             s.step(sc.step, inputs)
         rows[k + 1], times[k + 1] = sim.record(s), s.t
@@ -184,7 +184,7 @@ def test_replay_reproduces_a_runs_own_decisions_bit_for_bit():
         s.step(sc.step, inputs)
 
 
-SANITIZED = ("coned-full-W2-coriolis", "B5-compliant-held")  # `full` with W2 and Coriolis; springs and held inputs
+SANITIZED = ("coned-full-W2-coriolis", "B5-compliant-extrapolated")  # `full` with W2 and Coriolis; springs and held inputs
 
 
 def test_sanitized_runtime_runs_two_scenes(tmp_path):

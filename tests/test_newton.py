@@ -12,7 +12,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import build_body
-from ffrf_fmu.runtime import held
+from ffrf_fmu.runtime import input_rule
 
 HAUG = "models/haug_beam.toml"
 # B1's max tip deflection before issue 10 item 2 (585668d, benchmarks/newton_iterations.py, 1 SE x 2
@@ -79,9 +79,9 @@ def test_b1_50ms_runs_through():
     assert d == pytest.approx(0.536620, rel=1e-2)
 
 
-def test_held_inputs_keep_the_iteration_matrix():
-    """An FMU's communication steps (runtime/held.py's input rule, BodySystem.run_held) of 5 internal
-    steps on B1 (4 SE x 6 modes, h = 2 ms, H = 10 ms): the held extrapolation jumps back onto the drive
+def test_extrapolated_inputs_keep_the_iteration_matrix():
+    """An FMU's communication steps (runtime/input_rule.py's input rule, BodySystem.run_extrapolated) of 5 internal
+    steps on B1 (4 SE x 6 modes, h = 2 ms, H = 10 ms): the extrapolation from the point values jumps back onto the drive
     at every communication point and sets the elastic modes vibrating, whose accelerations (1e4-1e6
     tolerances) the predictor cannot follow, so every internal step takes 2 iterations; but the matrix
     serves, and REFRESH_AFTER keeps it (KEEP_CONTRACTION). Measured: 1.99 iterations and 0.022
@@ -104,7 +104,7 @@ def test_held_inputs_keep_the_iteration_matrix():
     n, h, steps = 5, 0.002, 0
     for k in range(100):
         t_c = k * n * h
-        system.run_held(h, n, t_c, held.rows(body.ports, inputs(t_c)))
+        system.run_extrapolated(h, n, t_c, input_rule.point_values(body.ports, inputs(t_c)))
         system.t = t_c + n * h  # the master's clock (fmu/core.py)
         steps += n
     assert counts["evaluations"] / steps <= 2.0

@@ -326,7 +326,7 @@ def test_scene_validation():
 
 def test_initially_deformed_start_is_the_runtimes():
     """B4 starts deformed (end b pulled by u): the reference relaxes the full-order beam to static
-    equilibrium with the undisplaced port held (translation and rotation) and b held along u only, as the
+    equilibrium with the undisplaced port fixed (translation and rotation) and b fixed along u only, as the
     runtime relaxes the reduced body (BodySystem._relax), then releases it with the rigid velocity field on
     the deformed shape. The free end's rotation and the chain's middle node, which neither holds, agree:
     the cantilever's shape (test_free_body: its strain energy, no stretch)."""

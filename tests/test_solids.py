@@ -270,7 +270,7 @@ def test_solid_fmu_equals_its_standalone_run(tmp_path, model, overrides):
 
 def test_quality_report_kept_modes_exact_and_effective_mass():
     """The kept free-free modes are exact eigenvectors of the full model: frequency error at round-off and
-    MAC 1 (1e-8); the next ones are approximations (error > 0, from above). Effective mass fractions held at
+    MAC 1 (1e-8); the next ones are approximations (error > 0, from above). Effective mass fractions clamped at
     a port lie in [0, 1] and grow with the modes admitted (cutoff)."""
     from ffrf_fmu.solid.quality import effective_mass, frequency_report
 

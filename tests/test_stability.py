@@ -71,7 +71,7 @@ def test_hub_drive_is_valid_and_follows_ports_md(hub_drive):
 
 
 def test_hub_drive_torque_sign_and_rollback(hub_drive):
-    """Beam root held at rest (R = I, w = 0), the motor turns the hub ahead: the shaft twist is
+    """Beam root fixed at rest (R = I, w = 0), the motor turns the hub ahead: the shaft twist is
     positive, the torque on the beam positive, and hub.t (the moment of the beam ON the drive) is
     minus it. A restored FMU state repeats the steps exactly."""
     from ffrf_fmu.master import FmuInstance

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime import held as held_inputs
+from ..runtime import input_rule
 from ..runtime.data import BodyData
 from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL
@@ -118,16 +118,16 @@ class BodyCoSim:
         self._blas_libs = [c for c in self._blas.lib_controllers if c.user_api == "blas"] if self._blas else []
         self._output_map: tuple | None = None  # see _output_values
         self._row = np.empty(BodySystem.OUTPUT_WIDTH * len(data.ports) + len(BodySystem.ENERGY_FIELDS) + 1)  # output_row
-        # `_held_inputs`: per port and column of runtime/held.py, the value reference it reads (0 where the
+        # `_point_values`: per port and column of runtime/input_rule.py, the value reference it reads (0 where the
         # port's causality reads no such input), and the ports with a rotation input
-        P, cols = len(data.ports), held_inputs.COLUMNS
-        ix = np.zeros((P, held_inputs.WIDTH), dtype=int)
+        P, cols = len(data.ports), input_rule.COLUMNS
+        ix = np.zeros((P, input_rule.WIDTH), dtype=int)
         for j, p in enumerate(data.ports):
             fields = (("r", "v", "a") if p.translation != "force" else ("f",)) + \
                      (("R", "w", "dw") if p.rotation != "force" else ("t",))
             for f in fields:
                 ix[j, cols[f]] = self.index[(p.name, f)]
-        self._held_map = (ix, [j for j, p in enumerate(data.ports) if p.rotation != "force"])
+        self._point_map = (ix, [j for j, p in enumerate(data.ports) if p.rotation != "force"])
         self.discarded = ""  # the last fmi2Discard's message while the FMU stays at its t_c
         self.last_step: LastStep | None = None  # the last successful doStep (directional derivatives)
 
@@ -269,9 +269,9 @@ class BodyCoSim:
         return self.system
 
     # ------------------------------------------------------------------ inputs
-    def _held_inputs(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[np.ndarray, str]:
+    def _point_values(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[np.ndarray, str]:
         """The input values set for t_c (or those of `values`), checked: (one row per port, the columns of
-        runtime/held.py, failure text). strict=False projects a rotation input onto the nearest rotation
+        runtime/input_rule.py, failure text). strict=False projects a rotation input onto the nearest rotation
         however far it is (the perturbed inputs of the directional derivatives: the projection is what the
         FMU does within ROTATION_TOL, and its derivative is the FMU's)."""
         values = self.values if values is None else values
@@ -280,11 +280,11 @@ class BodyCoSim:
             bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(values[i])]
             shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
             return None, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
-        ix, turns = self._held_map
-        held = values[ix]  # one gather (a column a port does not read holds some other value: never read)
+        ix, turns = self._point_map
+        point = values[ix]  # one gather (a column a port does not read holds some other value: never read)
         for k in turns:  # per rotation input, on Python floats: numpy calls on 3 x 3 cost more than they save
             name = self.data.ports[k].name
-            a, b, c, d, e, f, g, h, i = held[k, 9:18].tolist()  # R row-major
+            a, b, c, d, e, f, g, h, i = point[k, 9:18].tolist()  # R row-major
             dev = max(abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),  # max |R^T R - I|
                       abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h), abs(a * c + d * f + g * i),
                       abs(b * c + e * f + h * i))
@@ -296,9 +296,9 @@ class BodyCoSim:
                 return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix (a reflection: "
                               f"det = {det:.6g}, a rotation has det = +1)")
             if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
-                U, _, Vt = np.linalg.svd(held[k, 9:18].reshape(3, 3))
-                held[k, 9:18] = (U @ Vt).ravel()
-        return held, ""
+                U, _, Vt = np.linalg.svd(point[k, 9:18].reshape(3, 3))
+                point[k, 9:18] = (U @ Vt).ravel()
+        return point, ""
 
     # ------------------------------------------------------------------ modes
     def setup_experiment(self, start_time: float, stop_time: float | None = None) -> None:
@@ -316,7 +316,7 @@ class BodyCoSim:
         if msg:
             self.failure = f"initialization: {msg}"
             return self.failure
-        held, msg = self._held_inputs(self.start_time)
+        point, msg = self._point_values(self.start_time)
         if msg:
             self.failure = f"initialization: {msg}"
             return self.failure
@@ -324,7 +324,7 @@ class BodyCoSim:
             with self.one_blas_thread():
                 self._make_system().initialize(
                     self.start_time,
-                    held_inputs.inputs(self.data.ports, held, self.start_time),
+                    input_rule.extrapolate(self.data.ports, point, self.start_time),
                     velocity=p["initial_velocity"],
                     angular_velocity=p["initial_angular_velocity"],
                     port_displacements=p["port_displacements"] or None,
@@ -395,7 +395,7 @@ class BodyCoSim:
                 f"t = {system.t:.9g} s, or restore a saved FMU state first)",
                 status="error",
             )
-        held, msg = self._held_inputs(t_c)
+        point, msg = self._point_values(t_c)
         if msg:
             return StepReport(False, msg, status="discard")
         saved = system.snapshot()  # the factorization shared, not copied
@@ -407,7 +407,7 @@ class BodyCoSim:
         hh = H / n
         try:
             with self.one_blas_thread():
-                worst = system.run_held(hh, n, t_c, held, self._row)  # one call of the C runtime on backend native
+                worst = system.run_extrapolated(hh, n, t_c, point, self._row)  # one call of the C runtime on backend native
                 system.t = t_end  # the master's clock, not the sum of n rounded steps
                 dst, out = self._output_values(worst, self._row)
             self._check_finite(system, out)
@@ -442,7 +442,7 @@ class BodyCoSim:
 
     def _output_values(self, iterations: int, row: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(value references, values) of every output at the current state, not yet written; row: the
-        body's output_row at this state if already computed (BodySystem.run_held fills one), else computed.
+        body's output_row at this state if already computed (BodySystem.run_extrapolated fills one), else computed.
 
         Port fields come from the row's port_array part (one row per port, columns OUTPUT_FIELDS, 3 or
         9 each, R row-major as the variables), then the energies, the iterations and the probes: one

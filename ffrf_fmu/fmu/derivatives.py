@@ -3,7 +3,7 @@ fmu/variables.py DIRECTIONAL_DERIVATIVES): central differences of re-runs of tha
 
 The FMU's state machine (fmu/core.py `BodyCoSim`) records each successful doStep as a `LastStep` and
 calls `directional_derivative` with itself; the re-runs take the step exactly as doStep does
-(`BodySystem.run_held` with the held inputs checked by `BodyCoSim._held_inputs`), from the saved state at
+(`BodySystem.run_extrapolated` with the point values checked by `BodyCoSim._point_values`), from the saved state at
 t_c, and leave the FMU at the end of the step as it was. Imports: numpy, the standard library and the
 runtime package (relative): the builder ships this module inside every FMU.
 """
@@ -88,11 +88,11 @@ def directional_derivative(cosim, knowns, seeds, unknowns) -> tuple[np.ndarray |
                 for step in (eps, -eps):
                     values = rec.values.copy()
                     np.add.at(values, knowns, step * s)
-                    held, msg = cosim._held_inputs(rec.t_c, values, strict=False)
+                    point, msg = cosim._point_values(rec.t_c, values, strict=False)
                     if msg:
                         return None, f"directional derivative: {msg}"
                     system.restore(rec.state)
-                    system.run_held(rec.H / rec.n, rec.n, rec.t_c, held, cosim._row)  # as doStep steps
+                    system.run_extrapolated(rec.H / rec.n, rec.n, rec.t_c, point, cosim._row)  # as doStep steps
                     dst, out = cosim._output_values(0, cosim._row)
                     full = np.zeros(n)
                     full[dst] = out

@@ -16,7 +16,7 @@ Names are "<instance>.<variable>". Each communication step [t_c, t_c + H]:
   already stepped gets the source's fresh values at t_c + H, otherwise the values at t_c.
 
 Two kinds of connection:
-- `Held`: dst <- gain * src; the receiver keeps the value over the step. Stale (source not yet
+- `Signal`: dst <- gain * src; the receiver keeps the value over the step. Stale (source not yet
   stepped): the value at t_c, or with `extrapolation=True` the value at t_c + H/2 of the line
   through the source's values at t_c - H and t_c. Fresh: the value at t_c + H (with
   extrapolation, explicit coupling: the mean of the values at t_c and t_c + H).
@@ -41,8 +41,17 @@ the force-driven side; the force-driven side receives minus the reaction of the 
 side (the force on one body is the opposite of the force on the other).
 """
 from .instance import CoSimulationError, FmuInstance
-from .links import Held, Motion, body_port_links, port_causality
+from .links import Motion, Signal, body_port_links, port_causality
 from .schemes import CoSimulation, Result
 
-__all__ = ["CoSimulation", "CoSimulationError", "FmuInstance", "Held", "Motion", "Result", "body_port_links",
+__all__ = ["CoSimulation", "CoSimulationError", "FmuInstance", "Motion", "Result", "Signal", "body_port_links",
            "port_causality"]
+
+
+def __getattr__(name: str):
+    """The signal connection was called `Held`; the name is refused so that "held" keeps one meaning
+    (an input kept constant over a communication step)."""
+    if name == "Held":
+        raise AttributeError("ffrf_fmu.master.Held is now ffrf_fmu.master.Signal (dst <- gain * src, a signal "
+                             "connection; its receiver holds the value over the step)")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from .instance import CoSimulationError
-from .links import Held, _split
+from .links import Signal, _split
 
 
 class InterfaceJacobian:
@@ -109,11 +109,11 @@ class InterfaceJacobian:
         """Directional derivative of `_fresh` (the values a fresh link gives) at `fresh` along
         `dfresh`: exact for held links and translations (linear), central differences of the closed
         form for a rotation's expm(-H w) R (relative step 1e-7: ~1e-9 relative error)."""
-        src = (link.src,) if isinstance(link, Held) else link.src_pos + link.src_rate
+        src = (link.src,) if isinstance(link, Signal) else link.src_pos + link.src_rate
         d = np.array([dfresh.get(n, 0.0) for n in src])
         if not d.any():
             return {}
-        if isinstance(link, Held) or link.kind == "translation":
+        if isinstance(link, Signal) or link.kind == "translation":
             tau = 1.0
         else:
             tau = 1e-7 * max(1.0, max(abs(fresh[n]) for n in src)) / float(np.max(np.abs(d)))

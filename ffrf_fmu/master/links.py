@@ -9,8 +9,8 @@ from .instance import CoSimulationError, FmuInstance
 
 
 @dataclass(frozen=True)
-class Held:
-    """dst <- gain * src, held by the receiver over the step."""
+class Signal:
+    """dst <- gain * src, a signal held by the receiver over the step (or extrapolated by the master)."""
 
     src: str
     dst: str
@@ -55,7 +55,7 @@ def body_port_links(a: str, port_a: str, b: str, port_b: str, causality_a: dict,
                             tuple(f"{m}.{n}" for n in port_variables(pm, pos)), tuple(f"{m}.{n}" for n in port_variables(pm, rate))))
         # ... and s receives minus the reaction on m
         for src, dst in zip(port_variables(pm, load), port_variables(ps, load)):
-            links.append(Held(f"{m}.{src}", f"{s}.{dst}", -1.0))
+            links.append(Signal(f"{m}.{src}", f"{s}.{dst}", -1.0))
     return links
 
 

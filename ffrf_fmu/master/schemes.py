@@ -12,7 +12,7 @@ import numpy as np
 from ..runtime.rotation import expm
 from .instance import CoSimulationError, FmuInstance
 from .interface import InterfaceJacobian
-from .links import Held, Motion, _split, body_port_links, port_causality
+from .links import Motion, Signal, _split, body_port_links, port_causality
 
 
 class _IQN:
@@ -125,7 +125,7 @@ class CoSimulation(InterfaceJacobian):
         """dst <- gain * src, a held signal."""
         self._check(src, "output")
         self._check(dst, "input")
-        self.links.append(Held(src, dst, float(gain)))
+        self.links.append(Signal(src, dst, float(gain)))
 
     def connect_ports(self, a: str, port_a: str, b: str, port_b: str | None = None) -> None:
         """Join a body port of FMU a to a body port of FMU b (both parts; docs/fmu.md causality)."""
@@ -141,7 +141,7 @@ class CoSimulation(InterfaceJacobian):
         """Connect every input to the output of the same variable name in exactly one other FMU
         (gain 1, held). Returns the number of connections made."""
         n = 0
-        taken = {l.dst for l in self.links if isinstance(l, Held)}
+        taken = {l.dst for l in self.links if isinstance(l, Signal)}
         for l in self.links:
             if isinstance(l, Motion):
                 taken.update(l.dst_pos + l.dst_rate)
@@ -153,7 +153,7 @@ class CoSimulation(InterfaceJacobian):
                 if len(srcs) > 1:
                     raise CoSimulationError(f"input {dname}.{var}: outputs of the same name in {srcs}; connect explicitly")
                 if srcs:
-                    self.links.append(Held(f"{srcs[0]}.{var}", f"{dname}.{var}"))
+                    self.links.append(Signal(f"{srcs[0]}.{var}", f"{dname}.{var}"))
                     n += 1
         return n
 
@@ -180,7 +180,7 @@ class CoSimulation(InterfaceJacobian):
     def _stale(self, link, H: float, prev: dict, cur: dict) -> dict:
         """The source has not stepped yet: its values at t_c (held: optionally extrapolated to
         the middle of the step from t_c - H and t_c)."""
-        if isinstance(link, Held):
+        if isinstance(link, Signal):
             y = cur[link.src]
             if self.extrapolation and prev:
                 y = y + 0.5 * (y - prev[link.src])
@@ -190,11 +190,11 @@ class CoSimulation(InterfaceJacobian):
         return out
 
     def _fresh(self, link, H: float, cur: dict, fresh: dict) -> dict:
-        """The source has reached t_c + H. Held: the end value (its midpoint with the t_c value
+        """The source has reached t_c + H. Signal: the end value (its midpoint with the t_c value
         when extrapolating, explicit scheme only). Motion: the frame and rate at t_c + H, given as
         (r_end - v_end H, v_end) / (expm(-H w_end) R_end, w_end): the receiver's extrapolation
         then ends exactly on the source's frame and rate."""
-        if isinstance(link, Held):
+        if isinstance(link, Signal):
             y = fresh[link.src]
             if self.extrapolation and self.iterations == 1:
                 y = 0.5 * (cur[link.src] + y)
@@ -210,11 +210,11 @@ class CoSimulation(InterfaceJacobian):
         return out
 
     def _links_into(self, inst: str) -> list:
-        return [l for l in self.links if _split(l.dst if isinstance(l, Held) else l.dst_pos[0])[0] == inst]
+        return [l for l in self.links if _split(l.dst if isinstance(l, Signal) else l.dst_pos[0])[0] == inst]
 
     @staticmethod
     def _src_inst(link) -> str:
-        return _split(link.src if isinstance(link, Held) else link.src_pos[0])[0]
+        return _split(link.src if isinstance(link, Signal) else link.src_pos[0])[0]
 
     # one sweep over the FMUs -----------------------------------------------------------------
     def _sweep(self, t: float, H: float, ext: dict, prev: dict, cur: dict, guess: dict, need: dict) -> dict:
@@ -254,7 +254,7 @@ class CoSimulation(InterfaceJacobian):
         pos = {n: i for i, n in enumerate(self.order)}
         out = []
         for l in self.links:
-            if not isinstance(l, Held):
+            if not isinstance(l, Signal):
                 continue
             src, dst = self._src_inst(l), _split(l.dst)[0]
             if self.scheme == "jacobi" or pos[src] >= pos[dst]:

@@ -463,7 +463,7 @@ def simulate_reference(
     (a_{n+1} such that the increment h (1/2 - beta) a_n + h beta a_{n+1} of the acceleration is zero:
     the configuration is guessed as q_n o exp(h v_n); for rho_inf = 1, vdot_{n+1} = -vdot_n). Default
     "linear", but "velocity" for an initially deformed body (scene.initial.port_displacements). Why: its
-    release drops the held end's reaction moment on a node whose rotary inertia is half an element's
+    release drops the fixed end's reaction moment on a node whose rotary inertia is half an element's
     (B4, 32 el.: 4.7e5 rad/s^2), which rings the mesh's top mode (omega h >> 1) and, with rho_inf = 1,
     keeps ringing. There generalized-alpha gives a_{n+1} ~ -a_n, so the acceleration part of the increment
     nearly cancels: a guess that carries a_n over puts that node h^2/4 |a_n + a_{n+1}| = 0.4-0.9 rad off
@@ -719,7 +719,7 @@ def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: in
                   max_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
     """The initially deformed body (scene.initial.port_displacements {port: u}), as the runtime makes it
     (BodySystem._relax): static equilibrium without loads or inertia with every undisplaced port's
-    translation and rotation held, each displaced port held only along its u (at u.(x - X) = |u|, free
+    translation and rotation fixed, each displaced port fixed only along its u (at u.(x - X) = |u|, free
     across u: a force along u moved it there) and its rotation free unless motion-driven: for a free beam
     with its far end displaced, the cantilever shape. The constraints enter as Lagrange multipliers: two
     banded solves per constraint and iteration (bordered system). Nodal (x, R) with R including the section
@@ -733,33 +733,33 @@ def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: in
     if unknown:
         raise ValueError(f"reference: initial displacements of unknown ports {sorted(unknown)}")
     presc = np.zeros((nn, 6), bool)
-    held = []  # (node, unit direction, |u|) of the displaced ports
+    displaced = []  # (node, unit direction, |u|) of the displaced ports
     for p in body.ports:
         k = mesh.port_node[p.name]
         u = np.asarray(displacements.get(p.name, np.zeros(3)), float)
         if np.linalg.norm(u) == 0.0:
             presc[k, :3] = True
         else:
-            held.append((k, u / np.linalg.norm(u), float(np.linalg.norm(u))))
+            displaced.append((k, u / np.linalg.norm(u), float(np.linalg.norm(u))))
         if p.name not in displacements or p.rotation == "motion":
             presc[k, 3:] = True
     band = _Banded(mesh, (~presc).ravel(), with_mass=False)
-    C = np.zeros((len(held), nn, 6))
-    for j, (k, e, _) in enumerate(held):
+    C = np.zeros((len(displaced), nn, 6))
+    for j, (k, e, _) in enumerate(displaced):
         C[j, k, :3] = e
-    C = C.reshape(len(held), -1)
+    C = C.reshape(len(displaced), -1)
     d = np.zeros((nn, 6))
     for step in range(1, load_steps + 1):
         for _ in range(max_iterations):
             fint, st = _internal(mesh, x, R)
             try:
                 fac = band.factor(mesh.elements.tangent_from(st), None)
-            except np.linalg.LinAlgError:  # the held parts leave the body a mechanism: no unique shape
+            except np.linalg.LinAlgError:  # the fixed parts leave the body a mechanism: no unique shape
                 d[:] = np.inf
                 break
             y1 = band.solve(fac, -fint.ravel())
             Y2 = np.column_stack([band.solve(fac, c) for c in C] or [np.zeros(len(y1))])[:, : len(C)]
-            gap = np.array([step / load_steps * size - e @ (x[k] - mesh.X[k]) for k, e, size in held])
+            gap = np.array([step / load_steps * size - e @ (x[k] - mesh.X[k]) for k, e, size in displaced])
             lam = np.linalg.solve(C @ Y2, gap - C @ y1)
             d = (y1 + Y2 @ lam).reshape(nn, 6)
             if not np.all(np.isfinite(d)):
@@ -792,7 +792,7 @@ def static_reference(
     (and gravity acting on the consistent mass, scaled with the loads).
 
     fixed: port names clamped at the reference (position and rotation); None -> every port part
-    whose causality is "motion" in the body is held at the reference. Newton with `load_steps`
+    whose causality is "motion" in the body is fixed at the reference. Newton with `load_steps`
     equal load increments.
     """
     mesh = Mesh(body, n_elements)

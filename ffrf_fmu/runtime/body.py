@@ -14,7 +14,7 @@ import numpy as np
 from .data import BodyData
 from . import outputs, stiffening
 from .fused import FusedResidual
-from .held import port_codes
+from .input_rule import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
 from .factorization import STATE_FLAG, NativeFactor, is_native
@@ -134,7 +134,7 @@ class BodySystem(GeneralizedAlpha):
         self._minus_mass = -self.mass[:, None]
         self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
         self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
-        self._held_codes = port_codes(data.ports)  # (node, mode, spring) of `run_held`
+        self._port_codes = port_codes(data.ports)  # (node, mode, spring) of `run_extrapolated`
         # energies: [v0, Omega0, r, q] of each SE with blockdiag(m I, J0, M, K), then 1/2 the sums per part
         self._energy_op = np.zeros((E, nv + n, nv + n))
         for e in range(E):
@@ -434,7 +434,7 @@ class BodySystem(GeneralizedAlpha):
 
     def _relax(self, displaced: dict[str, np.ndarray], tol: float = 1e-12, max_iter: int = 30) -> None:
         """Static equilibrium (no inertia, no loads) with every undisplaced port's translation and rotation
-        held, and each displaced port held only along its displacement u (a force along u moved it by
+        fixed, and each displaced port fixed only along its displacement u (a force along u moved it by
         |u|; across u it is free): the smooth deformed shape through displaced ports (for a free beam with
         its far end displaced, the cantilever shape), instead of a kink of the attachment modes at the
         displaced node. Holding a displaced port's whole translation would keep its distance to the other
@@ -468,7 +468,7 @@ class BodySystem(GeneralizedAlpha):
                 delta = np.zeros(L.ny)
                 try:
                     delta[idx] = np.linalg.solve(A, np.concatenate([-F[idx], np.zeros(len(C))]))[: len(idx)]
-                except np.linalg.LinAlgError:  # the held parts leave the body a mechanism: no unique shape
+                except np.linalg.LinAlgError:  # the fixed parts leave the body a mechanism: no unique shape
                     delta[:] = np.inf
                 if not np.all(np.isfinite(delta)):
                     break

@@ -28,7 +28,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from .coupling import add_springs
-from .held import inputs as held_inputs
+from .input_rule import extrapolate
 from .ports import PortValues, StepFailure
 from .factorization import is_native
 from .rotation import expm, skew, tangent
@@ -157,22 +157,22 @@ class GeneralizedAlpha:
         am, af, gamma = self.coefficients
         return self._compiled.run(self, h, schedule, rows, times, am, af, gamma)
 
-    def run_held(self, h: float, n: int, t_c: float, values: np.ndarray, row: np.ndarray | None = None) -> int:
-        """n steps of h with the inputs extrapolated from the values held at t_c (runtime/held.py; one row of
-        `values` per port, held.COLUMNS): an FMU's communication step. On the native backend in ONE call
+    def run_extrapolated(self, h: float, n: int, t_c: float, values: np.ndarray, row: np.ndarray | None = None) -> int:
+        """n steps of h with the inputs extrapolated from the point values at t_c (runtime/input_rule.py; one row of
+        `values` per port, input_rule.COLUMNS): an FMU's communication step. On the native backend in ONE call
         of the C runtime with the extrapolation inside; otherwise one `step` call
-        per step with held.inputs, its numpy twin. Returns the most Newton iterations of a step; raises
+        per step with input_rule.extrapolate, its numpy twin. Returns the most Newton iterations of a step; raises
         StepFailure (the state then is that of the last completed step). row, if given, receives
         `output_row` at the end."""
         compiled = self._compiled
         if compiled is not None:
             am, af, gamma = self.coefficients
             buf = row if row is not None else np.empty(compiled.row_size)
-            done, worst, exc = compiled.run_held(self, h, n, t_c, values, buf, am, af, gamma)
+            done, worst, exc = compiled.run_extrapolated(self, h, n, t_c, values, buf, am, af, gamma)
             if exc is not None:
                 raise exc
             return worst
-        inputs, worst = held_inputs(self.data.ports, values, t_c), 0
+        inputs, worst = extrapolate(self.data.ports, values, t_c), 0
         for _ in range(n):
             worst = max(worst, self.step(h, inputs))
         if row is not None:
@@ -349,12 +349,12 @@ class GeneralizedAlpha:
     # (B4 at h = 10 ms, rho_inf = 1: 4-6 iterations per step; rebuilt after every step of 2 or more, Newton
     # failed at t = 0.16 s). Nor when the last step showed that the matrix serves as it is (`_newton`: it ages
     # by less than KEEP_CONTRACTION per step): a predictor can miss by far more than the tolerance while the
-    # matrix stays good. An FMU's inputs do that: the held extrapolation jumps back onto the signal at every
-    # communication point (acceleration by ~jerk H), which sets the beam's elastic modes vibrating; their
+    # matrix stays good. An FMU's inputs do that: the extrapolation from the point values jumps back onto the signal at
+    # every communication point (acceleration by ~jerk H), which sets the beam's elastic modes vibrating; their
     # accelerations are 1e4-1e8 tolerances (tol/beta) at B1's h = 2 ms, H = 5-100 h, a quadratic rate predictor
     # cannot follow them, and every internal step takes 2 iterations whatever the matrix (a kept one contracts
     # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.007-0.013
-    # (docs/benchmarks.md, "Newton iterations under held inputs")
+    # (docs/benchmarks.md, "Newton iterations under the FMU's input rule")
     REFRESH_AFTER = (2, 3)
     # contraction (a kept matrix's second increment over its first, or the dropped matrix's first increment
     # against the new one's, each per step) up to which a matrix serves the next step as it is. On B1 an FMU
@@ -365,7 +365,7 @@ class GeneralizedAlpha:
     KEEP_CONTRACTION = 1e-3
     # ... and only after a first increment of more than KEEP_MISS in the per-field scale (KEEP_MISS/tol
     # tolerances, 1e3 at tol = 1e-9; a bound of its own, so that a tighter tolerance keeps its super-converged
-    # fresh matrices), where a second increment follows whatever the matrix (an FMU's held inputs: 1e4-1e8
+    # fresh matrices), where a second increment follows whatever the matrix (an FMU's extrapolated inputs: 1e4-1e8
     # tolerances; B1's standalone run at 20 ms: ~130). Near the tolerance the iteration count hinges on the
     # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s, numba) fell into a run of 2-iteration steps on
     # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved

@@ -9,7 +9,7 @@ import numpy as np
 from ..model import Scene
 from ..runtime import drives
 from ..runtime.data import BodyData
-from ..runtime.held import port_codes
+from ..runtime.input_rule import port_codes
 from ..runtime.ports import PortValues
 from ..runtime.rotation import expm
 

@@ -6,7 +6,7 @@ reduced body.
       MAC(a, b) = (a^T M b)^2 / ((a^T M a)(b^T M b)).
   The kept modes are exact (MAC 1, error at round-off); the attachment modes add approximations of
   the next ones. For a repeated frequency the MAC is taken with the reduced eigenspace (CLUSTER).
-- Effective mass per port direction: the reduced body held at one port (its frame fixed), its modes
+- Effective mass per port direction: the reduced body clamped at one port (its frame fixed), its modes
   v_j (M-normalized), and the rigid motion z_d in which that frame moves by a unit translation or
   rotation d: Gamma_j = v_j^T M z_d, effective mass Gamma_j^2, its sum over the modes up to the cutoff
   as a fraction of z_d^T M z_d (the mass for a translation, the inertia about the frame for a
@@ -59,7 +59,7 @@ def frequency_report(red, cutoff_hz: float) -> list[dict]:
 
 
 def effective_mass(red, cutoff_hz: float | None = None) -> dict:
-    """{port: [fraction per direction x, y, z, rx, ry, rz]} of the reduced body held at that port, modes
+    """{port: [fraction per direction x, y, z, rx, ry, rz]} of the reduced body clamped at that port, modes
     up to cutoff_hz (all when None) (module doc)."""
     d = red.data
     n = d.n

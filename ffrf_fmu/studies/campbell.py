@@ -3,7 +3,7 @@ spinning frame, reduced (the runtime's equations linearized about their relative
 linear.spin_modes) and, for a solid, the full FE model linearized about the same steady spin.
 
 The full FE model (docs/solids.md, "Campbell diagrams"): the rigid frames' node sets eliminated as in
-the reduction, the motion-driven parts of the ports' frames held (they spin with the drive), u the displacement seen from the spinning frame
+the reduction, the motion-driven parts of the ports' frames fixed (they spin with the drive), u the displacement seen from the spinning frame
 about the axis a through the world origin, Omega the rate, S = M_s (x) (I - a a^T):
 
     static:  (K - Omega^2 S) u0 = Omega^2 S X                   (centrifugal load on the nodes X)
@@ -13,7 +13,7 @@ K_G the geometric stiffness of the steady stress (stress stiffening; solid/stiff
 mesh), Omega^2 S the spin softening, the middle term Coriolis. A solid given by exported matrices has
 no stresses: its full model is linearized without K_G (`stress = False`), and the reduced one is
 built without stiffening. The quadratic eigenproblem is solved in first-order form [u, u'] by ARPACK in
-shift-invert mode about 0 (the held model is positive definite below its divergence speed).
+shift-invert mode about 0 (the model with those parts fixed is positive definite below its divergence speed).
 """
 from __future__ import annotations
 
@@ -65,10 +65,10 @@ def reduced_frequencies(data, rates, axis, n: int, terms: str = "linear", f_max:
     return out
 
 
-def full_frequencies(fe, frames, held, rates, axis, n: int, stress: bool = True) -> np.ndarray:
+def full_frequencies(fe, frames, fixed_parts, rates, axis, n: int, stress: bool = True) -> np.ndarray:
     """(k, n) the first n frequencies [Hz] of the full FE model (SolidFE) about its steady spin at each
     rate (module doc), its rigid frames' node sets eliminated as in the reduction (u = T z,
-    reduction_sparse.constraints) and the frame dofs `held` fixed: (frame index, 0 | 3) for its
+    reduction_sparse.constraints) and the frame parts `fixed_parts` fixed: (frame index, 0 | 3) for its
     translation | rotation. stress: with the stress stiffening K_G."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
@@ -80,7 +80,7 @@ def full_frequencies(fe, frames, held, rates, axis, n: int, stress: bool = True)
     c = constraints(fe, frames, mass_properties(fe)[1])
     T = c.T.tocsc()
     fixed = set()
-    for f, part in held:
+    for f, part in fixed_parts:
         if frames[f].coupling != "rigid":
             raise ValueError(f"port {frames[f].name!r}: a motion-driven averaging frame holds no node of the full model")
         for k in range(part, part + 3):
@@ -149,12 +149,12 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
     notes = {}
     if full and solid:
         r = reds[0]
-        held = [(p.node, part) for p in data.ports for part, kind in ((0, p.translation), (3, p.rotation))
+        fixed_parts = [(p.node, part) for p in data.ports for part, kind in ((0, p.translation), (3, p.rotation))
                 if kind == "motion"]
-        if not held:
+        if not fixed_parts:
             raise ValueError(f"{model.body.source}: no port is motion-driven: nothing holds the full model in the "
                              "spinning frame")
-        fullf = full_frequencies(r.fe, r.frames, held, rates, axis, n, stiff)
+        fullf = full_frequencies(r.fe, r.frames, fixed_parts, rates, axis, n, stiff)
     if full and not solid:
         notes["full"] = "no full FE model drawn: the comparison with the full model is for solids"
     if not stiff:

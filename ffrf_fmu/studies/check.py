@@ -40,7 +40,7 @@ def check(model_path, scene_name: str | None, advice: Advice, *, overrides: Sequ
     if refine:
         from .store import ResultStore
 
-        before = None if fresh else ResultStore(out_dir)  # what the store held: the reference cached or not
+        before = None if fresh else ResultStore(out_dir)  # what the store had: the reference cached or not
         resolution, ref = resolve_reference(model_path, scene.name, advice.tolerance, overrides=overrides,
                                             n_elements=reference_elements, step=reference_step, out_dir=out_dir,
                                             sweep=sweep)

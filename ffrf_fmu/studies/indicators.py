@@ -172,7 +172,7 @@ def step_cost(n_se: int, terms: str, backend: str = "native") -> float:
 
 
 def first_frequency(body: Body) -> float:
-    """First natural frequency [Hz] of the chain with the motion-driven port parts held."""
+    """First natural frequency [Hz] of the chain with the motion-driven port parts fixed."""
     from ..linear import natural_frequencies
 
     f = natural_frequencies(reduced(body)[0])
@@ -224,8 +224,8 @@ def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:
         f0 = natural_frequencies(data)
         f1 = float(f0[0]) if len(f0) else math.nan
         return {"in-plane": f1, "out-of-plane": f1, "source": "no spin: the body's first frequency", "modes": []}
-    held = [p for p in data.ports if p.translation == "motion" and p.rotation == "motion"]
-    through = held and np.linalg.norm(np.cross(axis, data.node_positions[held[0].node])) <= 1e-9 * body.length
+    driven = [p for p in data.ports if p.translation == "motion" and p.rotation == "motion"]
+    through = driven and np.linalg.norm(np.cross(axis, data.node_positions[driven[0].node])) <= 1e-9 * body.length
     if through:
         from ..reduction import build_body
 

@@ -16,7 +16,7 @@ What travels is a Task (bytes and texts); workers call task.execute, imported by
 result carries the worker's code version; `run_sweep` refuses a result of another version than
 this process's (SweepError), and a Dask cluster is asked for its workers' versions before any
 run. A run that fails is a result with its cause. A worker that dies (killed, out of memory)
-loses its run: the pool is rebuilt and the runs it held are tried again, up to `retries` more
+loses its run: the pool is rebuilt and the runs it had are tried again, up to `retries` more
 times; Dask reschedules them itself (its `distributed.scheduler.allowed-failures`, 3 by default)
 and reports KilledWorker after that. A run lost on every attempt is stored as a failure with
 `lost_worker` set, which a rerun tries again.

@@ -5,7 +5,7 @@
  * (am = af = gamma = 1) whose configuration rates are replaced by the exact ones at t0, and the port
  * loads and external power at t0.
  *
- * The body must be at its reference state (as created, or set back to it) with its held inputs set.
+ * The body must be at its reference state (as created, or set back to it) with its point values set.
  * Memory: a few work arrays allocated here (initialization, not a step). */
 #include <math.h>
 #include <stdio.h>
@@ -115,7 +115,7 @@ static void static_jacobian(ffrf_body *b, double *p, const double *yd, const dou
 }
 
 /* BodySystem._relax: static equilibrium (no inertia, loads or gravity) with every undisplaced port's
- * translation and rotation held and each displaced port held only along its displacement u (a Lagrange
+ * translation and rotation fixed and each displaced port fixed only along its displacement u (a Lagrange
  * multiplier per displaced port), Newton on the configuration. */
 static int relax(ffrf_body *b, const double *disp, const char *const *port_names, char *err, size_t len)
 {
@@ -193,7 +193,7 @@ static int relax(ffrf_body *b, const double *disp, const char *const *port_names
         for (int r = 0; r < n; r++)
             x[r] = r < n_idx ? -F[idx[r]] : 0.0;
         memset(delta, 0, sizeof(double) * (size_t)ny);
-        if (solve_dense(A, x, n) != 0) { /* the held parts leave the body a mechanism: no unique shape */
+        if (solve_dense(A, x, n) != 0) { /* the fixed parts leave the body a mechanism: no unique shape */
             last = INFINITY;
             break;
         }
@@ -294,7 +294,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
         goto done;
     }
     st->t = t0;
-    ffrf_held_inputs(b, t0, t0);
+    ffrf_extrapolated_inputs(b, t0, t0);
     const double *xN_p = b->in.xN_p, *RN_p = b->in.RN_p, *zN_p = b->in.zN_p;
     /* rigid placement on the first motion-driven rotation (then translation) input */
     double Rr[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, c_ref[3] = {0, 0, 0}, c_new[3] = {0, 0, 0};
@@ -403,7 +403,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
     ffrf_body_get_state(b, saved);
     double am = b->am, af = b->af, gamma = b->gamma;
     b->am = b->af = b->gamma = 1.0;
-    ffrf_held_inputs(b, t0 + MICRO_STEP, t0);
+    ffrf_extrapolated_inputs(b, t0 + MICRO_STEP, t0);
     int step = ffrf_step(b, MICRO_STEP, 0);
     b->am = am;
     b->af = af;
@@ -423,7 +423,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
     memcpy(st->yd_prev2, yd0, sizeof(double) * (size_t)ny);
     memcpy(st->a, yd0, sizeof(double) * (size_t)ny);
     /* port loads at t0: the inputs, the reactions on motion parts, the springs (body `_update_port_loads`) */
-    ffrf_held_inputs(b, t0, t0);
+    ffrf_extrapolated_inputs(b, t0, t0);
     stage_of_state(b, p, R);
     double *F = b->work.F;
     ffrf_evaluate(b, b->work.se, b->in.f_in, b->in.t_in, p, st->yd, R, theta, 0, 0.0, F, NULL, b->work.Fl, b->work.Fz,

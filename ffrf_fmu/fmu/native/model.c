@@ -1,6 +1,6 @@
 /* The body FMU's behaviour (the twin of ffrf_fmu/fmu/core.py `BodyCoSim`, which the pythonfmu route
- * keeps): values by value reference, parameters checked at initialization, the held inputs of a
- * communication step (runtime/held.py), n equal internal steps in the C runtime, outputs, rollback on a
+ * keeps): values by value reference, parameters checked at initialization, the point values of a
+ * communication step (runtime/input_rule.py), n equal internal steps in the C runtime, outputs, rollback on a
  * discard, directional derivatives of the last step (fmu/derivatives.py) and the FMU state.
  *
  * Statuses (variables.py, builder.DESCRIPTION): fmi2Discard for a numerical failure the master can
@@ -85,10 +85,10 @@ fmi2Status model_setup(fmu_instance *m)
     m->last_values = calloc((size_t)n, sizeof(double));
     m->deriv_values = calloc((size_t)n, sizeof(double));
     m->deriv_sides = calloc(2 * (size_t)n, sizeof(double));
-    m->held = calloc((size_t)(m->desc.n_ports ? m->desc.n_ports : 1) * FFRF_HELD_WIDTH, sizeof(double));
+    m->point_values = calloc((size_t)(m->desc.n_ports ? m->desc.n_ports : 1) * FFRF_POINT_WIDTH, sizeof(double));
     m->row = calloc(n_row, sizeof(double));
     if (!m->values || !m->start_values || !m->initialized_with || !m->last_values || !m->deriv_values ||
-        !m->deriv_sides || !m->held || !m->row) {
+        !m->deriv_sides || !m->point_values || !m->row) {
         fmu_log(m, fmi2Error, "%sInstantiate: out of memory", FMU_API(m));
         return fmi2Error;
     }
@@ -130,7 +130,7 @@ void model_free(fmu_instance *m)
     free(m->last_values);
     free(m->deriv_values);
     free(m->deriv_sides);
-    free(m->held);
+    free(m->point_values);
     free(m->row);
     fmu_description_free(&m->desc);
     free(m->name);
@@ -337,17 +337,17 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
     return 0;
 }
 
-/* The held values of the inputs in `values` at t_c (core.py `_held_inputs`): one row per port, the
- * columns of runtime/held.py; checked finite, R a rotation (re-orthonormalized when not exact).
+/* The point values (runtime/input_rule.py) of the inputs in `values` at t_c (core.py `_point_values`): one row per port, the
+ * columns of runtime/input_rule.py; checked finite, R a rotation (re-orthonormalized when not exact).
  * strict = 0 projects any R with det > 0 onto the nearest rotation (the derivatives' perturbed inputs). */
-static int held_inputs(fmu_instance *m, const double *values, double t_c, int strict, double *held, char *why,
-                       size_t len)
+static int point_values(fmu_instance *m, const double *values, double t_c, int strict, double *out, char *why,
+                        size_t len)
 {
     const fmu_description *d = &m->desc;
     const int P = d->n_ports;
-    for (int k = 0; k < P * FFRF_HELD_WIDTH; k++) {
-        int32_t vr = d->held_vr[k];
-        held[k] = vr >= 0 ? values[vr] : 0.0;
+    for (int k = 0; k < P * FFRF_POINT_WIDTH; k++) {
+        int32_t vr = d->point_vr[k];
+        out[k] = vr >= 0 ? values[vr] : 0.0;
     }
     int bad = 0;
     size_t k = 0;
@@ -369,7 +369,7 @@ static int held_inputs(fmu_instance *m, const double *values, double t_c, int st
     for (int p = 0; p < P; p++) {
         if (d->ports[p].rotation == PART_FORCE)
             continue;
-        double *R = held + p * FFRF_HELD_WIDTH + 9; /* row-major */
+        double *R = out + p * FFRF_POINT_WIDTH + 9; /* row-major */
         double a = R[0], b = R[1], c = R[2], dd = R[3], e = R[4], f = R[5], g = R[6], h = R[7], i = R[8];
         double dev = fmax(fmax(fmax(fabs(a * a + dd * dd + g * g - 1.0), fabs(b * b + e * e + h * h - 1.0)),
                                fmax(fabs(c * c + f * f + i * i - 1.0), fabs(a * b + dd * e + g * h))),
@@ -476,7 +476,7 @@ static int initialize(fmu_instance *m)
     char why[FMU_MESSAGE - 64];
     m->failure[0] = 0;
     m->have_last = 0;
-    if (check_parameters(m, why, sizeof why) || held_inputs(m, m->values, m->start_time, 1, m->held, why, sizeof why)) {
+    if (check_parameters(m, why, sizeof why) || point_values(m, m->values, m->start_time, 1, m->point_values, why, sizeof why)) {
         snprintf(m->failure, sizeof m->failure, "initialization: %s", why);
         return 1;
     }
@@ -502,7 +502,7 @@ static int initialize(fmu_instance *m)
         }
     }
     ffrf_body_set_state(m->body, m->ref_state, m->state_size);
-    memcpy(m->body->held, m->held, sizeof(double) * (size_t)d->n_ports * FFRF_HELD_WIDTH);
+    memcpy(m->body->point_values, m->point_values, sizeof(double) * (size_t)d->n_ports * FFRF_POINT_WIDTH);
     if (fmu_initialize_body(m->body, m->start_time, v0, w0, d->origin, displaced ? disp : NULL, names, why,
                             sizeof why)) {
         snprintf(m->failure, sizeof m->failure, "initialization failed at t = %.6g s: %s", m->start_time, why);
@@ -616,15 +616,15 @@ static const char *failure_text(int status)
     }
 }
 
-/* n internal steps of H / n from the body's state with the held values in m->held; the output row into
+/* n internal steps of H / n from the body's state with the point values in m->point_values; the output row into
  * m->row. 0, or 1 with the failure in why (the body then is at its last completed step). */
 static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, char *why, size_t len)
 {
     ffrf_body *b = m->body;
     double hh = H / n, t0 = b->state.t;
     int status = FFRF_OK;
-    memcpy(b->held, m->held, sizeof(double) * (size_t)m->desc.n_ports * FFRF_HELD_WIDTH);
-    int done = ffrf_body_advance(b, FFRF_HELD, n, hh, t_c, m->row, NULL, &status, worst);
+    memcpy(b->point_values, m->point_values, sizeof(double) * (size_t)m->desc.n_ports * FFRF_POINT_WIDTH);
+    int done = ffrf_body_advance(b, FFRF_EXTRAPOLATED, n, hh, t_c, m->row, NULL, &status, worst);
     if (status != FFRF_OK || done != n) {
         if (status == FFRF_NOT_CONVERGED)
             snprintf(why, len, "t = %.6g s: Newton did not converge in %d iterations", t0 + (done + 1) * hh, b->max_iter);
@@ -687,7 +687,7 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
         return fmi2Error;
     }
     char why[FMU_MESSAGE - 1];
-    if (held_inputs(m, m->values, t_c, 1, m->held, why, sizeof why)) {
+    if (point_values(m, m->values, t_c, 1, m->point_values, why, sizeof why)) {
         snprintf(m->discarded, sizeof m->discarded, "%s", why);
         fmu_log(m, fmi2Discard, "%s", why);
         return fmi2Discard;
@@ -796,7 +796,7 @@ fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReferenc
                     values[known[i]] += step * seed[i];
             char why[FMU_MESSAGE - 1];
             int worst = 0;
-            if (held_inputs(m, values, m->last_tc, 0, m->held, why, sizeof why)) {
+            if (point_values(m, values, m->last_tc, 0, m->point_values, why, sizeof why)) {
                 fmu_log(m, fmi2Error, "directional derivative: %s", why);
                 status = fmi2Error;
                 break;

@@ -5,7 +5,7 @@
  *
  * The binary is body-independent: everything about the body comes from resources/body.bin
  * (resource.c; written by ffrf_fmu/fmu/native/resource.py): the variable table of
- * ffrf_fmu/fmu/variables.py, the maps from variables to the runtime's held inputs and output row, and
+ * ffrf_fmu/fmu/variables.py, the maps from variables to the runtime's point values and output row, and
  * one runtime image (runtime/native/image.py) per term set the FMU offers. The body steps in the C
  * runtime (runtime/native), the same code as a standalone run.
  *
@@ -55,7 +55,7 @@ typedef struct {
     fmu_variable *vars;
     int n_ports;
     fmu_port *ports;
-    const int32_t *held_vr;       /* [n_ports][FFRF_HELD_WIDTH] value reference read into each held column, -1 */
+    const int32_t *point_vr;      /* [n_ports][FFRF_POINT_WIDTH] value reference read into each point-value column, -1 */
     int n_out;
     const int32_t *out_vr;        /* [n_out] output value references ... */
     const int32_t *out_src;       /* [n_out] ... and their position in [output row, probes] */
@@ -96,7 +96,7 @@ typedef struct {
     char discarded[FMU_MESSAGE];  /* the last discard's message while the FMU stays at its t_c */
     int initialized;              /* initialized_with holds the inputs and parameters of the last initialization */
     double *initialized_with;     /* [n_vars] */
-    double *held;                 /* [n_ports][FFRF_HELD_WIDTH] work: the held values of a step */
+    double *point_values;         /* [n_ports][FFRF_POINT_WIDTH] work: the point values of a step */
     double *row;                  /* output row, then the probes [n_probes][3] */
     size_t state_size;            /* ffrf_body_state_size */
     double *rollback;             /* [state_size] the body at t_c of the current doStep (whole: ffrf_body_get_state) */
@@ -145,7 +145,7 @@ fmi2Status model_deserialize(fmu_instance *m, const unsigned char *in, size_t si
 fmi2Status model_serialized_check(fmu_instance *m, const unsigned char *in, size_t size); /* version, FMU, checksum */
 double model_time(const fmu_instance *m); /* the body's time: the last successful communication point */
 
-/* initialize.c: the consistent initial state from the held inputs at t0 and the parameters (BodySystem.initialize) */
+/* initialize.c: the consistent initial state from the point values at t0 and the parameters (BodySystem.initialize) */
 int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const double angular_velocity[3],
                         const double origin[3], const double *port_displacements, const char *const *port_names,
                         char *err, size_t err_len);

@@ -263,8 +263,8 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
         if (!d->ports[i].name)
             goto bad_content;
     }
-    NEED("held", (size_t)d->n_ports * FFRF_HELD_WIDTH * 4, &s);
-    d->held_vr = (const int32_t *)s.data;
+    NEED("pointvr", (size_t)d->n_ports * FFRF_POINT_WIDTH * 4, &s);
+    d->point_vr = (const int32_t *)s.data;
     NEED("outvr", (size_t)d->n_out * 4, &s);
     d->out_vr = (const int32_t *)s.data;
     NEED("outsrc", (size_t)d->n_out * 4, &s);
@@ -298,8 +298,8 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     NEED("origin", 24, &s);
     memcpy(d->origin, s.data, 24);
     {
-        const int32_t *lists[] = {d->held_vr, d->out_vr, d->disp_vr, d->coupling_vr};
-        const size_t sizes[] = {(size_t)d->n_ports * FFRF_HELD_WIDTH, (size_t)d->n_out, (size_t)d->n_ports * 3,
+        const int32_t *lists[] = {d->point_vr, d->out_vr, d->disp_vr, d->coupling_vr};
+        const size_t sizes[] = {(size_t)d->n_ports * FFRF_POINT_WIDTH, (size_t)d->n_out, (size_t)d->n_ports * 3,
                                 (size_t)d->n_ports * 12};
         for (int l = 0; l < 4; l++)
             for (size_t i = 0; i < sizes[l]; i++)

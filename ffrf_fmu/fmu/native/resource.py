@@ -1,7 +1,7 @@
 """resources/body.bin of a native body FMU: what the body-independent binary (fmu/native/*.c) reads.
 
 It holds the variable table of fmu/variables.py (names, types, causality, start, min/max), the maps from
-variables to the runtime's held inputs (runtime/held.py COLUMNS) and output row (BodySystem.output_row,
+variables to the runtime's point values (runtime/input_rule.py COLUMNS) and output row (BodySystem.output_row,
 then the probes of eq. 92), the parameters' value references, and one runtime image
 (runtime/native/image.py) per term set the FMU offers: the body steps in the same C runtime as a
 standalone run.
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...runtime import held as held_columns
+from ...runtime import input_rule
 from ...runtime.terms import TERM_SETS
 from ..variables import Variable
 
@@ -35,7 +35,7 @@ HEADER = struct.Struct("<8sIIQQQ")
 OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")  # BodySystem.OUTPUT_FIELDS: the output row's port columns
 OUTPUT_WIDTH = 24
 ENERGY_FIELDS = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")
-PART_CODES = held_columns.PART_CODES
+PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
 DKIND = {"f": 0, "t": 0, "r": 1, "R": 1, "v": 2, "w": 2, "a": 3, "dw": 3}
 MAX_PORTS = 64  # initialize.c names at most this many ports
@@ -63,10 +63,10 @@ def _index(variables: list[Variable]) -> dict[tuple[str, str], list[int]]:
     return index
 
 
-def held_map(variables, ports) -> np.ndarray:
-    """[n_ports][30] value reference read into each held column (core.py `_held_map`), -1 where none."""
-    index, cols = _index(variables), held_columns.COLUMNS
-    out = np.full((len(ports), held_columns.WIDTH), -1, dtype=np.int32)
+def point_map(variables, ports) -> np.ndarray:
+    """[n_ports][30] value reference read into each point-value column (core.py `_point_map`), -1 where none."""
+    index, cols = _index(variables), input_rule.COLUMNS
+    out = np.full((len(ports), input_rule.WIDTH), -1, dtype=np.int32)
     for j, p in enumerate(ports):
         fields = (("r", "v", "a") if p.translation != "force" else ("f",)) + \
                  (("R", "w", "dw") if p.rotation != "force" else ("t",))
@@ -169,7 +169,7 @@ def payload(c: ResourceContent) -> bytes:
         _section("counts", _i32(counts)),
         _section("vars", bytes(vars_blob)),
         _section("ports", ports_blob),
-        _section("held", _i32(held_map(variables, ports))),
+        _section("pointvr", _i32(point_map(variables, ports))),
         _section("outvr", _i32(out_vr)),
         _section("outsrc", _i32(out_src)),
         _section("pseen", _i32(seen)),

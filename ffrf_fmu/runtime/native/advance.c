@@ -1,8 +1,8 @@
-/* Many steps in one call (the C twin of simulate.scene_inputs and runtime/held.py `inputs` with BodySystem.step): a
+/* Many steps in one call (the C twin of simulate.scene_inputs and runtime/input_rule.py `inputs` with BodySystem.step): a
  * standalone run whose inputs are known functions of time (a scene's drives and loads) or an FMU's
- * communication step (inputs extrapolated from the values held at the communication point) takes its
+ * communication step (inputs extrapolated from the point values, the inputs set at the communication point) takes its
  * steps here, the inputs evaluated and the output rows recorded without returning to the caller.
- * The numpy twins: simulate.scene_inputs, runtime/held.py inputs, BodySystem._read_inputs,
+ * The numpy twins: simulate.scene_inputs, runtime/input_rule.py inputs, BodySystem._read_inputs,
  * simulate.record (BodySystem.port_array, energies). */
 #include <math.h>
 #include <string.h>
@@ -68,7 +68,7 @@ static void no_inputs(ffrf_body *b)
 
 /* A port's rotation Rd and world angular velocity wd at the step's end: a motion-driven rotation into
  * the node's prescribed frame RN_p[k] and body-axes rate zN_p[k, 3:] = Rd^T wd, else into the compliant
- * spring's input slot s (R_in, w_in). Shared by the scene's schedule and the held inputs. */
+ * spring's input slot s (R_in, w_in). Shared by the scene's schedule and the point values. */
 static void put_rotation(ffrf_body *b, int motion, idx_t k, idx_t s, const double Rd[9], const double wd[3])
 {
     if (motion) {
@@ -83,7 +83,7 @@ static void put_rotation(ffrf_body *b, int motion, idx_t k, idx_t s, const doubl
 
 /* A port's position r and world velocity v at the step's end: a motion-driven translation into the
  * node's prescribed position xN_p[k] and rate zN_p[k, :3], else into the compliant spring's input slot s
- * (r_in, v_in). Shared by the scene's schedule and the held inputs, as put_rotation. */
+ * (r_in, v_in). Shared by the scene's schedule and the point values, as put_rotation. */
 static void put_translation(ffrf_body *b, int motion, idx_t k, idx_t s, const double r[3], const double v[3])
 {
     for (int i = 0; i < 3; i++) {
@@ -98,7 +98,7 @@ static void put_translation(ffrf_body *b, int motion, idx_t k, idx_t s, const do
 }
 
 /* The inputs of a step at time t from a scene's schedule (simulate.scene_schedule, after the ports'
- * (node, mode, spring) = runtime/held.py port_codes): what simulate.scene_inputs gives and
+ * (node, mode, spring) = runtime/input_rule.py port_codes): what simulate.scene_inputs gives and
  * BodySystem._read_inputs reads. Parts: 0 force, 1 motion, 2 compliant. A load window acts with its
  * mean over the step (t - h, t] (drives.window_share: the impulse is exact for any step). */
 void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
@@ -154,10 +154,10 @@ void ffrf_scheduled_inputs(ffrf_body *b, double t, double h)
     }
 }
 
-/* The inputs of a step at time t extrapolated from the held values (runtime/held.py `inputs`, read by
- * BodySystem._read_inputs): b->held one row per port, columns held.COLUMNS (r 0, v 3, a 6, R 9, w 18,
- * dw 21, f 24, t 27); port modes 0 force, 1 motion, 2 compliant. runtime/held.py `inputs`. */
-void ffrf_held_inputs(ffrf_body *b, double t, double t_c)
+/* The inputs of a step at time t extrapolated from the point values (runtime/input_rule.py `extrapolate`, read by
+ * BodySystem._read_inputs): b->point_values one row per port, columns input_rule.COLUMNS (r 0, v 3, a 6, R 9, w 18,
+ * dw 21, f 24, t 27); port modes 0 force, 1 motion, 2 compliant. runtime/input_rule.py `inputs`. */
+void ffrf_extrapolated_inputs(ffrf_body *b, double t, double t_c)
 {
     const ffrf_data *D = &b->data;
     double *f_in = b->in.f_in, *t_in = b->in.t_in;
@@ -168,7 +168,7 @@ void ffrf_held_inputs(ffrf_body *b, double t, double t_c)
     for (int j = 0; j < b->dims.n_ports; j++) {
         idx_t k = D->port_node[j], s = D->port_spring[j];
         const idx_t *mode = D->port_mode + 2 * j;
-        const double *row = b->held + (size_t)FFRF_HELD_WIDTH * j;
+        const double *row = b->point_values + (size_t)FFRF_POINT_WIDTH * j;
         if (mode[0] == 0) {
             for (int i = 0; i < 3; i++)
                 f_in[3 * k + i] = row[24 + i];
@@ -297,8 +297,8 @@ void ffrf_body_record(const ffrf_body *b, double *row)
 
 /* n steps of h from the body's time (`ffrf_step` each), their inputs by kind: FFRF_GIVEN as the caller
  * set them in b->in (BodySystem.step, n = 1), FFRF_SCHEDULED from the scene's schedule (every step's row
- * recorded into rows[k] and its time into times[k], simulate.record's layout), FFRF_HELD extrapolated
- * from the values held at t_c (an FMU's communication step; the last step's row into rows). The
+ * recorded into rows[k] and its time into times[k], simulate.record's layout), FFRF_EXTRAPOLATED extrapolated
+ * from the point values at t_c (an FMU's communication step; the last step's row into rows). The
  * time advances by one addition of h per step (the clock of `step`); b->state.iterations
  * holds the last completed step's iterations. Returns the steps completed; *status the status of the
  * failed step (FFRF_OK if none; FFRF_BAD_STEP for h not positive and finite, nothing stepped), *worst
@@ -318,8 +318,8 @@ int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, doubl
         double t1 = b->state.t + h;
         if (kind == FFRF_SCHEDULED)
             ffrf_scheduled_inputs(b, t1, h);
-        else if (kind == FFRF_HELD)
-            ffrf_held_inputs(b, t1, t_c);
+        else if (kind == FFRF_EXTRAPOLATED)
+            ffrf_extrapolated_inputs(b, t1, t_c);
         int st = ffrf_step(b, h, b->state.iterations);
         if (st != FFRF_OK) {
             *status = st;
@@ -333,7 +333,7 @@ int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, doubl
             ffrf_record(b, rows + row_size * k);
         }
     }
-    if (kind == FFRF_HELD && n > 0)
+    if (kind == FFRF_EXTRAPOLATED && n > 0)
         ffrf_record(b, rows);
     return n;
 }

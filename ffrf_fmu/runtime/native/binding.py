@@ -18,7 +18,7 @@ from . import build
 from ..factorization import NativeFactor
 from .image import body_image
 
-GIVEN, SCHEDULED, HELD = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
+GIVEN, SCHEDULED, EXTRAPOLATED = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
 OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP = range(6)
 
 _LIB: dict[bool, C.CDLL] = {}
@@ -135,7 +135,7 @@ def failure(status: int, t1: float, max_iter: int, last_increment: float) -> Ste
 
 
 class NativeStep:
-    """The C runtime's step for one BodySystem (its `_compiled`): BodySystem.step, run_schedule, run_held
+    """The C runtime's step for one BodySystem (its `_compiled`): BodySystem.step, run_schedule, run_extrapolated
     and output_row call it."""
 
     def __init__(self, system, sanitize: bool = False):
@@ -153,7 +153,7 @@ class NativeStep:
         loads = B.array("spring_loads", (N, 2, 3))
         loads[...] = system._spring_loads
         system._spring_loads = loads  # the springs' loads: written by the C steps, read by the numpy path
-        self.held = B.array("held", (len(system.data.ports), -1))
+        self.point_values = B.array("point_values", (len(system.data.ports), -1))
         nf = len(system._newton_idx)
         self.luT, self.piv, self.meta = B.array("luT", (nf, nf)), B.array("piv"), B.array("lu_meta")
         # the factorization last handed to system._lu (copies of the C body's), and the C version they copy
@@ -259,16 +259,16 @@ class NativeStep:
         done, status, _ = self.body.advance(SCHEDULED, rows.shape[0], h, 0.0, rows, times)
         return done, self._finish(system, status)
 
-    def run_held(self, system, h, n, t_c, values, row, am, af, gamma):
-        """n steps of h in ONE call, the inputs extrapolated from the values held at t_c (runtime/held.py),
+    def run_extrapolated(self, system, h, n, t_c, values, row, am, af, gamma):
+        """n steps of h in ONE call, the inputs extrapolated from the point values at t_c (runtime/input_rule.py),
         the last step's output row into row. Returns (steps completed, the most Newton iterations of a
         step, StepFailure of the next step or None)."""
         if not (h > 0.0 and np.isfinite(h)):
             return 0, 0, StepFailure(system.t, f"step size must be positive and finite, got {h}")
-        self.held[...] = values
+        self.point_values[...] = values
         self._prepare(system, am, af, gamma)
         self._h = h
-        done, status, worst = self.body.advance(HELD, int(n), h, t_c, row.reshape(1, -1), None)
+        done, status, worst = self.body.advance(EXTRAPOLATED, int(n), h, t_c, row.reshape(1, -1), None)
         return done, worst, self._finish(system, status)
 
     def record(self, system) -> np.ndarray:

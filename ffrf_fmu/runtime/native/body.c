@@ -251,8 +251,8 @@ static const array_spec OWN[] = {
     {"R_in", 'd', AT(springs.R_in), S(d_springs, 3, 3)},
     {"w_in", 'd', AT(springs.w_in), S(d_springs, 3)},
     {"spring_loads", 'd', AT(springs.loads), S(d_N, 2, 3)},
-    /* an FMU's held input values */
-    {"held", 'd', AT(held), S(d_ports, FFRF_HELD_WIDTH)},
+    /* an FMU's point values: its inputs as set at t_c */
+    {"point_values", 'd', AT(point_values), S(d_ports, FFRF_POINT_WIDTH)},
     /* the factorization */
     {"luT", 'd', AT(lu.luT), S(d_nf, d_nf)},
     {"piv", 'i', AT(lu.piv), S(d_nf)},

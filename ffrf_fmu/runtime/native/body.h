@@ -77,7 +77,7 @@ typedef struct {
     const idx_t *motion_T_slots; /* [n_mT] */
     const double *stage_mask; /* [ny] */
     const double *motion_parts; /* [N][2][3]   1 on motion-driven node dofs */
-    /* ports (runtime/held.py port_codes) */
+    /* ports (runtime/input_rule.py port_codes) */
     const idx_t *port_node;   /* [n_ports] */
     const idx_t *port_mode;   /* [n_ports][2] translation, rotation: 0 force, 1 motion, 2 compliant */
     const idx_t *port_spring; /* [n_ports]     index among the compliant ports, -1 */
@@ -181,7 +181,7 @@ struct ffrf_body {
     ffrf_inputs in;
     ffrf_springs springs;
     ffrf_schedule schedule;
-    double *held;                     /* [n_ports][FFRF_HELD_WIDTH] an FMU's held input values */
+    double *point_values;             /* [n_ports][FFRF_POINT_WIDTH] an FMU's inputs as set at t_c */
     ffrf_lu lu;
     ffrf_partition part;
     ffrf_work work;
@@ -236,7 +236,7 @@ int ffrf_step(ffrf_body *b, double h, int last_it);
 
 /* ---- advance.c: inputs by kind, output rows, many steps in one call ---- */
 void ffrf_scheduled_inputs(ffrf_body *b, double t, double h);
-void ffrf_held_inputs(ffrf_body *b, double t, double t_c);
+void ffrf_extrapolated_inputs(ffrf_body *b, double t, double t_c);
 /* One output row (simulate.record's layout): per port r, R, v, w, f, t (24), then kinetic_rigid,
  * kinetic_elastic, strain, work_external, iterations. */
 void ffrf_record(const ffrf_body *b, double *row);

@@ -15,11 +15,11 @@ enum { FFRF_OK = 0, FFRF_NOT_FINITE = 1, FFRF_NOT_CONVERGED = 2, FFRF_NOT_FACTOR
 /* the gyroscopic terms' two parts: the elastic Coriolis G(W0) (53), the inertia coupling S(q) r (55) */
 enum { FFRF_CORIOLIS = 1, FFRF_COUPLING = 2 };
 /* where a step's inputs come from */
-enum { FFRF_GIVEN = 0, FFRF_SCHEDULED = 1, FFRF_HELD = 2 };
+enum { FFRF_GIVEN = 0, FFRF_SCHEDULED = 1, FFRF_EXTRAPOLATED = 2 };
 
 #define FFRF_OUTPUT_WIDTH 24  /* output columns per port: r, R (row-major), v, w, f, t */
 #define FFRF_N_ENERGIES 4     /* kinetic_rigid, kinetic_elastic, strain, work_external */
-#define FFRF_HELD_WIDTH 30    /* runtime/held.py COLUMNS: r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27 */
+#define FFRF_POINT_WIDTH 30    /* runtime/input_rule.py COLUMNS: r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27 */
 
 typedef struct ffrf_body ffrf_body;
 
@@ -29,7 +29,7 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
 void ffrf_body_free(ffrf_body *b);
 
 /* The address and size (in elements) of a named array of the body (state, inputs, springs,
- * schedule, held, lu, data): NULL if there is none of that name. kind: 'd' double, 'q' int64,
+ * schedule, point_values, lu, data): NULL if there is none of that name. kind: 'd' double, 'q' int64,
  * 'i' int32. Used by the Python binding to view the body's memory as numpy arrays. */
 void *ffrf_body_array(ffrf_body *b, const char *name, size_t *count, char *kind);
 /* Scalars of the body, by name (t, iterations, tol, max_iter, rho_inf, lu_version ...). */
@@ -44,7 +44,7 @@ void ffrf_body_set_schedule(ffrf_body *b, double *r0, int64_t *kind, double *prm
 
 /* n steps of h from the body's time, inputs by kind (FFRF_GIVEN: as set in the inputs arrays;
  * FFRF_SCHEDULED: from the schedule, every step's output row into rows[k] and its time into
- * times[k]; FFRF_HELD: extrapolated from the held values at t_c, the last step's row into rows).
+ * times[k]; FFRF_EXTRAPOLATED: extrapolated from the point values at t_c, the last step's row into rows).
  * Returns the steps completed; *status the status of the first failed step (FFRF_OK if none),
  * *worst the most Newton iterations of a step. A failed step leaves the state at the last one. */
 int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, double *rows,

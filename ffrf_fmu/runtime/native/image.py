@@ -82,7 +82,7 @@ def body_entries(system) -> dict[str, np.ndarray]:
     gyro = (1 if system.coriolis else 0) | (2 if system.inertia_coupling else 0)  # FFRF_CORIOLIS | FFRF_COUPLING
     ports = system.data.ports
     springs = [p for p in ports if p.name in system.compliant]
-    node, mode, spring = system._held_codes
+    node, mode, spring = system._port_codes
     am, af, gamma = system.coefficients
     e = {
         # reduced data (geradin 76, 53, 13) and the deformation-dependent inertia / membrane strain
@@ -103,7 +103,7 @@ def body_entries(system) -> dict[str, np.ndarray]:
         "lin_slots": system.fused.lin_slots, "fixed_idx": system._fixed_idx, "motion_x": system._motion_x,
         "motion_x_slots": system._motion_x_slots, "motion_T_slots": system._motion_T_slots,
         "stage_mask": system._stage_mask, "motion_parts": system._motion_parts,
-        # ports (runtime/held.py port_codes) and compliant ports (runtime/coupling.py)
+        # ports (runtime/input_rule.py port_codes) and compliant ports (runtime/coupling.py)
         "port_node": node, "port_mode": mode.reshape(-1, 2), "port_spring": spring,
         "spring_node": np.array([p.node for p in springs], dtype=np.int64),
         "spring_trans": np.array([p.translation == "compliant" for p in springs], dtype=np.int64),

@@ -3,7 +3,7 @@ without FMUs and without the co-simulation master whose schemes the map judges.
 
  B5 (`b5_monolithic`): the beam, the torsional shaft, the hub inertia and the PI drive integrated
     together. The shaft is the beam's compliant hub rotation (runtime/coupling.py: stiffness
-    [0, 0, k] in nodal axes, the two other axes free as in the force-driven B5; hub translation held
+    [0, 0, k] in nodal axes, the two other axes free as in the force-driven B5; hub translation fixed
     at the origin), whose far end is the hub. The hub is a rigid inertia J about the fixed Z axis,
         J theta'' = Kp (omega_ref(t) - theta') + Ki z - t_s,     z' = omega_ref(t) - theta',
     with t_s the shaft moment on the beam (the spring's, read from the body) and z the controller's

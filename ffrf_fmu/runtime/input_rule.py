@@ -1,14 +1,15 @@
-"""Inputs over a communication step extrapolated from the values held at its start t_c (an FMU's input
-rule, fmu/variables.py INPUTS_BETWEEN_COMMUNICATION_POINTS): second order in s = t - t_c,
+"""An FMU's input rule (fmu/variables.py INPUTS_BETWEEN_COMMUNICATION_POINTS): the inputs over a
+communication step from its point values, the inputs as set at the communication point t_c; motions
+extrapolated to second order in s = t - t_c, forces and moments held (kept constant over the step):
 
     r(t) = r_c + v_c s + a_c s^2/2,   v(t) = v_c + a_c s,
     R(t) = expm(skew(w_c s + dw_c s^2/2)) R_c,   w(t) = w_c + dw_c s,   f, t held,
 
 the rotation exact for a fixed axis, otherwise missing (w x dw) s^3/12 (third order).
 
-The held values are one array per port (`COLUMNS`), so that the C runtime evaluates them at every
-internal step of the communication step in one call (runtime/native/advance.c `ffrf_held_inputs`, in `ffrf_body_advance`);
-`inputs` here is its numpy twin and the oracle (tests/test_backends.py).
+The point values are one row per port (`COLUMNS`), so that the C runtime evaluates the rule at every
+internal step of the communication step in one call (runtime/native/advance.c `ffrf_extrapolated_inputs`,
+in `ffrf_body_advance`); `extrapolate` here is its numpy twin and the oracle (tests/test_backends.py).
 Runtime module: numpy only.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ from .rotation import expm
 
 PART_CODES = {"force": 0, "motion": 1, "compliant": 2}  # a port part's causality as the C runtime reads it
 
-# columns of a port's row of held values: position, velocity, acceleration, R (row-major), angular
+# columns of a port's row of point values: position, velocity, acceleration, R (row-major), angular
 # velocity, angular acceleration (world axes), force, moment
 COLUMNS = {"r": slice(0, 3), "v": slice(3, 6), "a": slice(6, 9), "R": slice(9, 18), "w": slice(18, 21),
            "dw": slice(21, 24), "f": slice(24, 27), "t": slice(27, 30)}
@@ -42,8 +43,8 @@ def port_codes(ports) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return node, mode, spring
 
 
-def inputs(ports, values: np.ndarray, t_c: float) -> Callable[[float], dict[str, PortValues]]:
-    """inputs(t) -> {port: PortValues} extrapolated from the held `values` (one row per port, COLUMNS):
+def extrapolate(ports, values: np.ndarray, t_c: float) -> Callable[[float], dict[str, PortValues]]:
+    """inputs(t) -> {port: PortValues} from the point `values` at t_c (one row per port, COLUMNS):
     motion and compliant parts give r, v (R, w), force parts f (t)."""
     c = COLUMNS
     parts = [(p.name, p.translation != "force", p.rotation != "force", row) for p, row in zip(ports, values)]
@@ -69,8 +70,8 @@ def inputs(ports, values: np.ndarray, t_c: float) -> Callable[[float], dict[str,
     return at
 
 
-def rows(ports, values: dict[str, PortValues]) -> np.ndarray:
-    """The held values (one row per port, COLUMNS) of the port inputs {port: PortValues} at t_c, as an FMU
+def point_values(ports, values: dict[str, PortValues]) -> np.ndarray:
+    """The point values (one row per port, COLUMNS) of the port inputs {port: PortValues} at t_c, as an FMU
     gathers them from its input variables; fields a port does not give stay 0."""
     out = np.zeros((len(ports), WIDTH))
     for j, p in enumerate(ports):
