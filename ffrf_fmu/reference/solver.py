@@ -512,17 +512,22 @@ def simulate_reference(
             loads0[ld.port] = (f0 + share * np.asarray(ld.force, float), m0 + share * np.asarray(ld.moment, float))
         st = static_reference(scene_body(body, scene), loads0, None, n_elements, gravity=scene.gravity)
         x, R = st.r.copy(), st.R @ mesh.Lam0
+    elif state == "steady_spin":  # the relative equilibrium at the drive's rate at t = 0 (steady.py)
+        from .steady import spin_of, steady_spin_state
+
+        w_spin, phi0, _ = spin_of(scene)
+        x, R, v, vd = steady_spin_state(mesh, sc, w_spin, phi0, *sc.loads_at(0.0, nn), banded=_Banded, internal=_internal)
     elif state != "rest":
-        raise ValueError(f"reference: initial state {state!r} is not available in the full-order beam (it starts at "
-                         "rest or at its static equilibrium)")
+        raise ValueError(f"reference: initial state {state!r} is not one of rest, static, steady_spin")
     else:
         x, R = relaxed_shape(mesh, scene_body(body, scene), dict(scene.initial.port_displacements))
-    v = np.zeros((nn, 6))
-    v0 = np.asarray(scene.initial.velocity, float)
-    w0 = np.asarray(scene.initial.angular_velocity, float)
-    v[:, :3] = v0 + cross(w0, x - mesh.origin)
-    v[:, 3:] = np.einsum("nji,j->ni", R, w0)
-    vd = np.zeros((nn, 6))
+    if state != "steady_spin":
+        v = np.zeros((nn, 6))
+        v0 = np.asarray(scene.initial.velocity, float)
+        w0 = np.asarray(scene.initial.angular_velocity, float)
+        v[:, :3] = v0 + cross(w0, x - mesh.origin)
+        v[:, 3:] = np.einsum("nji,j->ni", R, w0)
+        vd = np.zeros((nn, 6))
     sc.impose(0.0, x, R, v, vd)
     F, T = sc.loads_at(0.0, nn)  # the loads acting at t = 0: a consistent start (as the body's runs)
     fint, st = _internal(mesh, x, R)
