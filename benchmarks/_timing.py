@@ -5,7 +5,7 @@ import time
 
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
-from ffrf_fmu.reduction import build_scene_body
+from ffrf_fmu.reduction import reduce_scene_body
 
 
 def cpu_per_step(model_path: str, scene_name: str, overrides, steps: int, repeat: int, backend: str = "numpy") -> float:
@@ -13,7 +13,7 @@ def cpu_per_step(model_path: str, scene_name: str, overrides, steps: int, repeat
     steps after one untimed step (the C runtime is loaded there)."""
     model = load_model(model_path, overrides)
     scene = model.scene(scene_name)
-    body, _ = build_scene_body(model.body, scene)
+    body = reduce_scene_body(model.body, scene).data
     best = float("inf")
     for _ in range(repeat):
         system, inputs = sim.build_system(body, scene, backend=backend)

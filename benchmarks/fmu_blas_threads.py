@@ -37,10 +37,10 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=2)
     args = ap.parse_args()
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
 
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = build_from_model(ROOT / "models" / "haug_beam.toml", Path(tmp) / "B1.fmu", scene="spinup")
+        fmu = build_fmu(ROOT / "models" / "haug_beam.toml", Path(tmp) / "B1.fmu", scene="spinup")
         blas = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
         base = {k: v for k, v in os.environ.items() if k not in blas and k != "PYTHONPATH"}
         envs = {"default threads": base, "OPENBLAS_NUM_THREADS=1": {**base, "OPENBLAS_NUM_THREADS": "1",

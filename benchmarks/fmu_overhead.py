@@ -41,12 +41,12 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _fmu_floor import c_floor  # noqa: E402
-from ffrf_fmu.fmu.builder import build_from_model, c_compiler  # noqa: E402
+from ffrf_fmu.fmu.builder import build_fmu, c_compiler  # noqa: E402
 from ffrf_fmu.fmu.native.resource import point_map, images  # noqa: E402
 from ffrf_fmu.fmu.run import fmu_input_table, run_fmu  # noqa: E402
 from ffrf_fmu.fmu.variables import body_variables  # noqa: E402
 from ffrf_fmu.model import load_model, scene_body  # noqa: E402
-from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime.native import build as runtime_build  # noqa: E402
 from ffrf_fmu.simulate import run, scene_inputs  # noqa: E402
 from ffrf_fmu.fmu.builder import SceneParameters  # noqa: E402
@@ -87,7 +87,7 @@ def main(argv=None) -> int:
     model = load_model(args.model, overrides)
     scene = model.scene(args.scene)
     Hs = args.comm_step or [scene.step * m for m in (1, 5, 10)]
-    body, _ = build_body(scene_body(model.body, scene))
+    body = reduce_body(scene_body(model.body, scene)).data
     inputs = scene_inputs(body, scene)
     best: dict = {}
     first_wall = []
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        fmu = build_from_model(args.model, tmp / "body.fmu", scene=scene.name, overrides=overrides)
+        fmu = build_fmu(args.model, tmp / "body.fmu", scene=scene.name, overrides=overrides)
         floor = c_floor(fmu, tmp)
         x = tmp / "x"
         zipfile.ZipFile(fmu).extractall(x)

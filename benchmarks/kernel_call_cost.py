@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from ffrf_fmu.model import load_model, scene_body  # noqa: E402
-from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime import input_rule  # noqa: E402
 from ffrf_fmu.simulate import build_system, record, scene_inputs, scene_schedule, whole_steps  # noqa: E402
 
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     model = load_model(args.model, [f"duration={args.duration}"])
     scene = model.scene("spinup")
-    body, _ = build_body(scene_body(model.body, scene))
+    body = reduce_body(scene_body(model.body, scene)).data
     run_chunks(body, scene, 500)  # untimed: the kernel's entry points load from the disk cache (or compile) once
     rows = {
         "run 500 (per step)": run_chunks(body, scene, 500),

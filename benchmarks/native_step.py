@@ -53,7 +53,7 @@ def phases(repeat) -> dict[str, float]:
     """CPU seconds (best of repeat) of the phases of one standalone run (module doc)."""
     from ffrf_fmu.body_cache import key
     from ffrf_fmu.model import scene_body
-    from ffrf_fmu.reduction import build_body, reduction_options
+    from ffrf_fmu.reduction import reduce_body, reduction_options
 
     model = load_model(MODEL, CONFIGS[-1])
     scene = model.scene("spinup")
@@ -69,7 +69,7 @@ def phases(repeat) -> dict[str, float]:
     run_body, options = scene_body(model.body, scene), reduction_options(scene)
     assert key(run_body, options)
     for _ in range(repeat):
-        timed("reduction (uncached)", lambda: build_body(run_body, **options))
+        timed("reduction (uncached)", lambda: reduce_body(run_body, **options))
         body = timed("reduced body from the cache", lambda: scene_body_data(model.body, scene))
         system, _ = timed("set-up (build_system)", lambda: sim.build_system(body, scene))
         schedule = sim.scene_schedule(body, scene)

@@ -46,7 +46,7 @@ def worker(tree: str, h: float, cfg: str, refresh_after: tuple[int, int] | None,
     sys.path.insert(0, tree)
     from ffrf_fmu import simulate as sim
     from ffrf_fmu.model import load_model
-    from ffrf_fmu.reduction import build_body, reduction_options
+    from ffrf_fmu.reduction import reduce_body, reduction_options
     from ffrf_fmu.runtime.integrator import GeneralizedAlpha
 
     if refresh_after is not None:
@@ -60,7 +60,7 @@ def worker(tree: str, h: float, cfg: str, refresh_after: tuple[int, int] | None,
         scened = scene_body(model.body, scene)
     except ImportError:
         scened = dataclasses.replace(model.body, ports=sim.effective_ports(model, scene))
-    body, _ = build_body(scened, **reduction_options(scene))
+    body = reduce_body(scened, **reduction_options(scene)).data
     counts = {"evaluations": 0, "jacobians": 0, "factorizations": 0}
     residual_at, factor = GeneralizedAlpha._residual_at, GeneralizedAlpha._factor
 

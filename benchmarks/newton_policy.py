@@ -33,7 +33,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime import input_rule  # noqa: E402
 from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 
@@ -43,7 +43,7 @@ MODEL = HERE.parent / "models" / "haug_beam.toml"
 def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float, point_n: int = 0):
     model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
     scene = model.scene("spinup")
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     system, inputs = sim.build_system(body, scene)
     system.THETA_REFRESH = theta  # instance attributes: this body only (the numpy path reads them per step)
     system.REFRESH_AFTER = refresh_after

@@ -62,7 +62,7 @@ sys.path.insert(0, str(HERE))
 
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
-from ffrf_fmu.reduction import build_body  # noqa: E402
+from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime.body import BodySystem  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
@@ -216,7 +216,7 @@ def main(argv=None) -> int:
     for n, modes in configs:
         model = load_model(MODEL, [f"superelements={n}", f"modes={modes}"])
         scene = model.scene("spinup")
-        body, _ = build_body(model.body)
+        body = reduce_body(model.body).data
         states = phase_states(body, scene, phases)
         if mid is None or (n, modes) == max(configs):
             mid = (body, scene, states[len(states) // 2], f"{n} SE x {modes} modes")

@@ -42,9 +42,9 @@ if not any(v in _os.environ for v in _BLAS_VARS):
 # is `run_scene`.
 _API = {
     "load_model": ("ffrf_fmu.model", "load_model"),
-    "build_body": ("ffrf_fmu.reduction", "build_model_body"),  # the model-level build_body
+    "build_body": ("ffrf_fmu.reduction", "build_body"),
     "run_scene": ("ffrf_fmu.simulate", "run_scene"),
-    "build_fmu": ("ffrf_fmu.fmu.builder", "build_from_model"),
+    "build_fmu": ("ffrf_fmu.fmu.builder", "build_fmu"),
     "validate_fmu": ("ffrf_fmu.validate", "validate"),
 }
 __all__ = ["__version__", *_API]

@@ -42,23 +42,23 @@ def key(body: Body, options: dict) -> str:
 
 
 def scene_body_data(body: Body, scene) -> BodyData:
-    """reduction.build_scene_body(body, scene)[0], from the cache when this body was reduced before."""
+    """reduction.reduce_scene_body(body, scene).data, from the cache when this body was reduced before."""
     from .reduction import reduction_options
     from .runtime.native.build import cache_root
 
     if body.solid is not None:
-        from .reduction import build_scene_body
+        from .reduction import reduce_scene_body
 
-        return build_scene_body(body, scene)[0]
+        return reduce_scene_body(body, scene).data
     run_body, options = scene_body(body, scene), reduction_options(scene)
     path = cache_root() / "bodies" / f"{key(run_body, options)}.npz"
     try:
         return BodyData.load(path)
     except (OSError, ValueError, KeyError):
         pass
-    from .reduction import build_body
+    from .reduction import reduce_body
 
-    data = build_body(run_body, **options)[0]
+    data = reduce_body(run_body, **options).data
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.stem}.{os.getpid()}.npz")

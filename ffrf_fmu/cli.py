@@ -96,10 +96,10 @@ def _load(args) -> tuple[Model, Scene]:
 
 
 def _body_for_scene(model: Model, scene: Scene):
-    """The body with the scene's causality, built and reduced: (BodyData, reductions)."""
-    from .reduction import build_scene_body  # heavy (scipy); only the commands that need it pay
+    """The body with the scene's causality, built and reduced: a reduction.ReducedBody."""
+    from .reduction import reduce_scene_body  # heavy (scipy); only the commands that need it pay
 
-    return build_scene_body(model.body, scene)
+    return reduce_scene_body(model.body, scene)
 
 
 def _hz(values, n: int = 6) -> str:
@@ -113,7 +113,8 @@ def info(args) -> int:
     model, scene = _load(args)
     from .linear import natural_frequencies  # after the model loads: file errors come first
 
-    body_data, reductions = _body_for_scene(model, scene)
+    reduced = _body_for_scene(model, scene)
+    body_data, reductions = reduced.data, reduced.reductions
     freqs = [float(f) for f in natural_frequencies(body_data)]  # fixed: the motion-driven port parts
     ses = [
         {
@@ -628,10 +629,10 @@ def advise(args) -> int:
 )
 def build(args) -> int:
     """Build an FMI 2.0 (or, with --fmi 3, 3.0) co-simulation FMU of a model's body (reduced data only; see docs/fmu.md)."""
-    from .fmu.builder import BuildError, build_from_model
+    from .fmu.builder import BuildError, build_fmu
 
     try:
-        out = build_from_model(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
+        out = build_fmu(args.model, args.output or ".", scene=args.scene, overrides=args.overrides,
                                backend=args.backend, runtime=args.runtime,
                                platforms=tuple(args.platforms or ("linux64", "win64")), compiler=args.compiler,
                                fmi=args.fmi)

@@ -134,11 +134,11 @@ def superelement_invariants(fe: FEModel, T: np.ndarray, red) -> Invariants:
 
 
 def body_invariants(body: Body, reductions=None) -> list[Invariants]:
-    """Invariants of every superelement of `body`, FE models rebuilt as reduction.build_body does."""
+    """Invariants of every superelement of `body`, FE models rebuilt as reduction.reduce_body does."""
     if reductions is None:
-        from .reduction import build_body
+        from .reduction import reduce_body
 
-        reductions = build_body(body)[1]
+        reductions = reduce_body(body).reductions
     if body.solid is not None:
         return [solid_invariants(red) for red in reductions]
     from .reduction import superelement_models
@@ -148,7 +148,7 @@ def body_invariants(body: Body, reductions=None) -> list[Invariants]:
         fe, _, T = superelement_models(body, e, tensor=True)
         X_B = fe.coords[[0, -1]] - red.data.x_cm
         if fe.n_dof != red.Y.shape[0] or not np.allclose(X_B, red.data.X_B, atol=1e-9 * body.length):
-            raise RuntimeError(f"superelement {e}: FE model rebuilt here does not match reduction.build_body")
+            raise RuntimeError(f"superelement {e}: FE model rebuilt here does not match reduction.reduce_body")
         out.append(superelement_invariants(fe, T, red))
     return out
 
@@ -252,7 +252,7 @@ def body_inertia_report(
 
     spin_rate [rad/s] about spin_axis (body axes; default: the axis of largest I0 of the first
     superelement, a normal axis for a beam). first_frequency_hz: first frequency of the assembled
-    system (his guideline IV compares the spin with it); reductions: from reduction.build_body.
+    system (his guideline IV compares the spin with it); reductions: from reduction.reduce_body.
     Guidelines (his section 8): the deformed inertia (III) and the coupling S(q) (III) are needed
     when their indicator about the worst axis reaches NEGLIGIBLE and the body's rotation is its own
     (no motion-driven port rotation: a prescribed rotation is a stiff connection to an infinite

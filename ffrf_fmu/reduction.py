@@ -18,7 +18,7 @@ from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
 from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
 from .model import Body, ModelError, scene_body
 from .port_data import compliance, port_data
-from .runtime.data import BodyData, SuperelementData
+from .runtime.data import BodyData, ReducedBody, SuperelementData
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,7 +115,7 @@ def correction_modes(fe: FEModel, U: np.ndarray, Y: np.ndarray, boundary: np.nda
     under w_perp^2; with a point mass whose inertia is not isotropic, also the tilt of its node under
     the centrifugal moment). Without them a superelement's axial force is that of its attachment shapes
     (linear in the abscissa) where the centrifugal one is parabolic. count: keep exactly the `count`
-    largest shapes (build_body: every superelement of a body needs the same number), each still above
+    largest shapes (reduce_body: every superelement of a body needs the same number), each still above
     CORRECTION_FLOOR of the largest response.
     """
     import scipy.linalg as sla
@@ -256,19 +256,24 @@ def reduce_superelement(
 
 
 def reduction_options(scene) -> dict:
-    """build_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
+    """reduce_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
     return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
 
 
-def build_model_body(model, scene: str | None = None) -> BodyData:
-    """The reduced body of a model as its scene (default: the first) runs it: ffrf_fmu.build_body."""
-    return build_scene_body(model.body, model.scene(scene))[0]
+def build_body(model, scene: str | None = None) -> BodyData:
+    """The reduced body of a model (model.Model) as its scene (default: the first) runs it: the public
+    ffrf_fmu.build_body. A model.Body alone is reduced by `reduce_body` (which also returns the
+    reductions)."""
+    if isinstance(model, Body):
+        raise TypeError("build_body(model, scene) takes a loaded model (ffrf_fmu.load_model); a model.Body is reduced "
+                        "by ffrf_fmu.reduction.reduce_body(body, stiffening=..., inertia=...), which returns a ReducedBody")
+    return reduce_scene_body(model.body, model.scene(scene)).data
 
 
-def build_scene_body(body: Body, scene) -> tuple[BodyData, tuple[Reduction, ...]]:
+def reduce_scene_body(body: Body, scene) -> ReducedBody:
     """The body as a scene runs it: the scene's causality (model.scene_body) and the data its
     options need (reduction_options)."""
-    return build_body(scene_body(body, scene), **reduction_options(scene))
+    return reduce_body(scene_body(body, scene), **reduction_options(scene))
 
 
 def superelement_models(body: Body, e: int, strain: bool = False, tensor: bool = False):
@@ -295,9 +300,7 @@ def superelement_models(body: Body, e: int, strain: bool = False, tensor: bool =
             tensor_kernel(body.section, d, seg, n_el, lumped) if tensor else None)
 
 
-def build_body(
-    body: Body, stiffening: bool = False, inertia: bool = False
-) -> tuple[BodyData, tuple[Reduction, ...]]:
+def reduce_body(body: Body, stiffening: bool = False, inertia: bool = False) -> ReducedBody:
     """Split the beam into body.superelements equal segments, each its own FE model of
     body.elements_per_superelement elements, reduce each on its two end nodes.
     stiffening: add the geometric stiffening data (centrifugal correction modes, W1, strain kernels).
@@ -305,12 +308,12 @@ def build_body(
 
     Global boundary node i sits at s = i L / n_se; superelement e joins nodes (e, e+1).
     The ports keep the body's causality: a scene's overrides come in through model.scene_body
-    (build_scene_body).
+    (reduce_scene_body).
     """
     if body.solid is not None:  # a solid: one sparse superelement on its port frames (reduction_sparse.py)
-        from .solid.body import build_solid_body
+        from .solid.body import reduce_solid_body
 
-        return build_solid_body(body, stiffening=stiffening, inertia=inertia)
+        return reduce_solid_body(body, stiffening=stiffening, inertia=inertia)
     n_se, n_el = body.superelements, body.elements_per_superelement
     if n_se < 1:
         raise ValueError(f"body {body.name!r}: needs at least one superelement")
@@ -344,6 +347,6 @@ def build_body(
     )
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
         data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
-    return data, reductions
+    return ReducedBody(data, reductions)
 
 

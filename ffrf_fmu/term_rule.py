@@ -29,7 +29,7 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     status "ok", or why nothing was evaluated (no driven spin; a drive not about an axis through its own
     port; no steady state: the spin is beyond what the superelements hold)."""
     from .linear import steady_spin
-    from .reduction import build_body
+    from .reduction import reduce_body
     from .runtime.body import BodySystem
     from .runtime.terms import FULL_TERMS
 
@@ -38,7 +38,7 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
         return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on",
                 "free_axial_rotation": free_axial_rotation(body, scene)}
     rate, axis, port = spin.peak, spin.axis, spin.port
-    data, _ = build_body(body, stiffening=stiffening, inertia=True)
+    data = reduce_body(body, stiffening=stiffening, inertia=True).data
     node = data.port(port).node
     x_port = data.node_positions[node]
     if np.linalg.norm(np.cross(axis, x_port)) > 1e-9 * body.length:  # steady_spin spins about the origin

@@ -152,7 +152,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     or 3.0; from a model file the FMU is built for FMI version `fmi` (2 or 3)."""
     import tempfile
 
-    from .fmu.builder import build_from_model
+    from .fmu.builder import build_fmu
     from .fmu.run import fmu_body, run_fmu
     from .model import load_model
     from .simulate import metrics, run_scene, scene_inputs
@@ -175,7 +175,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
         m0 = load_model(model_path, overrides)
         sc0 = m0.scene(scene)
         out_dir = report_dir or Path(tempfile.mkdtemp(prefix="ffrf_validate_"))
-        fmu_path = build_from_model(model_path, out_dir / f"{m0.body.name}.fmu", scene=sc0.name, overrides=overrides,
+        fmu_path = build_fmu(model_path, out_dir / f"{m0.body.name}.fmu", scene=sc0.name, overrides=overrides,
                                     fmi=fmi)
         built = True
     mdl = load_model(model_path, overrides)
@@ -184,9 +184,9 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     fmu_data = fmu_body(fmu_path)
     ports = lambda b: [(p.name, p.node, p.translation, p.rotation) for p in b.ports]
     if not built:
-        from .reduction import build_scene_body
+        from .reduction import reduce_scene_body
 
-        scene_body, _ = build_scene_body(mdl.body, sc)
+        scene_body = reduce_scene_body(mdl.body, sc).data
         if ports(fmu_data) != ports(scene_body):
             raise ValidationError(
                 f"{fmu_path}: the FMU's ports {ports(fmu_data)} differ from those of scene {sc.name!r} of "

@@ -163,9 +163,9 @@ def small(tmp_path_factory, small_toml):
 def small_fmu(small):
     """The small beam's pythonfmu FMU for its scene `spin` (the package's original route, `--runtime python`;
     the native FMU has its own tests: tests/test_native_fmu.py, and runs the fault table and the host tests)."""
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
 
-    return build_from_model(small, small.parent / "small_spin.fmu", scene="spin", runtime="python")
+    return build_fmu(small, small.parent / "small_spin.fmu", scene="spin", runtime="python")
 
 
 # A small solid bar (steel, 1 x 0.1 x 0.1 m, 4 quadratic serendipity hexahedra) on two end-face frames:
@@ -208,14 +208,15 @@ def solid_bar_body(stiffening: bool = True, inertia: bool = True):
         import tempfile
 
         from ffrf_fmu.model import load_model
-        from ffrf_fmu.reduction import build_body
+        from ffrf_fmu.reduction import reduce_body
 
         with tempfile.TemporaryDirectory() as d:
             path = os.path.join(d, "solid_bar.toml")
             with open(path, "w") as f:
                 f.write(SOLID_BAR)
             body = load_model(path).body
-            data, (red,) = build_body(body, stiffening=stiffening, inertia=inertia)
+            reduced = reduce_body(body, stiffening=stiffening, inertia=inertia)
+            data, (red,) = reduced.data, reduced.reductions
         _SOLID_BARS[key] = (data, red)
     return _SOLID_BARS[key]
 

@@ -19,7 +19,7 @@ import pytest
 
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
-from ffrf_fmu.reduction import build_body, build_scene_body
+from ffrf_fmu.reduction import reduce_body, reduce_scene_body
 from ffrf_fmu.runtime import input_rule
 from ffrf_fmu.runtime.body import BodySystem
 
@@ -49,7 +49,7 @@ def test_extrapolated_inputs_in_the_runtime_match_the_numpy_twin(name):
     path, scene, overrides = EXTRAPOLATED_RUNS[name]
     model = load_model(path, overrides)
     sc = model.scene(scene)
-    body, _ = build_scene_body(model.body, sc)
+    body = reduce_scene_body(model.body, sc).data
     n, h = 5, sc.step
     runs, lus = {}, {}
     for backend in ("numpy", "native"):
@@ -88,7 +88,7 @@ def test_state_round_trips_between_bodies():
     runtime's (runtime/factorization.py), builds its own matrix and continues to round-off."""
     model = load_model("models/haug_beam.toml", ["superelements=2"])
     sc = model.scene("spinup")
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     s, inputs = sim.build_system(body, sc, backend="native")
     for _ in range(50):
         s.step(sc.step, inputs)
@@ -118,7 +118,7 @@ def test_a_missing_compiler_falls_back_to_numpy_with_a_note(monkeypatch, caplog)
 
     monkeypatch.setattr(binding, "load", no_compiler)
     model = load_model("models/haug_beam.toml", ["superelements=1"])
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     with caplog.at_level(logging.WARNING, logger="ffrf_fmu"):
         s = BodySystem(body, backend="native")
     assert s.backend == "numpy" and "no C compiler" in s.backend_note
@@ -127,7 +127,7 @@ def test_a_missing_compiler_falls_back_to_numpy_with_a_note(monkeypatch, caplog)
 
 def test_the_retired_numba_backend_is_refused_naming_its_replacement():
     model = load_model("models/haug_beam.toml", ["superelements=1"])
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     with pytest.raises(ValueError, match="replaced by the C runtime: use backend 'native'"):
         BodySystem(body, backend="numba")
 
@@ -139,7 +139,7 @@ def test_snapshot_restore_repeats_the_steps_bit_for_bit(backend):
     also when steps in between refreshed the factorization (a refresh makes new arrays)."""
     model = load_model("models/haug_beam.toml", ["superelements=2", "step=0.01"])
     sc = model.scene("spinup")
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     s, inputs = sim.build_system(body, sc, backend=backend)
     while s.t < 3.0:
         s.step(sc.step, inputs)

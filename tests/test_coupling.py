@@ -12,7 +12,7 @@ import pytest
 
 from ffrf_fmu.model import load_model
 from ffrf_fmu.model import scene_body
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.simulate import scene_inputs
 
@@ -34,7 +34,7 @@ def test_spring_damper_iteration_matrix_against_finite_differences():
     model = _compliant(['body.ports.hub.coupling={ stiffness = [1e4, 2e4, 3e4], damping = [5.0, 6.0, 7.0], '
                         'rotational_stiffness = [30.0, 40.0, 300.0], rotational_damping = [0.1, 0.2, 0.3] }'])
     sc = model.scene("spinup")
-    data, _ = build_body(scene_body(model.body, sc))
+    data = reduce_body(scene_body(model.body, sc)).data
     inputs = scene_inputs(data, sc)
     body = BodySystem(data)
     body.initialize(0.0, inputs)
@@ -63,7 +63,7 @@ def test_stiff_compliant_hub_tends_to_the_motion_driven_hub():
     the coupling mode."""
     base = load_model(MODELS / "haug_beam.toml", ["duration=0.6", "step=0.005", "superelements=2"])
     sc = base.scene("spinup")
-    data, _ = build_body(scene_body(base.body, sc))
+    data = reduce_body(scene_body(base.body, sc)).data
     ref = BodySystem(data)
     inp = scene_inputs(data, sc)
     ref.initialize(0.0, inp)
@@ -78,7 +78,7 @@ def test_stiff_compliant_hub_tends_to_the_motion_driven_hub():
         m = _compliant([f'body.ports.hub.coupling={{ stiffness = [{k}, {k}, {k}], damping = [{c}, {c}, {c}], '
                         f'rotational_stiffness = [{kr}, {kr}, {kr}], rotational_damping = [{cr}, {cr}, {cr}] }}'],
                        duration=0.6, step=0.005)
-        d, _ = build_body(scene_body(m.body, m.scene("spinup")))
+        d = reduce_body(scene_body(m.body, m.scene("spinup"))).data
         b = BodySystem(d)
         bi = scene_inputs(d, m.scene("spinup"))
         b.initialize(0.0, bi)

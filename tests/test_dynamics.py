@@ -13,7 +13,7 @@ import scipy.linalg as sla
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.linear import natural_frequencies
 from ffrf_fmu.model import Body, Initial, Port, Section, load_model
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime.ports import StepFailure
 from ffrf_fmu.runtime.body import BodySystem
 
@@ -27,7 +27,7 @@ def test_newton_jacobian_matches_finite_differences(terms, far_from_reference, i
     with eps = 1e-6 on rates of O(1) are accurate to ~1e-8 of the entry; we allow 1e-6."""
     body = Body("j", 8.0, (0, 0, 0), (1, 0, 0), B1_SECTION, 2, 4, 3,
                 (Port("hub", 0, "motion", "force"), Port("tip", 2, "force", "force")))
-    s = BodySystem(build_body(body)[0], terms=terms, rho_inf=0.7)
+    s = BodySystem(reduce_body(body).data, terms=terms, rho_inf=0.7)
     assert iteration_matrix_error(s, far_from_reference(s)) <= 1e-6
 
 
@@ -35,7 +35,7 @@ def test_linearized_dynamics_reproduce_modal_frequencies():
     """Small motions of the nonlinear two-field equations about rest have exactly the frequencies of
     the linearized reduced chain (linear.py): two independent codings of the same body (1e-6 rel)."""
     model = load_model("models/haug_beam.toml")
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     system, _ = sim.build_system(body, model.scene("spinup"))
     A, B = system.linearization()
     lam = sla.eigvals(-B, A)
@@ -166,7 +166,7 @@ def test_b4_angular_momentum_error_is_second_order_in_h():
 def test_step_failure_names_time_and_cause():
     """A NaN input is reported as a StepFailure naming the port, the input and the time."""
     model = load_model("models/haug_beam.toml")
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     system, inputs = sim.build_system(body, model.scene("spinup"))
 
     def bad(t):
@@ -181,7 +181,7 @@ def test_step_failure_names_time_and_cause():
 def test_state_roundtrip_is_bit_identical():
     """get_state / set_state restore everything the next step depends on (FMU rollback)."""
     model = load_model("models/haug_beam.toml", ["superelements=2"])
-    body, _ = build_body(model.body)
+    body = reduce_body(model.body).data
     system, inputs = sim.build_system(body, model.scene("spinup"))
     for _ in range(5):
         system.step(0.01, inputs)

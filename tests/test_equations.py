@@ -15,7 +15,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.model import scene_body
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import equations
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.runtime.fused import FusedResidual
@@ -31,7 +31,7 @@ def _state(name: str, terms: str) -> BodySystem:
     path, scene_name, overrides, t_end = SCENES[name]
     model = load_model(path, overrides + [f"terms={terms}"])
     scene = model.scene(scene_name)
-    body, _ = build_body(scene_body(model.body, scene))
+    body = reduce_body(scene_body(model.body, scene)).data
     system, inputs = sim.build_system(body, scene, model.body.origin)
     while system.t < t_end - 1e-9:
         system.step(scene.step, inputs)

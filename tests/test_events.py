@@ -98,12 +98,12 @@ def test_fmu_input_table_carries_the_windows_impulse(kick, H):
     fmu/run.py samples each window's mean over that step (scene_inputs(..., load_interval=(0, H))), so the
     held force integrates to force x length for any H; the standalone inputs (the mean over the step ending
     at t) carry the same impulse on their own grid."""
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
     from ffrf_fmu.simulate import scene_inputs
 
     model = load_model(kick)
     scene = model.scene("kick")
-    body, _ = build_scene_body(model.body, scene)
+    body = reduce_scene_body(model.body, scene).data
     held = scene_inputs(body, scene, load_interval=(0.0, H))
     grid = np.arange(int(round(1.0 / H)) + 1) * H
     impulse = sum(held(t)["b"].f[2] * H for t in grid[:-1])

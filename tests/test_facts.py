@@ -49,11 +49,11 @@ def test_row_columns_are_the_rows_of_the_body():
     """A row: 24 columns per port (r, R row-major, v, w, f, t), the energies, the Newton iterations;
     BodySystem.output_row has exactly that many values."""
     from ffrf_fmu import simulate as sim
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
 
     model = load_model(ROOT / "models/haug_beam.toml", ["superelements=1", "modes=2"])
     scene = model.scene("spinup")
-    body, _ = build_scene_body(model.body, scene)
+    body = reduce_scene_body(model.body, scene).data
     names = row_columns([p.name for p in body.ports])
     assert OUTPUT_WIDTH == 24 and len(names) == 24 * len(body.ports) + len(ENERGY_FIELDS) + 1
     assert names[:4] == ["hub.r[1]", "hub.r[2]", "hub.r[3]", "hub.R[1,1]"] and names[-1] == "solver.newton_iterations"

@@ -23,7 +23,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from ffrf_fmu.fmu.builder import BuildError, build_from_model
+from ffrf_fmu.fmu.builder import BuildError, build_fmu
 from ffrf_fmu.fmu.run import run_fmu, scalar_names
 from ffrf_fmu.model import load_model
 
@@ -48,8 +48,8 @@ def small(tmp_path_factory, beam_toml):
     d = tmp_path_factory.mktemp("fmi3")
     model = d / "fmi3_beam.toml"
     model.write_text(beam_toml(SCENES, name="fmi3_beam"))
-    three = build_from_model(model, d / "still3.fmu", scene="still", platforms=("linux64",), fmi=3)
-    two = build_from_model(model, d / "still2.fmu", scene="still", platforms=("linux64",))
+    three = build_fmu(model, d / "still3.fmu", scene="still", platforms=("linux64",), fmi=3)
+    two = build_fmu(model, d / "still2.fmu", scene="still", platforms=("linux64",))
     return three, two, model
 
 
@@ -60,9 +60,9 @@ def runs(tmp_path_factory):
     out = {}
     for name, (file, scene, ov) in RUNS.items():
         model = load_model(ROOT / "models" / file, ov)
-        three = build_from_model(ROOT / "models" / file, d / f"{name}_3.fmu", scene=scene, overrides=ov,
+        three = build_fmu(ROOT / "models" / file, d / f"{name}_3.fmu", scene=scene, overrides=ov,
                                  platforms=("linux64",), fmi=3)
-        two = build_from_model(ROOT / "models" / file, d / f"{name}_2.fmu", scene=scene, overrides=ov,
+        two = build_fmu(ROOT / "models" / file, d / f"{name}_2.fmu", scene=scene, overrides=ov,
                                platforms=("linux64",))
         out[name] = (three, two, model, model.scene(scene))
     return out
@@ -165,7 +165,7 @@ def test_the_binary_exports_the_fmi3_functions_only(small):
 
 def test_fmi3_is_native_only():
     with pytest.raises(BuildError, match="3 with the native runtime only"):
-        build_from_model(ROOT / "models" / "haug_beam.toml", "/nonexistent/x.fmu", runtime="python", fmi=3)
+        build_fmu(ROOT / "models" / "haug_beam.toml", "/nonexistent/x.fmu", runtime="python", fmi=3)
 
 
 # ------------------------------------------------------------------ runs
@@ -551,7 +551,7 @@ def test_win64_fmi3_fmu_in_wine_equals_linux(small, tmp_path):
     """The x86_64-windows binary (zig) in tests/fmi3_host.c cross-compiled for Windows, run in wine: the numbers
     of the x86_64-linux binary under fmpy, bit for bit (the FMI 2.0 FMU's win64 test: same C, same bits)."""
     _, _, model = small
-    fmu = build_from_model(model, tmp_path / "w.fmu", scene="still", platforms=("linux64", "win64"), fmi=3)
+    fmu = build_fmu(model, tmp_path / "w.fmu", scene="still", platforms=("linux64", "win64"), fmi=3)
     md = read_model_description(str(fmu))
     unzip = Path(extract(str(fmu), str(tmp_path / "u")))
     host = _host_binary(tmp_path, "x86_64-windows-gnu")

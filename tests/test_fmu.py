@@ -23,7 +23,7 @@ from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from ffrf_fmu.fmu.builder import BuildError, build_from_model, check_shipped_imports, read_fmu_config  # noqa: E402
+from ffrf_fmu.fmu.builder import BuildError, build_fmu, check_shipped_imports, read_fmu_config  # noqa: E402
 from ffrf_fmu.master import CoSimulation, FmuInstance  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.simulate import elastic_tip, run_scene, scene_inputs  # noqa: E402
@@ -46,9 +46,9 @@ def _started(path, scene, model_path, start_values=None):
     model = load_model(model_path)
     sc = model.scene(scene)
     from ffrf_fmu.model import scene_body
-    from ffrf_fmu.reduction import build_body
+    from ffrf_fmu.reduction import reduce_body
 
-    data, _ = build_body(scene_body(model.body, sc))
+    data = reduce_body(scene_body(model.body, sc)).data
     inputs = scene_inputs(data, sc)
     inst.fmu.setupExperiment(startTime=0.0)
     inst.set_start_values()
@@ -109,7 +109,7 @@ def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
     from ffrf_fmu.fmu.variables import FULL_TERM_TEXT, equations_text
     from ffrf_fmu.runtime.terms import FULL_TERMS
 
-    fmu = build_from_model(small, tmp_path / "full.fmu", scene="spin",
+    fmu = build_fmu(small, tmp_path / "full.fmu", scene="spin",
                            overrides=["terms=full", 'full_terms=["inertia_W2", "coriolis"]', "stiffening=true"], backend="numpy",
                            runtime="python")
     md = read_model_description(str(fmu))
@@ -123,7 +123,7 @@ def test_full_terms_and_stiffening_reach_the_fmu(small, tmp_path):
     _inputs_at(inst, inputs(0.01))
     inst.fmu.doStep(0.0, 0.01, True)  # fmpy raises unless fmi2OK: the body runs `full` with these switches
     assert np.isfinite(inst.get(["tip.r[1]"])).all()
-    plain = build_from_model(small, tmp_path / "plain.fmu", scene="spin", backend="numpy", runtime="python")
+    plain = build_fmu(small, tmp_path / "plain.fmu", scene="spin", backend="numpy", runtime="python")
     assert equations_text("linear", FULL_TERMS, False) in read_model_description(str(plain)).description
 
 
@@ -150,7 +150,7 @@ def test_input_table_is_the_inputs_by_name(small, small_fmu):
 
 
 def test_free_scene_changes_causality(small, tmp_path):
-    fmu = build_from_model(small, tmp_path / "free.fmu", scene="free")
+    fmu = build_fmu(small, tmp_path / "free.fmu", scene="free")
     v = {x.name: x for x in read_model_description(str(fmu)).modelVariables}
     assert v["hub.t[3]"].causality == "input" and v["hub.R[1,1]"].causality == "output"
     assert v["hub.f[1]"].causality == "output" and v["hub.r[1]"].causality == "input"
@@ -206,7 +206,7 @@ def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
     assert args.run(args) == 2
     assert "--model" in capsys.readouterr().err
     # an .fmu built for another causality than the scene's: exit 2 with a message
-    free_fmu = build_from_model(small, tmp_path / "free.fmu", scene="free")
+    free_fmu = build_fmu(small, tmp_path / "free.fmu", scene="free")
     args = parser.parse_args(["validate", str(free_fmu), "--model", str(small), "--scene", "spin"])
     assert args.run(args) == 2
     assert "build the FMU for this scene" in capsys.readouterr().err
@@ -224,8 +224,8 @@ def test_two_body_fmus_in_one_process(small, tmp_path, small_toml):
     each FMU runs its own body in the same process."""
     other = tmp_path / "other.toml"
     other.write_text(small_toml(length=6.0))
-    fa = build_from_model(small, tmp_path / "a.fmu", scene="spin", runtime="python")
-    fb = build_from_model(other, tmp_path / "b.fmu", scene="spin", runtime="python")
+    fa = build_fmu(small, tmp_path / "a.fmu", scene="spin", runtime="python")
+    fb = build_fmu(other, tmp_path / "b.fmu", scene="spin", runtime="python")
     na, nb = read_fmu_config(fa)["names"], read_fmu_config(fb)["names"]
     assert na["module"] != nb["module"] and na["package"] != nb["package"] and na["class"] != nb["class"]
     ia, inputs_a, sc = _started(fa, "spin", small)
@@ -479,7 +479,7 @@ def test_b1_fmu_matches_standalone_and_converges(tmp_path):
     model = load_model(MODELS / "haug_beam.toml", ov)
     sc = model.scene("spinup")
     ref = run_scene(model, "spinup")
-    fmu = build_from_model(MODELS / "haug_beam.toml", tmp_path / "b1.fmu", scene="spinup", overrides=ov)
+    fmu = build_fmu(MODELS / "haug_beam.toml", tmp_path / "b1.fmu", scene="spinup", overrides=ov)
     axis = ref.body.node_positions[-1] - ref.body.node_positions[0]
     d_ref = elastic_tip(ref, "hub", "tip")
     peak_ref = _transverse(d_ref, axis).max()
@@ -514,7 +514,7 @@ def test_b2_fmu_matches_standalone_and_converges(tmp_path):
         model = load_model(MODELS / "spherical_beam.toml", ov)
         sc = model.scene("torque_then_tip")
         ref = run_scene(model, sc.name)
-        fmu = build_from_model(MODELS / "spherical_beam.toml", tmp_path / f"b2_{h}.fmu", scene=sc.name, overrides=ov)
+        fmu = build_fmu(MODELS / "spherical_beam.toml", tmp_path / f"b2_{h}.fmu", scene=sc.name, overrides=ov)
         fr = _fmu_result(fmu, sc, ref.body, h)
         axis = ref.body.node_positions[-1] - ref.body.node_positions[0]
         d_ref, d = elastic_tip(ref, "root", "tip"), elastic_tip(fr, "root", "tip")
@@ -533,7 +533,7 @@ def halves(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("halves")
     a, b = split_models(MODELS / "haug_beam.toml", d)
-    return build_from_model(a, d / "a.fmu"), build_from_model(b, d / "b.fmu")
+    return build_fmu(a, d / "a.fmu"), build_fmu(b, d / "b.fmu")
 
 
 def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
@@ -544,7 +544,7 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
     equals the one-body FMU under the same master to the coupling tolerance. Hub drive: the
     Wu-Haug law with T = 1 s (a fast spin-up that bends the beam within the short run)."""
     ov = ["duration=0.25", "scenes.spinup.drives.hub.rotation.angle.T=1.0"]
-    one = build_from_model(MODELS / "haug_beam.toml", tmp_path / "one.fmu", scene="spinup", overrides=ov)
+    one = build_fmu(MODELS / "haug_beam.toml", tmp_path / "one.fmu", scene="spinup", overrides=ov)
     fa, fb = halves
     model = load_model(MODELS / "haug_beam.toml", ov)
     sc = model.scene("spinup")
@@ -574,12 +574,9 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
 
 def test_master_link_values():
     """The values the master gives a receiver (package doc of ffrf_fmu/master), without FMUs."""
-    import ffrf_fmu.master as master
     from ffrf_fmu.master import Motion, Signal
     from ffrf_fmu.runtime.rotation import expm
 
-    with pytest.raises(AttributeError, match="Held is now ffrf_fmu.master.Signal"):
-        master.Held  # the old name of the signal connection: "held" means an input kept over a step
     sim = CoSimulation({}, step=0.1)
     signal = Signal("S.y", "R.u", gain=-2.0)
     prev, cur, fresh = {"S.y": 1.0}, {"S.y": 3.0}, {"S.y": 4.0}
@@ -628,7 +625,7 @@ def test_b1_acceleration_inputs_make_the_extrapolation_second_order(tmp_path):
     model = load_model(MODELS / "haug_beam.toml", ov)
     sc = model.scene("spinup")
     ref = run_scene(model, "spinup")
-    fmu = build_from_model(MODELS / "haug_beam.toml", tmp_path / "b1_32ms.fmu", scene="spinup", overrides=ov)
+    fmu = build_fmu(MODELS / "haug_beam.toml", tmp_path / "b1_32ms.fmu", scene="spinup", overrides=ov)
     assert "hub.dw[3]" in {v.name for v in read_model_description(str(fmu)).modelVariables}
     axis = ref.body.node_positions[-1] - ref.body.node_positions[0]
     peak_ref = _transverse(elastic_tip(ref, "hub", "tip"), axis).max()
@@ -675,7 +672,7 @@ def test_probe_outputs_are_eq_92_of_the_port_outputs(small, tmp_path):
     not zero: > 1e-4 m); a probe naming an unknown port is refused with the names the model has."""
     from ffrf_fmu.model import ModelError
 
-    fmu = build_from_model(small, tmp_path / "probe.fmu", scene="spin", overrides=['scenes.spin.outputs=["tip_from_hub"]'])
+    fmu = build_fmu(small, tmp_path / "probe.fmu", scene="spin", overrides=['scenes.spin.outputs=["tip_from_hub"]'])
     model = load_model(small)
     sc = model.scene("spin")
     ref = run_scene(model, "spin")

@@ -23,7 +23,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from ffrf_fmu.fmu.builder import BuildError, build_from_model, read_fmu_config
+from ffrf_fmu.fmu.builder import BuildError, build_fmu, read_fmu_config
 from ffrf_fmu.fmu.variables import DIRECTIONAL_DERIVATIVES
 from ffrf_fmu.master import FmuInstance
 from ffrf_fmu.runtime.rotation import expm, skew
@@ -38,7 +38,7 @@ def fmu(request, small, small_fmu):
     """The small beam's FMU of each runtime (the derivatives are the same rule in C and in Python)."""
     if request.param == "python":
         return small_fmu
-    return build_from_model(small, small.parent / "small_spin_native.fmu", scene="spin")
+    return build_fmu(small, small.parent / "small_spin_native.fmu", scene="spin")
 
 
 def _run(inst, inputs, n):
@@ -80,8 +80,8 @@ def test_without_the_native_loader_no_derivatives_are_declared(small, tmp_path, 
     the communication point)."""
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     with pytest.raises(BuildError, match="native loader cannot be built"):  # never silently
-        build_from_model(small, tmp_path / "plain.fmu", scene="spin", runtime="python")
-    path = build_from_model(small, tmp_path / "plain.fmu", scene="spin", runtime="python", native_loader=False)
+        build_fmu(small, tmp_path / "plain.fmu", scene="spin", runtime="python")
+    path = build_fmu(small, tmp_path / "plain.fmu", scene="spin", runtime="python", native_loader=False)
     md = read_model_description(path)
     assert not md.coSimulation.providesDirectionalDerivative
     assert all(u.dependencies == [] for u in md.outputs)

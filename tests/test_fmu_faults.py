@@ -17,7 +17,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from ffrf_fmu.fmu.builder import build_from_model, read_fmu_config
+from ffrf_fmu.fmu.builder import build_fmu, read_fmu_config
 from ffrf_fmu.master import FmuInstance
 from ffrf_fmu.validate import validate
 
@@ -47,14 +47,14 @@ def model(tmp_path_factory, beam_toml):
 def fmu(model, request):
     """The FMU of scene `still` of each runtime (native: C over the C runtime; python: pythonfmu): the fault
     table holds for both, status and message."""
-    return build_from_model(model, model.parent / f"still_{request.param}.fmu", scene="still",
+    return build_fmu(model, model.parent / f"still_{request.param}.fmu", scene="still",
                             runtime=request.param, platforms=("linux64",))
 
 
 @pytest.fixture(scope="module")
 def python_fmu(model):
     """The pythonfmu FMU alone on backend numpy (tests that reach into its Python runtime's step)."""
-    return build_from_model(model, model.parent / "still_python_numpy.fmu", scene="still", runtime="python",
+    return build_fmu(model, model.parent / "still_python_numpy.fmu", scene="still", runtime="python",
                             backend="numpy")
 
 
@@ -257,7 +257,7 @@ def test_build_output_must_be_an_fmu_or_a_directory(model, tmp_path):
     from ffrf_fmu.fmu.builder import BuildError
 
     with pytest.raises(BuildError, match=r"x\.txt: an FMU file name must end in \.fmu"):
-        build_from_model(model, tmp_path / "x.txt", scene="still")
+        build_fmu(model, tmp_path / "x.txt", scene="still")
     assert not (tmp_path / "x.txt").exists()
 
 
@@ -309,14 +309,14 @@ def test_tumbling_free_beam_starts_with_the_rigid_velocity_field_under_a_load():
     for the exact initial rates with a displaced port, modal rates included, under rotation)."""
     from ffrf_fmu.model import load_model
     from ffrf_fmu.model import scene_body
-    from ffrf_fmu.reduction import build_body
+    from ffrf_fmu.reduction import reduce_body
     from ffrf_fmu.runtime.body import BodySystem
     from ffrf_fmu.simulate import scene_inputs
 
     root = Path(__file__).resolve().parent.parent
     model = load_model(root / "models" / "free_beam.toml")
     sc = model.scene("tumble")
-    data, _ = build_body(scene_body(model.body, sc))
+    data = reduce_body(scene_body(model.body, sc)).data
     base = scene_inputs(data, sc)
 
     def inputs(t):

@@ -57,13 +57,13 @@ def test_static_start_stays_at_rest_and_matches_the_linear_chain(model):
     deflection. The tip load alone deflects it as the chain's linear statics (linear.static_displacements)
     to 1e-3 (its 0.2 % of L leaves a small geometric nonlinearity)."""
     from ffrf_fmu.linear import static_displacements
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
 
     d = _tip(model, "sag")
     assert np.ptp(d, axis=0).max() < 1e-10
     m = load_model(model)
     sc = m.scene("sag")
-    data, _ = build_scene_body(m.body, sc)
+    data = reduce_scene_body(m.body, sc).data
     d_load = _tip(model, "sag", "scenes.sag.gravity=[0, 0, 0]")
     u = static_displacements(data, {data.port("tip").node: np.array([0, 0, -0.05, 0, 0, 0])})
     assert d_load[0, 2] == pytest.approx(u[-1, 2], rel=1e-3)
@@ -77,12 +77,12 @@ def test_steady_spin_start_is_the_relative_equilibrium(model):
     integrator's O(h^2) transient of a circular motion in world coordinates (measured tip range 4.7e-4 m
     at 5 ms, 1.2e-4 m at 2.5 ms, 1.9e-3 m at 10 ms); from rest the same drive shakes the tip by 4 x more."""
     from ffrf_fmu.linear import steady_spin
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
     from ffrf_fmu.runtime.body import BodySystem
 
     d = _tip(model, "spin")
     m = load_model(model)
-    data, _ = build_scene_body(m.body, m.scene("spin"))
+    data = reduce_scene_body(m.body, m.scene("spin")).data
     s = steady_spin(BodySystem(data, terms="linear"), 4.0)
     stretch = (s.xN[-1] - data.node_positions[-1])[0]
     assert d[0, 0] == pytest.approx(stretch, rel=1e-6) and abs(d[0, 1]) < 1e-12

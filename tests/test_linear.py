@@ -4,13 +4,13 @@ import pytest
 
 from ffrf_fmu.linear import chain_matrices, motion_fixed_dofs, natural_frequencies, static_displacements
 from ffrf_fmu.model import Body, Port
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime.data import BodyData
 
 
 def chain(section, L, n_se, n_el, root=("motion", "motion"), modes=6):
     ports = (Port("root", 0, *root), Port("tip", -1, "force", "force"))
-    data, _ = build_body(Body("beam", L, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), section, n_se, n_el, modes, ports))
+    data = reduce_body(Body("beam", L, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), section, n_se, n_el, modes, ports)).data
     return data
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 from ffrf_fmu.master import FmuInstance
 
 HAUG = Path(__file__).resolve().parent.parent / "models" / "haug_beam.toml"
@@ -29,7 +29,7 @@ def _rotated(R: np.ndarray, angle: float) -> np.ndarray:
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_no_output_moves_when_an_input_is_set_before_a_step(case, tmp_path):
-    fmu = build_from_model(HAUG, tmp_path / f"{case}.fmu", **CASES[case])
+    fmu = build_fmu(HAUG, tmp_path / f"{case}.fmu", **CASES[case])
     md = read_model_description(str(fmu))
     assert md.outputs and all(u.dependencies == [] for u in md.outputs)
     inst = FmuInstance(case, fmu)

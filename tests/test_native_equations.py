@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.model import Body, Port
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import equations
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.runtime.layout import Segments
@@ -72,7 +72,7 @@ def _data(b1, stiff):
     section, length = b1
     body = Body("b", length, (0, 0, 0), (1, 0, 0), section, 2, 4, 3,
                 (Port("hub", 0, "motion", "force"), Port("tip", 2, "force", "force")))
-    data, _ = build_body(body, stiffening=stiff, inertia=True)
+    data = reduce_body(body, stiffening=stiff, inertia=True).data
     ses = tuple(dataclasses.replace(se, W1=se.W1 * 1e4, W2=se.W2 * 1e4) for se in data.superelements)
     _DATA[stiff] = dataclasses.replace(data, superelements=ses)
     return _DATA[stiff]

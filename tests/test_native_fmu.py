@@ -20,7 +20,7 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.validation import validate_fmu
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 SCENES = """
@@ -111,7 +111,7 @@ def model(tmp_path_factory, beam_toml):
 
 @pytest.fixture(scope="module")
 def fmu_path(model):
-    return build_from_model(model, model.parent / "still.fmu", scene="still", platforms=("linux64",))
+    return build_fmu(model, model.parent / "still.fmu", scene="still", platforms=("linux64",))
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +136,7 @@ def test_the_fmu_holds_no_python_no_npz_and_no_readable_matrices(fmu_path, model
     """A black box: modelDescription, the scrambled body.bin, the datasheet and binaries only; the bytes of
     K's and M's rows appear nowhere in the FMU (stored or compressed), and the binary exports fmi2* only."""
     from ffrf_fmu.model import load_model
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
 
     with zipfile.ZipFile(fmu_path) as z:
         names = z.namelist()
@@ -145,7 +145,7 @@ def test_the_fmu_holds_no_python_no_npz_and_no_readable_matrices(fmu_path, model
     assert not [n for n in names if n.endswith((".py", ".npz", ".toml", ".c", ".h", ".txt"))], names
     assert [n for n in names if n.endswith(".json")] == ["documentation/build.json"]
     mdl = load_model(model)
-    body, _ = build_scene_body(mdl.body, mdl.scene("still"))
+    body = reduce_scene_body(mdl.body, mdl.scene("still")).data
     raw = open(fmu_path, "rb").read()
     for se in body.superelements:
         for key in ("K", "M"):

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from fmpy import extract, read_model_description
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 from ffrf_fmu.fmu.native import build as native_build
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,7 +29,7 @@ step = 0.01
 def fuzz(tmp_path_factory, beam_toml):
     d = tmp_path_factory.mktemp("fuzz")
     (d / "beam.toml").write_text(beam_toml(SCENES, name="fuzz_beam", superelements=1))
-    fmu = build_from_model(d / "beam.toml", d / "beam.fmu", scene="still")
+    fmu = build_fmu(d / "beam.toml", d / "beam.fmu", scene="still")
     unzip = Path(extract(str(fmu), str(d / "beam")))
     cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
     exe = d / "fmi2_fuzz"

@@ -20,7 +20,7 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 
 ROOT = Path(__file__).resolve().parent.parent
 CC = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
@@ -41,7 +41,7 @@ def _b1(runtime, tmp_path_factory):
     and the compiled host; built once per runtime."""
     if runtime not in _BUILT:
         d = tmp_path_factory.mktemp(f"host_{runtime}")
-        fmu = build_from_model(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup", runtime=runtime,
+        fmu = build_fmu(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup", runtime=runtime,
                                platforms=("linux64",))
         unzip = Path(extract(str(fmu), str(d / "B1")))
         host = d / "fmi2_host"

@@ -31,7 +31,7 @@ import pytest
 
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
-from ffrf_fmu.reduction import build_scene_body
+from ffrf_fmu.reduction import reduce_scene_body
 from ffrf_fmu.runtime import input_rule
 from ffrf_fmu.runtime.integrator import NewtonDecisions, NewtonReplay
 
@@ -69,7 +69,7 @@ def _scene(name):
     path, scene, overrides, how = RUNS[name]
     model = load_model(path, overrides)
     sc = model.scene(scene)
-    body, _ = build_scene_body(model.body, sc)
+    body = reduce_scene_body(model.body, sc).data
     return model, sc, body, how
 
 

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 
 ROOT = Path(__file__).resolve().parent.parent
 OUTPUTS = ["tip.r[1]", "tip.r[2]", "tip.r[3]", "tip.v[3]", "hub.f[3]", "energy.strain"]
@@ -34,7 +34,7 @@ FMI2_CS = ("fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2En
 @pytest.fixture(scope="module")
 def b1(tmp_path_factory):
     d = tmp_path_factory.mktemp("win64")
-    fmu = build_from_model(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup",
+    fmu = build_fmu(ROOT / "models" / "haug_beam.toml", d / "B1.fmu", scene="spinup",
                            platforms=("linux64", "win64"))
     unzip = Path(extract(str(fmu), str(d / "B1")))
     md = read_model_description(str(fmu))

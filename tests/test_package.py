@@ -117,10 +117,35 @@ def test_public_api_docstring_example(monkeypatch):
 
 def test_public_api_names():
     assert set(ffrf_fmu.__all__) >= {"load_model", "build_body", "run_scene", "build_fmu", "validate_fmu"}
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.validate import validate
 
-    assert ffrf_fmu.build_fmu is build_from_model and ffrf_fmu.validate_fmu is validate
+    assert ffrf_fmu.build_fmu is build_fmu and ffrf_fmu.validate_fmu is validate
+
+
+def test_public_names_mean_one_thing_and_old_spellings_are_refused():
+    """build_body takes a model and returns a BodyData (reduce_body a Body, returning a ReducedBody);
+    build_fmu takes a model file (build_python_fmu a BodyData); the old names are refused naming the new."""
+    import dataclasses
+
+    import ffrf_fmu.fmu
+    import ffrf_fmu.master
+    from ffrf_fmu.reduction import ReducedBody, build_body, reduce_body
+    from ffrf_fmu.runtime.data import BodyData
+
+    model = ffrf_fmu.load_model(ROOT / "models" / "haug_beam.toml", ["superelements=1", "modes=2"])
+    assert ffrf_fmu.build_body is build_body and isinstance(build_body(model), BodyData)
+    reduced = reduce_body(model.body)
+    assert isinstance(reduced, ReducedBody) and dataclasses.is_dataclass(reduced)
+    assert isinstance(reduced.data, BodyData) and len(reduced.reductions) == 1
+    with pytest.raises(TypeError, match="reduce_body"):
+        build_body(model.body)
+    with pytest.raises(TypeError, match="build_python_fmu"):
+        ffrf_fmu.build_fmu(reduced.data, ROOT / "never_written.fmu")
+    with pytest.raises(ImportError, match="build_from_model is now ffrf_fmu.fmu.build_fmu"):
+        from ffrf_fmu.fmu import build_from_model  # noqa: F401
+    with pytest.raises(ImportError, match="Held is now ffrf_fmu.master.Signal"):
+        from ffrf_fmu.master import Held  # noqa: F401
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         ffrf_fmu.nope  # noqa: B018
 

@@ -8,7 +8,7 @@ import scipy.linalg as sla
 from ffrf_fmu.fe import node_dofs
 from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.model import Body, Port
-from ffrf_fmu.reduction import attachment_modes, build_body, reduce_superelement
+from ffrf_fmu.reduction import attachment_modes, reduce_body, reduce_superelement
 
 
 def segment(section, L, n_se, n_el, modes=6):
@@ -142,11 +142,12 @@ def test_mesh_errors(b1):
         reduce_superelement(fe, (0, 3), 6, (0, 1))
 
 
-def test_build_body(b1):
+def test_reduce_body(b1):
     section, L = b1
     ports = (Port("hub", 0, "motion", "force"), Port("tip", -1, "force", "force"))
     body = Body("beam", L, (1.0, 2.0, 0.0), (0.0, 1.0, 0.0), section, 4, 4, 6, ports)
-    data, reds = build_body(body)
+    reduced = reduce_body(body)
+    data, reds = reduced.data, reduced.reductions
     assert np.allclose(data.node_positions, [[1.0, 2.0 + 2.0 * i, 0.0] for i in range(5)])
     assert [tuple(se.nodes) for se in data.superelements] == [(0, 1), (1, 2), (2, 3), (3, 4)]
     for i, se in enumerate(data.superelements):
@@ -155,4 +156,4 @@ def test_build_body(b1):
         assert se.K.shape == se.M.shape == (18, 18) and se.G.shape == (3, 18, 18)
     assert data.port("hub").rotation == "force" and data.port("tip").node == 4
     with pytest.raises(ValueError, match="at least 2"):
-        build_body(dataclasses.replace(body, elements_per_superelement=1))
+        reduce_body(dataclasses.replace(body, elements_per_superelement=1))

@@ -333,12 +333,12 @@ def test_initially_deformed_start_is_the_runtimes():
     from pathlib import Path
 
     from ffrf_fmu.model import load_model, scene_body
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
     from ffrf_fmu.simulate import build_system
 
     m = load_model(str(Path(__file__).resolve().parent.parent / "models" / "free_beam.toml"))
     sc = m.scene("tumble")
-    body, _ = build_scene_body(m.body, sc)
+    body = reduce_scene_body(m.body, sc).data
     system, _ = build_system(body, sc, m.body.origin)
     out = system.outputs()
     ref = simulate_reference(scene_body(m.body, sc), sc, n_elements=16, duration=sc.step)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.model import ModelError, load_model
-from ffrf_fmu.reduction import build_scene_body
+from ffrf_fmu.reduction import reduce_scene_body
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.solid.stiffening import geometric_stiffness, membrane_tensors
 
@@ -86,7 +86,7 @@ def test_a_solid_from_matrices_alone_refuses_stiffening():
     """A partner's export has no mesh stresses: `stiffening = true` is refused, saying why."""
     m = load_model(MODELS / "rotor_abaqus.toml", ["stiffening=true"])
     with pytest.raises(ModelError, match="matrices only: set stiffening = false"):
-        build_scene_body(m.body, m.scenes[0])
+        reduce_scene_body(m.body, m.scenes[0])
 
 
 # The project's full-order geometrically exact beam on B1 (ffrf_fmu/reference, 16 elements, h = 10 ms;
@@ -162,10 +162,10 @@ def test_campbell_command_draws_and_refuses_bad_rates(tmp_path):
 def test_stiffened_solid_fmu_equals_its_standalone_run(tmp_path):
     """haug_solid's stiffened scene as an FMU (the membrane tensors travel as reduced data) under fmpy
     against its standalone run, the first 2 s, within validate's default tolerances."""
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.validate import validate
 
     model, over = MODELS / "haug_solid.toml", ["duration=2"]
-    fmu = build_from_model(model, tmp_path / "s.fmu", scene="spinup_stiffened", overrides=over)
+    fmu = build_fmu(model, tmp_path / "s.fmu", scene="spinup_stiffened", overrides=over)
     rep = validate(fmu, model=model, scene="spinup_stiffened", overrides=over, plots=False)
     assert rep["fmu_reached_stop_time"] and rep["fmu_matches_model"] and rep["passed"]

@@ -9,7 +9,7 @@ import scipy.sparse.linalg as spla
 
 from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.model import ModelError, Section, load_model
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.invariants import solid_invariants
 from ffrf_fmu.reduction_sparse import reduce_solid
 from ffrf_fmu.solid import node_block_mass
@@ -165,8 +165,8 @@ def test_rotor_exports_are_the_same_mesh_and_mass_and_stiffness_over_100():
 def test_rotor_models_frequencies_differ_by_ten():
     """The bundled rotor models reduce (bearing frames on the seats) and their frequencies differ by exactly
     sqrt(100) (the stiffness factor), mass and inertia agree."""
-    a = build_body(load_model(MODELS / "rotor_abaqus.toml").body)[0].superelements[0]
-    b = build_body(load_model(MODELS / "rotor_ansys.toml").body)[0].superelements[0]
+    a = reduce_body(load_model(MODELS / "rotor_abaqus.toml").body).data.superelements[0]
+    b = reduce_body(load_model(MODELS / "rotor_ansys.toml").body).data.superelements[0]
     assert a.mass == pytest.approx(b.mass, rel=1e-7)
     assert np.allclose(a.J0, b.J0, rtol=1e-6, atol=1e-9)
     assert np.allclose(a.frequencies_hz, 10.0 * b.frequencies_hz, rtol=1e-5)
@@ -228,14 +228,14 @@ def test_solid_model_errors(tmp_path):
     one_node = "{ near = { point = [1, 0, 0], radius = 0.001 } }"
     m = load_model(write(tmp_path, SOLID.format(**{**ok, "sel": one_node})))
     with pytest.raises(ValueError, match="does not fix a frame's rotation"):
-        build_body(m.body)
+        reduce_body(m.body)
     m = load_model(write(tmp_path, SOLID.format(**{**ok, "sel": "{ set = 'nothere' }"})))
     with pytest.raises(ValueError, match="no node set 'nothere'"):
-        build_body(m.body)
+        reduce_body(m.body)
     m = load_model(write(tmp_path, SOLID.format(**{**ok, "scene": "stiffening = true"})))
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
 
-    assert build_scene_body(m.body, m.scenes[0])[0].superelements[0].stiffening  # a mesh: from its stresses
+    assert reduce_scene_body(m.body, m.scenes[0]).data.superelements[0].stiffening  # a mesh: from its stresses
 
 
 def test_haug_solid_b1_within_one_percent_of_the_beam():
@@ -260,10 +260,10 @@ def test_solid_fmu_equals_its_standalone_run(tmp_path, model, overrides):
     """Each bundled solid as an FMU (what `ffrf-fmu build` writes) under fmpy against its standalone run
     (`ffrf-fmu validate`), a shortened scene: the reduced solid is body data like a beam's, so the FMU
     reproduces the standalone run within validate's default tolerances and matches the model."""
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.validate import validate
 
-    fmu = build_from_model(model, tmp_path / "solid.fmu", scene="spinup", overrides=overrides)
+    fmu = build_fmu(model, tmp_path / "solid.fmu", scene="spinup", overrides=overrides)
     rep = validate(fmu, model=model, scene="spinup", overrides=overrides, plots=False)
     assert rep["fmu_reached_stop_time"] and rep["fmu_matches_model"] and rep["passed"]
 
@@ -274,7 +274,7 @@ def test_quality_report_kept_modes_exact_and_effective_mass():
     a port lie in [0, 1] and grow with the modes admitted (cutoff)."""
     from ffrf_fmu.solid.quality import effective_mass, frequency_report
 
-    _, (red,) = build_body(load_model(MODELS / "haug_solid.toml").body)
+    (red,) = reduce_body(load_model(MODELS / "haug_solid.toml").body).reductions
     rows = frequency_report(red, 30.0)
     kept = [r for r in rows if r["kept"]]
     assert len(kept) == 6 and all(abs(r["error"]) < 1e-7 and r["mac"] > 1 - 1e-8 for r in kept)
@@ -335,7 +335,7 @@ def test_mesh_file_with_a_named_set(tmp_path):
     meshio.write(tmp_path / "bar.inp", m)
     (tmp_path / "bar.toml").write_text(SOLID.format(extra="modes = 2", sel="{ set = 'end' }", scene="").replace(
         'box = { size = [1.0, 0.1, 0.1], divisions = [4, 1, 1] }\nelement = "hex27"', 'file = "bar.inp"\nelement = "hex20"'))
-    _, (red,) = build_body(load_model(tmp_path / "bar.toml").body)
+    (red,) = reduce_body(load_model(tmp_path / "bar.toml").body).reductions
     assert red.frames[1].nodes.size == 13
     assert np.allclose(red.fe.coords[red.frames[1].nodes, 0], 1.0)
     assert red.data.mass == pytest.approx(7800 * 0.02, rel=1e-12)

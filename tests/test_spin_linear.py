@@ -9,7 +9,7 @@ from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.fe.beam import tensor_kernel
 from ffrf_fmu.linear import spin_modes
 from ffrf_fmu.model import Body, Port
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime.body import BodySystem
 
 # docs/background.md, rotating cantilever: B1 data, 80 Euler-Bernoulli elements, clamped hub, spin about Z (normal to the beam)
@@ -20,7 +20,7 @@ ROTATING_CANTILEVER = {2.0: (0.5793, 0.4840), 4.0: (0.8305, 0.5334), 8.0: (1.432
 def _system(section, direction, n_se, terms="gyroscopic", stiffening=True, n_el=8):
     ports = (Port("hub", 0, "motion", "motion"), Port("tip", n_se, "force", "force"))
     body = Body("b", 8.0, (0.0, 0.0, 0.0), tuple(direction), section, n_se, n_el, 2, ports)
-    data, _ = build_body(body, stiffening=stiffening, inertia=terms == "full")
+    data = reduce_body(body, stiffening=stiffening, inertia=terms == "full").data
     return BodySystem(data, terms=terms)
 
 

@@ -14,7 +14,7 @@ import pytest
 from ffrf_fmu import simulate as sim
 from ffrf_fmu.fe.beam import strain_kernels
 from ffrf_fmu.model import Body, ModelError, Port, Section, load_model
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import equations
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.runtime.data import BodyData
@@ -37,9 +37,9 @@ def test_correction_mode_gives_the_axial_force_of_a_spinning_bar():
     W, L, m, n_el = 4.0, 8.0, 0.201, 8
     body = _beam(1, n_el, 2)
     for stiff, tol in ((True, 1e-6), (False, None)):
-        data, red = build_body(body, stiffening=stiff)
-        se, Y = data.superelements[0], red[0].Y
-        W1 = se.W1 if stiff else build_body(body, stiffening=True)[0].superelements[0].W1[: se.n]
+        reduced = reduce_body(body, stiffening=stiff)
+        se, Y = reduced.data.superelements[0], reduced.reductions[0].Y
+        W1 = se.W1 if stiff else reduce_body(body, stiffening=True).data.superelements[0].W1[: se.n]
         f = 0.5 * np.einsum("a,jab,b->j", [0, 0, W], W1, [0, 0, W])
         f[0] -= se.mass * W**2 * L / 2  # hub pulls the CM inward (x axial dof of node 0)
         q = np.linalg.solve(se.K, f)
@@ -56,7 +56,7 @@ def test_correction_mode_gives_the_axial_force_of_a_spinning_bar():
 
 
 def _random_state(stiff_scale: float, far_from_reference):
-    data, _ = build_body(_beam(2, 4, 3, hub_rotation="force"), stiffening=True)
+    data = reduce_body(_beam(2, 4, 3, hub_rotation="force"), stiffening=True).data
     ses = tuple(dataclasses.replace(se, W1=se.W1 * stiff_scale) for se in data.superelements)
     s = BodySystem(dataclasses.replace(data, superelements=ses), terms="linear", rho_inf=0.7)
     return s, far_from_reference(s)
@@ -90,14 +90,14 @@ def test_fused_stiffening_matches_the_plain_oracle(terms, far_from_reference):
 def test_stiffening_data_round_trips_through_npz(tmp_path):
     """The FMU ships BodyData as npz: the stiffening arrays survive save/load bit for bit, and a body
     built without stiffening stays without (no correction mode, no arrays)."""
-    data, _ = build_body(_beam(2, 4, 2), stiffening=True)
+    data = reduce_body(_beam(2, 4, 2), stiffening=True).data
     data.save(tmp_path / "b.npz")
     back = BodyData.load(tmp_path / "b.npz")
     for a, b in zip(data.superelements, back.superelements):
         assert b.stiffening and a.n == b.n == 12 + 2 + 1  # one correction mode on a straight beam
         for k in ("W1", "vk_a", "vk_B", "K", "M"):
             assert np.array_equal(getattr(a, k), getattr(b, k))
-    plain, _ = build_body(_beam(2, 4, 2))
+    plain = reduce_body(_beam(2, 4, 2)).data
     plain.save(tmp_path / "p.npz")
     assert not any(se.stiffening for se in BodyData.load(tmp_path / "p.npz").superelements)
     assert plain.superelements[0].n == 14
@@ -172,7 +172,7 @@ def test_fmu_carries_stiffening_and_matches_standalone(tmp_path):
 
     from fmpy import read_model_description
 
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.fmu.run import run_fmu
 
     ov = ["superelements=1", "modes=2", "step=0.01", "duration=0.5", "stiffening=true",
@@ -180,7 +180,7 @@ def test_fmu_carries_stiffening_and_matches_standalone(tmp_path):
     model = load_model("models/haug_beam.toml", ov)
     sc = model.scene("spinup")
     ref = sim.run_scene(model, "spinup")
-    fmu = build_from_model("models/haug_beam.toml", tmp_path / "b1s.fmu", scene="spinup", overrides=ov)
+    fmu = build_fmu("models/haug_beam.toml", tmp_path / "b1s.fmu", scene="spinup", overrides=ov)
     assert "Geometric stiffening inside each superelement: on" in read_model_description(str(fmu)).description
     with zipfile.ZipFile(fmu) as z:
         assert not any(n.endswith(".toml") for n in z.namelist())  # no model file, no FE model
@@ -229,7 +229,7 @@ FULL = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
 
 
 def _full_state(full_terms, stiff: bool, far_from_reference):
-    data, _ = build_body(_beam(2, 4, 3, hub_rotation="force"), stiffening=stiff, inertia=True)
+    data = reduce_body(_beam(2, 4, 3, hub_rotation="force"), stiffening=stiff, inertia=True).data
     ses = tuple(dataclasses.replace(se, W1=se.W1 * 1e4, W2=se.W2 * 1e4) for se in data.superelements)
     data = dataclasses.replace(data, superelements=ses)
     r, values = _random_state(1.0, far_from_reference)
@@ -273,9 +273,9 @@ def test_full_term_set_conserves_momentum_and_energy(terms):
     changes the angular momentum by ~1e-5 here)."""
     m = load_model("models/free_beam.toml", [f"terms={terms}", "duration=1.0", "superelements=1"])
     sc = m.scene("tumble")
-    from ffrf_fmu.reduction import build_scene_body
+    from ffrf_fmu.reduction import reduce_scene_body
 
-    body, _ = build_scene_body(m.body, sc)
+    body = reduce_scene_body(m.body, sc).data
     s, inputs = sim.build_system(body, sc, m.body.origin)
     _, L0 = s.momenta()
     E0 = sum(v for k, v in s.energies().items() if k != "work_external")
@@ -292,6 +292,6 @@ def test_full_terms_key_is_validated():
     assert load_model("models/haug_beam.toml", ['full_terms=["inertia_W2"]']).scene("spinup").full_terms == ("inertia_W2",)
     with pytest.raises(ModelError, match=r"full_terms: expected an array of Witteveen's terms"):
         load_model("models/haug_beam.toml", ['full_terms=["inertia_W3"]'])
-    data, _ = build_body(_beam(1, 4, 2))
+    data = reduce_body(_beam(1, 4, 2)).data
     with pytest.raises(ValueError, match="term set 'full' needs the inertia data"):
         BodySystem(data, terms="full")

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ffrf_fmu.fmu.builder import build_from_model
+from ffrf_fmu.fmu.builder import build_fmu
 from ffrf_fmu.validate import compare, validate
 
 
@@ -31,12 +31,12 @@ def test_fmu_of_another_model_fails(tmp_path, small_toml):
     model.write_text(small_toml())  # the small B1-like beam; its scene `spin` has constant rates and loads
     other = tmp_path / "other.toml"
     other.write_text(small_toml().replace("GJ = 435.38", "GJ = 435.5"))
-    fmu = build_from_model(other, tmp_path / "other.fmu", scene="spin")
+    fmu = build_fmu(other, tmp_path / "other.fmu", scene="spin")
     rep = validate(fmu, model=model, scene="spin", plots=False)
     assert rep["fmu_reached_stop_time"] and all(g["passed"] for g in rep["groups"].values())
     assert not rep["fmu_matches_model"] and not rep["passed"]
     # and the FMU of the model itself passes
-    same = build_from_model(model, tmp_path / "same.fmu", scene="spin")
+    same = build_fmu(model, tmp_path / "same.fmu", scene="spin")
     rep = validate(same, model=model, scene="spin", plots=False)
     assert rep["fmu_matches_model"] and rep["passed"]
 
@@ -46,7 +46,7 @@ def test_the_standalone_run_steps_on_the_fmus_backend(tmp_path, small_toml):
     that FMU and standalone compare the same equations' code."""
     model = tmp_path / "small.toml"
     model.write_text(small_toml())
-    fmu = build_from_model(model, tmp_path / "small.fmu", scene="spin", backend="numpy", runtime="python")
+    fmu = build_fmu(model, tmp_path / "small.fmu", scene="spin", backend="numpy", runtime="python")
     rep = validate(fmu, model=model, scene="spin", plots=False)
     assert rep["passed"]
     assert rep["backend"] == {"fmu": "numpy", "standalone": "numpy"}

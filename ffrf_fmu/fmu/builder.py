@@ -246,7 +246,7 @@ def body_digest(data: BodyData, config: dict, sources: dict[str, str]) -> str:
     return h.hexdigest()[:10]
 
 
-def build_fmu(
+def build_python_fmu(
     data: BodyData,
     dest,
     params: SceneParameters,
@@ -380,22 +380,26 @@ def build_fmu(
 RUNTIMES = ("native", "python")
 
 
-def build_from_model(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "native",
-                     runtime: str = "native", platforms=("linux64",), compiler: str = "zig",
-                     log=None, native_loader: bool = True, fmi: int = 2) -> Path:
-    """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters. runtime: "native"
-    (fmu/native: binaries for `platforms` by `compiler`, zig or system; FMI version `fmi`, 2 or 3) or "python"
-    (`build_fmu`, with `backend`; FMI 2.0 only)."""
+def build_fmu(model_path, dest, *, scene: str | None = None, overrides=(), backend: str = "native",
+              runtime: str = "native", platforms=("linux64",), compiler: str = "zig",
+              log=None, native_loader: bool = True, fmi: int = 2) -> Path:
+    """Model file -> reduced body with the scene's causality -> FMU with the scene's parameters; returns the
+    FMU's path (the public ffrf_fmu.build_fmu). runtime: "native" (fmu/native: binaries for `platforms` by
+    `compiler`, zig or system; FMI version `fmi`, 2 or 3) or "python" (`build_python_fmu` of the BodyData,
+    with `backend`; FMI 2.0 only)."""
+    if isinstance(model_path, BodyData):
+        raise TypeError("build_fmu(model_path, dest, scene=...) builds from a model file; the FMU of a BodyData is "
+                        "ffrf_fmu.fmu.build_python_fmu(data, dest, SceneParameters(...))")
     if runtime not in RUNTIMES:
         raise BuildError(f"runtime must be one of {RUNTIMES}, got {runtime!r}")
     if fmi != 2 and (fmi != 3 or runtime != "native"):
         raise BuildError(f"FMI version {fmi!r}: 2, or 3 with the native runtime only (pythonfmu makes FMI 2.0 FMUs)")
     from ..model import load_model
-    from ..reduction import build_scene_body
+    from ..reduction import reduce_scene_body
 
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
-    data, _ = build_scene_body(model.body, sc)
+    data = reduce_scene_body(model.body, sc).data
     info = {"model_file": str(Path(model_path).name), "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
             "scene": sc.name, "overrides": list(overrides), "scenes": [s.name for s in model.scenes]}
     if runtime == "native":
@@ -407,7 +411,7 @@ def build_from_model(model_path, dest, *, scene: str | None = None, overrides=()
                                     build_info=info, platforms=platforms, compiler=compiler, log=log, fmi=fmi)
         except NativeBuildError as e:
             raise BuildError(str(e)) from None
-    return build_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
+    return build_python_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
                      backend=backend, native_loader=native_loader)
 
 
@@ -417,3 +421,12 @@ def read_fmu_config(fmu_path) -> dict:
 
     with zipfile.ZipFile(fmu_path) as z:
         return json.loads(z.read(f"resources/{CONFIG_FILE}").decode("utf-8"))
+
+
+def __getattr__(name: str):
+    """`build_from_model` was the name of `build_fmu` (which then named the BodyData build, now
+    `build_python_fmu`): refused, naming the new one; an ImportError, so that `from ... import` shows it."""
+    if name == "build_from_model":
+        raise ImportError("ffrf_fmu.fmu.build_from_model is now ffrf_fmu.fmu.build_fmu (model file -> FMU, as "
+                          "ffrf_fmu.build_fmu); the FMU of a BodyData is ffrf_fmu.fmu.build_python_fmu")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

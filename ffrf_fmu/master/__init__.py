@@ -50,8 +50,8 @@ __all__ = ["CoSimulation", "CoSimulationError", "FmuInstance", "Motion", "Result
 
 def __getattr__(name: str):
     """The signal connection was called `Held`; the name is refused so that "held" keeps one meaning
-    (an input kept constant over a communication step)."""
+    (an input kept constant over a communication step); an ImportError, so that `from ... import` shows it."""
     if name == "Held":
-        raise AttributeError("ffrf_fmu.master.Held is now ffrf_fmu.master.Signal (dst <- gain * src, a signal "
+        raise ImportError("ffrf_fmu.master.Held is now ffrf_fmu.master.Signal (dst <- gain * src, a signal "
                              "connection; its receiver holds the value over the step)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -277,7 +277,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
 
     from .. import simulate as sim
     from ..model import load_model, scene_body
-    from ..reduction import build_scene_body
+    from ..reduction import reduce_scene_body
 
     out = {"values": dict(values), "runner": "exudyn", "completed": False, "failure": None}
     try:
@@ -287,7 +287,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides, v
         h = float(values.get("step") or sc.step)
         out["resolved"] = {"elements": n_el, "step": h}
         res = simulate(scene_body(model.body, sc), sc, n_el, h)
-        result = sim.SimulationResult(res.t, columns(res), {}, build_scene_body(model.body, sc)[0])
+        result = sim.SimulationResult(res.t, columns(res), {}, reduce_scene_body(model.body, sc).data)
         out |= {"wall_time_s": res.wall_time_s, "cpu_time_s": res.cpu_time_s, "completed": res.completed,
                 "failure": res.failure, "t_end_s": float(res.t[-1]),
                 "newton_iterations_mean": res.newton_iterations_mean, "metrics": sim.metrics(result, sc),

@@ -104,7 +104,7 @@ class BodySystem(GeneralizedAlpha):
         self.W1 = self.W2 = self.vk_a = self.vk_B = None
         if (use_W1 or use_W2) and any(se.W1 is None or (use_W2 and se.W2 is None) for se in ses):
             raise ValueError("term set 'full' needs the inertia data W1, W2 in the reduced body "
-                             "(reduction.build_body(..., inertia=True))")
+                             "(reduction.reduce_body(..., inertia=True))")
         if use_W1 or use_W2:
             self.W1 = np.stack([se.W1 for se in ses]) * (1.0 if use_W1 else 0.0)
         if use_W2:

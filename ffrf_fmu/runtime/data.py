@@ -111,3 +111,13 @@ class BodyData:
                 ports=tuple(PortData(n, int(k), t, r, tuple(float(x) for x in (c[0] if c else ())))
                             for n, k, t, r, *c in meta["ports"]),
             )
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedBody:
+    """A body reduced (reduction.reduce_body): `data` what the runtime steps (BodyData), `reductions` one
+    reduction per superelement (reduction.Reduction, a solid's reduction_sparse.SolidReduction: its basis
+    Y, rigid modes U and the checks of its reduction)."""
+
+    data: BodyData
+    reductions: tuple

@@ -27,11 +27,11 @@ def solid_frames(spec, fe: SolidFE) -> tuple[Frame, ...]:
     return tuple(out)
 
 
-def build_solid_body(body, stiffening: bool = False, inertia: bool = False):
-    """(BodyData, (SolidReduction,)) of a solid body: one superelement on its port frames."""
+def reduce_solid_body(body, stiffening: bool = False, inertia: bool = False):
+    """The ReducedBody (BodyData, (SolidReduction,)) of a solid body: one superelement on its port frames."""
     from ..port_data import compliance, port_data
     from ..reduction_sparse import reduce_solid
-    from ..runtime.data import BodyData
+    from ..runtime.data import BodyData, ReducedBody
 
     from ..checked_toml import ModelError
 
@@ -48,4 +48,4 @@ def build_solid_body(body, stiffening: bool = False, inertia: bool = False):
                     ports=port_data(body, len(frames)))
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
         data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
-    return data, (red,)
+    return ReducedBody(data, (red,))

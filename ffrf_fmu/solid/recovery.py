@@ -34,7 +34,7 @@ class Recovery:
 def run_recorded(model, scene_name=None, every: int = 10, backend: str = "numpy"):
     """(Recovery, SolidReduction, BodyData) of the scene's standalone run of a solid body, states every
     `every` steps (and the first)."""
-    from ..reduction import build_scene_body
+    from ..reduction import reduce_scene_body
     from ..simulate import build_system, whole_steps
 
     scene = model.scene(scene_name)
@@ -42,7 +42,8 @@ def run_recorded(model, scene_name=None, every: int = 10, backend: str = "numpy"
         from ..checked_toml import ModelError
 
         raise ModelError(f"{model.path}: result recovery writes solid meshes; body {model.body.name!r} is a beam")
-    data, (red,) = build_scene_body(model.body, scene)
+    reduced = reduce_scene_body(model.body, scene)
+    data, (red,) = reduced.data, reduced.reductions
     n_steps, h = whole_steps(scene.duration, scene.step)
     system, inputs = build_system(data, scene, origin=model.body.origin, backend=backend)
     rows = []

@@ -122,7 +122,7 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
     export), the scene's term set unless `terms` is given; full: also the full FE model (solids only).
     Divergent reduced modes are counted in the notes, not drawn."""
     from ..model import scene_body
-    from ..reduction import build_body
+    from ..reduction import reduce_body
     from ..spin import scene_spin
 
     scene = model.scene(scene)
@@ -141,7 +141,8 @@ def campbell(model, rates, n: int = 3, full: bool = True, terms: str | None = No
     if not any(p.rotation == "motion" for p in body.ports):
         raise ValueError(f"{model.body.source}: scene {scene.name!r} drives no port's rotation: a steady spin needs "
                          "one (its rotation drive turns the body)")
-    data, reds = build_body(body, stiffening=stiff, inertia=(terms or scene.terms) == "full")
+    reduced = reduce_body(body, stiffening=stiff, inertia=(terms or scene.terms) == "full")
+    data, reds = reduced.data, reduced.reductions
     terms = terms or scene.terms
     rates = np.asarray(rates, dtype=float)
     red = reduced_frequencies(data, rates, axis, n, terms)

@@ -133,10 +133,10 @@ def drive_time_scale(scene) -> float | None:
 
 
 def reduced(body: Body):
-    """(BodyData, reductions) of the body (reduction.build_body)."""
-    from ..reduction import build_body
+    """The ReducedBody (data, reductions) of the body (reduction.reduce_body)."""
+    from ..reduction import reduce_body
 
-    return build_body(body)
+    return reduce_body(body)
 
 
 def rechain(body: Body, n_se: int, modes: int | None = None) -> Body:
@@ -175,14 +175,14 @@ def first_frequency(body: Body) -> float:
     """First natural frequency [Hz] of the chain with the motion-driven port parts fixed."""
     from ..linear import natural_frequencies
 
-    f = natural_frequencies(reduced(body)[0])
+    f = natural_frequencies(reduced(body).data)
     return float(f[0]) if len(f) else math.nan
 
 
 def free_free_frequencies(body: Body, n_se: int, n_modes: int) -> np.ndarray:
     """Free-free frequencies [Hz] of one superelement of a chain of n_se (its kept-mode candidates)."""
     sub = dataclasses.replace(body, superelements=n_se, modes=n_modes, ports=())
-    data, _ = reduced(sub)
+    data = reduced(sub).data
     return np.asarray(data.superelements[0].frequencies_hz, dtype=float)
 
 
@@ -219,7 +219,7 @@ def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:
     from ..linear import directional_spin_modes, first_by_direction, natural_frequencies
     from ..runtime.body import BodySystem
 
-    data, _ = reduced(dataclasses.replace(body, modes=max(body.modes, 2)))
+    data = reduced(dataclasses.replace(body, modes=max(body.modes, 2))).data
     if spin <= 0.0:
         f0 = natural_frequencies(data)
         f1 = float(f0[0]) if len(f0) else math.nan
@@ -227,9 +227,9 @@ def stiffened_frequencies(body: Body, scene, spin: float, axis) -> dict:
     driven = [p for p in data.ports if p.translation == "motion" and p.rotation == "motion"]
     through = driven and np.linalg.norm(np.cross(axis, data.node_positions[driven[0].node])) <= 1e-9 * body.length
     if through:
-        from ..reduction import build_body
+        from ..reduction import reduce_body
 
-        data, _ = build_body(dataclasses.replace(body, modes=max(body.modes, 2)), stiffening=True)
+        data = reduce_body(dataclasses.replace(body, modes=max(body.modes, 2)), stiffening=True).data
         try:
             modes = directional_spin_modes(BodySystem(data, terms="gyroscopic"), spin, axis,
                                            beam_direction=body.direction, length=body.length,

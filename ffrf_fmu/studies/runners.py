@@ -40,9 +40,9 @@ def resolved(model: Model, scene_name: str | None) -> dict[str, Any]:
 
 def body_data(model: Model, scene: Scene):
     """The reduced body (BodyData) of the model with the scene's port causality."""
-    from ..reduction import build_scene_body
+    from ..reduction import reduce_scene_body
 
-    return build_scene_body(model.body, scene)[0]
+    return reduce_scene_body(model.body, scene).data
 
 
 def transverse(d: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -97,12 +97,12 @@ def run_fmu_configuration(model_path, model: Model, sc: Scene, overrides, body, 
     import tempfile
     from pathlib import Path
 
-    from ..fmu.builder import build_from_model
+    from ..fmu.builder import build_fmu
     from ..fmu.run import run_fmu
     from ..simulate import scene_inputs
 
     with tempfile.TemporaryDirectory(prefix="ffrf_chart_fmu_") as tmp:
-        fmu = build_from_model(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
+        fmu = build_fmu(model_path, Path(tmp) / f"{model.body.name}.fmu", scene=sc.name, overrides=overrides,
                                backend=backend)
         run = run_fmu(fmu, sc, scene_inputs(body, sc, load_interval=(0.0, sc.step)))  # held over (t, t + H]
     return run.result(body), run.wall_time_s, run.cpu_time_s

@@ -113,7 +113,7 @@ class CosimCase:
     """FMUs and runs of one coupled system ("motor" or "split") under ffrf_fmu.master."""
 
     def __init__(self, kind: str, model_path, fmu_dir, settings: CosimSettings):
-        from ...fmu.builder import build_from_model
+        from ...fmu.builder import build_fmu
         from .split import split_models
 
         self.kind, self.settings = kind, settings
@@ -127,7 +127,7 @@ class CosimCase:
         if kind == "motor":
             from ...examples import build_hub_drive
 
-            self.fmus = {"beam": build_from_model(model_path, fmu_dir / "beam_hub_free.fmu", scene=b.free_scene,
+            self.fmus = {"beam": build_fmu(model_path, fmu_dir / "beam_hub_free.fmu", scene=b.free_scene,
                                                   overrides=[*ov, f"scenes.{b.free_scene}.duration={settings.duration!r}"]),
                          "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")}
             self.order = {"fwd": ["beam", "drive"], "rev": ["drive", "beam"]}
@@ -138,12 +138,12 @@ class CosimCase:
             self.duration = settings.duration
         elif kind == "split":
             halves = split_models(model_path, fmu_dir, ov, scene=b.driven_scene, ports=(b.hub, b.tip))
-            self.fmus = {"A": build_from_model(halves[0], fmu_dir / "split_a.fmu"),
-                         "B": build_from_model(halves[1], fmu_dir / "split_b.fmu")}
+            self.fmus = {"A": build_fmu(halves[0], fmu_dir / "split_a.fmu"),
+                         "B": build_fmu(halves[1], fmu_dir / "split_b.fmu")}
             sc = b.driven_scene
             ov = [*ov, f"scenes.{sc}.drives.{b.hub}.rotation.angle.T={settings.split_T!r}",
                   f"scenes.{sc}.duration={settings.split_duration!r}"]
-            self.one = build_from_model(model_path, fmu_dir / "split_one_body.fmu", scene=sc, overrides=ov)
+            self.one = build_fmu(model_path, fmu_dir / "split_one_body.fmu", scene=sc, overrides=ov)
             self.order = {"fwd": ["A", "B"], "rev": ["B", "A"]}
             self.start_values = {}
             self.duration = settings.split_duration

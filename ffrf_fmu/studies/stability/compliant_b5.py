@@ -43,14 +43,14 @@ class CompliantB5:
 
 def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantB5:
     from ...examples import build_hub_drive
-    from ...fmu.builder import build_from_model
+    from ...fmu.builder import build_fmu
     from ...model import load_model
 
     fmu_dir = Path(fmu_dir)
     fmu_dir.mkdir(parents=True, exist_ok=True)
     body = load_model(model_path, beam_overrides(settings)).body
     e = np.asarray(body.direction, float)
-    return CompliantB5({"beam": build_from_model(model_path, fmu_dir / "beam_compliant.fmu", scene=settings.beam.free_scene,
+    return CompliantB5({"beam": build_fmu(model_path, fmu_dir / "beam_compliant.fmu", scene=settings.beam.free_scene,
                                                  overrides=beam_overrides(settings)),
                         "drive": build_hub_drive(fmu_dir / "hub_drive.fmu")},
                        tuple(float(x) for x in body.length * e / np.linalg.norm(e)))

@@ -30,7 +30,7 @@ class CompliantCut:
 
 
 def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantCut:
-    from ...fmu.builder import build_from_model
+    from ...fmu.builder import build_fmu
     from ...model import load_model
     from .split import split_models
 
@@ -40,18 +40,18 @@ def build(model_path, fmu_dir, settings: CosimSettings) -> CompliantCut:
     a, bb = split_models(model_path, fmu_dir, list(settings.overrides), coupling={"step": 0.01}, scene=b.driven_scene,
                          ports=(b.hub, b.tip))
     model = load_model(model_path, list(settings.overrides))
-    return CompliantCut({"A": build_from_model(a, fmu_dir / "cut_a.fmu"), "B": build_from_model(bb, fmu_dir / "cut_b.fmu")},
+    return CompliantCut({"A": build_fmu(a, fmu_dir / "cut_a.fmu"), "B": build_fmu(bb, fmu_dir / "cut_b.fmu")},
                         a, model.body.length, {**hub_profile(model, b), "T": settings.split_T})
 
 
 def coefficients(cut: CompliantCut, H_c: float) -> dict[str, float]:
     """FMU parameters A.cut.coupling.* of the rule for the coupling step H_c."""
     from ...model import load_model
-    from ...reduction import build_scene_body
+    from ...reduction import reduce_scene_body
     from ...runtime.coupling import compliance_rule
 
     model = load_model(cut.half_a)
-    data, _ = build_scene_body(model.body, model.scene("run"))
+    data = reduce_scene_body(model.body, model.scene("run")).data
     node = next(p.node for p in data.ports if p.name == "cut")
     KC = compliance_rule(data, node, H_c)
     out = {}

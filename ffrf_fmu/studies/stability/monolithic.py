@@ -61,7 +61,7 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     deflection against the beam root frame (eq. 92), the beam root's rate about Z and the shaft
     moment on the beam about Z, at every step; `sweeps` is the mean number of body steps a step."""
     from ...model import load_model
-    from ...reduction import build_scene_body
+    from ...reduction import reduce_scene_body
     from ...runtime.integrator import alpha_coefficients
     from ...simulate import build_system, whole_steps
 
@@ -70,7 +70,7 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     ov = beam_overrides(settings, k=k)
     model = load_model(model_path, ov)
     scene = dataclasses.replace(model.scene(b.free_scene), step=h)
-    body, _ = build_scene_body(model.body, scene)
+    body = reduce_scene_body(model.body, scene).data
     hub, tip = b.hub, b.tip
     if not any(p.name == hub and p.rotation == "compliant" for p in body.ports):
         raise ValueError(f"{model_path}: port {hub!r} of scene {b.free_scene!r} must have a compliant rotation")
