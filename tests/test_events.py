@@ -56,10 +56,16 @@ def test_impulse_of_a_window_standalone(kick, h):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # 3 and 7 ms do not divide 1 s: the step is reduced
+        warnings.simplefilter("error", RuntimeWarning)  # the metrics of a body started at rest: no 0/0
         r = run_scene(kick, "kick", [f"step={h}"], backend="numpy")
     p = free_body_series(r, "p")
     assert np.abs(p[-1] - [0.0, 0.0, 0.2]).max() < 1e-13
     assert np.abs(p[0]).max() < 1e-15
+    # started at rest: no CM-frame roll, so no tip metrics and a note naming the cause; the drifts are over
+    # the run's largest momentum (the kick's: all of it is change, 1.0), not over the start's 0
+    metrics = r.summary["metrics"]
+    assert "no angular momentum about its CM" in metrics["tip_from_cm"] and "tip_from_cm_max_m" not in metrics
+    assert metrics["linear_momentum_drift_rel"] == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize("h", STEPS)

@@ -44,6 +44,23 @@ def test_tip_from_cm_sees_no_deflection_in_a_rigid_tumble():
     assert np.allclose(d, [0.0, 0.01, -0.02], atol=1e-12)
 
 
+def test_tip_from_cm_refuses_a_body_without_angular_momentum_at_the_start():
+    """The CM frame's roll is set by h_cm(0): a body that starts without angular momentum has none, and
+    tip_from_cm says so instead of returning NaN (0/0). A spin of 1e-6 rad/s (|h_cm(0)| / J_max, 1000 x
+    NO_SPIN_RAD_S) still fixes it: the same frame as any larger spin about that axis."""
+    import pytest
+
+    m = load_model(B4)
+    body = reduce_scene_body(m.body, m.scene("tumble")).data
+    t = np.linspace(0.0, 1.0, 20)
+    Q, c, J_body = np.repeat(np.eye(3)[None], len(t), 0), np.zeros((len(t), 3)), np.diag([3.6e-4, 8.6, 8.6])
+    tip = np.array([4.0, 0.01, -0.02])
+    with pytest.raises(ValueError, match=r"no angular momentum about its CM .* roll of its CM frame"):
+        sim.tip_from_cm(_moving(body, Q, c, tip, J_body, np.zeros(3)))
+    slow = sim.tip_from_cm(_moving(body, Q, c, tip, J_body, np.array([0.0, 0.0, 8.6e-6])))
+    assert np.allclose(slow, [0.0, 0.01, -0.02], atol=1e-12)
+
+
 def test_mass_properties_of_both_models_agree_and_the_reference_conserves_momenta():
     """At rest the runtime's CM and inertia (superelement CMs and J0) and the reference's (consistent mass,
     rotary inertia at the nodes) are the same beam's: m L^3 / 12 about the transverse axes. Released from the
