@@ -167,7 +167,7 @@ def _spin_system(system, w):
 
 
 def steady_spin(system, omega: float, axis=(0.0, 0.0, 1.0), tol: float = 1e-10, max_iter: int = 30):
-    """Bring `system` (a runtime.body.BodySystem, no loads, no gravity; its motion-driven ports at
+    """Bring `system` (a runtime.body.BodySystem, no loads, gravity along the axis or none; its motion-driven ports at
     their reference frames, R = I) to its relative equilibrium at the constant spin omega about
     `axis` through the world origin: Newton on F(y, ydot(y)) = 0 with the matrix J (block comment).
     Returns the system (state set: configuration, velocities, rates)."""

@@ -1,8 +1,12 @@
 """`ffrf-fmu advise`: the physics behind each rule, and its promise checked out of sample.
 
-The only calibration data of the advisor's superelement rule is one B1 run (STIFFENED_ERROR, 1 SE at
-4 rad/s). The checks below run scenes and bodies that set no constant: B3 at other spins, and
-generated bodies of other length, stiffness and spin profile, each against the full-order beam."""
+Which scene calibrated which constant (studies/calibration.py, derivations in docs/accuracy.md section 4):
+STIFFENED_ERROR one B1 run (spinup, 1 SE at 4 rad/s); STEP_ERROR_FACTOR the B1 chart; FMU_INPUT_FACTOR B1
+through its FMU (5 SE); NONLINEAR_ERROR coned_beam's steady spin (docs/inertia-terms.md); the cost
+constants benchmarks/term_cost.py on disk_rotor. No assertion below is made on the point a constant was
+fitted to: the promise (the pick reaches the tolerance) is checked on scenes that set no constant, B3 at
+other spins, generated bodies of other length, stiffness and spin profile, and the two bundled 3D scenes
+(models/blade.toml, models/sagging_rotor.toml) against their converged references stored beside them."""
 import json
 import math
 import os
@@ -145,8 +149,7 @@ def test_stiffened_rule_structure():
     assert a.stiffening and a.superelements == 1 and a.terms == "linear"
     assert set(a.reasons) == {"stiffening", "superelements", "modes", "terms", "step"}
     assert "stiffening=true" in a.overrides
-    e1 = a.predicted["chain"]
-    assert e1 == pytest.approx(ad.STIFFENED_ERROR * (4.0 / 18.55) ** 2, rel=0.01)  # 18.55 rad/s: 1 SE free-free
+    e1 = a.predicted["chain"]  # (its size on B1 is the calibration point itself: not asserted here)
     b = ad.advise(B1, "spinup", 0.002)
     assert b.superelements == 2 and b.predicted["chain"] == pytest.approx(e1 / 16, rel=0.02)
     assert a.predicted["total_estimate"] <= ad.RESERVE * a.tolerance
@@ -306,26 +309,32 @@ def test_b4_free_tumble_check_holds_for_the_right_reason(tmp_path):
     assert plain / res["metric_reference"] - 1 < -0.015
 
 
-BLADE = ROOT / "models" / "blade.toml"
+# the bundled 3D scenes no advisor constant was fitted to, with their converged references stored beside them
+# (docs/accuracy.md "Out of sample"): the blade, spun up past its first flap frequency and kicked out of its
+# plane; the sagging rotor, spinning steadily from the start under gravity along its axis, kicked in its plane
+STORED_SCENES = {"blade": ("flap_kick", "tip_out_of_plane_max_m"), "sagging_rotor": ("lag_kick", "tip_in_plane_max_m")}
 
 
+@pytest.mark.parametrize("name", sorted(STORED_SCENES))
 @pytest.mark.parametrize("tolerance", [0.05, 0.01, 0.005])
-def test_advice_reaches_the_tolerance_on_the_3d_blade_out_of_sample(tolerance):
-    """The bundled 3D blade (models/blade.toml: spun past its first flap frequency, then kicked out of
-    its plane; no advisor constant was fitted to it): the advised configuration's primary metric (the
-    out-of-plane tip maximum) is within the tolerance of the converged full-order reference stored beside
-    the model (models/blade.reference.json: its refinement table, the value at the finest mesh and step;
-    docs/accuracy.md "Out of sample: the 3D blade"), and within the advice's own predicted error."""
+def test_advice_reaches_the_tolerance_on_the_3d_scenes_out_of_sample(name, tolerance):
+    """The advised configuration's primary metric is within the tolerance of the scene's converged
+    full-order reference (models/NAME.reference.json: the refinement table of studies/resolve.py and the
+    value judged against, resolved at a tenth of the smallest tolerance tested; written by
+    benchmarks/stored_reference.py), and within the advice's own predicted error. Measured (docs/accuracy.md):
+    blade +0.34 / +0.13 / +0.12 %, sagging rotor -1.68 / -0.47 / -0.31 % at 5 / 1 / 0.5 %."""
     from ffrf_fmu.studies.runners import run_configuration
 
-    stored = json.loads((ROOT / "models" / "blade.reference.json").read_text())
-    assert stored["scene"] == "flap_kick" and stored["metric"] == "tip_out_of_plane_max_m"
+    scene, metric = STORED_SCENES[name]
+    model = str(ROOT / "models" / f"{name}.toml")
+    stored = json.loads((ROOT / "models" / f"{name}.reference.json").read_text())
+    assert stored["scene"] == scene and stored["metric"] == metric
     assert stored["resolved_to"] <= 0.1 * 0.005  # resolved at a tenth of the smallest tolerance tested
-    a = ad.advise(str(BLADE), "flap_kick", tolerance)
-    assert a.stiffening  # 7 rad/s against the first flap frequency 5.0 rad/s at rest
-    run = run_configuration(str(BLADE), "flap_kick", [], {"superelements": str(a.superelements), "modes": str(a.modes),
-                                                          "terms": a.terms, "step": f"{a.step:g}", "stiffening": "true"},
+    a = ad.advise(model, scene, tolerance)
+    assert a.stiffening  # blade: 7 rad/s against its first flap frequency 5.0 rad/s; rotor: 2 against 5.45 rad/s
+    run = run_configuration(model, scene, [], {"superelements": str(a.superelements), "modes": str(a.modes),
+                                               "terms": a.terms, "step": f"{a.step:g}", "stiffening": "true"},
                             backend=a.backend)
-    error = abs(run["metrics"]["tip_out_of_plane_max_m"] / stored["value"] - 1)
+    error = abs(run["metrics"][metric] / stored["value"] - 1)
     assert error <= tolerance
     assert error <= a.predicted["total_estimate"] + 0.1 * tolerance

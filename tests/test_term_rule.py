@@ -81,8 +81,7 @@ def test_advise_weighs_full_against_more_superelements():
     assert (a.superelements, a.terms) == (3, "linear")
     assert "more superelements are cheaper" in a.reasons["terms"]
     assert a.indicators["terms_alternative"][1] <= TERM_SHARE * 0.01
-    assert ad.step_cost(3, "linear", "numpy") < ad.step_cost(1, "full", "numpy")
-    assert ad.step_cost(3, "linear", "native") > ad.step_cost(1, "full", "native")
+    # (the costs behind the two picks are calibration.py's measured constants, not restated here)
     b = ad.advise(DISK, "spinup", 0.01, backend="native")
     assert (b.superelements, b.terms, b.backend) == (1, "full", "native")
     assert "full is cheaper" in b.reasons["terms"]
@@ -104,13 +103,33 @@ def test_info_recommends_what_advise_picks():
     assert inertia["term_effects"]["change"]["full"] > 0.02  # the indicator says the terms matter at 1 SE
 
 
-def test_nonlinear_range_takes_more_superelements_on_the_coned_beam():
-    """coned_beam: 0.42 m steady deflection on 8 m (theta = 5.2 %): NONLINEAR_ERROR theta^2 = 1.2 % with one
-    superelement (its linear kinematics; measured 1.2 %, the calibration point) -> 2 superelements (0.30 %),
-    where the term sets agree to 0.1 %: linear."""
-    a = ad.advise(CONED, "spinup", 0.01)
-    assert (a.superelements, a.terms) == (2, "linear")
-    assert a.indicators["nonlinear_error_estimate"] == pytest.approx(ad.NONLINEAR_ERROR * (0.417 / 16) ** 2, rel=0.02)
+ROTOR = str(ROOT / "models" / "sagging_rotor.toml")
+ROTOR_REFERENCE = json.loads((ROOT / "models" / "sagging_rotor.reference.json").read_text())["value"]
+
+
+def test_nonlinear_range_out_of_sample_on_the_sagging_rotor():
+    """NONLINEAR_ERROR was fitted to ONE point, coned_beam's steady spin (calibration.py, docs/inertia-terms.md);
+    here it meets a scene that set no constant: the sagging rotor (models/sagging_rotor.toml), whose steady
+    deflection is the 0.123 m sag under gravity along the spin axis (theta = 2.5 % in one superelement of 5 m).
+    The rule predicts 0.27 % for one superelement and 0.07 % for two; measured on the in-plane peak against
+    the stored converged reference (h = 2 ms, 2 modes, where the step adds 0.005 % with 4 superelements):
+    1 SE -0.34 %, 2 SE -0.04 %: within a factor 2. At 0.2 % it takes the second superelement, and the pick
+    reaches the tolerance (measured -0.12 %)."""
+    from ffrf_fmu.studies.runners import run_configuration
+
+    def error(n_se, step, modes=2):
+        run = run_configuration(ROTOR, "lag_kick", [], {"superelements": str(n_se), "modes": str(modes),
+                                                        "terms": "linear", "step": f"{step:g}", "stiffening": "true"},
+                                backend="native")
+        return abs(run["metrics"]["tip_in_plane_max_m"] / ROTOR_REFERENCE - 1)
+
+    one = ad.advise(ROTOR, "lag_kick", 0.005)
+    two = ad.advise(ROTOR, "lag_kick", 0.002)
+    assert one.superelements == 1 and two.superelements == 2
+    for a, n in ((one, 1), (two, 2)):
+        predicted, measured = a.indicators["nonlinear_error_estimate"], error(n, 0.002)
+        assert predicted / 2 <= measured <= 2 * predicted
+    assert error(2, two.step, two.modes) <= 0.002
 
 
 def test_check_report_without_a_primary_metric():
