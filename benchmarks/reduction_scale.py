@@ -6,8 +6,7 @@ one the wall time measures the load, printed beside it), and the peak resident m
 (ru_maxrss). Then the step cost of the reduced body at two mesh sizes:
 the same frames and modes give the same reduced sizes, so the same cost per step.
 
-    python benchmarks/reduction_scale.py                 # k = 3, 5, 8, 10 (3.7k to 107k dofs)
-    python benchmarks/reduction_scale.py --k 13           # 230k dofs: ~16 CPU minutes and ~11.5 GB extrapolated
+    python benchmarks/reduction_scale.py                 # k = 3, 5, 8, 10, 13 (3.7k to 230k dofs)
     python benchmarks/reduction_scale.py --k 3 10         # chosen sizes
 """
 from __future__ import annotations
@@ -43,7 +42,7 @@ def one(k: int, modes: int = 8) -> dict:
     return {"k": k, "dofs": fe.n_dof, "assemble_s": c1 - c0, "reduce_s": c2 - c15, "wall_s": t2 - t0,
             "stages_s": red.timings,
             "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-            "f1_hz": float(red.data.frequencies_hz[0]), "reduced_n": red.data.n}
+            "f1_hz": float(red.data.frequencies_hz[0]), "reduced_n": red.data.n, "lu_fill": red.lu_fill}
 
 
 def step_cost(k: int, steps: int = 400) -> float:
@@ -76,7 +75,7 @@ def step_cost(k: int, steps: int = 400) -> float:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--k", type=int, nargs="*", default=[3, 5, 8, 10])
+    ap.add_argument("--k", type=int, nargs="*", default=[3, 5, 8, 10, 13])
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--step", type=int, help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -87,18 +86,19 @@ def main():
         print(json.dumps({"k": a.step, "s_per_step": step_cost(a.step)}))
         return
     print(f"CPU seconds; load average at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    print(f"{'k':>3} {'dofs':>8} {'assemble s':>11} {'reduce s':>9} {'LU s':>6} {'modes s':>8} {'static s':>9} "
-          f"{'peak MB':>8} {'wall s':>7} {'f1 Hz':>9}")
+    print(f"{'k':>3} {'dofs':>8} {'assemble s':>11} {'reduce s':>9} {'shift s':>8} {'LU s':>6} {'modes s':>8} "
+          f"{'static s':>9} {'LU fill':>9} {'peak MB':>8} {'wall s':>7} {'load':>5} {'f1 Hz':>9}")
     for k in a.k:
+        load = os.getloadavg()[0]
         out = subprocess.run([sys.executable, __file__, "--one", str(k)], capture_output=True, text=True)
         if out.returncode:
             print(f"{k:>3} failed: {out.stderr.strip().splitlines()[-1]}")
             continue
         r = json.loads(out.stdout.strip().splitlines()[-1])
         s = r["stages_s"]
-        print(f"{k:>3} {r['dofs']:>8} {r['assemble_s']:>11.1f} {r['reduce_s']:>9.1f} "
-              f"{s['factor']:>6.1f} {s['modes']:>8.1f} {s['attachment']:>9.1f} {r['peak_MB']:>8.0f} {r['wall_s']:>7.0f} "
-              f"{r['f1_hz']:>9.3f}",
+        print(f"{k:>3} {r['dofs']:>8} {r['assemble_s']:>11.1f} {r['reduce_s']:>9.1f} {s['shift']:>8.1f} "
+              f"{s['factor']:>6.1f} {s['modes']:>8.1f} {s['attachment']:>9.1f} {r['lu_fill']:>9.2e} {r['peak_MB']:>8.0f} "
+              f"{r['wall_s']:>7.0f} {load:>5.1f} {r['f1_hz']:>9.3f}",
               flush=True)
     for k in (min(a.k), max(a.k)):
         out = subprocess.run([sys.executable, __file__, "--step", str(k)], capture_output=True, text=True)

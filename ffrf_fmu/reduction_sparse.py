@@ -11,7 +11,7 @@ rigid modes, eq. 11) and G_e the free flexibility (K x = P b with U^T M x = 0):
     eq. (76)               Y = [Y_B, Xi - Y_B (L Xi)]                           (L Y = [I, 0])
 
 Every column is mass-orthogonal to the rigid modes (eq. 74). Nothing dense of size n_dof x n_dof is
-formed: K and M stay scipy.sparse, and ONE sparse LU (scipy's SuperLU) of K - sigma M, sigma < 0
+formed: K and M stay scipy.sparse, and ONE sparse LU (scipy's SuperLU, nested-dissection order) of K - sigma M, sigma < 0
 (positive definite while K is singular), serves both the modes (ARPACK in shift-invert mode about
 sigma) and the static solves of G_e (exact on the computed modes, preconditioned Richardson on the
 rest: free_static). Only tall n_dof x (6 n_f + modes) arrays are dense.
@@ -40,6 +40,7 @@ from .runtime.data import SuperelementData
 from .runtime.rotation import skew
 from .solid import SolidFE
 from .solid.frames import averaging_weights, check_set
+from .solid.ordering import factor
 
 RIGID_GAP = 1e-4  # an elastic eigenvalue below this x the Ritz estimate of w_1^2 is a mechanism
 SHIFT_FRACTION = 0.1  # sigma = -SHIFT_FRACTION x (estimate of w_1^2): rigid and elastic eigenvalues well apart
@@ -54,6 +55,7 @@ class Constraints:
     T: sp.csr_matrix  # (3n, n_z)
     L: sp.csr_matrix  # (6 n_f, n_z)
     U: np.ndarray  # (n_z, 6)
+    dof_node: np.ndarray  # (n_z,) the FE node of each z dof, -1 for a rigid frame's own 6 (the LU's ordering)
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +72,7 @@ class SolidReduction:
     frames: tuple
     timings: dict = field(default_factory=dict)  # CPU seconds per stage
     shift: float = 0.0  # sigma of the shift-invert eigensolution [rad^2/s^2]
+    lu_fill: int = 0  # entries stored in the LU's factors (its memory: about 12 bytes each)
 
 
 def mass_properties(fe: SolidFE) -> tuple[float, np.ndarray]:
@@ -134,14 +137,15 @@ def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
     for f in rigid:
         Uz[zframe[f] : zframe[f] + 3] = rigid_rows((frames[f].point - x_cm)[None])[0]
         Uz[zframe[f] + 3 : zframe[f] + 6, 3:] = np.eye(3)
-    return Constraints(T, L, Uz)
+    dof_node = np.full(n_z, -1)
+    dof_node[: 3 * free.size] = np.repeat(free, 3)
+    return Constraints(T, L, Uz, dof_node)
 
 
-def _splu(A: sp.spmatrix):
-    """Sparse LU of a symmetric positive definite matrix: symmetric ordering (minimum degree on A^T + A),
-    diagonal pivots (SuperLU's symmetric mode)."""
-    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                     options={"SymmetricMode": True})
+def shifted_lu(K: sp.spmatrix, M: sp.spmatrix, sigma: float, c: Constraints, coords: np.ndarray):
+    """The one sparse LU of K - sigma M (sigma < 0: positive definite) in z, ordered by nested
+    dissection of the mesh (solid/ordering.py)."""
+    return factor(K - sigma * M, c.dof_node, coords)
 
 
 def ritz_estimate(fe: SolidFE) -> float:
@@ -205,9 +209,12 @@ def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
     """x = G_e b: the free (inertia-relief) static response to loads b (n_z, k), U^T M x = 0, from the
     LU of K - sigma M that the modes used (one factorization for the whole reduction). With P the
     inertia-relief projector, K x = P b is solved in the M-orthogonal complement of the rigid modes:
-    exactly on the computed modes Xi (x = Xi w^-2 Xi^T P b), and by preconditioned Richardson
-    y <- y + Q^T (K - sigma M)^-1 (r) on the rest, Q^T removing the rigid and computed modes; each pass
-    divides the error of an eigencomponent w^2 by (w^2 - sigma) / (-sigma) >= 1 - sigma / w_(m+1)^2."""
+    exactly on the computed modes Xi (x = Xi w^-2 Xi^T P b), and by conjugate gradients on the rest,
+    column by column, preconditioned by C = Q (K - sigma M)^-1 Q^T (Q removes the rigid and computed modes;
+    C is symmetric and the residuals stay in the range of Q^T). The preconditioned operator's eigenvalues
+    are w^2 / (w^2 - sigma) in [w_(m+1)^2 / (w_(m+1)^2 - sigma), 1): its condition number is close to 1,
+    and CG's error falls per pass by (sqrt(kappa) - 1) / (sqrt(kappa) + 1), half of the preconditioned
+    Richardson iteration's (1 - kappa^-1) that this replaced (measured: 8 -> 5 passes on the benchmark bar)."""
     MU = np.asarray(M @ U)
     AU = U.T @ MU
     b = np.asarray(b, dtype=float).reshape(K.shape[0], -1)
@@ -218,16 +225,34 @@ def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
         y = y - U @ np.linalg.solve(AU, MU.T @ y)
         return y - Xi @ (MX.T @ y)
 
+    def precondition(r):
+        return q(lu.solve(np.asfortranarray(r)))
+
     x = Xi @ ((Xi.T @ b) / w2[:, None]) if Xi.shape[1] else np.zeros_like(b)
     r0 = b - MX @ (Xi.T @ b)  # the load on the remaining modes
     y = np.zeros_like(b)
-    r = r0
+    r = r0.copy()
     scale = np.linalg.norm(r0, axis=0).max()
+    z = precondition(r)
+    p = z
+    rz = np.einsum("ij,ij->j", r, z)
     for it in range(STATIC_MAXITER):
-        y = y + q(lu.solve(np.asfortranarray(r)))
-        r = r0 - K @ y
         if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
-            break
+            r = r0 - K @ y  # the recursive residual drifts: confirm with the true one
+            if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+                break
+            z = precondition(r)
+            p, rz = z, np.einsum("ij,ij->j", r, z)
+        Kp = K @ p
+        pKp = np.einsum("ij,ij->j", p, Kp)
+        alpha = np.divide(rz, pKp, out=np.zeros_like(rz), where=pKp > 0)
+        y += alpha * p
+        r -= alpha * Kp
+        z = precondition(r)
+        rz_new = np.einsum("ij,ij->j", r, z)
+        beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
+        p = z + beta * p
+        rz = rz_new
     else:
         raise RuntimeError(f"static solve did not converge in {STATIC_MAXITER} passes (residual "
                            f"{np.linalg.norm(r, axis=0).max() / scale:.1e})")
@@ -280,7 +305,8 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     t["constraints"] = time.process_time()
     w2_est = ritz_estimate(fe)
     sigma = -SHIFT_FRACTION * w2_est
-    lu = _splu(K - sigma * M)
+    t["shift"] = time.process_time()
+    lu = shifted_lu(K, M, sigma, c, fe.coords)
     t["factor"] = time.process_time()
     AU = c.U.T @ (M @ c.U)
     n_keep = n_modes
@@ -305,6 +331,7 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
         static = lambda b: free_static(K, M, c.U, lu, Xi_all, w2_all, b)  # noqa: E731  G_e b, the same LU
         Y = np.concatenate([Y, correction_modes(fe, M, c, static, YB, Xi, Uf0[:, 3:])], axis=1)
         t["correction"] = time.process_time()
+    lu_fill = lu.fill
     del lu
     Kb, Mb = Y.T @ (K @ Y), Y.T @ (M @ Y)
     dm = 1.0 / np.sqrt(np.diag(Mb))
@@ -345,4 +372,5 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
         orthogonality_error=float(np.abs(Uf.T @ (fe.M @ Yf)).max() / abs(fe.M).max()),
         block_diagonality_error=float(np.abs(Kb[:nb, nb:]).max(initial=0.0) / np.abs(Kb).max()),
         n_fe_dofs=fe.n_dof, fe=fe, frames=tuple(frames), timings=timings, shift=sigma,
+        lu_fill=lu_fill,
     )

@@ -19,8 +19,8 @@ import math
 import numpy as np
 import scipy.linalg as sla
 
-from ..reduction_sparse import (SHIFT_FRACTION, _splu, constraints, free_free_modes, mass_properties, rigid_rows,
-                                ritz_estimate)
+from ..reduction_sparse import (SHIFT_FRACTION, constraints, free_free_modes, mass_properties, rigid_rows,
+                                ritz_estimate, shifted_lu)
 
 
 CLUSTER = 1e-6  # reduced frequencies this close (relative) form one eigenspace for the MAC
@@ -34,7 +34,7 @@ def full_modes(fe, frames, cutoff_hz: float, max_modes: int = 40):
     K, M = (c.T.T @ fe.K @ c.T).tocsr(), (c.T.T @ fe.M @ c.T).tocsr()
     w2_est = ritz_estimate(fe)
     sigma = -SHIFT_FRACTION * w2_est
-    lu = _splu(K - sigma * M)
+    lu = shifted_lu(K, M, sigma, c, fe.coords)
     X, w2 = free_free_modes(K, M, c.U, c.U.T @ (M @ c.U), lu, None, cutoff_hz, sigma, w2_est)
     X, w2 = X[:, :max_modes], w2[:max_modes]
     return np.sqrt(w2) / (2 * math.pi), np.asarray(c.T @ X)
