@@ -55,7 +55,7 @@ def test_row_columns_are_the_rows_of_the_body():
     scene = model.scene("spinup")
     body = reduce_scene_body(model.body, scene).data
     names = row_columns([p.name for p in body.ports])
-    assert OUTPUT_WIDTH == 24 and len(names) == 24 * len(body.ports) + len(ENERGY_FIELDS) + 1
+    assert OUTPUT_WIDTH == 30 and len(names) == 30 * len(body.ports) + len(ENERGY_FIELDS) + 1
     assert names[:4] == ["hub.r[1]", "hub.r[2]", "hub.r[3]", "hub.R[1,1]"] and names[-1] == "solver.newton_iterations"
     system, _ = sim.build_system(body, scene, backend="numpy")
     assert len(system.output_row()) == len(names) == len(sim.column_names(body))

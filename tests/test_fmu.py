@@ -189,7 +189,7 @@ def test_validate_clean_when_extrapolation_is_exact(small, tmp_path):
     assert rep["passed"] and rep["fmu_reached_stop_time"] and rep["fmu_matches_model"]
     for g, d in rep["groups"].items():
         assert d["max_rel_diff"] < 1e-7, (g, d)
-    assert set(rep["groups"]) == {"hub.f", "hub.t", "tip.r", "tip.R", "tip.v", "tip.w", "energies"}
+    assert set(rep["groups"]) == {"hub.f", "hub.t", "tip.r", "tip.R", "tip.v", "tip.w", "tip.a", "tip.dw", "energies"}
     saved = json.loads((tmp_path / "rep" / "report.json").read_text())
     assert saved["passed"] and saved["wall_time_s"]["fmu"] > 0 and saved["tolerances"]["rtol"] == 1e-3
     # the plots are written (their content is not checked: the numbers above are what they show)
@@ -473,7 +473,10 @@ def test_b1_fmu_matches_standalone_and_converges(tmp_path):
     tip deflection (eq. 92, from FMU port values) is 1.9e-9 relative off the standalone run's, the
     largest pointwise difference 3.1e-8 of the peak; from H = 4h to 2h to h the difference shrinks
     by 4.8 and 5.2 (second order). Bounds: 1e-7 and 2e-7 of the peak (50x and 6x the measured, far
-    below any physical effect), each halving of H more than 3.5 (first order would give 2)."""
+    below any physical effect), each halving of H more than 3.5 (first order would give 2). The tip's
+    accelerations (tip.a, tip.dw: outputs of its force-driven parts) at H = h are the standalone run's to
+    7.0e-8 and 1.6e-6 of their peaks (19.7 m/s2, 2.4 rad/s2; the FMU's hub frame is extrapolated, the
+    run's evaluated): bounds 1e-6 and 1e-5."""
     ov = ["duration=2.0", "scenes.spinup.drives.hub.rotation.angle.T=2.0",
           "scenes.spinup.drives.hub.rotation.angle.omega=1.0"]
     model = load_model(MODELS / "haug_beam.toml", ov)
@@ -492,6 +495,10 @@ def test_b1_fmu_matches_standalone_and_converges(tmp_path):
         peak = _transverse(d, axis).max()
         if k == 1:
             assert abs(peak - peak_ref) <= 1e-7 * peak_ref, (peak, peak_ref)
+            for f in ("a", "dw"):  # the tip's accelerations (outputs of its force-driven parts) are the run's
+                got, want = fr.port("tip", f), ref.port("tip", f)[idx]
+                err = np.abs(got - want).max() / np.abs(want).max()
+                assert err < {"a": 1e-6, "dw": 1e-5}[f], (f, err)  # measured 7.0e-8 of 19.7 m/s2, 1.6e-6 of 2.4 rad/s2
     assert peak_ref > 1.0  # the beam is deflected: 1.78 m measured
     assert diffs[0] > 3.5 * diffs[1] and diffs[1] > 3.5 * diffs[2], diffs
     assert diffs[2] < 2e-7 * peak_ref
@@ -607,9 +614,9 @@ def test_master_connect_by_name(halves):
     force on one body is minus the force on the other)."""
     fa, fb = halves
     with CoSimulation({"A": fa, "B": fb}, step=0.01) as sim:
-        # B.cut gets r, v, R, w (18) from A.cut; A.cut gets f, t (6) from B.cut; the hub and the tip
-        # have no same-named partner
-        assert sim.connect_by_name() == 24
+        # B.cut gets r, v, R, w and the accelerations a, dw (24) from A.cut; A.cut gets f, t (6) from B.cut;
+        # the hub and the tip have no same-named partner
+        assert sim.connect_by_name() == 30
         assert {(l.src, l.dst, l.gain) for l in sim.links} >= {("A.cut.R[2,1]", "B.cut.R[2,1]", 1.0),
                                                               ("B.cut.f[2]", "A.cut.f[2]", 1.0)}
 

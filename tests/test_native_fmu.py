@@ -353,6 +353,7 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
     from ffrf_fmu.fmu.native.resource import images
     from ffrf_fmu.runtime import input_rule
     from ffrf_fmu.runtime.native.binding import EXTRAPOLATED, NativeBody
+    from ffrf_fmu.runtime.outputs import OUTPUT_WIDTH
 
     L = fmu.lib
     c = fmu.instantiate()
@@ -371,8 +372,10 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
         ports = [("hub", "motion", "motion"), ("tip", "force", "force")]
         names = [v.name for v in fmu.md.modelVariables if v.causality == "output" and v.type == "Real"]
         point = body.array("point_values").reshape(len(ports), input_rule.WIDTH)
-        row = np.empty(24 * len(ports) + 5)
-        cols = {"r": (0, 3), "R": (3, 12), "v": (12, 15), "w": (15, 18), "f": (18, 21), "t": (21, 24)}
+        W = OUTPUT_WIDTH  # the runtime's row: every port's OUTPUT_FIELDS, the energies, the iterations
+        row = np.empty(W * len(ports) + 5)
+        cols = {"r": (0, 3), "R": (3, 12), "v": (12, 15), "w": (15, 18), "f": (18, 21), "t": (21, 24), "a": (24, 27),
+                "dw": (27, 30)}
         H = 0.01
         for k in range(20):
             f = (0.3 * np.sin(7.0 * k * H), 0.0, 2.0 * np.cos(5.0 * k * H))
@@ -386,14 +389,15 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
             got = fmu.get(c, names)
             for name, value in zip(names, got):
                 if name.startswith("energy."):
-                    j = 24 * len(ports) + ("kinetic_rigid", "kinetic_elastic", "strain", "work_external").index(name[7:])
+                    j = W * len(ports) + ("kinetic_rigid", "kinetic_elastic", "strain", "work_external").index(name[7:])
                 else:
                     p, field, idx = name.split(".")[0], name.split(".")[1].split("[")[0], name.split("[")[1][:-1]
                     j0, j1 = cols[field]
                     ix = [int(i) - 1 for i in idx.split(",")]
-                    j = 24 * [q[0] for q in ports].index(p) + j0 + (3 * ix[0] + ix[1] if len(ix) == 2 else ix[0])
+                    j = W * [q[0] for q in ports].index(p) + j0 + (3 * ix[0] + ix[1] if len(ix) == 2 else ix[0])
                 assert value == row[j], (k, name, value, row[j])
         assert np.abs(fmu.get(c, ["tip.r[3]"])).max() > 1e-4  # the load moved the tip: the comparison means something
+        assert "tip.a[3]" in names and "tip.dw[2]" in names and np.abs(fmu.get(c, ["tip.a[3]"])).max() > 1e-3
     finally:
         L.fmi2FreeInstance(c)
 

@@ -13,7 +13,10 @@ otherwise (NewtonReplay.disagreements), so a C Newton policy that differs from i
 (a threshold, the refresh rule REFRESH_AFTER, the serves verdict) fails the test.
 Reaction loads (f, t) are residual rows at the last evaluated iterate, one increment before the accepted
 one: their round-off passes through the ill-conditioned iteration matrix (condition ~1e11 on B1), so
-they get test_backends.py's 2e-6 of their field's largest value; the energies 1e-9 of the largest.
+they get test_backends.py's 2e-6 of their field's largest value; the energies 1e-9 of the largest. So do
+the accelerations a, dw (accel.c against runtime/accelerations.py): they are made of the rates vdot of the
+last increment, the dynamic rows' unknowns, whose round-off passes through the same matrix (measured: at
+most 3.3e-8 of their field's largest value, tip.a of disk_rotor-full; 1.6e-9 on B1).
 
 The C runs go through all three ways the body steps: a scene's schedule evaluated in C
 (BodySystem.run_schedule, one step per call), the inputs given per step (BodySystem.step, as a free
@@ -61,7 +64,7 @@ RUNS = {
                               "schedule"),
     "B5-compliant-extrapolated": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "extrapolated"),
 }
-KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t")
+KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t", "a", "dw")  # a, dw: from the solved rates (accel.c)
 POINT_STEPS = 5  # internal steps per communication step of the held-input runs
 
 

@@ -67,7 +67,12 @@ def equations_text(terms: str, full_terms, stiffening: bool) -> str:
                if stiffening else "off."))
 
 PART_FIELDS = {"translation": ("r", "v", "f", "a"), "rotation": ("R", "w", "t", "dw")}
-MOTION_ONLY = ("a", "dw")  # inputs of motion-driven parts; a force-driven part has no such variable
+# a, dw: inputs of a motion-driven part (extrapolation), outputs of a force-driven one (the node's accelerations)
+ACCELERATION_OUTPUT = (
+    "the true acceleration at the communication point: the time derivative of the node's velocity there, from "
+    "the rates of the velocity field the step ending there solved for (not the generalized-alpha "
+    "acceleration-like variable; docs/fmu.md)"
+)
 
 # The rules below are the one source of what the FMU does between communication points: the
 # variable descriptions, the modelDescription text (builder.DESCRIPTION) and docs/fmu.md quote them
@@ -151,14 +156,14 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
             shape, unit, meaning = FIELDS[field]
             causality = port_field_causality(p.translation, p.rotation, field)
             part = "translation" if field in PART_FIELDS["translation"] else "rotation"
-            if field in MOTION_ONLY and causality != "input":
-                continue
             how = f"{part} {getattr(p, part)}-driven"
             if causality == "input":
                 rule = INPUT_RULE[field].format(p=p.name)
                 if getattr(p, part) == "compliant":
                     rule = f"{COMPLIANT_INPUT}; {rule}"
                 desc = f"{meaning} [input, {how}; {rule}]"
+            elif field in ("a", "dw"):
+                desc = f"{meaning} [output, {how}; {ACCELERATION_OUTPUT}]"
             else:
                 desc = f"{meaning} [output at the communication point, {how}]"
             for idx in _indices(shape):
@@ -232,8 +237,8 @@ COMPLIANT_INPUT = ("the far end of the port's coupling spring-damper (compliant 
                    "the motion of the partner, extrapolated like a motion input")
 # compliant part -> (node frame outputs, coupling parameters: (suffix, unit, meaning, index in PortData.compliance))
 COMPLIANT = {
-    "translation": (("r", "v"), (("k", "N/m", "stiffness, world axes", 0), ("c", "N.s/m", "damping, world axes", 1))),
-    "rotation": (("R", "w"), (("k_rot", "N.m/rad", "rotational stiffness, nodal axes", 2),
+    "translation": (("r", "v", "a"), (("k", "N/m", "stiffness, world axes", 0), ("c", "N.s/m", "damping, world axes", 1))),
+    "rotation": (("R", "w", "dw"), (("k_rot", "N.m/rad", "rotational stiffness, nodal axes", 2),
                               ("c_rot", "N.m.s/rad", "rotational damping, nodal axes", 3))),
 }
 
@@ -252,7 +257,8 @@ def _compliant_variables(p) -> list[Variable]:
             for idx in _indices(shape):
                 out.append(Variable(port_variable(p.name, "node." + field, idx), "Real", "output", "continuous", unit,
                                     f"{meaning} of the body's own node at compliant port {p.name} "
-                                    "[output at the communication point]", None, "port", p.name, "node." + field, idx))
+                                    + (f"[output; {ACCELERATION_OUTPUT}]" if field in ("a", "dw") else
+                                       "[output at the communication point]"), None, "port", p.name, "node." + field, idx))
         for suffix, unit, meaning, row in params:
             for i in range(3):
                 out.append(Variable(component_name(f"{p.name}.coupling.{suffix}", (i,)), "Real", "parameter", "fixed", unit,

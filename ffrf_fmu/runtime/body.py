@@ -11,6 +11,7 @@ from typing import Callable
 
 import numpy as np
 
+from .accelerations import port_accelerations
 from .data import BodyData
 from . import outputs, stiffening
 from .fused import FusedResidual
@@ -514,12 +515,14 @@ class BodySystem(GeneralizedAlpha):
     ENERGY_FIELDS = outputs.ENERGY_FIELDS  # the keys of `energies`, in a row's order
 
     def port_array(self) -> np.ndarray:
-        """(n_ports, 24) port outputs, one row per port in data.ports order: r, R (row-major), v, w, f, t."""
+        """(n_ports, 30) port outputs, one row per port in data.ports order: r, R (row-major), v, w, f, t, and
+        the node's true accelerations a, dw at the end of the step (runtime/accelerations.py)."""
         k = self._port_nodes
         zN = self.yd[: 6 * self.layout.n_nodes].reshape(-1, 6)[k]
         R = self.RN[k]
         w = (zN[:, None, 3:6] @ np.swapaxes(R, -1, -2))[:, 0]  # R W
-        return np.concatenate([self.xN[k], R.reshape(-1, 9), zN[:, 0:3], w, self.fN[k], self.tN[k]], axis=1)
+        return np.concatenate([self.xN[k], R.reshape(-1, 9), zN[:, 0:3], w, self.fN[k], self.tN[k],
+                               port_accelerations(self)], axis=1)
 
     def output_row(self) -> np.ndarray:
         """One row of a time series (simulate.record's layout): port_array raveled, the energies in
@@ -533,7 +536,8 @@ class BodySystem(GeneralizedAlpha):
     def outputs(self) -> dict[str, PortValues]:
         rows = self.port_array()
         return {
-            p.name: PortValues(r=row[0:3], R=row[3:12].reshape(3, 3), v=row[12:15], w=row[15:18], f=row[18:21], t=row[21:24])
+            p.name: PortValues(r=row[0:3], R=row[3:12].reshape(3, 3), v=row[12:15], w=row[15:18], f=row[18:21], t=row[21:24],
+                               a=row[24:27], dw=row[27:30])
             for p, row in zip(self.data.ports, rows)
         }
 

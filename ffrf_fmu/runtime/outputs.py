@@ -25,9 +25,10 @@ FIELDS = {
 PORT_FIELD_ORDER = ("r", "R", "v", "w", "f", "t", "a", "dw")
 
 # The outputs of every port in a time-series row, in this order, 3 or 9 columns each (R row-major):
-# BodySystem.port_array's columns
-OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")
-OUTPUT_WIDTH = sum(int(np.prod(FIELDS[f][0])) for f in OUTPUT_FIELDS)  # 24 columns per port
+# BodySystem.port_array's columns, advance.c ffrf_record's (FFRF_OUTPUT_WIDTH), the FMUs' output maps.
+# a, dw: the true accelerations of the port's node at the end of the step (runtime/accelerations.py)
+OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t", "a", "dw")
+OUTPUT_WIDTH = sum(int(np.prod(FIELDS[f][0])) for f in OUTPUT_FIELDS)  # 30 columns per port
 
 ENERGIES = {
     "kinetic_rigid": "kinetic energy of the rigid (CM frame) motion of all superelements",

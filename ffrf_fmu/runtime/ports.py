@@ -10,7 +10,7 @@ import numpy as np
 class PortValues:
     """Values of one port. As input only the parts named by the causality are read:
     motion translation -> r, v; motion rotation -> R, w; force translation -> f; force rotation -> t.
-    As output every field is filled."""
+    As output every field is filled (a, dw: the node's accelerations at the end of the step)."""
 
     r: np.ndarray | None = None  # (3,) position of the nodal frame origin [m]
     R: np.ndarray | None = None  # (3, 3) nodal axes in world axes
@@ -18,8 +18,8 @@ class PortValues:
     w: np.ndarray | None = None  # (3,) angular velocity, world axes [rad/s]
     f: np.ndarray | None = None  # (3,) force ON the body [N]
     t: np.ndarray | None = None  # (3,) moment ON the body [N m]
-    a: np.ndarray | None = None  # (3,) acceleration of the node [m/s^2] (motion input only)
-    dw: np.ndarray | None = None  # (3,) angular acceleration, world axes [rad/s^2] (motion input only)
+    a: np.ndarray | None = None  # (3,) acceleration of the node [m/s^2] (input of a motion-driven translation)
+    dw: np.ndarray | None = None  # (3,) angular acceleration, world axes [rad/s^2] (input of a motion-driven rotation)
 
 
 class StepFailure(RuntimeError):

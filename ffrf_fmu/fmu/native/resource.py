@@ -26,15 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...runtime import input_rule
+from ...runtime.outputs import ENERGY_FIELDS, OUTPUT_FIELDS, OUTPUT_WIDTH  # the output row's layout
 from ...runtime.terms import TERM_SETS
 from ..variables import Variable
 
 MAGIC = b"FFRFFMU\0"
 FORMAT_VERSION = 1  # model.h FMU_FORMAT_VERSION
 HEADER = struct.Struct("<8sIIQQQ")
-OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t")  # BodySystem.OUTPUT_FIELDS: the output row's port columns
-OUTPUT_WIDTH = 24
-ENERGY_FIELDS = ("kinetic_rigid", "kinetic_elastic", "strain", "work_external")
 PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
 DKIND = {"f": 0, "t": 0, "r": 1, "R": 1, "v": 2, "w": 2, "a": 3, "dw": 3}

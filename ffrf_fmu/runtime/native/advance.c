@@ -197,7 +197,8 @@ void ffrf_extrapolated_inputs(ffrf_body *b, double t, double t_c)
     }
 }
 
-/* One row of simulate.record: per port r, R (row-major), v, w = R W, f, t (BodySystem.port_array); the
+/* One row of simulate.record: per port r, R (row-major), v, w = R W, f, t and the node's true accelerations
+ * a, dw (accel.c) (BodySystem.port_array); the
  * energies kinetic_rigid, kinetic_elastic, strain, work_external (BodySystem.energies); the iterations of
  * the last step. BodySystem.output_row. */
 void ffrf_record(const ffrf_body *b, double *row)
@@ -220,6 +221,7 @@ void ffrf_record(const ffrf_body *b, double *row)
             for (int m = 0; m < 3; m++)
                 row[col + 3 + 3 * i + m] = RNk[3 * i + m];
         }
+        ffrf_port_accelerations(b, j, row + col + 24, row + col + 27);
         col += FFRF_OUTPUT_WIDTH;
     }
     double *q = b->work.q_rec, Jq[9];

@@ -285,6 +285,9 @@ static const array_spec OWN[] = {
     {"S", 'd', AT(work.S), S(d_fields)},
     {"row", 'd', AT(work.row), S(d_row)},
     {"q_rec", 'd', AT(work.q_rec), S(d_n)},
+    {"M_luT", 'd', AT(work.M_luT), S(d_E, d_n, d_n)},
+    {"M_piv", 'i', AT(work.M_piv), S(d_E, d_n)},
+    {"acc", 'd', AT(work.acc), S(3, d_n)},
 };
 
 #define COUNT(a) (sizeof(a) / sizeof((a)[0]))
@@ -550,6 +553,10 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     b->work.se = ffrf_se_work_bind(at, d);
     if (partition(b, err, err_len))
         goto failed;
+    if (ffrf_mass_factors(b)) {
+        fail(err, err_len, "%sbody image: a superelement's mass matrix M_bar is singular%lld%lld", "", 0, 0);
+        goto failed;
+    }
     reset_state(b, es);
     free(es);
     return b;

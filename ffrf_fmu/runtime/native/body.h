@@ -169,8 +169,11 @@ typedef struct {
     double *Fl, *Fz, *Fy;             /* [nv + nc], [nv + nc][nc + nv] x 2 */
     double *b, *b_stale;              /* [nf] */
     double *S;                        /* [n_fields] */
-    double *row;                      /* [OUTPUT row]: 24 n_ports + 5 */
+    double *row;                      /* [OUTPUT row]: FFRF_OUTPUT_WIDTH n_ports + 5 */
     double *q_rec;                    /* [n] */
+    double *M_luT;                    /* [E][n][n] LU factors of each M_bar (transposed), made at creation: accel.c */
+    int *M_piv;                       /* [E][n] */
+    double *acc;                      /* [3][n] q_bar, q_bar', q_bar'' of accel.c */
     ffrf_se_work *se;                 /* superelement.c */
 } ffrf_work;
 
@@ -240,5 +243,8 @@ void ffrf_extrapolated_inputs(ffrf_body *b, double t, double t_c);
 /* One output row (simulate.record's layout): per port r, R, v, w, f, t (24), then kinetic_rigid,
  * kinetic_elastic, strain, work_external, iterations. */
 void ffrf_record(const ffrf_body *b, double *row);
+/* ---- accel.c: a port's true accelerations at the end of the step (runtime/accelerations.py) ---- */
+void ffrf_port_accelerations(const ffrf_body *b, int port, double a[3], double dw[3]);
+int ffrf_mass_factors(ffrf_body *b);
 
 #endif

@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SOURCES = ("so3.c", "superelement.c", "factor.c", "step.c", "advance.c", "body.c")
+SOURCES = ("so3.c", "superelement.c", "factor.c", "step.c", "advance.c", "accel.c", "body.c")
 HEADERS = ("ffrf_runtime.h", "body.h")
 # -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
 # within expressions); -fvisibility=hidden with the public API marked by FFRF_API (ffrf_runtime.h)

@@ -17,7 +17,7 @@ enum { FFRF_CORIOLIS = 1, FFRF_COUPLING = 2 };
 /* where a step's inputs come from */
 enum { FFRF_GIVEN = 0, FFRF_SCHEDULED = 1, FFRF_EXTRAPOLATED = 2 };
 
-#define FFRF_OUTPUT_WIDTH 24  /* output columns per port: r, R (row-major), v, w, f, t */
+#define FFRF_OUTPUT_WIDTH 30  /* output columns per port: r, R (row-major), v, w, f, t, a, dw (runtime/outputs.py) */
 #define FFRF_N_ENERGIES 4     /* kinetic_rigid, kinetic_elastic, strain, work_external */
 #define FFRF_POINT_WIDTH 30    /* runtime/input_rule.py COLUMNS: r 0, v 3, a 6, R 9, w 18, dw 21, f 24, t 27 */
 
