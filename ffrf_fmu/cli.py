@@ -164,13 +164,11 @@ def info(args) -> int:
         inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
     quality = None
     if body.solid is not None:  # what an FE analyst checks beside a reduced solid (solid/quality.py)
-        from .solid.quality import effective_mass, frequency_report
+        from .solid.quality import quality_report
 
         red = reductions[0]
         top = float(red.data.frequencies_hz[-1]) if len(red.data.frequencies_hz) else 0.0
-        cut = 2.0 * top if top else None
-        quality = {"cutoff_hz": cut, "modes": frequency_report(red, cut) if cut else [],
-                   "effective_mass_fraction": effective_mass(red, cut if cut else None)}
+        quality = quality_report(red, 2.0 * top if top else None)
     if args.json:
         from dataclasses import asdict
 
@@ -225,8 +223,10 @@ def info(args) -> int:
         print(f"  reduction quality up to {quality['cutoff_hz']:.4g} Hz (2 x the highest kept mode; docs/solids.md): "
               "full -> reduced [Hz] (MAC)")
         print("    " + ", ".join(f"{m['full_hz']:.4g} -> {m['reduced_hz']:.4g} ({m['mac']:.3f})" for m in quality["modes"]))
-        print("  effective mass clamped at a port, modes up to the cutoff (x, y, z, rx, ry, rz): "
-              + "; ".join(f"{k} " + " ".join(f"{v:.2f}" for v in fr) for k, fr in quality["effective_mass_fraction"].items()))
+        print("  effective mass clamped at a port, modes up to the cutoff, full FE model / reduced (x, y, z, rx, ry, rz):")
+        for k, fr in quality["effective_mass_fraction"].items():
+            full = quality["full_effective_mass"][k]["fraction"]
+            print(f"    {k}: " + "  ".join(f"{a:.3f}/{b:.3f}" for a, b in zip(full, fr)))
     worst = lambda key: max(s.get(key, 0.0) for s in inertia["superelements"])  # noqa: E731
     print(f"  inertia terms (docs/inertia-terms.md; worst superelement, modes at {inertia['deflection']:.0%} "
           f"deflection):\n    about the worst axis W1 q/I0 {worst('W1q_over_I0_axis'):.1e}, "

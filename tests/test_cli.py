@@ -23,6 +23,19 @@ def run(*args):
 # hinged-free (root on the spherical joint) 1.7435 Hz, both Euler-Bernoulli. 0.5 % covers what
 # the model adds to the closed form: shear flexibility and rotary inertia (B1's are small: the
 # beam is slender) and the modal truncation of 6 modes per superelement.
+def test_info_prints_a_solid_s_reduction_quality():
+    """`info` on a solid prints the reduction quality report (solid/quality.py): frequencies with MAC, and the
+    effective mass clamped at each port, the full FE model's beside the reduced body's."""
+    out = run("info", "models/haug_solid.toml")
+    assert out.returncode == 0, out.stderr
+    assert "full -> reduced [Hz] (MAC)" in out.stdout
+    lines = out.stdout.splitlines()
+    head = next(i for i, s in enumerate(lines) if "effective mass clamped at a port" in s and "full FE model / reduced" in s)
+    for port, line in zip(("hub", "tip"), lines[head + 1 : head + 3]):
+        pairs = [tuple(map(float, p.split("/"))) for p in line.split(":")[1].split()]
+        assert line.strip().startswith(port) and len(pairs) == 6 and all(0 <= a <= 1 and 0 <= b <= 1 for a, b in pairs)
+
+
 @pytest.mark.parametrize("model, first_hz", [("haug_beam.toml", 0.4640), ("spherical_beam.toml", 1.7435)])
 def test_info_json(model, first_hz):
     out = run("info", f"models/{model}", "--json")
