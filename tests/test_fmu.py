@@ -526,7 +526,7 @@ def test_b2_fmu_matches_standalone_and_converges(tmp_path):
         axis = ref.body.node_positions[-1] - ref.body.node_positions[0]
         d_ref, d = elastic_tip(ref, "root", "tip"), elastic_tip(fr, "root", "tip")
         peak_ref, peak = _transverse(d_ref, axis).max(), _transverse(d, axis).max()
-        assert abs(peak - peak_ref) <= 1e-3 * peak_ref, (h, peak, peak_ref)
+        assert abs(peak - peak_ref) <= 1e-10 * peak_ref, (h, peak, peak_ref)  # round-off: measured <= 7e-13
         n = min(len(fr.t), len(ref.t))
         diffs.append(np.max(np.abs(d[:n] - d_ref[:n])) / peak_ref)
     assert max(diffs) < 1e-10, diffs

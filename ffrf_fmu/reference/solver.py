@@ -37,6 +37,10 @@ below 1e-5 relative).
 Prescribed motion (port parts with causality "motion") is imposed exactly on the node's
 position and/or rotation with velocity and acceleration from the drive's time function; those
 dofs are eliminated (identity rows), and the reaction is the residual of their equations.
+
+Over 400 lines: the full-order model's mesh, scene tables and solvers (the dynamic run with its step and
+Newton, the static relaxation and equilibrium), which share the mesh's node layout and its banded
+solver; the element forces and tangents are in reference/beam.py, the steady start in reference/steady.py.
 """
 from __future__ import annotations
 

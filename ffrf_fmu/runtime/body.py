@@ -3,6 +3,10 @@
 outputs. The equations are in runtime/equations.py (plain, one superelement at a time) and
 runtime/fused.py (all superelements at once, the fast path); the time step in runtime/integrator.py;
 where each unknown lives in runtime/layout.py.
+
+Over 400 lines: one class, the body's state and everything read from or written into it (state and
+snapshots, inputs, initial conditions, outputs, energies, mass properties), which share its arrays; its
+equations, layout and step live in the modules named above.
 """
 from __future__ import annotations
 
@@ -56,6 +60,11 @@ def _value(values: PortValues, field: str, port: str, t: float) -> np.ndarray:
     if type(val) is np.ndarray and val.dtype == np.float64 and val.shape == ((3, 3) if field == "R" else (3,)):
         return val
     return _input(values, field, port, t)
+
+
+def _not_a_rotation(t: float, port: str) -> StepFailure:
+    """The failure of an input R that is not a rotation (rotation.is_rotation), for a motion or compliant port."""
+    return StepFailure(t, f"port {port!r}: input R is not a rotation matrix (|R^T R - I| > {ROTATION_TOL:g} or det < 0)")
 
 
 class BodySystem(GeneralizedAlpha):
@@ -300,7 +309,7 @@ class BodySystem(GeneralizedAlpha):
                 ends = (_input(pv, "r", p.name, t) if ct else None, _input(pv, "v", p.name, t) if ct else None,
                         _input(pv, "R", p.name, t) if cr else None, _input(pv, "w", p.name, t) if cr else None)
                 if cr and not is_rotation(ends[2]):
-                    raise StepFailure(t, f"port {p.name!r}: input R is not a rotation matrix (|R^T R - I| > {ROTATION_TOL:g} or det < 0)")
+                    raise _not_a_rotation(t, p.name)
                 springs.append((k, ct, cr, self.compliance[p.name], ends))
             if p.translation == "motion":
                 xN[k], zN[k, 0:3] = _value(pv, "r", p.name, t), _value(pv, "v", p.name, t)
@@ -324,7 +333,7 @@ class BodySystem(GeneralizedAlpha):
         for k in self._motion_R:
             if not is_rotation(RN[k]):
                 name = next(p.name for p in self.data.ports if p.node == k and p.rotation == "motion")
-                raise StepFailure(t, f"port {name!r}: input R is not a rotation matrix (|R^T R - I| > {ROTATION_TOL:g} or det < 0)")
+                raise _not_a_rotation(t, name)
         self._springs = springs
         return xN, RN, zN, f, tq
 

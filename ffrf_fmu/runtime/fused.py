@@ -17,6 +17,9 @@ Jacobian blocks (`local_jacobian`) follow docs/equations.md, all boundary nodes 
 
 Names (docs/equations.md): Q = R0^T R_P, H = H(Q) the tangent of vect, rho = X_P + d_P,
 g = [g_d, g_alpha per node; g_eta] the elastic force (78), h the angular momentum J0 Omega0 [+ s].
+
+Over 400 lines: one class whose evaluation and Jacobian templates are built together from the same index
+arrays (gathers, scatters); split, both halves would rebuild them.
 """
 from __future__ import annotations
 

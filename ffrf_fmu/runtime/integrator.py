@@ -19,6 +19,10 @@ once), so a Newton iteration is one stage (a multiply-add and the exponentials) 
 
 `GeneralizedAlpha` is the stepping half of `body.BodySystem` (a mixin: it works on the body's
 state, its `FusedResidual` and its inputs).
+
+Over 400 lines: one class, the step and its modified Newton, whose decisions (keep, refresh, replay the
+factorization; the predictor; the rotation checks) read and write the same iteration state; split, the
+rules would be apart from the state they govern.
 """
 from __future__ import annotations
 
