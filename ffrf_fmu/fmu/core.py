@@ -28,6 +28,7 @@ import numpy as np
 
 from ..runtime import input_rule
 from ..runtime.data import BodyData
+from ..runtime.outputs import tip_from_hub
 from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
@@ -452,9 +453,9 @@ class BodyCoSim:
         dst, src, seen, frame, dX = self._output_map
         row = self.system.output_row() if row is None else row
         row[-1] = iterations  # the most of the communication step's internal steps, not the last one's
-        if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f)
+        if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f), one per probe
             pr = row[: BodySystem.OUTPUT_WIDTH * len(self.data.ports)].reshape(len(self.data.ports), -1)
-            d = np.einsum("pji,pj->pi", pr[frame, 3:12].reshape(-1, 3, 3), pr[seen, 0:3] - pr[frame, 0:3]) - dX
+            d = tip_from_hub(pr[frame, 3:12].reshape(-1, 3, 3), pr[frame, 0:3], pr[seen, 0:3], dX)
             row = np.concatenate([row, d.ravel()])
         return dst, row[src]
 
