@@ -249,7 +249,7 @@ class CoSimulation(InterfaceJacobian):
 
     def _iterated_links(self) -> list:
         """Links whose source steps after (GS) or together with (Jacobi) the receiver: the
-        values iterated on in implicit coupling (held links only; motion links follow the
+        values iterated on in implicit coupling (Signal links only; motion links follow the
         latest sweep)."""
         pos = {n: i for i, n in enumerate(self.order)}
         out = []

@@ -47,9 +47,9 @@ MODE_BAND = 3.0
 MIN_MODES = 2
 # Resolve the drive's time scale (a spin-up's T) with at least this many steps: on B1 (T = 15 s)
 # Newton converges at h = 40 ms (T/375) with 2 and 4 superelements and fails at 50 ms (T/300) and
-# above (measured; docs/accuracy.md). An empirical robustness limit of the nonlinear solver, measured
-# before issue 10's Newton changes: since then B1 runs through at 50 ms and fails at 100 ms
-# (tests/test_stability.py, T = 7.5 s), so the limit is conservative by 2 x or more.
+# above (the B1 chart of 2026-11-22, docs/accuracy.md section 2). An empirical robustness limit of that
+# chart's Newton: today's runs B1 through at 50 and 100 ms and fails at 200 ms (tests/test_stability.py,
+# T = 7.5 s), so the limit is conservative by about 4 x (docs/accuracy.md section 4.3).
 STEPS_PER_DRIVE_TIME = 400
 MAX_SUPERELEMENTS = 32  # the chain search stops here (a cap, with a warning in the advice)
 # Geometric nonlinearity inside a superelement (its elastic kinematics are linear): the steady deflection

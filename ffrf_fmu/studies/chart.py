@@ -111,7 +111,7 @@ def front_cost_at(cost: Sequence[float], error: Sequence[float], target: float) 
 
 
 # ------------------------------------------------------------------------------ peers
-# the peer's default sweep (issue 10: Exudyn's 3D beam over these meshes and steps)
+# the peer's default sweep (Exudyn's 3D beam over these meshes and steps)
 PEER_SWEEP = {"elements": ["2", "3", "4", "6", "8", "16"], "step": ["0.002", "0.005", "0.01", "0.02", "0.04"]}
 
 
