@@ -100,7 +100,7 @@ def static_displacements(body: BodyData, loads: dict[int, np.ndarray], fixed: np
     free = _free(K.shape[0], motion_fixed_dofs(body) if fixed is None else fixed)
     Kff = K[np.ix_(free, free)]
     d = 1.0 / np.sqrt(np.abs(np.diag(Kff)))
-    # Jacobi-scaled condition: ~1e3..1e5 when held isostatically, ~1e17 with a rigid mode left
+    # Jacobi-scaled condition: ~1e3..1e5 when fixed isostatically, ~1e17 with a rigid mode left
     if np.linalg.cond(Kff * np.outer(d, d)) > 1e12:
         raise ValueError("chain stiffness is singular with these fixed dofs: hold the rigid-body motion")
     x = sla.solve(Kff, f[free], assume_a="pos")

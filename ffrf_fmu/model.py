@@ -158,8 +158,8 @@ class TranslationDrive:
 @dataclass(frozen=True)
 class Drive:
     port: str
-    rotation: RotationDrive | None = None  # None: held at the reference orientation
-    translation: TranslationDrive | None = None  # None: held at the reference position
+    rotation: RotationDrive | None = None  # None: fixed at the reference orientation
+    translation: TranslationDrive | None = None  # None: fixed at the reference position
 
 
 @dataclass(frozen=True)

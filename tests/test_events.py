@@ -110,9 +110,9 @@ def test_fmu_input_table_carries_the_windows_impulse(kick, H):
     model = load_model(kick)
     scene = model.scene("kick")
     body = reduce_scene_body(model.body, scene).data
-    held = scene_inputs(body, scene, load_interval=(0.0, H))
+    window_mean = scene_inputs(body, scene, load_interval=(0.0, H))
     grid = np.arange(int(round(1.0 / H)) + 1) * H
-    impulse = sum(held(t)["b"].f[2] * H for t in grid[:-1])
+    impulse = sum(window_mean(t)["b"].f[2] * H for t in grid[:-1])
     assert impulse == pytest.approx(0.2, rel=1e-12)
     ending = scene_inputs(body, scene, load_interval=(-H, 0.0))
     assert sum(ending(t)["b"].f[2] * H for t in grid[1:]) == pytest.approx(0.2, rel=1e-12)

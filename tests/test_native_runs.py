@@ -65,7 +65,7 @@ RUNS = {
     "B5-compliant-extrapolated": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "extrapolated"),
 }
 KINEMATIC, LOADS = ("r", "R", "v", "w"), ("f", "t", "a", "dw")  # a, dw: from the solved rates (accel.c)
-POINT_STEPS = 5  # internal steps per communication step of the held-input runs
+POINT_STEPS = 5  # internal steps per communication step of the extrapolated-input runs
 
 
 def _scene(name):

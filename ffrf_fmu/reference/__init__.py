@@ -39,7 +39,7 @@ Conventions (same scene semantics as the superelement path):
   for motion-driven parts, the scene's load for force-driven parts). RotationDrive: R(t) =
   exp(phi(t) axis) about the world axis through the port's reference position; TranslationDrive:
   r = r_ref + u(t) direction (axes and directions are normalized); a motion part without drive is
-  held at the reference. Loads are dead (world-fixed) forces and moments, active on
+  fixed at the reference. Loads are dead (world-fixed) forces and moments, active on
   [t_start, t_end). Gravity acts on the (consistent) mass.
 - Energies: "kinetic" (translational + rotary), "strain", "work_external" (trapezoidal integral
   of the power of loads, gravity and reactions); kinetic + strain - work_external minus its

@@ -69,7 +69,7 @@ def run_configuration(model_path: str, scene_name: str | None, base_overrides: S
             res = sim.run(body, sc, origin=model.body.origin, progress=False, backend=backend)
             s = res.summary
             # wall and CPU of the same span (the run): CPU timed
-            # around the whole call also held the set-up and the summary, and exceeded the wall on short runs
+            # around the whole call also covered the set-up and the summary, and exceeded the wall on short runs
             out |= {"wall_time_s": s["wall_time_s"], "cpu_time_s": s["cpu_time_s"], "completed": bool(s["completed"]), "failure": s["failure"],
                     "t_end_s": s["t_end"], "newton_iterations_mean": s["newton_iterations_mean"],
                     "backend": s.get("backend")}  # the one that ran (native falls back to numpy with a note)
