@@ -4,7 +4,8 @@ equilibrium under gravity and the loads acting at t = 0, the motion-driven ports
 them) or "steady_spin" (the relative equilibrium of the body whose motion-driven ports spin at the rotation
 drive's rate at t = 0: deformed by the centrifugal load, every point moving with the spin). Either way the
 first step starts from an equilibrium, so a run, or a co-simulation, does not begin with the transient of
-a body released undeformed.
+a body released undeformed. An FMU built from such a scene starts from the same state, made at build time
+(fmu/builder.py `start_states`, runtime/start.py).
 
 Both are the relative equilibrium of linear.py (block comment "The runtime equations linearized about a
 steady spin"): with the rates of the steady motion ydot(y) = P-rule for the spin w (w = 0: static),
@@ -94,15 +95,11 @@ def settle(system, scene, inputs, t0: float = 0.0, tol: float = 1e-10, max_iter:
     else:
         raise StepFailure(t0, f"initial state {state!r}: Newton did not converge in {max_iter} iterations (last "
                               f"correction {step:.3g}): the loads or the spin are beyond what the body holds")
+    from .runtime.start import finish
+
     yd = _spin_rates(system, w)
     system.yd = yd
     system.yd_prev = yd.copy()
     system.yd_prev2 = yd.copy()
     system.a = yd.copy()
-    system.fN, system.tN = f_in.copy(), t_in.copy()
-    F = system._local(system.xN, system.RN, system.x0, system.R0, system.eta, system.v, system.yd, False)[0]
-    F[:n_node] += system._loads(system.RN, f_in, t_in).ravel()
-    system._update_port_loads(F, f_in, t_in)
-    system.power = system._external_power()
-    system.work = 0.0
-    system._lu = None
+    finish(system, f_in, t_in)

@@ -193,6 +193,29 @@ class SceneParameters:
         }
 
 
+def start_states(data: BodyData, scene, origin=None) -> dict | None:
+    """The scene's start state ([scenes.NAME.initial] state static or steady_spin: initial_state.settle) of
+    `data` for each term set an FMU offers, made here at build time for the FMU to start from
+    (runtime/start.py): {"state": name, "gravity": [3], "terms": {term set: {field: array}}}; None for "rest".
+    The same state as the standalone run's (simulate.build_system)."""
+    if scene.initial.state == "rest":
+        return None
+    from ..runtime.start import capture
+    from ..simulate.loop import InitializationFailure, build_system
+
+    out = {}
+    for terms in TERM_SETS:
+        if terms == "full" and any(se.W2 is None for se in data.superelements):
+            continue
+        try:
+            system, _ = build_system(data, dataclasses.replace(scene, terms=terms),
+                                     origin if origin is not None else data.node_positions[0], backend="numpy")
+        except InitializationFailure as e:
+            raise BuildError(str(e)) from None
+        out[terms] = capture(system)
+    return {"state": scene.initial.state, "gravity": [float(g) for g in scene.gravity], "terms": out}
+
+
 def _sources(directory: Path, names=None) -> dict[str, str]:
     files = sorted(directory.glob("*.py")) if names is None else [directory / n for n in names]
     return {f.name: f.read_text(encoding="utf-8") for f in files}
@@ -255,6 +278,7 @@ def build_python_fmu(
     build_info: dict | None = None,
     native_loader: bool = True,
     backend: str = "native",
+    start: dict | None = None,
 ) -> Path:
     """Write the FMU of `data` to `dest` (a .fmu file name, or a directory) and return its path.
 
@@ -265,6 +289,7 @@ def build_python_fmu(
     hosts can load (no directional derivatives).
     backend: "native" (the slave steps in the C runtime, compiled here and shipped) or "numpy" (the
     reference implementation, shipped as Python modules).
+    start: the start state of `start_states` (the FMU initializes there), None: from rest.
     """
     if backend not in ("native", "numpy"):
         raise BuildError(f"the pythonfmu FMU's slave steps on backend native or numpy, got {backend!r}")
@@ -286,6 +311,10 @@ def build_python_fmu(
         "build": build_info or {},
         "backend": backend,
     }
+    if start is not None:  # floats as JSON numbers (repr: exact), read by core.BodyCoSim._start
+        config["start"] = {"state": start["state"], "gravity": start["gravity"],
+                           "terms": {t: {k: np.asarray(a).tolist() for k, a in arrays.items()}
+                                     for t, arrays in start["terms"].items()}}
     stage_dir = tempfile.TemporaryDirectory(prefix="ffrf_fmu_build_")
     stage = Path(stage_dir.name)
     # the loader first: it is what provides fmi2GetDirectionalDerivative, which the modelDescription
@@ -400,6 +429,7 @@ def build_fmu(model_path, dest, *, scene: str | None = None, overrides=(), backe
     model = load_model(model_path, overrides)
     sc = model.scene(scene)
     data = reduce_scene_body(model.body, sc).data
+    start = start_states(data, sc, model.body.origin)
     info = {"model_file": str(Path(model_path).name), "model_sha256": hashlib.sha256(Path(model_path).read_bytes()).hexdigest(),
             "scene": sc.name, "overrides": list(overrides), "scenes": [s.name for s in model.scenes]}
     if runtime == "native":
@@ -408,11 +438,12 @@ def build_fmu(model_path, dest, *, scene: str | None = None, overrides=(), backe
 
         try:
             return build_native_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin,
-                                    build_info=info, platforms=platforms, compiler=compiler, log=log, fmi=fmi)
+                                    build_info=info, platforms=platforms, compiler=compiler, log=log, fmi=fmi,
+                                    start=start)
         except NativeBuildError as e:
             raise BuildError(str(e)) from None
     return build_python_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
-                     backend=backend, native_loader=native_loader)
+                     backend=backend, native_loader=native_loader, start=start)
 
 
 def read_fmu_config(fmu_path) -> dict:

@@ -331,6 +331,7 @@ class BodyCoSim:
                     port_displacements=p["port_displacements"] or None,
                     origin=self.origin,
                 )
+            msg = self._start(p, point) if self.config.get("start") else ""
         except StepFailure as e:
             self.failure = f"initialization failed at t = {e.time:.6g} s: {e.cause}"
             return self.failure
@@ -338,9 +339,32 @@ class BodyCoSim:
             self.failure = (f"initialization failed at t = {self.start_time:.6g} s: {type(e).__name__}: {e}\n"
                             f"{traceback.format_exc()}")
             return self.failure
+        if msg:
+            self.failure = f"initialization failed at t = {self.start_time:.6g} s: {msg}"
+            return self.failure
         self._write_outputs(0)
         self._initialized_with = self.values[np.concatenate([self.input_ix, self.param_ix])].copy()
         return ""
+
+    def _start(self, p: dict, point) -> str:
+        """The body initialized at the inputs of t0 put in the start state made at build (the scene's static
+        equilibrium or steady spin, runtime/start.py), after the checks that it holds for these parameters
+        and inputs; '' or why not."""
+        from ..runtime import start as st
+
+        start = self.config["start"]
+        msg = st.parameter_mismatch(start["state"], start["gravity"], p["gravity"], p["initial_velocity"],
+                                    p["initial_angular_velocity"], p["port_displacements"].items())
+        arrays = start["terms"].get(TERM_SETS[p["terms"]])
+        if msg or arrays is None:
+            return msg or f"no start state for term set {TERM_SETS[p['terms']]!r} in this FMU"
+        arrays = {k: np.asarray(v, dtype=float) for k, v in arrays.items()}
+        msg = st.mismatch(self.system, arrays)
+        if not msg:
+            inputs = input_rule.extrapolate(self.data.ports, point, self.start_time)
+            f_in, t_in = self.system._read_inputs(self.start_time, inputs(self.start_time))[3:5]
+            st.adopt(self.system, arrays, f_in, t_in)
+        return msg
 
     def _inputs_changed(self) -> bool:
         now = self.values[np.concatenate([self.input_ix, self.param_ix])]

@@ -279,12 +279,12 @@ Other scenes (speeds, loads, steps) are outside what was checked at build time: 
 
 
 def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: dict | None = None,
-                     platforms=PLATFORMS, compiler: str = "zig", log=None, fmi: int = 2) -> Path:
+                     platforms=PLATFORMS, compiler: str = "zig", log=None, fmi: int = 2, start: dict | None = None) -> Path:
     """Write the native FMU of `data` to `dest` (a .fmu file name or a directory) and return its path.
 
     params: builder.SceneParameters (parameter defaults); origin: the initial rigid velocity field's origin
     (default: node 0); platforms: binaries to include (linux64, win64); compiler: "zig" (ziglang, every
-    platform) or "system" (linux64 only)."""
+    platform) or "system" (linux64 only); start: builder.start_states (the FMU initializes there), None: from rest."""
     config = params.as_config()
     build_info = dict(build_info or {})
     if params.duration is not None:
@@ -310,6 +310,9 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
     digest = hashlib.sha256()
     for image in images.values():
         digest.update(image)
+    for arrays in (start or {}).get("terms", {}).values():  # a start state is part of what the binary reads
+        for k in sorted(arrays):
+            digest.update(np.ascontiguousarray(arrays[k], dtype=float).tobytes())
     digest.update(json.dumps({"config": config, "origin": origin.tolist(),
                               "variables": [(v.name, v.causality, v.start) for v in variables]}).encode())
     guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16], version=4)) + "}"
@@ -317,7 +320,7 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
     content = ResourceContent(guid=guid, about=f"body {data.name} (ffrf-fmu {__version__})", variables=variables,
                               ports=list(data.ports), probes=list(config.get("probes", ())),
                               node_positions=np.asarray(data.node_positions, dtype=float), origin=origin,
-                              images=images)
+                              images=images, start=start)
     experiment = {"stop_time": float(params.duration), "step_size": float(params.step)} if params.duration else None
     if fmi == 3:
         xml = model_description3(variables, name=data.name, identifier=model_id, token=guid,

@@ -275,6 +275,45 @@ done:
     return status;
 }
 
+/* The port loads at t0 (the inputs, the reactions on motion parts, the springs: body `_update_port_loads`),
+ * the external power, no work done yet, no factorization kept: the end of an initialization from the state
+ * as it is (runtime/start.py `finish`). p, R, theta: work of the stage's sizes (ny; 9 (N + E); 3 (N + E), zero). */
+static void port_loads_at(ffrf_body *b, double t0, double *p, double *R, const double *theta)
+{
+    const ffrf_dims *d = &b->dims;
+    const ffrf_data *D = &b->data;
+    ffrf_state *st = &b->state;
+    const int N = d->N, E = d->E, nv = d->nv;
+    ffrf_extrapolated_inputs(b, t0, t0);
+    stage_of_state(b, p, R);
+    double *F = b->work.F;
+    ffrf_evaluate(b, b->work.se, b->in.f_in, b->in.t_in, p, st->yd, R, theta, 0, 0.0, F, NULL, b->work.Fl, b->work.Fz,
+                  b->work.Fy, b->work.T);
+    memset(b->springs.loads, 0, sizeof(double) * 6 * (size_t)N);
+    if (d->n_springs)
+        ffrf_springs_apply(b, p, st->yd, R, b->work.T, 0, 0.0, F, NULL);
+    double power = 0.0;
+    for (int k = 0; k < N; k++) {
+        const double *mp = D->motion_parts + 6 * k, *sl = b->springs.loads + 6 * k, *Rk = st->RN + 9 * k;
+        for (int i = 0; i < 3; i++) {
+            st->fN[3 * k + i] = b->in.f_in[3 * k + i] + mp[i] * F[6 * k + i] + sl[i];
+            double s = Rk[3 * i] * F[6 * k + 3] + Rk[3 * i + 1] * F[6 * k + 4] + Rk[3 * i + 2] * F[6 * k + 5];
+            st->tN[3 * k + i] = b->in.t_in[3 * k + i] + mp[3 + i] * s + sl[3 + i];
+        }
+        for (int i = 0; i < 3; i++) {
+            double s = Rk[i] * st->tN[3 * k] + Rk[3 + i] * st->tN[3 * k + 1] + Rk[6 + i] * st->tN[3 * k + 2];
+            power += st->fN[3 * k + i] * st->yd[6 * k + i] + s * st->yd[6 * k + 3 + i];
+        }
+    }
+    for (int e = 0; e < E; e++)
+        for (int i = 0; i < 3; i++)
+            power += D->mass[e] * st->v[(size_t)e * nv + i] * D->gravity[i];
+    st->energy[0] = 0.0;
+    st->energy[1] = power;
+    st->iterations = 0;
+    b->lu.meta[0] = 0.0;
+}
+
 int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const double angular_velocity[3],
                         const double origin[3], const double *port_displacements, const char *const *port_names,
                         char *err, size_t err_len)
@@ -422,35 +461,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
     memcpy(st->yd_prev, yd0, sizeof(double) * (size_t)ny);
     memcpy(st->yd_prev2, yd0, sizeof(double) * (size_t)ny);
     memcpy(st->a, yd0, sizeof(double) * (size_t)ny);
-    /* port loads at t0: the inputs, the reactions on motion parts, the springs (body `_update_port_loads`) */
-    ffrf_extrapolated_inputs(b, t0, t0);
-    stage_of_state(b, p, R);
-    double *F = b->work.F;
-    ffrf_evaluate(b, b->work.se, b->in.f_in, b->in.t_in, p, st->yd, R, theta, 0, 0.0, F, NULL, b->work.Fl, b->work.Fz,
-                  b->work.Fy, b->work.T);
-    memset(b->springs.loads, 0, sizeof(double) * 6 * (size_t)N);
-    if (d->n_springs)
-        ffrf_springs_apply(b, p, st->yd, R, b->work.T, 0, 0.0, F, NULL);
-    double power = 0.0;
-    for (int k = 0; k < N; k++) {
-        const double *mp = D->motion_parts + 6 * k, *sl = b->springs.loads + 6 * k, *Rk = st->RN + 9 * k;
-        for (int i = 0; i < 3; i++) {
-            st->fN[3 * k + i] = b->in.f_in[3 * k + i] + mp[i] * F[6 * k + i] + sl[i];
-            double s = Rk[3 * i] * F[6 * k + 3] + Rk[3 * i + 1] * F[6 * k + 4] + Rk[3 * i + 2] * F[6 * k + 5];
-            st->tN[3 * k + i] = b->in.t_in[3 * k + i] + mp[3 + i] * s + sl[3 + i];
-        }
-        for (int i = 0; i < 3; i++) {
-            double s = Rk[i] * st->tN[3 * k] + Rk[3 + i] * st->tN[3 * k + 1] + Rk[6 + i] * st->tN[3 * k + 2];
-            power += st->fN[3 * k + i] * st->yd[6 * k + i] + s * st->yd[6 * k + 3 + i];
-        }
-    }
-    for (int e = 0; e < E; e++)
-        for (int i = 0; i < 3; i++)
-            power += D->mass[e] * st->v[(size_t)e * nv + i] * D->gravity[i];
-    st->energy[0] = 0.0;
-    st->energy[1] = power;
-    st->iterations = 0;
-    b->lu.meta[0] = 0.0;
+    port_loads_at(b, t0, p, R, theta);
     status = 0;
 done:
     free(saved);
@@ -459,4 +470,67 @@ done:
     free(R);
     free(theta);
     return status;
+}
+
+/* The start state made at build (runtime/start.py: the scene's static equilibrium or steady spin), taken by a
+ * body just initialized at the inputs of t0 (fmu_initialize_body): its motion-driven ports must be where the
+ * start has them (positions, rotations and their rates to START_MOTION_TOL relative, `mismatch`), then the
+ * START_FIELDS are copied in and the port loads at t0 computed from the state (`adopt`). start: the
+ * START_FIELDS (xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a) of `count` doubles; 0, or -1 with err set. */
+#define START_MOTION_TOL 1e-9
+int fmu_start_body(ffrf_body *b, double t0, const double *start, size_t count, const char *const *port_names,
+                   char *err, size_t err_len)
+{
+    const ffrf_dims *d = &b->dims;
+    const ffrf_data *D = &b->data;
+    ffrf_state *st = &b->state;
+    const int N = d->N, E = d->E, ny = d->ny;
+    double *dst[10] = {st->xN, st->RN, st->x0, st->R0, st->eta, st->v, st->yd, st->yd_prev, st->yd_prev2, st->a};
+    const size_t sizes[10] = {3 * (size_t)N, 9 * (size_t)N, 3 * (size_t)E, 9 * (size_t)E, (size_t)E * (size_t)d->nm,
+                              (size_t)E * (size_t)d->nv, (size_t)ny, (size_t)ny, (size_t)ny, (size_t)ny};
+    size_t total = 0;
+    for (int q = 0; q < 10; q++)
+        total += sizes[q];
+    if (count != total) {
+        snprintf(err, err_len, "the start state has %zu values, this body needs %zu (a damaged resource)", count, total);
+        return -1;
+    }
+    const double *s_xN = start, *s_RN = start + sizes[0], *s_yd = start + total - 4 * (size_t)ny;
+    for (int j = 0; j < d->n_ports; j++) {
+        idx_t k = D->port_node[j];
+        for (int part = 0; part < 2; part++) {
+            if (D->port_mode[2 * j + part] != PART_MOTION)
+                continue;
+            /* translation: r (xN) and v (node rates 0..2); rotation: R (RN) and w (node rates 3..5) */
+            const double *now[2] = {part ? st->RN + 9 * k : st->xN + 3 * k, st->yd + 6 * k + 3 * part};
+            const double *want[2] = {part ? s_RN + 9 * k : s_xN + 3 * k, s_yd + 6 * k + 3 * part};
+            const int n[2] = {part ? 9 : 3, 3};
+            for (int c = 0; c < 2; c++)
+                for (int i = 0; i < n[c]; i++)
+                    if (fabs(now[c][i] - want[c][i]) > START_MOTION_TOL * fmax(1.0, fabs(want[c][i]))) {
+                        snprintf(err, err_len, "the start state (made at build from the scene's initial state) has port "
+                                 "%s's %s %s element %d = %.9g, the inputs at t0 give %.9g: set %s's inputs at t0 as "
+                                 "the scene's drives give them, or build the FMU from a scene that starts there",
+                                 port_names[j < 64 ? j : 63], part ? "rotation" : "translation", c ? "rate" : "value",
+                                 i, want[c][i], now[c][i], port_names[j < 64 ? j : 63]);
+                        return -1;
+                    }
+        }
+    }
+    for (int q = 0, off = 0; q < 10; off += (int)sizes[q], q++)
+        memcpy(dst[q], start + off, sizeof(double) * sizes[q]);
+    double *p = malloc(sizeof(double) * (size_t)ny), *R = malloc(sizeof(double) * 9 * (size_t)(N + E));
+    double *theta = calloc(3 * (size_t)(N + E), sizeof(double));
+    if (!p || !R || !theta) {
+        free(p);
+        free(R);
+        free(theta);
+        snprintf(err, err_len, "out of memory");
+        return -1;
+    }
+    port_loads_at(b, t0, p, R, theta);
+    free(p);
+    free(R);
+    free(theta);
+    return 0;
 }

@@ -469,6 +469,50 @@ static int make_body(fmu_instance *m, char *why, size_t len)
 
 static void write_outputs(fmu_instance *m, int iterations);
 
+/* The body just initialized at the inputs of t0 put in the start state made at build, after the checks that it
+ * holds for these parameters (runtime/start.py `parameter_mismatch`, the same messages) and inputs
+ * (initialize.c `fmu_start_body`); 0, or 1 with why set. */
+static int start_state(fmu_instance *m, const char *const *names, char *why, size_t len)
+{
+    static const char *const STATES[3] = {"rest", "static", "steady_spin"}; /* resource.py START_STATES */
+    const fmu_description *d = &m->desc;
+    int terms = terms_of(m);
+    const double *start = d->start[terms];
+    const char *state = STATES[(int)start[0]];
+    double gmax = 1.0;
+    for (int i = 0; i < 3; i++)
+        gmax = fmax(gmax, fabs(start[1 + i]));
+    for (int i = 0; i < 3; i++)
+        if (fabs(m->values[d->vr_gravity[i]] - start[1 + i]) > 1e-12 * gmax) {
+            char a[3][32], b[3][32];
+            for (int k = 0; k < 3; k++) {
+                py_repr(m->values[d->vr_gravity[k]], a[k], sizeof a[k]);
+                py_repr(start[1 + k], b[k], sizeof b[k]);
+            }
+            snprintf(why, len, "parameter gravity = [%s, %s, %s] is not the [%s, %s, %s] the start state (%s, made at "
+                     "build) is the equilibrium of: build the FMU for this gravity", a[0], a[1], a[2], b[0], b[1], b[2],
+                     state);
+            return 1;
+        }
+    for (int i = 0; i < 3; i++)
+        if (m->values[d->vr_velocity[i]] != 0.0 || m->values[d->vr_angular_velocity[i]] != 0.0) {
+            snprintf(why, len, "parameter %s is set, but the FMU starts in the start state (%s), which sets the "
+                     "body's motion", m->values[d->vr_velocity[i]] != 0.0 ? "initial_velocity" : "initial_angular_velocity",
+                     state);
+            return 1;
+        }
+    for (int p = 0; p < d->n_ports; p++)
+        for (int i = 0; i < 3; i++) {
+            int32_t vr = d->disp_vr[3 * p + i];
+            if (vr >= 0 && m->values[vr] != 0.0) {
+                snprintf(why, len, "parameter initial.%s.d is set, but the FMU starts in the start state (%s), which "
+                         "sets the body's motion", d->ports[p].name, state);
+                return 1;
+            }
+        }
+    return fmu_start_body(m->body, m->start_time, start + 4, d->start_count[terms] - 4, names, why, len) ? 1 : 0;
+}
+
 /* a consistent initial state from the current inputs and parameters; 0, or 1 with m->failure set */
 static int initialize(fmu_instance *m)
 {
@@ -505,6 +549,10 @@ static int initialize(fmu_instance *m)
     memcpy(m->body->point_values, m->point_values, sizeof(double) * (size_t)d->n_ports * FFRF_POINT_WIDTH);
     if (fmu_initialize_body(m->body, m->start_time, v0, w0, d->origin, displaced ? disp : NULL, names, why,
                             sizeof why)) {
+        snprintf(m->failure, sizeof m->failure, "initialization failed at t = %.6g s: %s", m->start_time, why);
+        return 1;
+    }
+    if (d->start[terms_of(m)] && start_state(m, names, why, sizeof why)) {
         snprintf(m->failure, sizeof m->failure, "initialization failed at t = %.6g s: %s", m->start_time, why);
         return 1;
     }

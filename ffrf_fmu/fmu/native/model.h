@@ -70,6 +70,10 @@ typedef struct {
     double origin[3];             /* of the initial rigid velocity field */
     const void *image[FMU_TERM_SETS]; /* runtime image per term set (NULL: not in this FMU) */
     size_t image_size[FMU_TERM_SETS];
+    /* the start state per term set made at build (resource.py start sections: state code, gravity [3], the
+     * START_FIELDS of runtime/start.py); NULL: the FMU starts from rest */
+    const double *start[FMU_TERM_SETS];
+    size_t start_count[FMU_TERM_SETS]; /* doubles, the code and gravity included */
 } fmu_description;
 
 typedef enum {
@@ -149,6 +153,10 @@ double model_time(const fmu_instance *m); /* the body's time: the last successfu
 int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const double angular_velocity[3],
                         const double origin[3], const double *port_displacements, const char *const *port_names,
                         char *err, size_t err_len);
+
+/* initialize.c: the start state made at build (runtime/start.py) taken at t0 by a body just initialized */
+int fmu_start_body(ffrf_body *b, double t0, const double *start, size_t count, const char *const *port_names,
+                   char *err, size_t err_len);
 
 /* py_repr: a double as Python's repr writes it (the messages quote parameters as the Python FMU did) */
 const char *py_repr(double x, char *buf, size_t len);

@@ -324,6 +324,17 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     }
     if (!d->image[0] && !d->image[1] && !d->image[2])
         goto bad_content;
+    for (int k = 0; k < FMU_TERM_SETS; k++) { /* optional: a scene that starts at its equilibrium */
+        char tag[8] = "start0";
+        tag[5] = (char)('0' + k);
+        if (find(pay, n, tag, &s) == 0) {
+            const double *v = (const double *)s.data;
+            if (s.size % 8 || s.size < 32 || !d->image[k] || !(v[0] == 1.0 || v[0] == 2.0))
+                goto bad_content;
+            d->start[k] = v;
+            d->start_count[k] = s.size / 8;
+        }
+    }
     return 0;
 #undef NEED
 bad_content:

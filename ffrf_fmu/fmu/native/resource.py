@@ -2,9 +2,11 @@
 
 It holds the variable table of fmu/variables.py (names, types, causality, start, min/max), the maps from
 variables to the runtime's point values (runtime/input_rule.py COLUMNS) and output row (BodySystem.output_row,
-then the probes of eq. 92), the parameters' value references, and one runtime image
-(runtime/native/image.py) per term set the FMU offers: the body steps in the same C runtime as a
-standalone run.
+then the probes of eq. 92), the parameters' value references, one runtime image
+(runtime/native/image.py) per term set the FMU offers (the body steps in the same C runtime as a
+standalone run), and, for a scene that starts at its static equilibrium or steady spin, the start state of
+each term set made at build (runtime/start.py; sections start0..2: the state's code in START_STATES, the
+gravity it holds for, the START_FIELDS).
 
 Layout (little-endian; resource.c reads it, the one other description of it):
 
@@ -27,6 +29,7 @@ import numpy as np
 
 from ...runtime import input_rule
 from ...runtime.outputs import ENERGY_FIELDS, OUTPUT_FIELDS, OUTPUT_WIDTH  # the output row's layout
+from ...runtime.start import START_FIELDS
 from ...runtime.terms import TERM_SETS
 from ..variables import Variable
 
@@ -37,6 +40,7 @@ PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
 DKIND = {"f": 0, "t": 0, "r": 1, "R": 1, "v": 2, "w": 2, "a": 3, "dw": 3}
 MAX_PORTS = 64  # initialize.c names at most this many ports
+START_STATES = ("rest", "static", "steady_spin")  # a start section's state code (model.c start_state STATES)
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,7 @@ class ResourceContent:
     node_positions: np.ndarray
     origin: np.ndarray
     images: dict[str, bytes]  # term set name -> runtime image
+    start: dict | None = None  # builder.start_states: the state the FMU initializes to (None: from rest)
 
 
 def _index(variables: list[Variable]) -> dict[tuple[str, str], list[int]]:
@@ -181,6 +186,13 @@ def payload(c: ResourceContent) -> bytes:
     ]
     for name, image in c.images.items():
         sections.append(_section(f"image{TERM_SETS.index(name)}", image))
+    if c.start is not None:  # per term set: state code, the gravity it holds for, the START_FIELDS (initialize.c)
+        code = START_STATES.index(c.start["state"])
+        for name, arrays in c.start["terms"].items():
+            if name in c.images:
+                flat = [np.ravel(arrays[k]) for k in START_FIELDS]
+                sections.append(_section(f"start{TERM_SETS.index(name)}",
+                                         _f64(np.concatenate([[code], c.start["gravity"], *flat]))))
     sections.insert(3, _section("names", bytes(names)))
     return b"".join(sections)
 
