@@ -9,7 +9,7 @@ import pytest
 from ffrf_fmu.model import load_model
 from ffrf_fmu.runtime.outputs import ENERGY_FIELDS, OUTPUT_WIDTH, row_columns, tip_from_hub
 from ffrf_fmu.runtime.rotation import expm
-from ffrf_fmu.runtime.steps import STEP_COUNT_TOLERANCE, divides, whole_steps
+from ffrf_fmu.runtime.steps import STEP_COUNT_TOLERANCE, communication_grid, divides, whole_steps
 from ffrf_fmu.spin import scene_spin
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -37,6 +37,18 @@ def test_communication_points_of_a_long_run_split_as_whole_steps():
     t0 = 1e4
     H = (t0 + 1e-3) - t0  # 1e-3 up to 1.8e-12 s
     assert H != 1e-3 and whole_steps(H, 1e-4).n == 10 and divides(H, 1e-4)
+
+
+@pytest.mark.parametrize("span, H, points", [
+    (0.3, 0.1, [0.0, 0.1, 0.2, 0.3]),  # 0.3 / 0.1 = 2.9999999999999996: three whole steps, ending on 0.3
+    (0.25, 0.1, [0.0, 0.1, 0.2, 0.25]),  # 2.5 steps: a shorter last one
+    (0.26, 0.1, [0.0, 0.1, 0.2, 0.26]),  # 2.6 steps: never a point past the span (rounding gave 0.3)
+    (0.05, 0.1, [0.0, 0.05]),  # a span shorter than H: one step
+])
+def test_communication_grid(span, H, points):
+    """A master's grid at a fixed H (fmu/run.py): k H, then the span's end, never past it."""
+    grid = communication_grid(span, H)
+    assert grid == pytest.approx(points, rel=1e-15, abs=1e-15) and grid[-1] == span
 
 
 @pytest.mark.parametrize("span, step", [(0.0, 1e-3), (1.0, 0.0), (-1.0, 1e-3), (1.0, float("nan"))])

@@ -20,6 +20,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..runtime.steps import communication_grid
 from ..runtime.terms import TERM_SETS
 from .variables import component_name, parse_port_variable
 
@@ -247,10 +248,7 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
     if record is None:
         record = [n for v in _variables(fmu_path) if v.causality in ("input", "output")
                   for n in (scalar_names(v) if fmi3 else [v.name])]
-    n = int(round(scene.duration / H))
-    times = np.arange(n + 1) * H
-    if times[-1] < scene.duration * (1 - 1e-12):
-        times = np.append(times, scene.duration)
+    times = np.array(communication_grid(scene.duration, H))  # the last point is the scene's end, never past it
     table = fmu_input_table(fmu_path, inputs, times)
     start_values = scene_start_values(scene, fmu_path)
     log: list[str] = []

@@ -33,6 +33,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..runtime.steps import divides, whole_steps
+
 SSD = "SystemStructure.ssd"
 PARAMETER_SET = "initial"  # the one parameter set of a package (ecos applies sets by name at init)
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -287,9 +289,9 @@ def run_ssp(path, engine: str, record: Sequence[str], step: float | None = None,
     system = read_ssp(path, work / "package")
     H = system.step if step is None else float(step)
     T = (system.stop if stop is None else float(stop)) - system.start
-    n = int(round(T / H))
-    if n < 1 or abs(n * H - T) > 1e-9 * T:
+    if not (T > 0.0 and H > 0.0) or not divides(T, H):  # runtime/steps.py: the project's one rule
         raise SspError(f"{path}: duration {T!r} s is not a whole number of steps {H!r} s")
+    n = whole_steps(T, H).n
     if engine == "master":
         out = _run_master(system, H, n, record, sources)
     elif engine == "libcosim":

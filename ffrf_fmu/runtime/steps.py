@@ -43,3 +43,16 @@ def divides(span: float, step: float) -> bool:
     """Whether `step` makes up `span` in whole steps (whole_steps keeps it, within its tolerance)."""
     n = whole_steps(span, step).n
     return abs(span / step - n) <= STEP_COUNT_TOLERANCE * (span / step)
+
+
+def communication_grid(span: float, H: float) -> list[float]:
+    """The communication points 0, H, 2 H, ... of a run of `span` at a master's fixed step H: the span's
+    end is the last point, reached by a whole step when H divides the span (divides) and otherwise by a
+    shorter last step; never a point past the span."""
+    if not (span > 0.0 and H > 0.0) or not math.isfinite(span / H):
+        raise ValueError(f"a span of {span!r} s cannot be split into steps of {H!r} s (both must be > 0)")
+    if divides(span, H):
+        n = whole_steps(span, H).n
+        return [k * H for k in range(n)] + [span]
+    n = math.floor(span / H)
+    return [k * H for k in range(n + 1)] + [span]
