@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Benchmark: what one kernel call per communication step costs beyond the standalone run's steps
-(issue 10: an FMU at H = h pays one `BodySystem.run_extrapolated` call per internal step, `simulate.run`
+(an FMU at H = h pays one `BodySystem.run_extrapolated` call per internal step, `simulate.run`
 one call per 500 steps).
 
     python benchmarks/kernel_call_cost.py [--duration 2] [--traffic-mb 1]

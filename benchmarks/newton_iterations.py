@@ -124,7 +124,7 @@ def main(argv=None) -> int:
         print(json.dumps(worker(tree, float(h), cfg, rule, float(duration), int(repeats))))
         return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--baseline", default="585668d", help="git revision of the baseline runtime (default: before issue 10 item 2)")
+    ap.add_argument("--baseline", default="585668d", help="git revision of the baseline runtime (default: the solver before the co-rotated predictor)")
     ap.add_argument("--steps", default="0.002,0.01,0.02,0.04,0.05")
     ap.add_argument("--configs", default="1x2,4x6", help="superelements x modes")
     ap.add_argument("--refresh-after", default="2:3", help="rules lo:hi of REFRESH_AFTER for the working tree")

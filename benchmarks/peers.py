@@ -47,7 +47,7 @@ and Pareto fronts are the best-of-N ones):
   (Exudyn's best-of-N front over our front of each configuration's slowest run). Without the
   interpolation ("runs only"): the ratio of the cheapest runs of each code that reach the error.
   On the fronts, errors within SAME_ERROR_REL count as equal (the dearer point is dominated);
-- the verdict on the target: Exudyn / ours >= TARGET (10, issue 19) on wall time over 0.2-5 %.
+- the verdict on the target: Exudyn / ours >= TARGET (10) on wall time over 0.2-5 %.
 
 Without exudyn (the optional extra `peers`: pip install -e ".[peers]") it says so and exits 0.
 """
@@ -82,9 +82,9 @@ OURS = [  # superelements x modes x steps: the linear chain (its chain error fal
 ]
 QUICK_OURS = [{"superelements": ["2", "4"], "modes": ["2"], "step": ["0.04"]}]
 QUICK_PEER = {"elements": ["4", "8"], "step": ["0.04"]}
-LEVELS = (0.002, 0.005, 0.01, 0.02, 0.05)  # error levels of the front ratio (issue 10: 0.2 % to 5 %)
+LEVELS = (0.002, 0.005, 0.01, 0.02, 0.05)  # error levels of the front ratio (0.2 % to 5 %)
 SPAN = (LEVELS[0], LEVELS[-1])  # the target holds at every error level in this span ...
-TARGET = 10.0  # ... with Exudyn's wall time / ours at least this (issue 19; it was 3 on the numba kernel)
+TARGET = 10.0  # ... with Exudyn's wall time / ours at least this
 REPEAT = 3  # timing runs per configuration (module doc: the minimum of them is kept)
 METRIC = "tip_deflection_max_m"  # B1's primary metric (models/haug_beam.toml [scenes.spinup.metrics])
 SAME_METRIC_REL = 1e-9  # a timing run's metric against the accuracy pass's: the runs are deterministic

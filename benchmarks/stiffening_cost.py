@@ -1,5 +1,5 @@
 """Cost per step of geometric stiffening and of the term set `full`, as ratios to `linear` measured in
-the same run (issue 9). B1 (haug_beam spinup), 2 modes per superelement, h = 10 ms, the first 500
+the same run. B1 (haug_beam spinup), 2 modes per superelement, h = 10 ms, the first 500
 steps after one untimed step (the spin-up, where Newton works), 1 and 4 superelements, and 1 stiffened against 8 linear; best of 3 repetitions per
 configuration (CPU time of this process).
 

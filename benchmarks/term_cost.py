@@ -1,4 +1,4 @@
-"""Cost per step of the term sets against longer chains of linear superelements (issue 9): the two fixes
+"""Cost per step of the term sets against longer chains of linear superelements: the two fixes
 of what one superelement misses on a centrifugally soft body. models/disk_rotor.toml, 2 modes per
 superelement, h = 10 ms, the first STEPS steps of the spin-up (Newton works there), best of REPEAT (CPU
 time of this process), ratios to 1 SE `linear` measured in the same run, for each backend.

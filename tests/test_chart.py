@@ -131,8 +131,7 @@ def test_suspect_reference_is_marked(tmp_path):
 def test_failed_run_is_a_row_and_plotted_apart(tmp_path):
     """B1 with two superelements at h = 40 ms and 100 ms: the spin-up time T = 15 s in 375 and 150
     steps. The first completes (its error is the chain's 3.5 % plus the step's 0.5 %); the second fails
-    at t = 18.8 s, where Newton's root has a rotation increment beyond pi (an alias; before issue 10
-    item 2 Newton did not converge at t = 18.6 s, before issue 10 near the peak load, t ~ 7 s). The
+    at t = 18.8 s, where Newton's root has a rotation increment beyond pi (an alias). The
     failed run is a row with completed = False, its failure and the time it reached, outside the
     Pareto front, in the plot's strip of failed runs."""
     out = ch.chart(B1, "spinup", {"step": ["0.04", "0.1"]}, overrides=["superelements=2", "modes=2"],

@@ -624,7 +624,7 @@ def test_master_connect_by_name(halves):
 def test_b1_acceleration_inputs_make_the_extrapolation_second_order(tmp_path):
     """B1 (4 SE, full 20 s spin-up) through the FMU at H = h = 32 ms. With the hub's angular
     acceleration as input (`hub.dw`, second-order extrapolation) the maximum transverse tip
-    deflection is within 0.05 % of the standalone run (issue 11 acceptance; measured 1.5e-6: the
+    deflection is within 0.05 % of the standalone run (measured 1.5e-6: the
     Wu-Haug law has a fixed axis, so the extrapolation only misses the change of dw over a step);
     without it (dw = 0, rate held) the FMU overshoots by 0.40 % (measured), which the bound
     1e-3 below proves the test can tell apart."""

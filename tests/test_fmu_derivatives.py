@@ -7,7 +7,7 @@ the step inside the FMU, docs/fmu.md): finite differences of two FMU runs see th
 its round-off and truncation, and up to the FMU's Newton changing its iteration count within the
 difference step (the map is smooth only between such changes: measured up to 4e-5 of a block).
 
-Acceptance (issue 11): fmpy validate clean with the derivatives declared; the derivatives against
+What is checked: fmpy validate clean with the derivatives declared; the derivatives against
 central differences of two FMU runs (doStep from a saved FMU state with the known input perturbed up
 and down) within 1e-5 relative. "Relative" is per block of the Jacobian: output group (`port.field`,
 each energy) x input group (`port.field`), the largest difference over the block against its largest

@@ -1,6 +1,5 @@
-"""Body FMU fault paths per FMI 2.0 (issue 12 item 4, issue 14 item 5) and initial port
-displacements inside the FMU (issue 12 item 3) and its BLAS thread limit (item 2), under fmpy in
-this process.
+"""Body FMU fault paths per FMI 2.0, initial port displacements inside the FMU and its BLAS thread
+limit, under fmpy in this process.
 
 fmi2Discard is for numerical failures the master can recover from (the FMU stays at t_c);
 fmi2Error for everything else, with the cause in the log; never fmi2Fatal, never a crash: each
@@ -203,7 +202,7 @@ def test_initial_port_displacement_reaches_the_fmu(model, tmp_path):
 
 
 def test_fmu_limits_blas_to_one_thread_during_its_calls_only(python_fmu, monkeypatch):
-    """BLAS threads (issue 12 item 2): one thread while the FMU steps (threadpoolctl, scoped), the
+    """BLAS threads: one thread while the FMU steps (threadpoolctl, scoped), the
     host's own setting (here 2 threads) before and after the call."""
     from threadpoolctl import threadpool_info, threadpool_limits
 

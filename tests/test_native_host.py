@@ -1,4 +1,4 @@
-"""A body FMU in a host with no Python in it (issue 12 item 1): tests/fmi2_host.c, compiled here
+"""A body FMU in a host with no Python in it: tests/fmi2_host.c, compiled here
 with the system C compiler, dlopens the FMU's binary without LD_PRELOAD, steps it, frees it,
 dlcloses it and exits. The native FMU (fmu/native) runs so in a host started with `env -i` (the
 system PATH only). For the pythonfmu FMU: pythonfmu's binary alone has undefined Py* symbols (PythonFMU issue #202)

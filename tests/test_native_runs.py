@@ -4,8 +4,8 @@ Newton decisions.
 Each run is stepped on the C runtime one step per call, recording what its Newton decided (the
 iterations and the iterations at which it built the iteration matrix: the C body's `refreshed`); the
 numpy run then replays those decisions (GeneralizedAlpha.newton_replay) instead of taking its own, so
-that a convergence or refresh test that round-off tips (the numba kernel flipped one of 301 steps of the
-coned beam, issue 19) cannot make the compared runs differ by more than round-off, and the comparison
+that a convergence or refresh test that round-off tips (a compiled step flipped one of 301 steps of the
+coned beam) cannot make the compared runs differ by more than round-off, and the comparison
 is tight: 1e-10 of each kinematic output field's largest value over all ports (r, R, v, w), as
 tests/test_backends.py argued for the numba kernel. The decisions themselves are checked: along the
 replayed run the numpy path still evaluates its own rules and logs every decision they would take

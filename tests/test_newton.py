@@ -15,8 +15,8 @@ from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import input_rule
 
 HAUG = "models/haug_beam.toml"
-# B1's max tip deflection before issue 10 item 2 (585668d, benchmarks/newton_iterations.py, 1 SE x 2
-# modes, 20 ms; 4 SE x 6 modes, 50 ms)
+# B1's max tip deflection with the solver of commit 585668d (benchmarks/newton_iterations.py --baseline,
+# 1 SE x 2 modes, 20 ms; 4 SE x 6 modes, 50 ms): the regression anchor of the iteration counts below
 BASELINE_20MS_1x2, BASELINE_50MS_4x6 = 0.602011240, 0.540429819
 
 
@@ -47,8 +47,8 @@ def _b1(h, n_se, modes, duration=20.0, tol=None):
 
 @pytest.mark.parametrize("n_se, modes", [(1, 2), (4, 6)])
 def test_b1_20ms_takes_at_most_two_iterations_per_step(n_se, modes):
-    """Issue 10 item 2: at most 2 Newton iterations per step on average on B1 at h = 20 ms (measured
-    2.00 for both; before, 3.94 and 3.95 evaluations: 2.94 and 2.95 solves and one evaluation of the
+    """At most 2 Newton iterations per step on average on B1 at h = 20 ms (measured 2.00 for both; the
+    solver of 585668d took 3.94 and 3.95 evaluations: 2.94 and 2.95 solves and one evaluation of the
     accepted iterate).
     The co-rotated predictor misses by 1e-7..1e-6 of each field's scale, the iteration matrix built at
     the predictor takes it to the tolerance in one increment, the second increment confirms it."""
@@ -60,7 +60,7 @@ def test_b1_20ms_takes_at_most_two_iterations_per_step(n_se, modes):
 def test_b1_20ms_deflection_is_the_tightly_converged_one():
     """The fewer iterations cost no accuracy: B1's max tip deflection at h = 20 ms equals the run with
     the Newton tolerance 100x tighter (1e-11) to 1e-10 relative (measured: identical, 0.602011238154 m)
-    and the value before issue 10 item 2 (0.602011240 m) to 1e-8 (measured -2.9e-9, the baseline's
+    and the value of the solver of 585668d (0.602011240 m) to 1e-8 (measured -2.9e-9, the baseline's
     own Newton error)."""
     _, _, d, _ = _b1(0.02, 1, 2)
     _, _, d_tight, _ = _b1(0.02, 1, 2, tol=1e-11)
@@ -69,10 +69,10 @@ def test_b1_20ms_deflection_is_the_tightly_converged_one():
 
 
 def test_b1_50ms_runs_through():
-    """h = 50 ms on B1 (4 SE, 6 modes, the 20 s spin-up) failed before issue 10 (Newton gave up at
-    t = 10.9 s, docs/stability.md); it completes in 2 iterations per step (before item 2: 5.52
-    evaluations), with the deflection of before to 1e-6 (measured +8.7e-8) and within 1 % of the
-    2 ms run (0.536620 m; measured +0.71 %: the step's own error)."""
+    """h = 50 ms on B1 (4 SE, 6 modes, the 20 s spin-up; the chart of docs/accuracy.md section 2 saw
+    Newton give up there) completes in 2 iterations per step (585668d's solver: 5.52 evaluations),
+    with 585668d's deflection to 1e-6 (measured +8.7e-8) and within 1 % of the 2 ms run (0.536620 m;
+    measured +0.71 %: the step's own error)."""
     evals, _, d, n = _b1(0.05, 4, 6)
     assert n == 400 and evals <= 2.0
     assert d == pytest.approx(BASELINE_50MS_4x6, rel=1e-6)

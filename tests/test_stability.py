@@ -262,12 +262,11 @@ def test_spin_map_row_on_the_pool_equals_the_direct_run(tmp_path):
 
 def test_b1_newton_fails_between_100_and_200_ms():
     """B1 as in the map (T = 7.5 s, 10 s, rho_inf 0.8): h = 20 ms runs through (max deflection
-    within 0.2 % of the converged run, measured 0.15 %); h = 50 ms runs through since issue 10's
-    Newton (per-field convergence, refresh when 3 more iterations would not do; before, Newton
-    failed at t = 4.4 s), max deflection 0.96 % above the converged run (bound 1.5 %: the error is
-    the step's, second order); h = 100 ms runs through since issue 10 item 2 (co-rotated predictor,
-    matrix rebuilt at the predictor; before, Newton failed at t = 6.7 s), max deflection 4.0 % above
-    (bound 5 %); h = 200 ms loses Newton convergence at t = 5 s."""
+    within 0.2 % of the converged run, measured 0.15 %); h = 50 ms runs through (per-field
+    convergence, refresh when 3 more iterations would not do), max deflection 0.96 % above the
+    converged run (bound 1.5 %: the error is the step's, second order); h = 100 ms runs through
+    (co-rotated predictor, matrix rebuilt at the predictor), max deflection 4.0 % above (bound 5 %);
+    h = 200 ms loses Newton convergence at t = 5 s (docs/stability.md, section 2)."""
     s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")])
     ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(10.0)
@@ -377,8 +376,8 @@ def _deflection_error(run, ref) -> float:
 def test_motor_gauss_seidel_with_extrapolation_boundary_between_2_and_10_ms(motor, motor_monolithic):
     """Beam FMU + hub drive FMU (undamped shaft k = 300 N m/rad on the beam root): explicit
     Gauss-Seidel with extrapolated torque is stable at H = 2 ms and diverges at H = 10 ms once the
-    beam spins fast (the body refuses a step at 4.9 s: Newton, or since issue 10 the guard against a
-    rotation increment beyond pi; before issue 10's Newton changes at 5.8 s). 6.5 s: past the failure at 10 ms. The 2 ms run agrees
+    beam spins fast (the body refuses a step at 4.9 s: Newton, or the guard against a rotation
+    increment beyond pi). 6.5 s: past the failure at 10 ms. The 2 ms run agrees
     with the monolithic run: map 3.2e-4 of the peak deflection over 10 s, measured 2.66e-4 over
     the first 3 s; bound 4e-4 (the map's figure with a margin; a coupling error of first order in H
     that grows would exceed it)."""

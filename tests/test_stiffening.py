@@ -2,7 +2,7 @@
 
 Independent checks: the closed-form axial force of a spinning bar, finite differences of the
 residual, the plain one-superelement oracle, and the full-order geometrically exact reference beam
-(ffrf_fmu.reference, no superelement code) for the B1 acceptance figures of issue 9.
+(ffrf_fmu.reference, no superelement code) for the B1 figures of docs/equations.md, "Geometric stiffening".
 """
 from __future__ import annotations
 
@@ -111,7 +111,7 @@ def test_stiffening_scene_key_is_validated():
         load_model("models/haug_beam.toml", ["stiffening=yes"])
 
 
-# ------------------------------------------------------------------------- B1 acceptance (issue 9)
+# ------------------------------------------------------------------------- B1 against the full-order beam
 @pytest.fixture(scope="module")
 def b1_reference():
     """Full-order geometrically exact beam, 16 elements, h = 10 ms: max tip deflection 0.531784 m,
@@ -136,7 +136,7 @@ def _tip(result):
 
 @pytest.mark.parametrize("n, tol", [(1, 5e-3), (2, 2.5e-3)])
 def test_b1_stiffened_superelements_match_the_converged_beam(b1_stiff, b1_reference, n, tol):
-    """Issue 9: 2 modes per SE, h = 10 ms, stiffening on: max tip deflection within 0.5 % (1 SE) and
+    """2 modes per SE, h = 10 ms, stiffening on: max tip deflection within 0.5 % (1 SE) and
     0.25 % (2 SE) of the full-order beam (measured +0.16 % and +0.15 %; without stiffening 1 SE is
     13 % high, 2 SE 3.5 %)."""
     t_ref, d_ref = b1_reference
