@@ -22,6 +22,7 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from .checked_toml import REQUIRED, ModelError, Reader, apply_overrides, join, nearest, nonnegative, positive, toml_text
+from .runtime.damping import Damping, per_mode_ratios
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 from .runtime.terms import FULL_TERMS, TERM_SETS
 
@@ -118,6 +119,7 @@ class Body:
     source: str = ""  # file the body came from (for messages)
     masses: tuple[PointMass, ...] = ()  # point masses at FE nodes
     solid: "SolidSpec | None" = None  # kind = "solid": its mesh or export and frames (section is then None)
+    damping: Damping | None = None  # structural damping [body.damping] (runtime/damping.py), None: undamped
 
     def port(self, name: str) -> Port:
         for p in self.ports:
@@ -264,6 +266,13 @@ BODY_KEYS = {
     "section": "a table [body.section]",
     "ports": "a table of ports [body.ports.NAME]",
     "masses": "an array of point masses [[body.masses]]",
+    "damping": "a table [body.damping] {ratio} (modal) or {alpha, beta} (Rayleigh): structural damping",
+}
+DAMPING_KEYS = {
+    "ratio": "a damping ratio >= 0 for every mode, or an array of ratios >= 0, one per mode of a superelement's "
+             "reduced model (6 x its boundary frames + its modes, by rising frequency)",
+    "alpha": "a Rayleigh coefficient >= 0 on the mass [1/s] (default 0)",
+    "beta": "a Rayleigh coefficient >= 0 on the stiffness [s] (default 0)",
 }
 MASS_KEYS = {
     "at": "a distance from the origin along the beam in [0, length] [m], on a node of the FE mesh",
@@ -459,7 +468,41 @@ def _parse_body(r: Reader, t: Any, default_name: str, file: str) -> Body:
         ports=tuple(ports),
         source=file,
         masses=tuple(masses),
+        damping=_parse_damping(r, t),
     )
+
+
+def _parse_damping(r: Reader, t: dict) -> Damping | None:
+    """[body.damping]: modal ratios (one for all modes or one per mode) or Rayleigh's alpha, beta, not
+    both. The length of a list is checked against the reduced model by `body_damping`."""
+    if "damping" not in t:
+        return None
+    dp = "body.damping"
+    dt = r.table(t["damping"], dp, DAMPING_KEYS)
+    if not dt:
+        r.fail(dp, "expected ratio = ZETA (modal damping) or alpha, beta (Rayleigh damping)")
+    if "ratio" in dt and ("alpha" in dt or "beta" in dt):
+        r.fail(dp, "expected either ratio (modal damping) or alpha and beta (Rayleigh damping), not both")
+    if "ratio" not in dt:
+        return Damping((), r.real(dt, dp, "alpha", DAMPING_KEYS["alpha"], 0.0, ok=nonnegative),
+                       r.real(dt, dp, "beta", DAMPING_KEYS["beta"], 0.0, ok=nonnegative))
+    z = dt["ratio"]
+    ratios = z if isinstance(z, list) else [z]
+    if not ratios or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x >= 0
+                             for x in ratios):
+        r.expected(join(dp, "ratio"), DAMPING_KEYS["ratio"], z)
+    return Damping(tuple(float(x) for x in ratios))
+
+
+def body_damping(body: Body, n: int) -> Damping | None:
+    """The body's damping for superelements of n reduced dofs: a list of ratios must have n of them
+    (ModelError naming the file and key otherwise)."""
+    if body.damping is not None:
+        try:
+            per_mode_ratios(body.damping, n)
+        except ValueError as e:
+            raise ModelError(f"{body.source}: body.damping.ratio: {e}") from None
+    return body.damping
 
 
 SOLID_KEYS = {
@@ -472,6 +515,7 @@ SOLID_KEYS = {
     "material": "a table [body.material] {E, nu, rho}",
     "export": "a table [body.export] {format, files..., units}",
     "ports": "a table of ports [body.ports.NAME] {select, link, point, translation, rotation, coupling}",
+    "damping": BODY_KEYS["damping"],
 }
 MESH_KEYS = {
     "file": "a mesh file read with meshio (Gmsh .msh, Abaqus .inp, VTK, ...), relative to the model file",
@@ -643,7 +687,7 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
         r.fail(b, f"cannot read the solid's nodes: {e}")
     return Body(name=name, length=length, origin=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0), section=None,
                 superelements=1, elements_per_superelement=0, modes=modes, ports=tuple(ports), source=file,
-                solid=spec)
+                solid=spec, damping=_parse_damping(r, t))
 
 
 def _parse_time_function(r: Reader, t: dict, path: str, key: str) -> TimeFunction:

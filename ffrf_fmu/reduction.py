@@ -16,7 +16,7 @@ import numpy as np
 
 from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
 from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
-from .model import Body, ModelError, scene_body
+from .model import Body, ModelError, body_damping, scene_body
 from .port_data import compliance, port_data
 from .runtime.data import BodyData, ReducedBody, SuperelementData
 
@@ -344,6 +344,7 @@ def reduce_body(body: Body, stiffening: bool = False, inertia: bool = False) -> 
         superelements=tuple(r.data for r in reductions),
         node_positions=node_positions,
         ports=port_data(body, n_se + 1),
+        damping=body_damping(body, reductions[0].data.n),
     )
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
         data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))

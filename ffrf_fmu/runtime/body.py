@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from .accelerations import port_accelerations
+from .damping import Damping, body_basis, damping_matrices
 from .data import BodyData
 from . import outputs, stiffening
 from .fused import FusedResidual
@@ -81,6 +82,7 @@ class BodySystem(GeneralizedAlpha):
         tol: float = 1e-9,
         max_iter: int = 25,
         backend: str = "native",
+        damping: Damping | None = None,
     ):
         """backend: "native" (the C runtime, runtime/native; compiled into the user cache on first use)
         or "numpy" (the plain reference path). When the C runtime cannot be compiled here, the body runs
@@ -88,6 +90,8 @@ class BodySystem(GeneralizedAlpha):
         if terms not in TERM_SETS:
             raise ValueError(f"unknown term set {terms!r}; choose one of {TERM_SETS}")
         check_backend(backend)
+        # structural damping (runtime/damping.py): the model file's, or the one given (an FMU's parameters)
+        self.damping = data.damping if damping is None else damping
         self.data, self.terms, self.rho_inf = data, terms, float(rho_inf)
         self.coefficients = alpha_coefficients(self.rho_inf)
         self.gravity = np.asarray(gravity, dtype=float)
@@ -128,7 +132,9 @@ class BodySystem(GeneralizedAlpha):
         if self.W1 is not None:
             g_term, row_term = stiffening.fused_hooks(self.W1, L.nc, self.vk_a, self.vk_B, self.W2)
             hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
-        self.fused = FusedResidual(L, S, self.inertia_coupling, self.coriolis, **hooks)
+        self.damping_basis = body_basis(self.damping, S.K, S.M)  # the elastic modes D is built on
+        self.D = damping_matrices(self.damping, self.damping_basis)  # (E, n, n) or None
+        self.fused = FusedResidual(L, S, self.inertia_coupling, self.coriolis, D=self.D, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
@@ -568,6 +574,18 @@ class BodySystem(GeneralizedAlpha):
         if self.W1 is not None:  # 1/2 Omega0^T (W1 q [+ q W2 q]) Omega0: J0 -> J(q)
             kr += float(stiffening.deformed_inertia(q, q, Om, Om, self.W1, jacobian=False, W2=self.W2)[3].sum())
         return {"kinetic_rigid": float(kr), "kinetic_elastic": float(ke), "strain": float(st), "work_external": float(self.work)}
+
+    def damping_power(self) -> float:
+        """The power the structural damping takes out of the body now: sum over the superelements of
+        q_bar_dot^T D q_bar_dot (>= 0), with q_bar_dot the co-rotated rates of (91)."""
+        if self.D is None:
+            return 0.0
+        qd = self.elastic_rates()
+        return float(np.einsum("ei,eij,ej->", qd, self.D, qd))
+
+    def elastic_rates(self) -> np.ndarray:
+        """q_bar_dot of every superelement (E, n) at the current state and rates, eq. (91)."""
+        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[2]
 
     def mass_properties(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(mass, CM position (3,), inertia tensor about the CM (3, 3)) of the body as its equations

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .damping import Damping
+
 
 @dataclass(frozen=True, eq=False)
 class SuperelementData:
@@ -66,6 +68,7 @@ class BodyData:
     superelements: tuple[SuperelementData, ...]
     node_positions: np.ndarray  # (n_nodes, 3) reference boundary node positions, world axes
     ports: tuple[PortData, ...]
+    damping: Damping | None = None  # structural damping (runtime/damping.py), from the model file
 
     def port(self, name: str) -> PortData:
         for p in self.ports:
@@ -84,6 +87,7 @@ class BodyData:
             "name": self.name,
             "n_se": len(self.superelements),
             "ports": [[p.name, p.node, p.translation, p.rotation, list(p.compliance)] for p in self.ports],
+            "damping": self.damping.as_meta() if self.damping is not None else None,
         }
         import json
 
@@ -110,6 +114,7 @@ class BodyData:
                 node_positions=z["node_positions"],
                 ports=tuple(PortData(n, int(k), t, r, tuple(float(x) for x in (c[0] if c else ())))
                             for n, k, t, r, *c in meta["ports"]),
+                damping=Damping.from_meta(meta.get("damping")),
             )
 
 

@@ -17,7 +17,7 @@ Residual rows (`[...]`: gyroscopic term set only; `linear` is Remark 6, eqs. 72a
     k_x   = x0dot - v0                                           (69b)
     k_T   = W0 - Omega0                                          (69d)
     k_q   = M (q_bar_dot - r_bar) [+ G(W0) q_bar]                (79)
-    g     = K q_bar + M r_bar_dot [+ G(W0) r_bar]                (78), f_e = 0 by (74)
+    g     = K q_bar + M r_bar_dot [+ G(W0) r_bar] [+ D q_bar_dot] (78), f_e = 0 by (74)
     e_x0  = m v0dot - m g_grav - sum_P R0 g_dP                   (69a) with (91)
     e_T0  = J0 Omega0dot + W0 x (J0 Omega0 [+ s]) [+ sdot]
             - sum_P (rho_P x g_dP + Q_P H_P^T g_aP)              (77) with (91)
@@ -25,7 +25,9 @@ Residual rows (`[...]`: gyroscopic term set only; `linear` is Remark 6, eqs. 72a
     e_xP  = R0 g_dP,   e_TP = H_P^T g_aP                         (91), summed over the SEs at P
 with G(W) = sum_k W_k G_k (53), s_k = r_bar^T G_k q_bar (55) and sdot_k its time derivative. The two
 parts of `[...]` can be switched apart (`parts`, the `full` term set's switches): the inertia coupling
-(s, sdot in e_T0) and the elastic Coriolis (G(W0) in k_q and g).
+(s, sdot in e_T0) and the elastic Coriolis (G(W0) in k_q and g). D q_bar_dot is the structural damping
+(runtime/damping.py), on the co-rotated elastic rates of (91), not on r_bar: in a steady spin of a
+deformed body r_bar = q_bar_dot + M^-1 G(W0) q_bar is not zero, the strain rate is.
 Loads on the nodes are not part of a superelement (the body adds -f, -R^T t on node rows).
 
 The Jacobian is with respect to the rates (F_ydot) and to the configuration (F_y): variations
@@ -52,6 +54,7 @@ class Superelement:
     mass: float
     J0: np.ndarray  # (3, 3)
     X_B: np.ndarray  # (nb, 3) boundary nodes relative to the CM, body axes
+    D: np.ndarray | None = None  # (n, n) structural damping on the co-rotated rates (runtime/damping.py), or None
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,6 +167,10 @@ def residual_and_jacobian(se: Superelement, terms: str, gravity, x0, R0, eta, xP
     dg_z, dg_y = np.zeros((n, nc + nv)), np.zeros((n, nc + nv))
     dg_y[:, cfg] = K @ Dq
     dg_z[:, cr] = M
+    if se.D is not None:  # structural damping D q_bar_dot: q_bar_dot (91) depends on the rates and the configuration
+        g += se.D @ qdot
+        dg_z[:, cfg] += se.D @ Dq
+        dg_y[:, cfg] += se.D @ Dqdot
     # angular momentum h = J0 Omega0 [+ s] and the inertia torque W0 x h [+ sdot] (77)
     h = J0 @ Omega0
     torque = J0 @ Omega0dot
@@ -231,10 +238,13 @@ def superelement_residual_and_jacobian(data, layout, terms: str, gravity, e: int
     """Superelement e of a body through `residual_and_jacobian` with the hooks of its term set: its
     local rows F (nv + nc,) and blocks F_ydot, F_y (nv + nc, nc + nv), at the body's configuration
     and global rates yd (arguments as `body_residual_and_jacobian`)."""
+    from .damping import damping_matrices, modal_basis
     from .stiffening import plain_hooks
 
     sd = data.superelements[e]
-    se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
+    damped = data.damping is not None and data.damping.kind != "none"
+    D = damping_matrices(data.damping, modal_basis(sd.K[None], sd.M[None])) if damped else None
+    se = Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B, None if D is None else D[0])
     cfg, vel = layout.cfg_map[e], layout.vel_map[e]
     hooks = {}
     full = terms == "full"

@@ -50,11 +50,13 @@ class FusedResidual:
     """
 
     def __init__(self, layout: Layout, stack: SuperelementStack, inertia_coupling: bool, coriolis: bool, g_terms=(),
-                 row_terms=()):
+                 row_terms=(), D=None):
         """inertia_coupling, coriolis: the two parts of the gyroscopic terms (docs/inertia-terms.md, switches):
         the inertia coupling s = S(q) r (55) in the angular momentum of (77), and the elastic Coriolis
-        G(W0) (53) in (78)-(79). The term set `gyroscopic` has both."""
+        G(W0) (53) in (78)-(79). The term set `gyroscopic` has both. D (E, n, n): the structural damping
+        (runtime/damping.py), D q_bar_dot added to g (78), or None."""
         self.layout, self.inertia_coupling, self.coriolis = layout, inertia_coupling, coriolis
+        self.D = D
         self._G_terms = inertia_coupling or coriolis  # G_k q, G_k r: read by either part
         self.g_terms, self.row_terms = tuple(g_terms), tuple(row_terms)
         self.K, self.M, self.G, self.mass, self.J0, self.X_B = stack.K, stack.M, stack.G, stack.mass, stack.J0, stack.X_B
@@ -175,6 +177,8 @@ class FusedResidual:
             Le[u["qd"], o["kq"]], Le[u["rb"], o["kq"]] = self.M[e].T, -self.M[e].T  # (79)
             Le[u["q"]] += self.K[e].T @ gsel  # g = K q + M rdot (78)
             Le[u["rbd"]] += self.M[e].T @ gsel
+            if self.D is not None:  # + D q_bar_dot, the structural damping on the co-rotated rates (91)
+                Le[u["qd"]] += self.D[e].T @ gsel
             Le[u["v0d"], o["ex0"]] = self.mass[e] * I3  # (69a): m v0dot (- m g: the `weight` block of W)
             Le[u["Om0d"], o["eT0"]] = self.J0[e].T  # (77): J0 Omega0dot
             Le[u["Om0"], o["h_ang"]] = self.J0[e].T  # h = J0 Omega0 [+ s]
@@ -376,6 +380,8 @@ class FusedResidual:
         kr = slice(6, 6 + n)
         FF[:, :, kr, :nc] = M @ DD  # k_q = M (q_dot - r)
         dg[0, :, :, :nc] = K @ Dq
+        if self.D is not None:  # D q_bar_dot: D Dqdot on the configuration, D Dq on the rates
+            dg[:, :, :, :nc] += self.D[None] @ DD
         if self.coriolis:
             Gw, Gq, Gr = s["Gw"], s["Gq"], s["Gr"]
             Fz[:, kr, cT0] += Gq

@@ -29,6 +29,7 @@ def solid_frames(spec, fe: SolidFE) -> tuple[Frame, ...]:
 
 def reduce_solid_body(body, stiffening: bool = False, inertia: bool = False):
     """The ReducedBody (BodyData, (SolidReduction,)) of a solid body: one superelement on its port frames."""
+    from ..model import body_damping
     from ..port_data import compliance, port_data
     from ..reduction_sparse import reduce_solid
     from ..runtime.data import BodyData, ReducedBody
@@ -45,7 +46,7 @@ def reduce_solid_body(body, stiffening: bool = False, inertia: bool = False):
         raise ModelError(f"body {body.name!r} ({body.source}): {e}") from None
     data = BodyData(name=body.name, superelements=(red.data,),
                     node_positions=np.array([f.point for f in frames]),
-                    ports=port_data(body, len(frames)))
+                    ports=port_data(body, len(frames)), damping=body_damping(body, red.data.n))
     if any("compliant" in (p.translation, p.rotation) for p in data.ports):
         data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
     return ReducedBody(data, (red,))

@@ -138,7 +138,7 @@ static int parse(const unsigned char *image, size_t size, unsigned char **copy, 
 enum { d_N = -1, d_E = -2, d_n = -3, d_nb = -4, d_nm = -5, d_nc = -6, d_nv = -7, d_ny = -8, d_nf = -9, d_vk = -10,
        d_w1 = -11, d_w2 = -12, d_g = -13, d_world = -14, d_lin = -15, d_fixed = -16, d_mx = -17, d_mT = -18,
        d_ports = -19, d_springs = -20, d_NE = -21, d_fields = -22, d_ncv = -23, d_mx3 = -24, d_row = -25,
-       d_int = -26, d_be = -27, d_bnd = -28 };
+       d_int = -26, d_be = -27, d_bnd = -28, d_el = -29, d_nd = -30 };
 
 static long long dim_value(const ffrf_dims *d, int code)
 {
@@ -171,6 +171,8 @@ static long long dim_value(const ffrf_dims *d, int code)
     case d_int: return d->n_int;
     case d_be: return d->n_be;
     case d_bnd: return d->n_bnd;
+    case d_el: return d->n_el;
+    case d_nd: return d->n_el ? d->n : 0;
     default: return code;
     }
 }
@@ -220,6 +222,8 @@ static const array_spec DATA[] = {
     {"spring_node", 'q', AT(data.spring_node), S(d_springs)},
     {"spring_trans", 'q', AT(data.spring_trans), S(d_springs)},
     {"spring_rot", 'q', AT(data.spring_rot), S(d_springs)},
+    {"damp_MPhi", 'd', AT(data.damp_MPhi), S(d_E, d_n, d_el)},
+    {"damp_omega", 'd', AT(data.damp_omega), S(d_E, d_el)},
 };
 
 /* the body's own arrays, allocated at creation */
@@ -251,6 +255,10 @@ static const array_spec OWN[] = {
     {"R_in", 'd', AT(springs.R_in), S(d_springs, 3, 3)},
     {"w_in", 'd', AT(springs.w_in), S(d_springs, 3)},
     {"spring_loads", 'd', AT(springs.loads), S(d_N, 2, 3)},
+    /* structural damping (settable ratios and coefficients, the matrices they make) */
+    {"damp_zeta", 'd', AT(damping.zeta), S(d_el)},
+    {"damp_ab", 'd', AT(damping.ab), S(2)},
+    {"damp_D", 'd', AT(damping.D), S(d_E, d_nd, d_nd)},
     /* an FMU's point values: its inputs as set at t_c */
     {"point_values", 'd', AT(point_values), S(d_ports, FFRF_POINT_WIDTH)},
     /* the factorization */
@@ -347,7 +355,7 @@ static int dims_of(const entries *es, ffrf_dims *d, char *err, size_t len)
         dim_of(es, "world_idx", 0, &d->n_world, err, len) || dim_of(es, "lin_slots", 0, &d->n_lin, err, len) ||
         dim_of(es, "fixed_idx", 0, &d->n_fixed, err, len) || dim_of(es, "motion_x", 0, &d->n_mx, err, len) ||
         dim_of(es, "motion_T_slots", 0, &d->n_mT, err, len) || dim_of(es, "port_node", 0, &d->n_ports, err, len) ||
-        dim_of(es, "spring_node", 0, &d->n_springs, err, len))
+        dim_of(es, "spring_node", 0, &d->n_springs, err, len) || dim_of(es, "damp_omega", 1, &d->n_el, err, len))
         return -1;
     d->nm = d->n - 6 * d->nb;
     d->n_loads = 0;
@@ -356,7 +364,8 @@ static int dims_of(const entries *es, ffrf_dims *d, char *err, size_t len)
     d->n_bnd = d->nf - d->E * d->n_int;
     if (d->E < 1 || d->nb < 1 || d->nm < 0 || d->nc != 6 + d->nm + 6 * d->nb || d->nv != 6 + d->n ||
         d->ny != 6 * d->N + d->E * (6 + d->nm) + d->E * d->nv || d->nf > d->ny || d->n_lin != 3 * d->N + 3 * d->E +
-        d->E * d->nm + d->E * d->nv || d->n_bnd < 0 || d->nb > 64 /* factor.c's boundary lists */)
+        d->E * d->nm + d->E * d->nv || d->n_bnd < 0 || d->nb > 64 /* factor.c's boundary lists */ ||
+        (d->n_el && d->n_el != d->n) /* the damping basis: every mode of a superelement's reduced model */)
         return fail(err, len, "%sbody image: inconsistent sizes (E %lld, n %lld, ...)", "", d->E, d->n);
     return 0;
 }
@@ -526,10 +535,16 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
         goto failed;
     {
         const entry *xN = find(es, "xN"), *x0 = find(es, "x0"), *KC = find(es, "KC");
+        const entry *zeta = find(es, "damp_zeta"), *ab = find(es, "damp_ab");
         if (!xN || xN->count != 3ULL * d->N || !x0 || x0->count != 3ULL * d->E ||
             (KC && KC->count != 12ULL * d->n_springs) || (!KC && d->n_springs)) {
             fail(err, err_len, "%sbody image: reference state (xN, x0) or compliances (KC) missing or misshapen%lld%lld",
                  "", 0, 0);
+            goto failed;
+        }
+        if (!zeta || zeta->kind != 'd' || zeta->count != (uint64_t)d->n_el || !ab || ab->kind != 'd' || ab->count != 2) {
+            fail(err, err_len, "%sbody image: damping (damp_zeta [%lld], damp_ab [2]) missing or misshapen%lld", "",
+                 d->n_el, 0);
             goto failed;
         }
     }
@@ -558,6 +573,13 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
         goto failed;
     }
     reset_state(b, es);
+    memcpy(b->damping.zeta, find(es, "damp_zeta")->values, sizeof(double) * (size_t)d->n_el);
+    memcpy(b->damping.ab, find(es, "damp_ab")->values, sizeof(double) * 2);
+    if (ffrf_damping_update(b)) {
+        fail(err, err_len, "%sbody image: a damping ratio or Rayleigh coefficient is negative or not finite%lld%lld", "",
+             0, 0);
+        goto failed;
+    }
     free(es);
     return b;
 failed:
@@ -575,6 +597,39 @@ void ffrf_body_free(ffrf_body *b)
     free(b->arena);
     free(b->image);
     free(b);
+}
+
+/* ------------------------------------------------------------------ structural damping */
+
+int ffrf_damping_update(ffrf_body *b)
+{
+    const ffrf_dims *d = &b->dims;
+    const int n = d->n, ne = d->n_el;
+    const double alpha = b->damping.ab[0], beta = b->damping.ab[1];
+    /* !(x >= 0) also refuses NaN */
+    if (!(alpha >= 0.0 && alpha <= 1e300) || !(beta >= 0.0 && beta <= 1e300))
+        return -1;
+    for (int i = 0; i < ne; i++)
+        if (!(b->damping.zeta[i] >= 0.0 && b->damping.zeta[i] <= 1e300))
+            return -1;
+    if (ne == 0 && (alpha > 0.0 || beta > 0.0))
+        return -1; /* no damping basis in the image: nothing to damp with */
+    int on = 0;
+    for (int e = 0; e < d->E && ne; e++) {
+        const double (*MPhi)[ne] = (const double (*)[ne])b->data.damp_MPhi + (size_t)e * n;
+        const double *w = b->data.damp_omega + (size_t)e * ne;
+        double (*D)[n] = (double (*)[n])b->damping.D + (size_t)e * n;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++) {
+                double s = 0.0;
+                for (int k = 0; k < ne; k++) /* c_k = 2 zeta_k omega_k + alpha + beta omega_k^2 (damping.py) */
+                    s += MPhi[i][k] * (2.0 * b->damping.zeta[k] * w[k] + alpha + beta * w[k] * w[k]) * MPhi[j][k];
+                D[i][j] = s;
+                on |= s != 0.0;
+            }
+    }
+    b->damping.on = on;
+    return 0;
 }
 
 /* ------------------------------------------------------------------ named access */

@@ -42,6 +42,7 @@ typedef struct {
     int n_ports;   /* ports, in the model's order */
     int n_springs; /* compliant ports */
     int n_loads;   /* load windows of a scene's schedule (0 outside a scheduled run) */
+    int n_el;      /* modes of a superelement in the damping basis: n, or 0 (no damping data) */
 } ffrf_dims;
 
 /* The reduced data and the integrator's maps: constant after creation. */
@@ -85,7 +86,19 @@ typedef struct {
     const idx_t *spring_node; /* [n_springs] */
     const idx_t *spring_trans;/* [n_springs]   1: translation compliant */
     const idx_t *spring_rot;  /* [n_springs]   1: rotation compliant */
+    /* structural damping (runtime/damping.py): the elastic free-free modes of each reduced superelement */
+    const double *damp_MPhi;  /* [E][n][n_el]  M_bar Phi, Phi mass-normalized */
+    const double *damp_omega; /* [E][n_el]     their circular frequencies [rad/s] */
 } ffrf_data;
+
+/* Structural damping: the settable ratios and coefficients and the matrices they make
+ * (ffrf_damping_update): D = MPhi diag(c) MPhi^T, c_i = 2 zeta_i omega_i + alpha + beta omega_i^2. */
+typedef struct {
+    double *zeta;      /* [n_el]       damping ratio of each mode */
+    double *ab;        /* [2]          Rayleigh alpha [1/s], beta [s] */
+    double *D;         /* [E][n_d][n_d] n_d = n with damping data, else 0 */
+    int on;            /* 1: some c_i > 0, the elastic force (78) carries D q_bar_dot */
+} ffrf_damping;
 
 /* Everything the next step depends on (BodySystem._STATE_FIELDS, then the scalars). */
 typedef struct {
@@ -184,6 +197,7 @@ struct ffrf_body {
     ffrf_inputs in;
     ffrf_springs springs;
     ffrf_schedule schedule;
+    ffrf_damping damping;
     double *point_values;             /* [n_ports][FFRF_POINT_WIDTH] an FMU's inputs as set at t_c */
     ffrf_lu lu;
     ffrf_partition part;

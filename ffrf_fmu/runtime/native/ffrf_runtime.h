@@ -36,6 +36,11 @@ void *ffrf_body_array(ffrf_body *b, const char *name, size_t *count, char *kind)
 int ffrf_body_get_scalar(const ffrf_body *b, const char *name, double *value);
 int ffrf_body_set_scalar(ffrf_body *b, const char *name, double value);
 
+/* Structural damping from the body's arrays damp_zeta [n] (ratio per mode) and damp_ab [2]
+ * (Rayleigh alpha, beta), set before a run: rebuilds every superelement's D (runtime/damping.py) without
+ * an eigensolver. Returns 0, or -1 when a value is negative or not finite (D is then left unchanged). */
+int ffrf_damping_update(ffrf_body *b);
+
 /* The schedule of a scene's run (FFRF_SCHEDULED; simulate.scene_schedule): arrays of the caller's,
  * read during ffrf_body_advance. r0 [n_ports][3], kind [n_ports][2] (-1: none), prm, axis
  * [n_ports][2][3], load_port [n_loads], load_window [n_loads][2], load_fm [n_loads][2][3]. */

@@ -19,6 +19,8 @@ import struct
 
 import numpy as np
 
+from ..damping import per_mode_ratios
+
 MAGIC = b"FFRFBODY"
 VERSION = 1  # ffrf_runtime.h FFRF_RUNTIME_VERSION
 NAME_BYTES = 24
@@ -84,6 +86,8 @@ def body_entries(system) -> dict[str, np.ndarray]:
     springs = [p for p in ports if p.name in system.compliant]
     node, mode, spring = system._port_codes
     am, af, gamma = system.coefficients
+    basis, damping = system.damping_basis, system.damping
+    n_el = basis.n_elastic if basis is not None else 0
     e = {
         # reduced data (geradin 76, 53, 13) and the deformation-dependent inertia / membrane strain
         "gyro": gyro, "stiff": int(system.W1 is not None),
@@ -93,6 +97,11 @@ def body_entries(system) -> dict[str, np.ndarray]:
         "vk_a": system.vk_a if system.stiffening else np.zeros((E, 0, n)),
         "vk_B": system.vk_B if system.stiffening else np.zeros((E, 0, n, n)),
         "mass": system.mass, "J0": system.J0, "X_B": system.X_B, "se_nodes": system.se_nodes,
+        # structural damping (runtime/damping.py): the elastic modes and the ratios / Rayleigh coefficients
+        "damp_MPhi": basis.MPhi if basis is not None else np.zeros((E, n, 0)),
+        "damp_omega": basis.omega if basis is not None else np.zeros((E, 0)),
+        "damp_zeta": per_mode_ratios(damping, n_el) if damping is not None else np.zeros(n_el),
+        "damp_ab": np.array([damping.alpha, damping.beta] if damping is not None else [0.0, 0.0]),
         # layout and integrator maps (runtime/layout.py, integrator.py `_build_newton`)
         "cfg_map": L.cfg_map, "vel_map": L.vel_map, "gravity": system.gravity,
         "rot_slots": system.fused.rot_slots, "newton_idx": system._newton_idx, "newton_pos": system._newton_pos,

@@ -195,6 +195,8 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     const int ncv = nc + nv, ng = b->dims.n_g, n2 = b->dims.n_w2;
     const double (*Ke)[n] = (const double (*)[n])b->data.K + (size_t)e * n;
     const double (*Me)[n] = (const double (*)[n])b->data.M + (size_t)e * n;
+    const int damped = b->damping.on; /* structural damping D q_bar_dot in g (runtime/damping.py) */
+    const double (*De)[n] = (const double (*)[n])b->damping.D + (size_t)(damped ? e : 0) * n;
     const double (*Je)[3] = (const double (*)[3])b->data.J0 + (size_t)e * 3;
     const double (*G)[ng][ng] = (const double (*)[ng][ng])b->data.G + (size_t)e * 3;
     const double *mass = b->data.mass;
@@ -295,17 +297,23 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         Fy[3 + i][cO0 + i] = -1.0;
         Fz[ex0 + i][cv0 + i] = mass[e];
     }
-    for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] */
+    for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s3 = 0.0;
+            double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
             NZ_ROWS(j, m) {
                 s1 += Me[i][m] * Dq[m][j];
                 s2 += Me[i][m] * Dqd[m][j];
                 s3 += Ke[i][m] * Dq[m][j];
             }
+            if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
+                NZ_ROWS(j, m) {
+                    s4 += De[i][m] * Dq[m][j];
+                    s5 += De[i][m] * Dqd[m][j];
+                }
             Fz[kq + i][j] = s1;
             Fy[kq + i][j] = s2;
-            dgy[i][j] = s3;
+            dgy[i][j] = s3 + s5;
+            dgz[i][j] = s4;
         }
         for (int j = 0; j < n; j++) {
             Fy[kq + i][cr + j] = -Me[i][j];
@@ -557,6 +565,8 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
     const double (*X_B)[3] = (const double (*)[3])b->data.X_B + (size_t)e * nb;
     const double (*Ke)[n] = (const double (*)[n])b->data.K + (size_t)e * n;
     const double (*Me)[n] = (const double (*)[n])b->data.M + (size_t)e * n;
+    const int damped = b->damping.on;
+    const double (*De)[n] = (const double (*)[n])b->damping.D + (size_t)(damped ? e : 0) * n;
     const double (*Je)[3] = (const double (*)[3])b->data.J0 + (size_t)e * 3;
     const double (*G)[ng][ng] = (const double (*)[ng][ng])b->data.G + (size_t)e * 3;
     const double *mass = b->data.mass, *gravity = b->data.gravity;
@@ -646,6 +656,8 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
                 s1 += GW[i][j] * q[j];
                 s2 += GW[i][j] * r[j];
             }
+            if (damped) /* structural damping on the co-rotated rates (91), runtime/damping.py */
+                s2 += De[i][j] * qd[j];
         }
         F[6 + i] = s1;
         g[i] = s2;
