@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime import input_rule
+from ..runtime.damping import Damping
 from ..runtime.data import BodyData
 from ..runtime.outputs import tip_from_hub
 from ..runtime.ports import StepFailure
@@ -84,7 +85,8 @@ class BodyCoSim:
     def __init__(self, data: BodyData, config: dict):
         self.data = data
         self.config = config
-        self.variables: list[Variable] = body_variables(data.ports, data.node_positions, config["parameters"])
+        self.variables: list[Variable] = body_variables(data.ports, data.node_positions, config["parameters"],
+                                                        data.damping)
         self.origin = np.asarray(config.get("origin", data.node_positions[0]), dtype=float)
         n = len(self.variables)
         self.values = np.array([v.start if v.start is not None else 0.0 for v in self.variables], dtype=float)
@@ -218,6 +220,10 @@ class BodyCoSim:
                                                    if (p.name, "coupling." + k) in self.index else np.zeros(3)
                                                    for k in ("k", "c", "k_rot", "c_rot")]).reshape(4, 3)
                            for p in self.data.ports if "compliant" in (p.translation, p.rotation)},
+            # structural damping: ratios (one for every mode, or one per mode), Rayleigh alpha, beta
+            "damping": (v[self.index[("parameter", "damping_ratio")]].copy(),
+                        float(v[self.index[("parameter", "damping_alpha")][0]]),
+                        float(v[self.index[("parameter", "damping_beta")][0]])),
         }
 
     def _check_parameters(self, p: dict) -> str:
@@ -251,6 +257,12 @@ class BodyCoSim:
                 return (f"parameter {named[key]} = {p[key].tolist()} is set, but the {part} of port {driven[0]} is "
                         f"motion-driven: its input {driven[0]}.{field} gives the initial rigid "
                         f"{'velocity' if field == 'v' else 'angular velocity'} (set that input instead)")
+        ratios, alpha, beta = p["damping"]
+        for k, x in zip(self.index[("parameter", "damping_ratio")].tolist() + [self.index[("parameter", key)][0]
+                        for key in ("damping_alpha", "damping_beta")], ratios.tolist() + [alpha, beta]):
+            if not (x >= 0.0 and math.isfinite(x)):
+                return (f"parameter {self.variables[k].name} must be finite and >= 0 (a damping ratio or Rayleigh "
+                        f"coefficient), got {x!r}")
         for port, KC in p["compliance"].items():
             if not (np.all(np.isfinite(KC)) and np.all(KC >= 0.0)):
                 return f"parameters {port}.coupling.* must be finite and >= 0, got {KC.ravel().tolist()}"
@@ -258,11 +270,13 @@ class BodyCoSim:
 
     def _make_system(self) -> BodySystem:
         p = self.parameters()
-        key = (p["rho_inf"], p["terms"], tuple(p["gravity"]))
+        ratios, alpha, beta = p["damping"]
+        damping = Damping(tuple(ratios.tolist()), alpha, beta)
+        key = (p["rho_inf"], p["terms"], tuple(p["gravity"]), damping)
         if self.system is None or self._system_params != key:
             self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"],
                                      full_terms=tuple(self.config["parameters"]["full_terms"]),
-                                     backend=self.config.get("backend", "numpy"))
+                                     backend=self.config.get("backend", "numpy"), damping=damping)
             self.backend_note = self.system.backend_note  # native wanted but not usable: the slave logs it
             self._system_params = key
         for port, KC in p["compliance"].items():  # compliant ports: the coupling parameters

@@ -228,12 +228,13 @@ def _run_fmu3(fmu_path, scene, table: np.ndarray, start_values: dict, record: Se
 
 
 def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | None = None,
-            record: Sequence[str] | None = None) -> FmuRun:
+            record: Sequence[str] | None = None, start_values: dict | None = None) -> FmuRun:
     """Run the FMU through `scene` under fmpy.simulate_fmu.
 
     inputs: t -> {port: PortValues} (default: the scene's drives and loads on the FMU's own body);
     comm_step: communication step H (default: the scene's internal step); record: the variables to
-    record (default: every input and output). fmpy records after doStep(t_c, H), when the inputs
+    record (default: every input and output); start_values: parameters set besides the scene's (e.g.
+    {"damping.ratio": 0.05}), in initialization mode. fmpy records after doStep(t_c, H), when the inputs
     still hold the values set for t_c, and repeats the last sample after a discard: the run keeps
     strictly increasing times and takes the input columns from the signal at the recorded times. An FMI
     3.0 FMU runs through the same table in `_run_fmu3`; its columns are the scalar names of FMI 2.0."""
@@ -250,7 +251,7 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
                   for n in (scalar_names(v) if fmi3 else [v.name])]
     times = np.array(communication_grid(scene.duration, H))  # the last point is the scene's end, never past it
     table = fmu_input_table(fmu_path, inputs, times)
-    start_values = scene_start_values(scene, fmu_path)
+    start_values = {**scene_start_values(scene, fmu_path), **(start_values or {})}
     log: list[str] = []
 
     def logger(component, instance, status, category, message):

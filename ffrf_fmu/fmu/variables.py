@@ -37,6 +37,7 @@ UNITS: dict[str, dict[str, int]] = {
     "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
     "J": {"kg": 1, "m": 2, "s": -2},
     "s": {"s": 1},
+    "1/s": {"s": -1},
 }
 
 # Witteveen's terms of the set `full` (runtime.terms.FULL_TERMS, docs/inertia-terms.md), what each adds
@@ -141,13 +142,14 @@ def port_field_causality(translation: str, rotation: str, field: str) -> str:
     return "output" if motion == is_load else "input"
 
 
-def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
+def body_variables(ports, node_positions, parameters: dict, damping=None) -> list[Variable]:
     """Every variable of a body FMU, in value-reference order.
 
     ports: objects with name, node, translation, rotation (runtime.data.PortData);
     node_positions: reference node positions (start values of motion-driven r inputs);
     parameters: defaults with keys step, rho_inf, gravity (3), terms (name), initial_velocity (3),
-    initial_angular_velocity (3), port_displacements {port: (3,)} (force-driven translations).
+    initial_angular_velocity (3), port_displacements {port: (3,)} (force-driven translations);
+    damping: the body's runtime.damping.Damping (the damping parameters' defaults), None: undamped.
     """
     out: list[Variable] = []
     for p in ports:
@@ -230,6 +232,32 @@ def body_variables(ports, node_positions, parameters: dict) -> list[Variable]:
             out.append(Variable(component_name(f"initial.{p.name}.d", (i,)), "Real", "parameter", "fixed", "m",
                                 f"initial elastic displacement of port {p.name} from its reference position",
                                 float(d[i]), "parameter", port=p.name, field="port_displacement", index=(i,)))
+    out.extend(damping_variables(damping))
+    return out
+
+
+def damping_variables(damping) -> list[Variable]:
+    """The structural damping's parameters (runtime/damping.py; defaults from the model file's
+    [body.damping], zero without it): damping.ratio, one for every mode (or damping.ratio[i], one per
+    mode, when the model file lists them), damping.alpha, damping.beta. Both kinds may be set: their
+    per-mode coefficients add, c_i = 2 zeta_i omega_i + alpha + beta omega_i^2."""
+    ratios = list(damping.ratios if damping is not None else ()) or [0.0]
+    alpha, beta = (damping.alpha, damping.beta) if damping is not None else (0.0, 0.0)
+    out = []
+    rule = ("structural damping on the co-rotated elastic rates, never on the rigid motion (docs/equations.md); "
+            "set before initialization, >= 0")
+    for i, z in enumerate(ratios):
+        which = "every mode of each superelement's reduced model" if len(ratios) == 1 else \
+            f"mode {i + 1} (by rising frequency) of each superelement's reduced model"
+        out.append(Variable(component_name("damping.ratio", (i,)) if len(ratios) > 1 else "damping.ratio", "Real",
+                            "parameter", "fixed", None, f"modal damping ratio of {which}; {rule}", float(z),
+                            "parameter", field="damping_ratio", index=(i,) if len(ratios) > 1 else (), min=0.0))
+    out.append(Variable("damping.alpha", "Real", "parameter", "fixed", "1/s",
+                        f"Rayleigh damping coefficient on the mass; {rule}", float(alpha), "parameter",
+                        field="damping_alpha", min=0.0))
+    out.append(Variable("damping.beta", "Real", "parameter", "fixed", "s",
+                        f"Rayleigh damping coefficient on the stiffness; {rule}", float(beta), "parameter",
+                        field="damping_beta", min=0.0))
     return out
 
 

@@ -294,7 +294,7 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
         if dest.suffix and not dest.is_dir():
             raise native_build.NativeBuildError(f"{dest}: an FMU file name must end in .fmu (or name a directory)")
         dest = dest / f"{data.name}.fmu"
-    variables = body_variables(data.ports, data.node_positions, config)
+    variables = body_variables(data.ports, data.node_positions, config, data.damping)
     images, system = _images(data, config)
     if system is None:
         raise native_build.NativeBuildError(f"term set {config['terms']!r} needs the inertia data W1, W2 (build the "

@@ -315,6 +315,19 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
                 return 1;
             }
     }
+    {   /* structural damping: ratios and Rayleigh coefficients finite and >= 0 (!(x >= 0) also catches NaN) */
+        int vr = -1;
+        for (int i = -2; i < d->n_damp_ratios && vr < 0; i++) {
+            int k = i == -2 ? d->vr_damp_alpha : i == -1 ? d->vr_damp_beta : d->damp_ratio_vr[i];
+            if (!(v[k] >= 0.0 && isfinite(v[k])))
+                vr = k;
+        }
+        if (vr >= 0) {
+            snprintf(why, len, "parameter %s must be finite and >= 0 (a damping ratio or Rayleigh coefficient), got %s",
+                     d->vars[vr].name, py_repr(v[vr], a, sizeof a));
+            return 1;
+        }
+    }
     for (int p = 0; p < d->n_ports; p++) {
         const int32_t *cv = d->coupling_vr + 12 * p;
         int bad = 0, any = 0;
@@ -463,6 +476,22 @@ static int make_body(fmu_instance *m, char *why, size_t len)
         for (int i = 0; i < 12; i++)
             b->springs.KC[12 * s + i] = cv[i] >= 0 ? m->values[cv[i]] : 0.0;
         s++;
+    }
+    /* structural damping: the parameters into the body's ratios and coefficients, D rebuilt from the image's
+     * modes (runtime/damping.py); one ratio parameter holds for every mode */
+    const int ne = b->dims.n_el;
+    if (d->n_damp_ratios != 1 && d->n_damp_ratios != ne) {
+        snprintf(why, len, "%d damping.ratio parameters for a body of %d modes per superelement", d->n_damp_ratios, ne);
+        return 1;
+    }
+    for (int i = 0; i < ne; i++)
+        b->damping.zeta[i] = m->values[d->damp_ratio_vr[d->n_damp_ratios == 1 ? 0 : i]];
+    b->damping.ab[0] = m->values[d->vr_damp_alpha];
+    b->damping.ab[1] = m->values[d->vr_damp_beta];
+    if (ffrf_damping_update(b)) {
+        snprintf(why, len, "the damping parameters cannot be applied: negative or not finite, or this body has no "
+                 "modes to damp (its image carries none)");
+        return 1;
     }
     return 0;
 }

@@ -67,6 +67,9 @@ typedef struct {
     int vr_gravity[3], vr_velocity[3], vr_angular_velocity[3];
     const int32_t *disp_vr;       /* [n_ports][3] initial.<port>.d, -1 */
     const int32_t *coupling_vr;   /* [n_ports][12] <port>.coupling.{k, c, k_rot, c_rot}, -1 */
+    int vr_damp_alpha, vr_damp_beta; /* damping.alpha, damping.beta (runtime/damping.py) */
+    int n_damp_ratios;            /* 1: damping.ratio for every mode; else one per mode of a superelement */
+    const int32_t *damp_ratio_vr; /* [n_damp_ratios] */
     double origin[3];             /* of the initial rigid velocity field */
     const void *image[FMU_TERM_SETS]; /* runtime image per term set (NULL: not in this FMU) */
     size_t image_size[FMU_TERM_SETS];

@@ -295,6 +295,21 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     d->disp_vr = (const int32_t *)s.data;
     NEED("coupling", (size_t)d->n_ports * 48, &s);
     d->coupling_vr = (const int32_t *)s.data;
+    NEED("damping", (size_t)-1, &s); /* alpha, beta, k, k ratios (int32 each) */
+    {
+        const int32_t *dv = (const int32_t *)s.data;
+        if (s.size < 16 || s.size % 4)
+            goto bad_content;
+        d->vr_damp_alpha = dv[0];
+        d->vr_damp_beta = dv[1];
+        d->n_damp_ratios = dv[2];
+        d->damp_ratio_vr = dv + 3;
+        if (d->n_damp_ratios < 1 || (size_t)d->n_damp_ratios != s.size / 4 - 3)
+            goto bad_content;
+        for (int i = 0; i < 3 + d->n_damp_ratios; i++)
+            if (i != 2 && (dv[i] < 0 || dv[i] >= d->n_vars))
+                goto bad_content;
+    }
     NEED("origin", 24, &s);
     memcpy(d->origin, s.data, 24);
     {

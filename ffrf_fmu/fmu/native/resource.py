@@ -165,6 +165,9 @@ def payload(c: ResourceContent) -> bytes:
         for k, suffix in enumerate(("k", "c", "k_rot", "c_rot")):
             if (p.name, "coupling." + suffix) in index:
                 coupling[j, 3 * k : 3 * k + 3] = index[(p.name, "coupling." + suffix)]
+    # structural damping: [vr of damping.alpha, of damping.beta, k, vr of the k ratios] (k = 1: one for every mode)
+    ratios = index[("parameter", "damping_ratio")]
+    damping = [par("damping_alpha")[0], par("damping_beta")[0], len(ratios), *ratios]
     counts = [len(variables), len(ports), len(out_vr), len(c.probes)]
     sections = [
         _section("guid", c.guid.encode() + b"\0"),
@@ -181,6 +184,7 @@ def payload(c: ResourceContent) -> bytes:
         _section("params", _i32(params)),
         _section("disp", _i32(disp)),
         _section("coupling", _i32(coupling)),
+        _section("damping", _i32(damping)),
         _section("origin", _f64(c.origin)),
         _section("nodes", _f64(c.node_positions)),  # reference node positions (the datasheet shows the ports' too)
     ]
