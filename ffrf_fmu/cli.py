@@ -107,6 +107,22 @@ def _hz(values, n: int = 6) -> str:
     return shown + (f", ... ({len(values)} in all)" if len(values) > n else "")
 
 
+def _damping_report(data):
+    """The body's structural damping as each mode of superelement 0's reduced model feels it (its ratio
+    c_i / (2 omega_i), runtime/damping.py), or None when undamped."""
+    if data.damping is None or data.damping.kind == "none":
+        return None
+    import numpy as np
+
+    from .runtime.damping import modal_basis, modal_coefficients
+
+    se = data.superelements[0]
+    basis = modal_basis(se.K[None], se.M[None])
+    w = basis.omega[0]
+    return {"kind": data.damping.kind, **data.damping.as_meta(), "mode_frequencies_hz": (w / (2 * np.pi)).tolist(),
+            "mode_ratios": (modal_coefficients(data.damping, basis)[0] / (2 * w)).tolist()}
+
+
 @command(*MODEL_ARGS, arg("--json", action="store_true", help="print a JSON object instead of text"))
 def info(args) -> int:
     """Summarize a model: superelements, dofs before/after reduction, modes and frequencies."""
@@ -169,6 +185,7 @@ def info(args) -> int:
         red = reductions[0]
         top = float(red.data.frequencies_hz[-1]) if len(red.data.frequencies_hz) else 0.0
         quality = quality_report(red, 2.0 * top if top else None)
+    damping = _damping_report(body_data)
     if args.json:
         from dataclasses import asdict
 
@@ -185,6 +202,7 @@ def info(args) -> int:
             "frequencies_hz": freqs,
             "inertia": inertia,
             **({"reduction_quality": quality} if quality is not None else {}),
+            **({"damping": damping} if damping is not None else {}),
         }
         json.dump(out, sys.stdout, indent=2)
         print()
@@ -219,6 +237,10 @@ def info(args) -> int:
     print(f"  body: {n_body_dofs} coordinates = {n_nodes} boundary frames x 6 + {len(ses)} CM frames x 6 "
           f"+ {n_body_dofs - 6 * (n_nodes + len(ses))} modal; fixed: {', '.join(fixed) or 'nothing (free-free)'}")
     print(f"  body frequencies [Hz]: {_hz(freqs, 8)}")
+    if damping is not None:
+        print(f"  damping ({damping['kind']}; docs/model-format.md): ratio of superelement 0's modes "
+              f"{_hz(damping['mode_frequencies_hz'])} Hz: "
+              + ", ".join(f"{z:.3g}" for z in damping["mode_ratios"][:8]) + (" ..." if len(damping["mode_ratios"]) > 8 else ""))
     if quality is not None and quality["modes"]:
         print(f"  reduction quality up to {quality['cutoff_hz']:.4g} Hz (2 x the highest kept mode; docs/solids.md): "
               "full -> reduced [Hz] (MAC)")

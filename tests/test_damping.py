@@ -23,7 +23,7 @@ import pytest
 
 from ffrf_fmu.checked_toml import ModelError
 from ffrf_fmu.model import Body, Port, load_model
-from ffrf_fmu.reduction import build_body
+from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import equations
 from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.runtime.damping import Damping, modal_basis
@@ -41,7 +41,7 @@ def _b1_data(b1, damping):
     section, length = b1
     body = Body("b", length, (0, 0, 0), (1, 0, 0), section, 2, 4, 3,
                 (Port("hub", 0, "motion", "force"), Port("tip", 2, "force", "force")), damping=damping)
-    return build_body(body)[0]
+    return reduce_body(body).data
 
 
 # modal (one ratio, and one per mode), Rayleigh, and both added (an FMU's parameters may add them)
@@ -113,7 +113,7 @@ def test_rayleigh_is_alpha_m_plus_beta_k(b1):
 
 def _free_beam(damping, superelements=1):
     model = load_model("models/free_beam.toml", [f"superelements={superelements}", "modes=4"])
-    return build_body(dataclasses.replace(model.body, damping=damping))[0]
+    return reduce_body(dataclasses.replace(model.body, damping=damping)).data
 
 
 def _decay(damping, modes, h=1e-3, periods=8.0):
@@ -254,7 +254,7 @@ def test_a_list_of_the_wrong_length_names_the_count(tmp_path, beam_toml):
     model = load_model(_model(tmp_path, beam_toml, "ratio = [0.01, 0.02]"))
     n = 12 + model.body.modes
     with pytest.raises(ModelError, match=rf"body.damping.ratio: .*\({n} = 6 x its boundary frames \+ its modes\), got 2"):
-        build_body(model.body)
+        reduce_body(model.body)
 
 
 def test_damping_survives_save_and_load(tmp_path, b1):
@@ -313,14 +313,14 @@ def test_fmu_damping_parameter_equals_the_standalone_damped_run(beam_models, fmi
     by the FMU's rule and scheduled by the standalone run, differ by round-off, which the hub reactions
     show: measured 1.8e-9 undamped, 1.4e-9 damped; allowed twice the undamped, at least 1e-12). Without the
     parameter the outputs differ from the damped run by far more: the damping is what is compared."""
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.fmu.run import run_fmu
     from ffrf_fmu.simulate import run_scene
 
     plain, damped = beam_models
     sc = load_model(plain).scene("spin")
-    fmu = build_from_model(plain, plain.parent / f"plain{fmi}.fmu", scene="spin", platforms=("linux64",), fmi=fmi)
-    fmu_damped = build_from_model(damped, damped.parent / f"damped{fmi}.fmu", scene="spin", platforms=("linux64",),
+    fmu = build_fmu(plain, plain.parent / f"plain{fmi}.fmu", scene="spin", platforms=("linux64",), fmi=fmi)
+    fmu_damped = build_fmu(damped, damped.parent / f"damped{fmi}.fmu", scene="spin", platforms=("linux64",),
                                   fmi=fmi)
     run = run_fmu(fmu, sc, start_values={"damping.ratio": 0.05})
     built_damped = run_fmu(fmu_damped, sc)
@@ -338,10 +338,10 @@ def test_fmu_refuses_a_negative_damping_parameter(beam_models, name):
     log names the parameter and its value."""
     import fmpy
 
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
 
     plain, _ = beam_models
-    fmu = build_from_model(plain, plain.parent / "plain2.fmu", scene="spin", platforms=("linux64",))
+    fmu = build_fmu(plain, plain.parent / "plain2.fmu", scene="spin", platforms=("linux64",))
     log = []
     with pytest.raises(Exception, match="fmi2ExitInitializationMode failed with status 3"):
         fmpy.simulate_fmu(str(fmu), stop_time=0.01, output_interval=2e-3, start_values={name: -0.01},
@@ -355,13 +355,13 @@ def test_python_fmu_takes_the_damping_parameter(beam_models):
     difference), and a negative ratio is refused at initialization."""
     import fmpy
 
-    from ffrf_fmu.fmu.builder import build_from_model
+    from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.fmu.run import run_fmu
     from ffrf_fmu.simulate import run_scene
 
     plain, damped = beam_models
     sc = load_model(plain).scene("spin")
-    fmu = build_from_model(plain, plain.parent / "plain_py.fmu", scene="spin", runtime="python")
+    fmu = build_fmu(plain, plain.parent / "plain_py.fmu", scene="spin", runtime="python")
     run, undamped = run_fmu(fmu, sc, start_values={"damping.ratio": 0.05}), run_fmu(fmu, sc)
     ref = run_scene(load_model(damped), "spin", backend="numpy")
     ref_plain = run_scene(load_model(plain), "spin", backend="numpy")
@@ -372,3 +372,21 @@ def test_python_fmu_takes_the_damping_parameter(beam_models):
         fmpy.simulate_fmu(str(fmu), stop_time=0.02, output_interval=0.01, start_values={"damping.ratio": -0.01},
                           debug_logging=True, logger=lambda c, i, s, cat, msg: log.append(msg.decode()))
     assert any("parameter damping.ratio must be finite and >= 0" in m for m in log), log
+
+
+def test_info_reports_each_modes_ratio():
+    """`ffrf-fmu info --json` with Rayleigh damping on the free beam in 1 superelement: the ratio of each
+    mode is alpha / (2 omega) + beta omega / 2 at the mode's frequency (the first bending pair: 2.95 Hz,
+    0.0172)."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "ffrf_fmu", "info", "models/free_beam.toml", "--json", "--set",
+                          "superelements=1", "--set", "modes=4", "--set", "body.damping.alpha=0.5", "--set",
+                          "body.damping.beta=4e-4"], capture_output=True, text=True, check=True)
+    d = json.loads(out.stdout)["damping"]
+    w = 2 * np.pi * np.array(d["mode_frequencies_hz"])
+    assert d["kind"] == "rayleigh" and len(w) == 16
+    assert np.allclose(d["mode_ratios"], 0.5 / (2 * w) + 4e-4 * w / 2, rtol=1e-12)
+    assert abs(d["mode_ratios"][0] - 0.0172) < 1e-4
