@@ -5,7 +5,8 @@
  *       take STEPS doSteps of H, print "cycle instance value..." of VR_OUT (%.17g), free them all.
  *       Then dlclose and return 0: a crash at free, unload or exit shows in the exit status.
  *   fmi2_host derivative ...   as run, and after the steps also "d cycle instance value..." of
- *       fmi2GetDirectionalDerivative of VR_OUT with respect to VR_IN (seed 1).
+ *       ffrf2GetStepDerivative (the body FMU's derivatives of its last step, with fmi2GetDirectionalDerivative's
+ *       arguments: docs/fmu.md) of VR_OUT with respect to VR_IN (seed 1).
  *   fmi2_host faults BINARY RESOURCE_URI GUID VR_REAL VR_INT VR_BAD_PARAM BAD_VALUE
  *       Each bad call twice on one instance, printing "call status" lines, then free and unload.
  */
@@ -91,7 +92,7 @@ int main(int argc, char **argv)
 
     int derivative = strcmp(argv[1], "derivative") == 0;
     if (strcmp(argv[1], "run") == 0 || derivative) {
-        Derivative getDerivative = derivative ? (Derivative)sym(lib, "fmi2GetDirectionalDerivative") : NULL;
+        Derivative getDerivative = derivative ? (Derivative)sym(lib, "ffrf2GetStepDerivative") : NULL;
         const double seed = 1.0;
         int steps = atoi(argv[5]), n = atoi(argv[7]), cycles = atoi(argv[8]);
         double H = atof(argv[6]);

@@ -23,6 +23,12 @@
 #pragma GCC diagnostic ignored "-Wstrict-prototypes"
 #endif
 #include "fmi3Functions.h"
+
+/* the body FMU's derivatives of its last step (fmi3Functions.c, not FMI functions) */
+fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance, const fmi3ValueReference[], size_t, const fmi3ValueReference[],
+                                             size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
+fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance, const fmi3ValueReference[], size_t, const fmi3ValueReference[],
+                                         size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
 #if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
@@ -227,11 +233,14 @@ int main(int argc, char **argv)
         case 14:
         case 15: { /* directional or adjoint derivative of anything */
             size_t ny = refs(sane, outputs, n_out, u, &n_u);
+            int step = pick(2); /* FMI's partial derivatives at the communication point, or the last step's (docs/fmu.md) */
             if (op == 14) {
-                s = fmi3GetDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny);
+                s = step ? ffrf3GetStepDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny)
+                         : fmi3GetDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny);
                 derivatives_ok += s == fmi3OK;
             } else {
-                s = fmi3GetAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx);
+                s = step ? ffrf3GetStepAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx)
+                         : fmi3GetAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx);
                 adjoints_ok += s == fmi3OK;
             }
             break;

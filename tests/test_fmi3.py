@@ -106,6 +106,21 @@ class Slave3:
         return np.concatenate([self.fmu.getFloat64([self.vr(n)], nValues=len(scalar_names(self.vars[n])))
                                for n in names])
 
+    def step_derivative(self, unknowns, knowns, seed, n_out, adjoint=False):
+        """(status, values) of ffrf3GetStepDirectionalDerivative (or ...AdjointDerivative): the derivatives of the
+        last step, exported beside the fmi3 functions with their arguments (docs/fmu.md); unknowns and knowns:
+        value references of arrays, n_out the scalars returned."""
+        import ctypes as C
+
+        f = getattr(self.fmu.dll, "ffrf3GetStepAdjointDerivative" if adjoint else "ffrf3GetStepDirectionalDerivative")
+        f.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_uint), C.c_size_t,
+                      C.POINTER(C.c_double), C.c_size_t, C.POINTER(C.c_double), C.c_size_t]
+        f.restype = C.c_int
+        out = (C.c_double * n_out)()
+        status = f(self.fmu.component, (C.c_uint * len(unknowns))(*unknowns), len(unknowns),
+                   (C.c_uint * len(knowns))(*knowns), len(knowns), (C.c_double * len(seed))(*seed), len(seed), out, n_out)
+        return status, np.array(out[:])
+
     def close(self):
         self.fmu.freeInstance()
         self.fmu.freeLibrary()
@@ -158,7 +173,9 @@ def test_the_binary_exports_the_fmi3_functions_only(small):
     declared = [ln.split("(")[0].split()[-1] for ln in (NATIVE / "fmi3FunctionTypes.h").read_text().splitlines()
                 if ln.startswith("typedef") and "TYPE" in ln]
     declared = {n.removesuffix("TYPE").lstrip("*") for n in declared}
-    assert names and all(n.startswith("fmi3") for n in names), names
+    step = {"ffrf3GetStepDirectionalDerivative", "ffrf3GetStepAdjointDerivative"}  # not FMI: docs/fmu.md
+    assert names and all(n.startswith("fmi3") or n in step for n in names), names
+    assert step <= set(names)
     assert declared <= set(names), declared - set(names)  # every function of the standard: hosts look each up
     shutil.rmtree(d)
 
@@ -297,8 +314,7 @@ def test_calls_in_the_wrong_state_wrong_token_and_no_event_mode(small, tmp_path)
         assert s.status(s.fmu.getFloat64, [s.vr("tip.r")], nValues=3) == ERROR
         assert s.start() == OK
         assert s.status(s.fmu.enterInitializationMode) == ERROR
-        assert s.status(s.fmu.getDirectionalDerivative, [s.vr("tip.r")], [s.vr("tip.f")], [0, 0, 1.0],
-                        nSensitivity=3) == ERROR
+        assert s.step_derivative([s.vr("tip.r")], [s.vr("tip.f")], [0, 0, 1.0], 3)[0] == ERROR
         assert "no communication step to differentiate" in s.log[-1][2] and "fmi3SetFMUState" in s.log[-1][2]
         assert s.status(s.fmu.enterEventMode) == ERROR and "hasEventMode=false" in s.log[-1][2]
         s.fmu.doStep(0.0, 0.01)
@@ -381,9 +397,13 @@ def test_state_round_trips_reset_and_a_damaged_state(small, tmp_path):
 
 
 def test_directional_derivatives_equal_fmi2s_and_the_adjoint_is_their_transpose(small, tmp_path):
-    """fmi3GetDirectionalDerivative of tip.r with respect to tip.f equals fmi2GetDirectionalDerivative's (the same
-    model function over the scalars, bit for bit); fmi3GetAdjointDerivative with seed v is v^T J, J built column by
-    column from unit seeds of the directional derivative (bit for bit: the adjoint computes those columns)."""
+    """FMI's meaning: fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative give the partial derivatives at the
+    communication point, zero (no direct feedthrough). The step's: ffrf3GetStepDirectionalDerivative of tip.r with
+    respect to tip.f equals FMI 2.0's ffrf2GetStepDerivative (the same model function over the scalars, bit for
+    bit); ffrf3GetStepAdjointDerivative with seed v is v^T J, J built column by column from unit seeds of the step's
+    directional derivative (bit for bit: the adjoint computes those columns)."""
+    import ctypes as C
+
     from fmpy.fmi2 import FMU2Slave
 
     three, two, _ = small
@@ -403,17 +423,24 @@ def test_directional_derivatives_equal_fmi2s_and_the_adjoint_is_their_transpose(
             f2.doStep(k * 0.01, 0.01)
             s.fmu.doStep(k * 0.01, 0.01)
         seed = [0.3, -0.2, 1.0]
-        d3 = np.array(s.fmu.getDirectionalDerivative([s.vr("tip.r")], [s.vr("tip.f")], seed, nSensitivity=3))
-        d2 = np.array(f2.getDirectionalDerivative([vr2[f"tip.r[{i}]"] for i in (1, 2, 3)],
-                                                  [vr2[f"tip.f[{i}]"] for i in (1, 2, 3)], seed))
-        assert np.array_equal(d3, d2) and np.abs(d3).max() > 1e-8
-        J = np.column_stack([s.fmu.getDirectionalDerivative([s.vr("tip.r"), s.vr("tip.v")], [s.vr("tip.f")],
-                                                            list(np.eye(3)[j]), nSensitivity=6) for j in range(3)])
+        fmi = np.array(s.fmu.getDirectionalDerivative([s.vr("tip.r")], [s.vr("tip.f")], seed, nSensitivity=3))
+        fmi_adj = np.array(s.fmu.getAdjointDerivative([s.vr("tip.r")], [s.vr("tip.f")], seed, nSensitivity=3))
+        assert np.array_equal(fmi, np.zeros(3)) and np.array_equal(fmi_adj, np.zeros(3))
+        status, d3 = s.step_derivative([s.vr("tip.r")], [s.vr("tip.f")], seed, 3)
+        step2 = f2.dll.ffrf2GetStepDerivative
+        step2.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_uint), C.c_size_t,
+                          C.POINTER(C.c_double), C.POINTER(C.c_double)]
+        d2 = (C.c_double * 3)()
+        assert step2(f2.component, (C.c_uint * 3)(*[vr2[f"tip.r[{i}]"] for i in (1, 2, 3)]), 3,
+                     (C.c_uint * 3)(*[vr2[f"tip.f[{i}]"] for i in (1, 2, 3)]), 3, (C.c_double * 3)(*seed), d2) == OK
+        assert status == OK and np.array_equal(d3, d2[:]) and np.abs(d3).max() > 1e-8
+        J = np.column_stack([s.step_derivative([s.vr("tip.r"), s.vr("tip.v")], [s.vr("tip.f")], list(np.eye(3)[j]), 6)[1]
+                             for j in range(3)])
         v = np.array([1.0, -2.0, 0.5, 0.25, 0.0, -1.0])
-        adj = np.array(s.fmu.getAdjointDerivative([s.vr("tip.r"), s.vr("tip.v")], [s.vr("tip.f")], list(v), nSensitivity=3))
+        status, adj = s.step_derivative([s.vr("tip.r"), s.vr("tip.v")], [s.vr("tip.f")], list(v), 3, adjoint=True)
         expected = [sum(v[i] * J[i, j] for i in range(6)) for j in range(3)]
-        assert np.array_equal(adj, expected), (adj, expected)
-        assert s.status(s.fmu.getAdjointDerivative, [s.vr("tip.r")], [s.vr("tip.f")], [1.0, 2.0], nSensitivity=3) == ERROR
+        assert status == OK and np.array_equal(adj, expected), (adj, expected)
+        assert s.step_derivative([s.vr("tip.r")], [s.vr("tip.f")], [1.0, 2.0], 3, adjoint=True)[0] == ERROR
         assert "nSeed = 2" in s.log[-1][2]
     finally:
         s.close()

@@ -1,6 +1,9 @@
-"""Directional derivatives provided by a body FMU (fmi2GetDirectionalDerivative, docs/fmu.md
-"Directional derivatives"): declared in the modelDescription, equal to finite differences of two FMU
-runs from a saved state, per instance, and harmless to the run.
+"""Directional derivatives provided by a body FMU (docs/fmu.md, "Directional derivatives"), in their two
+meanings. FMI's (fmi2GetDirectionalDerivative): the partial derivatives of the outputs with respect to the
+inputs at the communication point, zero (no direct feedthrough), checked against the outputs read with
+each input moved, and refused in initialization mode. The last step's (ffrf2GetStepDerivative, not an FMI
+function, what the interface-Jacobian master uses): declared in the modelDescription, equal to finite
+differences of two FMU runs from a saved state, per instance, and harmless to the run.
 
 The derivatives are those of the step as the FMU computes it (central differences of two re-runs of
 the step inside the FMU, docs/fmu.md): finite differences of two FMU runs see the same map, up to
@@ -17,6 +20,8 @@ block) is judged at the precision both sides can give it: a reaction carries ~1e
 """
 from __future__ import annotations
 
+import ctypes as C
+
 import numpy as np
 import pytest
 from fmpy import read_model_description
@@ -26,6 +31,7 @@ from fmpy.validation import validate_fmu
 from ffrf_fmu.fmu.builder import BuildError, build_fmu, read_fmu_config
 from ffrf_fmu.fmu.variables import DIRECTIONAL_DERIVATIVES
 from ffrf_fmu.master import FmuInstance
+from ffrf_fmu.master.instance import STEP_DERIVATIVE
 from ffrf_fmu.runtime.rotation import expm, skew
 from test_fmu import _inputs_at, _started
 
@@ -50,6 +56,20 @@ def _run(inst, inputs, n):
     _inputs_at(inst, inputs(n * H))
     inst.set(list(LOADS), list(LOADS.values()))
     return n * H
+
+
+def _step(inst, unknowns, knowns, seed):
+    """The derivatives of the last step (ffrf2GetStepDerivative, docs/fmu.md) by value references, raising
+    fmpy's FMICallException on a status other than OK, as fmpy's getDirectionalDerivative does."""
+    f = getattr(inst.fmu.dll, STEP_DERIVATIVE)
+    f.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_double),
+                  C.POINTER(C.c_double)]
+    out = (C.c_double * len(unknowns))()
+    status = f(inst.fmu.component, (C.c_uint * len(unknowns))(*unknowns), len(unknowns), (C.c_uint * len(knowns))(*knowns),
+               len(knowns), (C.c_double * len(seed))(*seed), out)
+    if status != 0:
+        raise FMICallException(STEP_DERIVATIVE, status)
+    return list(out)
 
 
 def _groups(names):
@@ -138,7 +158,7 @@ def test_directional_derivatives_equal_finite_differences_of_two_fmu_runs(small,
             inst.fmu.doStep(t, H)
             if axis is not None:  # the tangent direction skew(axis) R, as a seed on the 9 entries
                 seed = (skew(axis) @ inst.get(known).reshape(3, 3)).ravel()
-            D.append(inst.fmu.getDirectionalDerivative(out_vr, [inst.variable(n).valueReference for n in known], seed))
+            D.append(_step(inst, out_vr, [inst.variable(n).valueReference for n in known], seed))
             FD.append(_fd_runs(inst, state, t, known, delta, outs, axis))
             seeds_of.append(known[0].split("[")[0])
         D, FD = np.array(D).T, np.array(FD).T  # outputs x seeds
@@ -161,7 +181,7 @@ def test_directional_derivatives_equal_finite_differences_of_two_fmu_runs(small,
         # (the seeds, the state restore and the value references all take the same path)
         inst.fmu.setFMUstate(state)
         inst.fmu.doStep(t, H)
-        d = inst.fmu.getDirectionalDerivative(out_vr, [inst.variable("tip.f[3]").valueReference], [1.0])
+        d = _step(inst, out_vr, [inst.variable("tip.f[3]").valueReference], [1.0])
         own = _fd_runs(inst, state, t, ["tip.f[3]"], 1e-2 * LOADS["tip.f[3]"], outs)
         assert np.max(np.abs(np.array(d) - own)) <= 1e-12 * np.max(np.abs(own))
         print(f"\n{D.shape[1]} seeds x {len(outs)} outputs: largest relative difference per block {worst:.2e}, "
@@ -176,7 +196,7 @@ def test_two_instances_keep_their_derivatives_apart(small, fmu):
     alone (bit for bit): the request travels inside the instance, nothing is shared."""
     def derivative(inst):
         outs = [inst.variable(n).valueReference for n in ("tip.r[3]", "tip.w[1]", "hub.f[3]")]
-        return inst.fmu.getDirectionalDerivative(outs, [inst.variable("tip.f[3]").valueReference], [1.0])
+        return _step(inst, outs, [inst.variable("tip.f[3]").valueReference], [1.0])
 
     alone, _, _ = _started(fmu, "spin", small)
     a, inputs, _ = _started(fmu, "spin", small)
@@ -204,16 +224,16 @@ def test_derivative_requests_fail_clearly_and_leave_the_run_unchanged(small, fmu
     vr = inst.variable
     try:
         with pytest.raises(FMICallException) as exc:  # no step yet: nothing to differentiate
-            inst.fmu.getDirectionalDerivative([vr("tip.r[1]").valueReference], [vr("tip.f[1]").valueReference], [1.0])
+            _step(inst, [vr("tip.r[1]").valueReference], [vr("tip.f[1]").valueReference], [1.0])
         assert exc.value.status == 3 and "no communication step" in inst.last_message()
         _run(inst, inputs, 2)
         _run(ref, inputs, 2)
         with pytest.raises(FMICallException):  # a known that is not an input
-            inst.fmu.getDirectionalDerivative([vr("tip.r[1]").valueReference], [vr("tip.r[2]").valueReference], [1.0])
+            _step(inst, [vr("tip.r[1]").valueReference], [vr("tip.r[2]").valueReference], [1.0])
         assert "not input" in inst.last_message()
         with pytest.raises(FMICallException):  # an unknown value reference
-            inst.fmu.getDirectionalDerivative([9999], [vr("tip.f[1]").valueReference], [1.0])
-        d = inst.fmu.getDirectionalDerivative([vr("tip.r[3]").valueReference], [vr("tip.f[3]").valueReference], [1.0])
+            _step(inst, [9999], [vr("tip.f[1]").valueReference], [1.0])
+        d = _step(inst, [vr("tip.r[3]").valueReference], [vr("tip.f[3]").valueReference], [1.0])
         assert d[0] > 0.0  # pushing the tip up moves it up
         # the requests changed nothing: the next step equals the one of an instance never asked
         for k in (2, 3):
@@ -226,3 +246,42 @@ def test_derivative_requests_fail_clearly_and_leave_the_run_unchanged(small, fmu
     finally:
         inst.close()
         ref.close()
+
+
+def test_fmi_meaning_is_the_partial_derivative_at_the_communication_point(small, fmu):
+    """fmi2GetDirectionalDerivative gives what FMI 2.0 defines: d(outputs)/d(inputs) at the communication point,
+    with the state fixed. Every Real input moved by +-1e-3 (relative, at least 1e-3) and every Real output read
+    before the next doStep: the central differences are zero, and so is every derivative the FMU gives (one
+    call, all inputs seeded at once and each alone). In initialization mode the call is refused, naming why."""
+    inst = FmuInstance("point", fmu)
+    try:
+        inst.fmu.setupExperiment(startTime=0.0)
+        inst.fmu.enterInitializationMode()
+        vr = inst.variable
+        with pytest.raises(FMICallException) as exc:
+            inst.fmu.getDirectionalDerivative([vr("tip.r[1]").valueReference], [vr("tip.f[1]").valueReference], [1.0])
+        assert exc.value.status == 3 and "initialization mode" in inst.last_message()
+        inst.fmu.exitInitializationMode()
+        for k in range(3):
+            inst.fmu.doStep(k * H, H)
+        outs = [v.name for v in inst.md.modelVariables if v.causality == "output" and v.type == "Real"]
+        ins = [v.name for v in inst.md.modelVariables if v.causality == "input" and v.type == "Real"]
+        out_vr, in_vr = [vr(n).valueReference for n in outs], [vr(n).valueReference for n in ins]
+        base = inst.get(ins)
+        for j, name in enumerate(ins):
+            delta = 1e-3 * max(1.0, abs(base[j]))
+            sides = []
+            for sign in (1.0, -1.0):
+                inst.set([name], [base[j] + sign * delta])
+                sides.append(inst.get(outs))
+            inst.set([name], [base[j]])
+            assert np.array_equal((sides[0] - sides[1]) / (2.0 * delta), np.zeros(len(outs))), name
+            assert inst.fmu.getDirectionalDerivative(out_vr, [in_vr[j]], [1.0]) == [0.0] * len(outs), name
+        assert inst.fmu.getDirectionalDerivative(out_vr, in_vr, list(np.linspace(1.0, 2.0, len(in_vr)))) == [0.0] * len(outs)
+        with pytest.raises(FMICallException):  # a known that is not an input: refused as for the step's
+            inst.fmu.getDirectionalDerivative(out_vr[:1], out_vr[:1], [1.0])
+        assert "not input" in inst.last_message()
+        # the step's derivatives of the same FMU are not zero (what the interface-Jacobian master reads)
+        assert abs(_step(inst, [vr("tip.r[3]").valueReference], [vr("tip.f[3]").valueReference], [1.0])[0]) > 1e-6
+    finally:
+        inst.close()

@@ -63,9 +63,9 @@ class Fmu:
         self.lib.fmi2SerializedFMUstateSize.argtypes = [C.c_void_p, C.c_void_p, C.POINTER(C.c_size_t)]
         self.lib.fmi2SerializeFMUstate.argtypes = [C.c_void_p, C.c_void_p, C.c_char_p, C.c_size_t]
         self.lib.fmi2DeSerializeFMUstate.argtypes = [C.c_void_p, C.c_char_p, C.c_size_t, C.POINTER(C.c_void_p)]
-        self.lib.fmi2GetDirectionalDerivative.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t,
-                                                          C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_double),
-                                                          C.POINTER(C.c_double)]
+        for name in ("fmi2GetDirectionalDerivative", "ffrf2GetStepDerivative"):
+            getattr(self.lib, name).argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_uint),
+                                                C.c_size_t, C.POINTER(C.c_double), C.POINTER(C.c_double)]
 
     def uri(self) -> str:
         return (self.dir / "resources").as_uri()
@@ -93,12 +93,13 @@ class Fmu:
         assert self.lib.fmi2GetReal(c, vrs, len(names), out) == OK, self.log[-3:]
         return np.array(out[:])
 
-    def derivative(self, c, unknowns, knowns, seeds):
+    def derivative(self, c, unknowns, knowns, seeds, step=True):
+        """step: the derivatives of the last step (ffrf2GetStepDerivative), else FMI's (fmi2GetDirectionalDerivative)."""
         u = (C.c_uint * len(unknowns))(*[self.vr[n] for n in unknowns])
         k = (C.c_uint * len(knowns))(*[self.vr[n] for n in knowns])
         out = (C.c_double * len(unknowns))()
-        status = self.lib.fmi2GetDirectionalDerivative(c, u, len(unknowns), k, len(knowns),
-                                                       (C.c_double * len(seeds))(*seeds), out)
+        call = self.lib.ffrf2GetStepDerivative if step else self.lib.fmi2GetDirectionalDerivative
+        status = call(c, u, len(unknowns), k, len(knowns), (C.c_double * len(seeds))(*seeds), out)
         return status, np.array(out[:])
 
 
@@ -134,7 +135,8 @@ def _run(fmu, c, steps, H=0.01, k0=0, load=None):
 
 def test_the_fmu_holds_no_python_no_npz_and_no_readable_matrices(fmu_path, model):
     """A black box: modelDescription, the scrambled body.bin, the datasheet and binaries only; the bytes of
-    K's and M's rows appear nowhere in the FMU (stored or compressed), and the binary exports fmi2* only."""
+    K's and M's rows appear nowhere in the FMU (stored or compressed), and the binary exports fmi2* and
+    ffrf2GetStepDerivative only."""
     from ffrf_fmu.model import load_model
     from ffrf_fmu.reduction import reduce_scene_body
 
@@ -161,7 +163,9 @@ def test_the_fmu_holds_no_python_no_npz_and_no_readable_matrices(fmu_path, model
         lines = subprocess.run([nm, "-D", "--defined-only", str(fmu_path.with_suffix(".so"))], capture_output=True,
                                text=True, check=True).stdout.splitlines()
         exported = [ln.split()[-1] for ln in lines if ln.split()[-2] in "TDBR"]
-        assert exported and all(s.startswith("fmi2") for s in exported), exported
+        # fmi2* and the one documented non-FMI function (docs/fmu.md, "Directional derivatives")
+        assert exported and all(s.startswith("fmi2") or s == "ffrf2GetStepDerivative" for s in exported), exported
+        assert "ffrf2GetStepDerivative" in exported
 
 
 def test_fmpy_validates_the_fmu_clean(fmu_path):
@@ -309,12 +313,21 @@ def test_two_instances_reset_and_state_round_trips_are_bit_identical(fmu):
 
 
 def test_directional_derivatives_equal_central_differences_of_two_runs(fmu):
-    """d(outputs at t_c + H)/d(tip.f[3]) of the last step, against two runs of that step from a saved state
-    with the load changed by +-0.01 N (the FMU's own step, relative 1e-2: derivatives.py DERIVATIVE_STEPS):
-    equal to 1e-7 of the largest derivative (what differs is the order of the same floating-point sums)."""
+    """Both meanings (docs/fmu.md, "Directional derivatives"). FMI's, fmi2GetDirectionalDerivative: the partial
+    derivatives of the outputs with respect to the inputs at the communication point, against central
+    differences of the outputs read with the input moved by +-0.01 N before any doStep: both zero; refused in
+    initialization mode, naming why. The step's, ffrf2GetStepDerivative: d(outputs at t_c + H)/d(tip.f[3]) of the
+    last step, against two runs of that step from a saved state with the load changed by +-0.01 N (the FMU's
+    own step, relative 1e-2: derivatives.py DERIVATIVE_STEPS): equal to 1e-7 of the largest derivative (what
+    differs is the order of the same floating-point sums)."""
     L = fmu.lib
     c = fmu.instantiate()
     try:
+        assert L.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == OK and L.fmi2EnterInitializationMode(c) == OK
+        assert fmu.derivative(c, OUT, ["tip.f[3]"], [1.0], step=False)[0] == ERROR
+        assert "initialization mode: the partial derivatives of the initial unknowns are not provided" in fmu.log[-1][2]
+        L.fmi2FreeInstance(c)
+        c = fmu.instantiate()
         assert fmu.start(c, {"tip.f[3]": 1.0}) == OK
         _run(fmu, c, 3)
         state = C.c_void_p()
@@ -331,6 +344,15 @@ def test_directional_derivatives_equal_central_differences_of_two_runs(fmu):
         status, d = fmu.derivative(c, OUT, ["tip.f[3]"], [1.0])
         assert status == OK, fmu.log[-2:]
         assert d[2] > 0.0  # pushing the tip up moves it up
+        # FMI's meaning at this communication point: the outputs do not move with the input (no feedthrough)
+        at_point = []
+        for f in (1.01, 0.99):
+            assert fmu.set(c, {"tip.f[3]": f}) == OK
+            at_point.append(fmu.get(c, OUT))
+        assert fmu.set(c, {"tip.f[3]": 1.0}) == OK
+        status, d0 = fmu.derivative(c, OUT, ["tip.f[3]"], [1.0], step=False)
+        assert status == OK and np.array_equal(d0, np.zeros(len(OUT)))
+        assert np.array_equal((at_point[0] - at_point[1]) / 0.02, d0)
         assert np.allclose(d, fd, rtol=0, atol=1e-7 * np.max(np.abs(fd)))
         assert np.array_equal(fmu.get(c, OUT), end)  # the derivative left the FMU where it was
         # refused requests, each with its cause

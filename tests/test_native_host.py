@@ -8,6 +8,8 @@ same FMU with the same calls.
 """
 from __future__ import annotations
 
+import ctypes as C
+
 import json
 import os
 import shutil
@@ -132,9 +134,9 @@ def test_two_instances_and_instantiate_free_instantiate_in_a_c_host(b1):
 
 
 def test_directional_derivatives_in_a_c_host_equal_fmpys(b1):
-    """fmi2GetDirectionalDerivative through the native loader in a host without Python (the loader
-    routes it through pythonfmu's own SetReal/GetReal of the instance, docs/fmu.md): two instances,
-    each gives fmpy's derivatives bit for bit, and the process exits 0."""
+    """The step's derivatives (ffrf2GetStepDerivative) through the native loader in a host without Python (the
+    loader routes them through pythonfmu's own SetReal/GetReal of the instance, docs/fmu.md): two instances,
+    each gives what the same call gives under fmpy bit for bit, and the process exits 0."""
     fmu, unzip, host, md = b1
     H, steps = 2e-3, 10
     vr_in = _vr(md, ["tip.f[3]"])[0]
@@ -150,7 +152,14 @@ def test_directional_derivatives_in_a_c_host_equal_fmpys(b1):
     s.exitInitializationMode()
     for k in range(steps):
         s.doStep(k * H, H)
-    ref = np.array(s.getDirectionalDerivative(_vr(md, OUTPUTS), [vr_in], [1.0]))
+    step = s.dll.ffrf2GetStepDerivative
+    step.argtypes = [C.c_void_p, C.POINTER(C.c_uint), C.c_size_t, C.POINTER(C.c_uint), C.c_size_t,
+                     C.POINTER(C.c_double), C.POINTER(C.c_double)]
+    outs = _vr(md, OUTPUTS)
+    out = (C.c_double * len(outs))()
+    assert step(s.component, (C.c_uint * len(outs))(*outs), len(outs), (C.c_uint * 1)(vr_in), 1,
+                (C.c_double * 1)(1.0), out) == 0
+    ref = np.array(out[:])
     s.terminate()
     s.freeInstance()
     assert len(got) == 2 and ref[2] > 0.0  # pushing the tip up moves it up

@@ -462,10 +462,11 @@ class BodyCoSim:
         return StepReport(True, iterations=worst)
 
     # ------------------------------------------------------------------ directional derivatives
-    def directional_derivative(self, knowns, seeds, unknowns) -> tuple[np.ndarray | None, str]:
-        """Derivative of the outputs `unknowns` at the end of the last doStep with respect to the inputs
-        `knowns` along `seeds` (fmu/derivatives.py): (values, '') or (None, why not)."""
-        return directional_derivative(self, knowns, seeds, unknowns)
+    def directional_derivative(self, knowns, seeds, unknowns, step: bool = True) -> tuple[np.ndarray | None, str]:
+        """step True: derivative of the outputs `unknowns` at the end of the last doStep with respect to the
+        inputs `knowns` along `seeds`; False: FMI's partial derivatives at the communication point (zero)
+        (fmu/derivatives.py): (values, '') or (None, why not)."""
+        return directional_derivative(self, knowns, seeds, unknowns, step)
 
     @staticmethod
     def _check_finite(system: BodySystem, outputs: np.ndarray) -> None:

@@ -1,5 +1,8 @@
-"""Directional derivatives of an FMU's last communication step (fmi2GetDirectionalDerivative,
-fmu/variables.py DIRECTIONAL_DERIVATIVES): central differences of re-runs of that step.
+"""Directional derivatives of a body FMU, in their two meanings (fmu/variables.py DIRECTIONAL_DERIVATIVES;
+fmu/native/model.h DERIV_FMI, DERIV_STEP): FMI's (fmi2GetDirectionalDerivative), the partial derivatives
+of the outputs with respect to the inputs at the current communication point, zero since no output
+depends directly on an input; and the derivatives of the last communication step (ffrf2GetStepDerivative,
+not an FMI function): central differences of re-runs of that step.
 
 The FMU's state machine (fmu/core.py `BodyCoSim`) records each successful doStep as a `LastStep` and
 calls `directional_derivative` with itself; the re-runs take the step exactly as doStep does
@@ -41,8 +44,9 @@ class LastStep:
     values: np.ndarray
 
 
-def directional_derivative(cosim, knowns, seeds, unknowns) -> tuple[np.ndarray | None, str]:
-    """Derivative of the outputs `unknowns` of the FMU `cosim` (a BodyCoSim) at the end of its last
+def directional_derivative(cosim, knowns, seeds, unknowns, step: bool = True) -> tuple[np.ndarray | None, str]:
+    """step False: FMI's meaning, zeros once the references are checked (in step mode only). step True:
+    derivative of the outputs `unknowns` of the FMU `cosim` (a BodyCoSim) at the end of its last
     doStep(t_c, H) with respect to the inputs `knowns` as set for that step, along `seeds`, the state at
     t_c fixed (variables.DIRECTIONAL_DERIVATIVES): (values, '') or (None, why not). Central differences of
     two runs of the step from the saved state at t_c per kind of input (DERIVATIVE_STEPS), the same step
@@ -51,6 +55,11 @@ def directional_derivative(cosim, knowns, seeds, unknowns) -> tuple[np.ndarray |
     is back at the end of the step exactly as it was."""
     variables = cosim.variables
     n = len(variables)
+    if cosim.mode != "step":  # as model.c model_directional_derivative
+        return None, (f"{'step' if step else 'directional'} derivative in initialization mode: the partial derivatives "
+                      "of the initial unknowns are not provided; in step mode it gives " +
+                      ("the derivatives of the last communication step" if step else "FMI's partial derivatives at the "
+                       "communication point (zero: no output depends directly on an input)"))
     knowns, unknowns = np.asarray(knowns, dtype=int).ravel(), np.asarray(unknowns, dtype=int).ravel()
     seeds = np.asarray(seeds, dtype=float).ravel()
     name = lambda vr: variables[vr].name if 0 <= vr < n else f"value reference {vr}"  # noqa: E731
@@ -63,9 +72,11 @@ def directional_derivative(cosim, knowns, seeds, unknowns) -> tuple[np.ndarray |
         return None, f"directional derivative: {', '.join(bad[:6])} not Real output(s)"
     if not np.isfinite(seeds).all():
         return None, "directional derivative: the seed vector is not finite"
+    if not step:  # every output is a value at the end of the last step: no direct feedthrough
+        return np.zeros(unknowns.size), ""
     rec, system = cosim.last_step, cosim.system
     if rec is None or system is None:
-        return None, ("directional derivative: no communication step to differentiate (they are the "
+        return None, ("step derivative: no communication step to differentiate (they are the "
                       "derivatives of the last successful doStep; none since initialization, a failed doStep "
                       "or fmi2SetFMUstate)")
     if not seeds.any():

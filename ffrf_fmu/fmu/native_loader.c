@@ -423,20 +423,24 @@ FORWARD(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte b[], size_t n,
 /* pythonfmu has no fmi2GetDirectionalDerivative. The request goes to this instance's own Python slave
  * through pythonfmu's fmi2SetReal and fmi2GetReal on the same component, on value references offset
  * into a range no variable uses (fmu/variables.py DERIVATIVE_CHANNEL, passed by the builder as
- * -DFFRF_DERIVATIVE_SEED/-DFFRF_DERIVATIVE_OUTPUT): first the seeds at SEED + known, then the
- * derivatives read at OUTPUT + unknown. Nothing is kept outside the instance, so two instances in
- * one process never see each other's request. */
-#if !defined(FFRF_DERIVATIVE_SEED) || !defined(FFRF_DERIVATIVE_OUTPUT)
-#error "compile with -DFFRF_DERIVATIVE_SEED=... -DFFRF_DERIVATIVE_OUTPUT=... (ffrf_fmu/fmu/builder.py does)"
+ * -DFFRF_DERIVATIVE_SEED/_OUTPUT/_POINT): first the seeds at SEED + known, then the derivatives read at
+ * POINT + unknown (fmi2GetDirectionalDerivative: FMI's partial derivatives at the communication point) or
+ * OUTPUT + unknown (ffrf2GetStepDerivative, not an FMI function: those of the last communication step;
+ * docs/fmu.md). Nothing is kept outside the instance, so two instances in one process never see each
+ * other's request. */
+#if !defined(FFRF_DERIVATIVE_SEED) || !defined(FFRF_DERIVATIVE_OUTPUT) || !defined(FFRF_DERIVATIVE_POINT)
+#error "compile with -DFFRF_DERIVATIVE_SEED=... -DFFRF_DERIVATIVE_OUTPUT=... -DFFRF_DERIVATIVE_POINT=... (ffrf_fmu/fmu/builder.py does)"
 #endif
-EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
-                                               const fmi2ValueReference vKnown[], size_t nKnown,
-                                               const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+static fmi2Status derivative(fmi2Component c, const char *call, fmi2ValueReference channel,
+                             const fmi2ValueReference vUnknown[], size_t nUnknown, const fmi2ValueReference vKnown[],
+                             size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
-    ENTER(c, "fmi2GetDirectionalDerivative")
+    ENTER(c, call)
+    char text[160];
     if (nUnknown == 0) return fmi2OK;
     if (!vUnknown || !dvUnknown || (nKnown && (!vKnown || !dvKnown))) {
-        say(inst, fmi2Error, "%s", "fmi2GetDirectionalDerivative: a NULL array");
+        snprintf(text, sizeof text, "%s: a NULL array", call);
+        say(inst, fmi2Error, "%s", text);
         return fmi2Error;
     }
     if (nKnown == 0) {
@@ -446,8 +450,7 @@ EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueR
     for (size_t i = 0; i < nKnown + nUnknown; i++) {
         fmi2ValueReference vr = i < nKnown ? vKnown[i] : vUnknown[i - nKnown];
         if (vr >= FFRF_DERIVATIVE_SEED) {
-            char text[128];
-            snprintf(text, sizeof text, "fmi2GetDirectionalDerivative: unknown value reference %u", vr);
+            snprintf(text, sizeof text, "%s: unknown value reference %u", call, vr);
             say(inst, fmi2Error, "%s", text);
             return fmi2Error;
         }
@@ -456,15 +459,32 @@ EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueR
     fmi2Status s = fmi2Error;
     if (known && unknown) {
         for (size_t i = 0; i < nKnown; i++) known[i] = FFRF_DERIVATIVE_SEED + vKnown[i];
-        for (size_t i = 0; i < nUnknown; i++) unknown[i] = FFRF_DERIVATIVE_OUTPUT + vUnknown[i];
+        for (size_t i = 0; i < nUnknown; i++) unknown[i] = channel + vUnknown[i];
         s = real_fmi2SetReal(inst->real, known, nKnown, dvKnown);
         if (s == fmi2OK && inst->worst < fmi2Error) s = real_fmi2GetReal(inst->real, unknown, nUnknown, dvUnknown);
     } else {
-        say(inst, fmi2Error, "%s", "fmi2GetDirectionalDerivative: out of memory");
+        snprintf(text, sizeof text, "%s: out of memory", call);
+        say(inst, fmi2Error, "%s", text);
     }
     free(known);
     free(unknown);
     return finish(inst, s);
+}
+
+EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
+                                               const fmi2ValueReference vKnown[], size_t nKnown,
+                                               const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    return derivative(c, "fmi2GetDirectionalDerivative", FFRF_DERIVATIVE_POINT, vUnknown, nUnknown, vKnown, nKnown,
+                      dvKnown, dvUnknown);
+}
+
+EXPORT fmi2Status ffrf2GetStepDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
+                                         const fmi2ValueReference vKnown[], size_t nKnown, const fmi2Real dvKnown[],
+                                         fmi2Real dvUnknown[])
+{
+    return derivative(c, "ffrf2GetStepDerivative", FFRF_DERIVATIVE_OUTPUT, vUnknown, nUnknown, vKnown, nKnown, dvKnown,
+                      dvUnknown);
 }
 FORWARD(fmi2SetRealInputDerivatives,
         (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real v[]),

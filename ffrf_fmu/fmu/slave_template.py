@@ -65,7 +65,7 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variabil
 from {package}.fmu.core import BodyCoSim  # noqa: E402
 from {package}.fmu.variables import DERIVATIVE_CHANNEL, patch_model_description  # noqa: E402
 
-_SEED, _OUTPUT = DERIVATIVE_CHANNEL["SEED"], DERIVATIVE_CHANNEL["OUTPUT"]
+_SEED, _OUTPUT, _POINT = DERIVATIVE_CHANNEL["SEED"], DERIVATIVE_CHANNEL["OUTPUT"], DERIVATIVE_CHANNEL["POINT"]
 _CAUSALITY = {{"input": Fmi2Causality.input, "output": Fmi2Causality.output, "parameter": Fmi2Causality.parameter}}
 _VARIABILITY = {{"continuous": Fmi2Variability.continuous, "discrete": Fmi2Variability.discrete,
                 "fixed": Fmi2Variability.fixed}}
@@ -165,14 +165,17 @@ class {cls}(Fmi2Slave):
         return self.core.get_many(vrs)
 
     def _derivatives(self, vrs):
-        """fmi2GetDirectionalDerivative, second half (native_loader.c): the derivatives of the outputs
-        vrs - DERIVATIVE_CHANNEL["OUTPUT"] along the seeds set just before (set_real)."""
-        if min(vrs) < _OUTPUT:
+        """ffrf2GetStepDerivative or fmi2GetDirectionalDerivative, second half (native_loader.c): the derivatives
+        of the outputs vrs - DERIVATIVE_CHANNEL["OUTPUT"] (of the last step) or vrs - DERIVATIVE_CHANNEL["POINT"]
+        (FMI's, at the communication point) along the seeds set just before (set_real)."""
+        base = _POINT if vrs[0] >= _POINT else _OUTPUT
+        if min(vrs) < base or (base == _OUTPUT and max(vrs) >= _POINT):
             raise CallError(f"fmi2GetReal mixes variables and directional derivatives: {{vrs}}")
         seeds, self._seeds = self._seeds, None
         if seeds is None:
             raise CallError("directional derivative: no seed vector set (the native loader sets it)")
-        values, problem = self.core.directional_derivative(seeds[0], seeds[1], [vr - _OUTPUT for vr in vrs])
+        values, problem = self.core.directional_derivative(seeds[0], seeds[1], [vr - base for vr in vrs],
+                                                           step=base == _OUTPUT)
         if problem:
             raise CallError(problem)
         return values.tolist()

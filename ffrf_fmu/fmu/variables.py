@@ -91,19 +91,23 @@ INTERNAL_STEPS = (
     "iteration matrix."
 )
 DIRECTIONAL_DERIVATIVES = (
-    "Directional derivatives (fmi2GetDirectionalDerivative) are those of the last communication step: "
-    "of the outputs at t_c + H with respect to the inputs as set for doStep(t_c, H), held and extrapolated "
-    "over the step as above, with the state at t_c fixed; available after a successful doStep until the "
-    "next doStep or fmi2SetFMUstate. They are the derivatives of the step as the FMU computes it, taken by "
-    "central differences of two re-runs of that step from the saved state at t_c (input steps: 1e-2 "
-    "max(1, |load|) for forces and moments, 1e-5 m or rad of displacement over the step for motions), "
-    "not by an analytic tangent."
+    "fmi2GetDirectionalDerivative (FMI 3.0: fmi3GetDirectionalDerivative, fmi3GetAdjointDerivative) gives what FMI "
+    "defines, in step mode: the partial derivatives of the outputs with respect to the inputs at the current "
+    "communication point, all zero, since no output depends directly on an input (ModelStructure "
+    "dependencies=\"\"). The derivatives of the last communication step, which an implicit co-simulation master "
+    "needs, are not an FMI function: the binary also exports ffrf2GetStepDerivative (FMI 3.0: "
+    "ffrf3GetStepDirectionalDerivative, ffrf3GetStepAdjointDerivative) with the arguments and statuses of "
+    "the directional (and adjoint) derivative. They are of the outputs at t_c + H with respect to the inputs as "
+    "set for doStep(t_c, H), held and extrapolated over the step as above, with the state at t_c fixed; "
+    "available after a successful doStep until the next doStep or fmi2SetFMUstate; taken by central "
+    "differences of two re-runs of that step from the saved state at t_c (input steps: 1e-2 max(1, |load|) for "
+    "forces and moments, 1e-5 m or rad of displacement over the step for motions), not by an analytic tangent."
 )
-# fmi2GetDirectionalDerivative reaches the slave through pythonfmu's own per-instance fmi2SetReal and
-# fmi2GetReal on value references offset by these (no FMU has 2^28 variables): the native loader sets
-# the seeds at SEED + known, then reads the derivatives at OUTPUT + unknown (docs/fmu.md). The
-# builder compiles the loader with these values.
-DERIVATIVE_CHANNEL = {"SEED": 1 << 28, "OUTPUT": 2 << 28}
+# fmi2GetDirectionalDerivative and ffrf2GetStepDerivative reach the slave through pythonfmu's own per-instance
+# fmi2SetReal and fmi2GetReal on value references offset by these (no FMU has 2^28 variables): the native
+# loader sets the seeds at SEED + known, then reads the step's derivatives at OUTPUT + unknown, FMI's at
+# POINT + unknown (docs/fmu.md). The builder compiles the loader with these values.
+DERIVATIVE_CHANNEL = {"SEED": 1 << 28, "OUTPUT": 2 << 28, "POINT": 3 << 28}  # OUTPUT: the step's, POINT: FMI's
 INPUT_RULE = {
     "r": "extrapolated from t_c with {p}.v and {p}.a: r(t) = r_c + v_c s + a_c s^2/2, s = t - t_c",
     "v": "extrapolated from t_c with {p}.a: v(t) = v_c + a_c s (the slope of the extrapolation of {p}.r)",

@@ -1,12 +1,18 @@
-"""One FMU instance under fmpy's FMU2Slave: name-based access, the messages it logged, and its
-directional derivatives (fmi2GetDirectionalDerivative)."""
+"""One FMU instance under fmpy's FMU2Slave: name-based access, the messages it logged, its directional
+derivatives (fmi2GetDirectionalDerivative, FMI's meaning) and a body FMU's derivatives of its last step
+(ffrf2GetStepDerivative, the interface-Jacobian master's)."""
 from __future__ import annotations
 
 import shutil
-from ctypes import byref
+from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
 from pathlib import Path
 
 import numpy as np
+
+
+# the body FMUs' derivatives of their last communication step (fmu/native/fmi2Functions.c, fmu/native_loader.c):
+# exported beside the fmi2 functions, with fmi2GetDirectionalDerivative's signature and a non-FMI meaning
+STEP_DERIVATIVE = "ffrf2GetStepDerivative"
 
 
 class CoSimulationError(RuntimeError):
@@ -109,9 +115,32 @@ class FmuInstance:
         return bool(self.md.coSimulation.providesDirectionalDerivative)
 
     def derivative(self, unknowns: list[str], knowns: list[str], seeds) -> np.ndarray:
-        """fmi2GetDirectionalDerivative: d(unknowns) along `seeds` on the knowns (Real variables)."""
+        """fmi2GetDirectionalDerivative: d(unknowns) along `seeds` on the knowns (Real variables), FMI's
+        meaning: the partial derivatives at the current communication point (zero for a body FMU, whose
+        outputs have no direct feedthrough; docs/fmu.md)."""
         return np.array(self.fmu.getDirectionalDerivative(self._vrs(unknowns), self._vrs(knowns),
                                                           [float(x) for x in seeds]))
+
+    @property
+    def provides_step_derivatives(self) -> bool:
+        """The FMU exports STEP_DERIVATIVE, the derivatives of its last communication step (a body FMU of
+        this package: docs/fmu.md, "Directional derivatives"; not an FMI function)."""
+        return hasattr(self.fmu.dll, STEP_DERIVATIVE)
+
+    def step_derivative(self, unknowns: list[str], knowns: list[str], seeds) -> np.ndarray:
+        """d(outputs at t_c + H) along `seeds` on the inputs held over the last doStep(t_c, H): the body FMU's
+        STEP_DERIVATIVE, the same arguments and statuses as fmi2GetDirectionalDerivative."""
+        f = getattr(self.fmu.dll, STEP_DERIVATIVE)
+        f.argtypes = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_uint), c_size_t, POINTER(c_double),
+                      POINTER(c_double)]
+        f.restype = c_int
+        u, k = self._vrs(unknowns), self._vrs(knowns)
+        out = (c_double * len(u))()
+        status = f(self.fmu.component, (c_uint * len(u))(*u), len(u), (c_uint * len(k))(*k), len(k),
+                   (c_double * len(k))(*[float(x) for x in seeds]), out)
+        if status != 0:
+            raise CoSimulationError(f"{self.name}: {STEP_DERIVATIVE} returned status {status}: {self.last_message()}")
+        return np.array(out[:])
 
     def last_message(self) -> str:
         return self.messages[-1][2] if self.messages else "(no message logged)"

@@ -11,13 +11,14 @@ leaves a residual that is not iterated away.
 
 J comes from (`jacobian`):
 - "fmu": the sweep at x_0, then per iterated input a tangent sweep: each FMU gets the direction
-  of its inputs and returns the direction of its outputs at t_c + H, by
-  fmi2GetDirectionalDerivative of its last step when it provides it (body FMUs, docs/fmu.md), else
-  by a forward difference of its own step from its saved state. 2 sweeps a step, plus the
+  of its inputs and returns the direction of its outputs at t_c + H, by the derivatives of its last
+  step when it exports them (a body FMU's ffrf2GetStepDerivative, docs/fmu.md: not FMI's
+  fmi2GetDirectionalDerivative, whose partial derivatives at the communication point are zero for
+  outputs without direct feedthrough), else by a forward difference of its own step from its saved state. 2 sweeps a step, plus the
   derivative work inside the FMUs.
 - "fd": forward differences of the whole sweep, one sweep per iterated input from the restored
   states: n + 2 sweeps for n iterated inputs.
-- "auto" (default): "fmu" when at least one FMU provides directional derivatives.
+- "auto" (default): "fmu" when at least one FMU exports the derivatives of its step.
 """
 from __future__ import annotations
 
@@ -49,7 +50,7 @@ class InterfaceJacobian:
         """'fmu' or 'fd' for this run: the `jacobian` argument, 'auto' = 'fmu' when at least one FMU
         provides directional derivatives."""
         if self.jacobian == "auto":
-            return "fmu" if any(inst.provides_derivatives for inst in self.instances.values()) else "fd"
+            return "fmu" if any(inst.provides_step_derivatives for inst in self.instances.values()) else "fd"
         return self.jacobian
 
     def _fmu_coupling_jacobian(self, t, h, cur, fresh0, need, iterated, states) -> np.ndarray:
@@ -85,15 +86,15 @@ class InterfaceJacobian:
 
     def _step_derivative(self, name, t, h, outs, du, fresh0, state) -> np.ndarray:
         """Derivative of FMU `name`'s outputs `outs` at t + h along the input direction du, at its
-        step in the sweep just done: fmi2GetDirectionalDerivative when the FMU provides it (a body
-        FMU: the derivatives of its last step, docs/fmu.md), else a forward difference of the FMU's
+        step in the sweep just done: the derivatives of its last step when the FMU exports them (a body
+        FMU's ffrf2GetStepDerivative, docs/fmu.md), else a forward difference of the FMU's
         own step from its saved state (relative step fd_step); the FMU is then left past a perturbed
         step, which the real sweep's restore undoes."""
         inst = self.instances[name]
         knowns = [_split(k)[1] for k in du]
-        if inst.provides_derivatives:
+        if inst.provides_step_derivatives:
             try:
-                return inst.derivative(outs, knowns, list(du.values()))
+                return inst.step_derivative(outs, knowns, list(du.values()))
             except Exception as e:  # noqa: BLE001 - fmpy raises FMICallException with the status
                 raise CoSimulationError(f"{name}: directional derivative of the step from t = {t:.6g} s failed: "
                                         f"{inst.last_message()} ({e})") from None

@@ -362,15 +362,38 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 
 /* ------------------------------------------------------------------ derivatives */
 
+static fmi2Status derivative(fmi2Component c, const char *call, int meaning, const fmi2ValueReference vUnknown_ref[],
+                             size_t nUnknown, const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                             const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    fmu_instance *m = allowed(c, call, MODE_STEP | MODE_INITIALIZATION); /* the model says why not in initialization */
+    if (!m || null_arrays(m, call, nUnknown, vUnknown_ref, dvUnknown) || null_arrays(m, call, nKnown, vKnown_ref, dvKnown))
+        return fmi2Error;
+    return model_directional_derivative(m, meaning, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
+}
+
+/* FMI 2.0's meaning (model.h DERIV_FMI): the partial derivatives at the communication point, zero (no output
+ * depends directly on an input). Step mode only: in initialization mode the call is refused, naming why. */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
-    fmu_instance *m = allowed(c, "fmi2GetDirectionalDerivative", MODE_STEP);
-    if (!m || null_arrays(m, "fmi2GetDirectionalDerivative", nUnknown, vUnknown_ref, dvUnknown) ||
-        null_arrays(m, "fmi2GetDirectionalDerivative", nKnown, vKnown_ref, dvKnown))
-        return fmi2Error;
-    return model_directional_derivative(m, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
+    return derivative(c, "fmi2GetDirectionalDerivative", DERIV_FMI, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+                      dvUnknown);
+}
+
+/* Not an FMI function: the derivatives of the last communication step (model.h DERIV_STEP), with
+ * fmi2GetDirectionalDerivative's arguments and statuses; exported for the interface-Jacobian master
+ * (ffrf_fmu/master/instance.py STEP_DERIVATIVE; docs/fmu.md, "Directional derivatives"). */
+FMI2_Export fmi2Status ffrf2GetStepDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                              const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                              const fmi2Real dvKnown[], fmi2Real dvUnknown[]);
+fmi2Status ffrf2GetStepDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                  const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],
+                                  fmi2Real dvUnknown[])
+{
+    return derivative(c, "ffrf2GetStepDerivative", DERIV_STEP, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+                      dvUnknown);
 }
 
 /* ------------------------------------------------------------------ co-simulation */

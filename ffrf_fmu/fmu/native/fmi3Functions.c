@@ -877,12 +877,11 @@ static int derivative_refs(fmi3_instance *x, const char *call, const fmi3ValueRe
     return 0;
 }
 
-fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                                        size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+static fmi3Status directional(fmi3Instance instance, const char *call, int meaning, const fmi3ValueReference unknowns[],
+                              size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                              size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    const char *call = "fmi3GetDirectionalDerivative";
-    fmi3_instance *x = allowed(instance, call, MODE_STEP);
+    fmi3_instance *x = allowed(instance, call, MODE_STEP | MODE_INITIALIZATION); /* the model says why not in init */
     fmi2ValueReference *u, *k;
     size_t nu, nk;
     if (!x || derivative_refs(x, call, unknowns, nUnknowns, knowns, nKnowns, &u, &nu, &k, &nk))
@@ -894,21 +893,21 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
     else if ((nk && !seed) || (nu && !sensitivity))
         fmu_log(&x->m, fmi2Error, "%s: NULL seed or sensitivity array", call);
     else
-        s = status3(model_directional_derivative(&x->m, u, nu, k, nk, seed, sensitivity));
+        s = status3(model_directional_derivative(&x->m, meaning, u, nu, k, nk, seed, sensitivity));
     free(u);
     free(k);
     return s;
 }
 
 /* v^T J: one directional derivative per known element j (the column J e_j, the seed e_j over all the knowns),
- * then its product with the seed v. The columns are those fmi3GetDirectionalDerivative gives for the same
- * knowns and the unit seeds, to the bit (each costs two re-runs of the last step: docs/fmu.md). */
-fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+ * then its product with the seed v. The columns are those the directional call of the same meaning gives for
+ * the same knowns and the unit seeds, to the bit (a step derivative's column costs two re-runs of the last
+ * step: docs/fmu.md). */
+static fmi3Status adjoint(fmi3Instance instance, const char *call, int meaning, const fmi3ValueReference unknowns[],
+                          size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                          size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    const char *call = "fmi3GetAdjointDerivative";
-    fmi3_instance *x = allowed(instance, call, MODE_STEP);
+    fmi3_instance *x = allowed(instance, call, MODE_STEP | MODE_INITIALIZATION); /* the model says why not in init */
     fmi2ValueReference *u, *k;
     size_t nu, nk;
     if (!x || derivative_refs(x, call, unknowns, nUnknowns, knowns, nKnowns, &u, &nu, &k, &nk))
@@ -926,7 +925,7 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
         s = fmi3OK;
         for (size_t j = 0; j < nk && s == fmi3OK; j++) { /* J e_j over all the knowns, as the directional call */
             unit[j] = 1.0;
-            s = status3(model_directional_derivative(&x->m, u, nu, k, nk, unit, column));
+            s = status3(model_directional_derivative(&x->m, meaning, u, nu, k, nk, unit, column));
             unit[j] = 0.0;
             double sum = 0.0;
             for (size_t i = 0; i < nu; i++)
@@ -939,6 +938,53 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
     free(u);
     free(k);
     return s;
+}
+
+/* FMI 3.0's meaning (model.h DERIV_FMI): the partial derivatives at the communication point, zero (no output
+ * depends directly on an input); the adjoint likewise. Step Mode only. */
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                        size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+{
+    return directional(instance, "fmi3GetDirectionalDerivative", DERIV_FMI, unknowns, nUnknowns, knowns, nKnowns, seed,
+                       nSeed, sensitivity, nSensitivity);
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+{
+    return adjoint(instance, "fmi3GetAdjointDerivative", DERIV_FMI, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
+                   sensitivity, nSensitivity);
+}
+
+/* Not FMI functions: the derivatives of the last communication step (model.h DERIV_STEP) and their transposed
+ * product, with the arguments and statuses of fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative (docs/fmu.md,
+ * "Directional derivatives"). */
+FMI3_Export fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                                         size_t nUnknowns, const fmi3ValueReference knowns[],
+                                                         size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
+                                                         fmi3Float64 sensitivity[], size_t nSensitivity);
+FMI3_Export fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                                     size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
+                                                     const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
+                                                     size_t nSensitivity);
+
+fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                             size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
+                                             const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
+                                             size_t nSensitivity)
+{
+    return directional(instance, "ffrf3GetStepDirectionalDerivative", DERIV_STEP, unknowns, nUnknowns, knowns, nKnowns,
+                       seed, nSeed, sensitivity, nSensitivity);
+}
+
+fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+{
+    return adjoint(instance, "ffrf3GetStepAdjointDerivative", DERIV_STEP, unknowns, nUnknowns, knowns, nKnowns, seed,
+                   nSeed, sensitivity, nSensitivity);
 }
 
 /* ------------------------------------------------------------------ co-simulation */

@@ -804,12 +804,19 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
 /* derivatives.py DERIVATIVE_STEPS: relative central-difference steps of loads and of motions */
 static const double STEP_LOAD = 1e-2, STEP_MOTION = 1e-5;
 
-fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReference unknown[], size_t n_unknown,
-                                        const fmi2ValueReference known[], size_t n_known, const fmi2Real seed[],
-                                        fmi2Real out[])
+fmi2Status model_directional_derivative(fmu_instance *m, int meaning, const fmi2ValueReference unknown[],
+                                        size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
+                                        const fmi2Real seed[], fmi2Real out[])
 {
     const fmu_description *d = &m->desc;
     const int nv = d->n_vars;
+    if (m->mode != MODE_STEP) { /* the wrappers let initialization mode through to say this */
+        fmu_log(m, fmi2Error, "%s in initialization mode: the partial derivatives of the initial unknowns are not "
+                "provided; in step mode it gives %s", meaning == DERIV_FMI ? "directional derivative" : "step derivative",
+                meaning == DERIV_FMI ? "FMI's partial derivatives at the communication point (zero: no output depends "
+                                       "directly on an input)" : "the derivatives of the last communication step");
+        return fmi2Error;
+    }
     for (size_t i = 0; i < n_known; i++)
         if (known[i] >= (fmi2ValueReference)nv || d->vars[known[i]].causality != CAUS_INPUT) {
             char name[64];
@@ -835,8 +842,13 @@ fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReferenc
         }
         any |= seed[i] != 0.0;
     }
+    if (meaning == DERIV_FMI) { /* every output is a value at the end of the last step: no direct feedthrough */
+        for (size_t i = 0; i < n_unknown; i++)
+            out[i] = 0.0;
+        return fmi2OK;
+    }
     if (!m->have_last || !m->body) {
-        fmu_log(m, fmi2Error, "directional derivative: no communication step to differentiate (they are the "
+        fmu_log(m, fmi2Error, "step derivative: no communication step to differentiate (they are the "
                 "derivatives of the last successful doStep; none since initialization, a failed doStep or "
                 "%s)", m->fmi ? "fmi3SetFMUState" : "fmi2SetFMUstate");
         return fmi2Error;

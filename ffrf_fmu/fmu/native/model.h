@@ -142,9 +142,18 @@ fmi2Status model_set_integer(fmu_instance *m, const fmi2ValueReference vr[], siz
 fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int type, const char *kind);
 fmi2Status model_exit_initialization(fmu_instance *m);
 fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
-fmi2Status model_directional_derivative(fmu_instance *m, const fmi2ValueReference unknown[], size_t n_unknown,
-                                        const fmi2ValueReference known[], size_t n_known, const fmi2Real seed[],
-                                        fmi2Real out[]);
+/* The two meanings of a directional derivative (docs/fmu.md, "Directional derivatives"):
+ * DERIV_FMI  FMI 2.0's and 3.0's: the partial derivatives of the outputs with respect to the inputs at the current
+ *            communication point (v_unknown = h(v_known, v_rest)); zero here, no output depends directly on an input
+ *            (ModelStructure dependencies=""). fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative, the adjoint.
+ * DERIV_STEP the derivatives of the last communication step: of the outputs at t_c + H with respect to the inputs
+ *            held over [t_c, t_c + H], the state at t_c fixed (central differences of two re-runs). Not an FMI
+ *            function: ffrf2GetStepDerivative, ffrf3GetStepDirectionalDerivative, ffrf3GetStepAdjointDerivative,
+ *            for the interface-Jacobian master (ffrf_fmu/master/interface.py). */
+enum { DERIV_FMI = 0, DERIV_STEP = 1 };
+fmi2Status model_directional_derivative(fmu_instance *m, int meaning, const fmi2ValueReference unknown[],
+                                        size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
+                                        const fmi2Real seed[], fmi2Real out[]);
 /* FMU state: a self-contained copy, and its serialized form (version, size, checksum) */
 size_t model_serialized_size(const fmu_instance *m);
 void model_serialize(const fmu_instance *m, unsigned char *out);
