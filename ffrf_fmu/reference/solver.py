@@ -398,11 +398,13 @@ class StaticResult(NamedTuple):
     R: np.ndarray  # (n_nodes, 3, 3) node rotations relative to the reference (R = I unloaded)
 
 
-def _port_outputs(mesh, sc, times, X, Rp, V, Rres, h: float = 0.0):
+def _port_outputs(mesh, sc, times, X, Rp, V, Rres, A, h: float = 0.0):
     """Port histories from stored node histories (vectorized over time).
 
     X (nt, nn, 3), Rp (nt, np, 3, 3) section frames of the port nodes, V (nt, nn, 6),
-    Rres (nt, np, 6) equation residuals at the port nodes (the reaction on motion-driven parts).
+    Rres (nt, np, 6) equation residuals at the port nodes (the reaction on motion-driven parts),
+    A (nt, np, 6) the port nodes' accelerations (world translational, material angular: the world angular
+    acceleration is R W_dot, the derivative of R W with R_dot W = R (W x W) = 0).
     """
     out = {}
     loads = None
@@ -428,6 +430,8 @@ def _port_outputs(mesh, sc, times, X, Rp, V, Rres, h: float = 0.0):
             "w": (R @ V[:, k, 3:, None])[..., 0],
             "f": f,
             "t": tq,
+            "a": A[:, j, :3].copy(),
+            "dw": (R @ A[:, j, 3:, None])[..., 0],
         }
     return out
 
@@ -552,13 +556,15 @@ def simulate_reference(
     V_hist = np.empty((nt, nn, 6))
     Rp_hist = np.empty((nt, len(pnodes), 3, 3))
     res_hist = np.empty((nt, len(pnodes), 6))
+    acc_hist = np.empty((nt, len(pnodes), 6))
     mass_hist = {"cm": np.empty((nt, 3)), "J_cm": np.empty((nt, 3, 3)), "p": np.empty((nt, 3)), "h_cm": np.empty((nt, 3))}
     e_str = np.empty(nt)
     work = np.empty(nt)
     presc = ~free
 
-    def record(i, x, R, v, r, F, T, fa, st):
+    def record(i, x, R, v, vd, r, F, T, fa, st):
         nodes_r[i] = x
+        acc_hist[i] = vd[pnodes]
         V_hist[i] = v
         Rp_hist[i] = R[pnodes]
         res_hist[i] = r[pnodes]
@@ -567,7 +573,7 @@ def simulate_reference(
         e_str[i] = el.energy_from(st).sum()
         return ((fa + presc * r) * v).sum()  # external power (applied loads, gravity, reactions)
 
-    power = record(0, x, R, v, r, F, T, fa, st)
+    power = record(0, x, R, v, vd, r, F, T, fa, st)
     work[0] = 0.0
     iters_total = 0
     every = max(1, nsteps // 100)
@@ -684,13 +690,13 @@ def simulate_reference(
         R_prev = R0
         x, R, v, vd = x1, R1, v1.copy(), vd1
         a = base_a + ca * vd1
-        p1 = record(n + 1, x, R, v, r, F, T, fa, st)
+        p1 = record(n + 1, x, R, v, vd, r, F, T, fa, st)
         work[n + 1] = work[n] + 0.5 * h * (power + p1)
         power = p1
         if progress is not None and ((n + 1) % every == 0 or n + 1 == nsteps):
             progress(float(t1), T_end)
 
-    P = _port_outputs(mesh, sc, times, nodes_r, Rp_hist, V_hist, res_hist, h)
+    P = _port_outputs(mesh, sc, times, nodes_r, Rp_hist, V_hist, res_hist, acc_hist, h)
     e_kin = mesh.kinetic_energy(V_hist)
     # energy error of the run: |kinetic + strain - work - initial energy| relative to the largest
     # energy level;

@@ -219,7 +219,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         n_se = valid_count(body, n_se + 1)
         cand = rechain(body, n_se, modes)
         eff = steady_term_effects(cand, scene, stiffening=stiff)
-    if len(grown) > 1:
+    if len(grown) > 1 or (grown and e_nl >= 0.1 * tolerance):  # said when it moved N or takes a share of the budget
         why["superelements"] += (
             f"; the steady deflection inside a superelement ({eff['displacement_m']:.3g} m over {n_se} of "
             f"{body.length / n_se:.3g} m) leaves the superelement's linear kinematics an error NONLINEAR_ERROR x "

@@ -240,7 +240,8 @@ def model_description3(variables, *, name: str, identifier: str, token: str, des
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8") + b"\n"
 
 
-def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict, images: dict, fmi: int = 2) -> str:
+def datasheet(data: BodyData, system: BodySystem, config: dict, build_info: dict, images: dict, fmi: int = 2,
+              start: dict | None = None) -> str:
     """documentation/index.html: what a partner needs to know of the body without its matrices."""
     mass, cm, J = system.mass_properties()
     e = html.escape
@@ -272,6 +273,12 @@ inertia about the centre of mass (kg m<sup>2</sup>):</p><pre>{np.array2string(J,
 internal step solver.step = {config['step']:g} s by default{(', ' + format(build_info['duration'], 'g') + ' s of simulated time') if build_info.get('duration') else ''}.
 Other scenes (speeds, loads, steps) are outside what was checked at build time: compare with a standalone run
 (<code>ffrf-fmu validate</code>) before relying on them.</p>
+<h2>Initial state</h2>
+<p>{('The body starts at the scene&#39;s ' + e(start['state'].replace('_', ' ')) + ' state, made at build time (the '
+     'standalone run&#39;s own start): it holds for gravity ' + e(str(start['gravity'])) + ', no initial velocity or '
+     'displacement parameters, and the motion inputs the scene&#39;s drives give at t0; other values make the '
+     'initialization an error that names them.') if start else
+    'The body starts undeformed, with the rigid velocity field of its motion inputs and initial velocity parameters.'}</p>
 <h2>Behaviour between communication points</h2>
 <p>{e(INPUTS_BETWEEN_COMMUNICATION_POINTS)}</p><p>{e(INTERNAL_STEPS)}</p><p>{e(DIRECTIONAL_DERIVATIVES)}</p>
 </body></html>
@@ -337,7 +344,7 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
         z.writestr(f"resources/{RESOURCE_FILE}", pack(content, RUNTIME_VERSION))
-        z.writestr("documentation/index.html", datasheet(data, system, config, build_info, images, fmi))
+        z.writestr("documentation/index.html", datasheet(data, system, config, build_info, images, fmi, start))
         z.writestr("documentation/build.json", json.dumps({  # how it was made (no body data)
             "ffrf_fmu_version": __version__, "runtime_version": RUNTIME_VERSION, "body": data.name,
             "term_sets": list(images), "platforms": list(binaries), "compiler": compiler, "fmi_version": f"{fmi}.0",
