@@ -55,3 +55,24 @@ def test_logm_near_pi():
     axis = np.array([1.0, 2.0, -2.0]) / 3.0
     for t in (np.pi - 1e-3, np.pi - 1e-7, np.pi):
         assert np.allclose(rot.logm(rot.expm(t * axis)), t * axis, atol=1e-8)
+
+
+def test_rotation_defect_and_is_rotation_share_one_check():
+    """rotation_defect gives max |R^T R - I| and det R exactly on matrices where both are known; is_rotation
+    accepts at ROTATION_TOL and refuses just above it, a reflection, a non-finite entry and a wrong shape."""
+    R = rot.expm(np.array([0.3, -1.2, 0.7]))
+    d = rot.rotation_defect(R.ravel().tolist())
+    assert d.orthonormality < 1e-15 and abs(d.det - 1.0) < 1e-15
+    # a reflection is orthonormal with det -1
+    d = rot.rotation_defect(np.diag([1.0, 1.0, -1.0]).ravel().tolist())
+    assert d.orthonormality == 0.0 and d.det == -1.0
+    # (1 + s) I: every diagonal entry of R^T R - I is (1 + s)^2 - 1, the off-diagonal ones 0
+    s = 0.9 * rot.ROTATION_TOL / 2
+    assert rot.rotation_defect(((1 + s) * np.eye(3)).ravel().tolist()).orthonormality == pytest.approx((1 + s) ** 2 - 1)
+    assert rot.is_rotation((1 + s) * np.eye(3))
+    assert not rot.is_rotation((1 + 1.2 * rot.ROTATION_TOL / 2) * np.eye(3))
+    assert not rot.is_rotation(np.diag([1.0, 1.0, -1.0]))
+    bad = R.copy()
+    bad[1, 2] = np.nan
+    assert not rot.is_rotation(bad)
+    assert not rot.is_rotation(np.eye(2))

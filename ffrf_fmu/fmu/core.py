@@ -31,7 +31,7 @@ from ..runtime.damping import Damping
 from ..runtime.data import BodyData
 from ..runtime.outputs import tip_from_hub
 from ..runtime.ports import StepFailure
-from ..runtime.rotation import ROTATION_TOL
+from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
 from .derivatives import LastStep, directional_derivative
@@ -299,11 +299,8 @@ class BodyCoSim:
         point = values[ix]  # one gather (a column a port does not read holds some other value: never read)
         for k in turns:  # per rotation input, on Python floats: numpy calls on 3 x 3 cost more than they save
             name = self.data.ports[k].name
-            a, b, c, d, e, f, g, h, i = point[k, 9:18].tolist()  # R row-major
-            dev = max(abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),  # max |R^T R - I|
-                      abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h), abs(a * c + d * f + g * i),
-                      abs(b * c + e * f + h * i))
-            det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+            defect = rotation_defect(point[k, 9:18].tolist())  # R row-major
+            dev, det = defect.orthonormality, defect.det
             if dev > ROTATION_TOL and strict:
                 return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix "
                               f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")

@@ -13,6 +13,7 @@ stacks (..., 3) / (..., 3, 3) so that the body equations vectorize over nodes an
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -167,16 +168,32 @@ def vect_tangent(Q: np.ndarray) -> np.ndarray:
     return 0.5 * (tr[..., None, None] * np.eye(3) - np.swapaxes(Q, -1, -2))
 
 
+class RotationDefect(NamedTuple):
+    """How far a 3 x 3 matrix is from a rotation: `orthonormality` = max |R^T R - I| (entrywise),
+    `det` = det R (+1 for a rotation, negative for a reflection)."""
+    orthonormality: float
+    det: float
+
+
+def rotation_defect(entries) -> RotationDefect:
+    """The RotationDefect of the 3 x 3 matrix given as its 9 entries, row-major (a sequence of floats:
+    on Python floats, cheaper than numpy at this size). A NaN or inf entry makes det NaN or the
+    orthonormality infinite."""
+    a, b, c, d, e, f, g, h, i = entries
+    return RotationDefect(
+        orthonormality=max(
+            abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0), abs(c * c + f * f + i * i - 1.0),
+            abs(a * b + d * e + g * h), abs(a * c + d * f + g * i), abs(b * c + e * f + h * i),
+        ),
+        det=a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g),
+    )
+
+
 def is_rotation(R: np.ndarray, tol: float = ROTATION_TOL) -> bool:
-    """R is a (3, 3) array with |R^T R - I| <= tol and det(R) > 0 (in floats: cheaper than numpy at
-    this size; a NaN or inf entry makes det NaN or |R^T R - I| infinite, so it fails)."""
+    """R is a (3, 3) array with |R^T R - I| <= tol and det(R) > 0 (`rotation_defect`; a NaN or inf
+    entry fails: det NaN or |R^T R - I| infinite)."""
     R = np.asarray(R, dtype=float)
     if R.shape != (3, 3):
         return False
-    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    err = max(
-        abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0), abs(c * c + f * f + i * i - 1.0),
-        abs(a * b + d * e + g * h), abs(a * c + d * f + g * i), abs(b * c + e * f + h * i),
-    )
-    return bool(err <= tol and det > 0.0)
+    defect = rotation_defect(R.ravel().tolist())
+    return bool(defect.orthonormality <= tol and defect.det > 0.0)
