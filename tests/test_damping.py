@@ -390,3 +390,29 @@ def test_info_reports_each_modes_ratio():
     assert d["kind"] == "rayleigh" and len(w) == 16
     assert np.allclose(d["mode_ratios"], 0.5 / (2 * w) + 4e-4 * w / 2, rtol=1e-12)
     assert abs(d["mode_ratios"][0] - 0.0172) < 1e-4
+
+
+def test_fmu_ratios_per_mode_are_parameters(beam_models, small_toml):
+    """A model file listing one ratio per mode (the small beam: 2 boundary frames x 6 + 2 modes = 14) gives
+    the FMU the parameters damping.ratio[1..14] with those start values; set to another list under fmpy, the
+    run equals, bit for bit, the FMU built from the model file with that other list."""
+    from fmpy import read_model_description
+
+    from ffrf_fmu.fmu.builder import build_fmu
+    from ffrf_fmu.fmu.run import run_fmu
+
+    d = beam_models[0].parent
+    first, second = np.linspace(0.01, 0.1, 14), np.linspace(0.1, 0.01, 14)
+    fmus = []
+    for name, z in (("first", first), ("second", second)):
+        path = d / f"{name}.toml"
+        path.write_text(small_toml() + f"\n[body.damping]\nratio = {[float(x) for x in z]}\n")
+        fmus.append(build_fmu(path, d / f"{name}.fmu", scene="spin", platforms=("linux64",)))
+    starts = {v.name: float(v.start) for v in read_model_description(str(fmus[0])).modelVariables
+              if v.name.startswith("damping.ratio")}
+    assert starts == {f"damping.ratio[{i + 1}]": float(z) for i, z in enumerate(first)}
+    sc = load_model(beam_models[0]).scene("spin")
+    run = run_fmu(fmus[0], sc, start_values={f"damping.ratio[{i + 1}]": float(z) for i, z in enumerate(second)})
+    ref, plain = run_fmu(fmus[1], sc), run_fmu(fmus[0], sc)
+    assert all(np.array_equal(run.columns[n], ref.columns[n]) for n in ref.columns)
+    assert not np.array_equal(plain.columns["energy.strain"], ref.columns["energy.strain"])
