@@ -409,7 +409,15 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
             done, status, _ = body.advance(EXTRAPOLATED, 1, H, k * H, row, None)
             assert (done, status) == (1, 0)
             got = fmu.get(c, names)
+            eta, yd = body.array("eta"), body.array("yd")
+            n_se = len({n.split("[")[1].split(",")[0] for n in names if n.startswith("modal.")})
+            nm, cfg = eta.size // n_se, body.array("cfg_map").reshape(n_se, -1)
             for name, value in zip(names, got):
+                if name.startswith("modal."):  # the body's eta and their rates (cfg_map columns 6 .. 6 + nm)
+                    e, i = (int(x) - 1 for x in name.split("[")[1][:-1].split(","))
+                    want = eta[e * nm + i] if name.startswith("modal.eta[") else yd[cfg[e, 6 + i]]
+                    assert value == want, (k, name, value, want)
+                    continue
                 if name.startswith("energy."):
                     j = W * len(ports) + ("kinetic_rigid", "kinetic_elastic", "strain", "work_external").index(name[7:])
                 else:
@@ -419,6 +427,7 @@ def test_the_fmu_is_the_c_runtime_driven_by_its_input_rule_bit_for_bit(fmu):
                     j = W * [q[0] for q in ports].index(p) + j0 + (3 * ix[0] + ix[1] if len(ix) == 2 else ix[0])
                 assert value == row[j], (k, name, value, row[j])
         assert np.abs(fmu.get(c, ["tip.r[3]"])).max() > 1e-4  # the load moved the tip: the comparison means something
+        assert "modal.eta[1,1]" in names and np.abs(body.array("eta")).max() > 1e-6  # the modes compared moved
         assert "tip.a[3]" in names and "tip.dw[2]" in names and np.abs(fmu.get(c, ["tip.a[3]"])).max() > 1e-3
     finally:
         L.fmi2FreeInstance(c)

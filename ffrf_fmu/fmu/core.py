@@ -35,7 +35,7 @@ from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
 from .derivatives import LastStep, directional_derivative
-from .variables import Variable, body_variables
+from .variables import Variable, body_variables, modal_shape
 
 try:  # the C runtime's binding, imported with the FMU's first instance: a later instance importing it lazily
     # (BodySystem on backend native) would look in the first instance's resources folder, which the host may
@@ -86,7 +86,7 @@ class BodyCoSim:
         self.data = data
         self.config = config
         self.variables: list[Variable] = body_variables(data.ports, data.node_positions, config["parameters"],
-                                                        data.damping)
+                                                        data.damping, modal_shape(data))
         self.origin = np.asarray(config.get("origin", data.node_positions[0]), dtype=float)
         n = len(self.variables)
         self.values = np.array([v.start if v.start is not None else 0.0 for v in self.variables], dtype=float)
@@ -482,22 +482,27 @@ class BodyCoSim:
         body's output_row at this state if already computed (BodySystem.run_extrapolated fills one), else computed.
 
         Port fields come from the row's port_array part (one row per port, columns OUTPUT_FIELDS, 3 or
-        9 each, R row-major as the variables), then the energies, the iterations and the probes: one
-        gather with a map built on first use."""
+        9 each, R row-major as the variables), then the energies, the iterations, the probes and the
+        modal coordinates with their rates: one gather with a map built on first use."""
         if self._output_map is None:
             self._output_map = self._build_output_map()
         dst, src, seen, frame, dX = self._output_map
         row = self.system.output_row() if row is None else row
         row[-1] = iterations  # the most of the communication step's internal steps, not the last one's
+        extra = []
         if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f), one per probe
             pr = row[: BodySystem.OUTPUT_WIDTH * len(self.data.ports)].reshape(len(self.data.ports), -1)
-            d = tip_from_hub(pr[frame, 3:12].reshape(-1, 3, 3), pr[frame, 0:3], pr[seen, 0:3], dX)
-            row = np.concatenate([row, d.ravel()])
+            extra.append(tip_from_hub(pr[frame, 3:12].reshape(-1, 3, 3), pr[frame, 0:3], pr[seen, 0:3], dX).ravel())
+        if ("modal", "eta") in self.index:  # the modal coordinates and their rates (the eta slots of the rates)
+            nm = self.system.layout.nm
+            extra += [self.system.eta.ravel(), self.system.yd[self.system.layout.cfg_map[:, 6 : 6 + nm].ravel()]]
+        if extra:
+            row = np.concatenate([row, *extra])
         return dst, row[src]
 
     def _build_output_map(self) -> tuple:
-        """(value references, positions in [output_row, probes], then per probe the rows of its seen and
-        frame ports and X_s - X_f) of `_output_values`."""
+        """(value references, positions in [output_row, probes, eta, eta rates], then per probe the rows of its
+        seen and frame ports and X_s - X_f) of `_output_values`."""
         dst, src = [], []
         n_ports, width = len(self.data.ports), BodySystem.OUTPUT_WIDTH
         for j, p in enumerate(self.data.ports):
@@ -529,6 +534,12 @@ class BodyCoSim:
             dX.append(X[self.data.port(s).node] - X[self.data.port(f).node])
             dst.append(self.index[("probe", name)])
             src.append(size + 3 * i + np.arange(3))
+        base = size + 3 * len(seen)  # then eta and its rates, superelement by superelement (variables.MODAL)
+        for k, field in enumerate(("eta", "eta_rate")):
+            if ("modal", field) in self.index:
+                ix = self.index[("modal", field)]
+                dst.append(ix)
+                src.append(base + k * ix.size + np.arange(ix.size))
         return (np.concatenate(dst), np.concatenate(src).astype(int), np.array(seen, dtype=int),
                 np.array(frame, dtype=int), np.array(dX, dtype=float).reshape(-1, 3))
 

@@ -146,14 +146,31 @@ def port_field_causality(translation: str, rotation: str, field: str) -> str:
     return "output" if motion == is_load else "input"
 
 
-def body_variables(ports, node_positions, parameters: dict, damping=None) -> list[Variable]:
+MODAL = {  # the modal coordinates of every superelement as outputs: field -> what a value is (one text for
+    # every element, so that FMI 3.0's array modal.eta[E, nm] has it too)
+    "eta": "modal coordinate eta[e,i]: the amplitude of free-free mode i of superelement e (1-based indices) in the "
+           "reduction basis (eq. 76; the mode shapes are mass-normalized, so eta is in sqrt(kg) m)",
+    "eta_rate": "rate d(eta[e,i])/dt of the modal coordinate of free-free mode i of superelement e (sqrt(kg) m/s)",
+}
+
+
+def modal_shape(data) -> tuple[int, int]:
+    """(superelements, free-free modes per superelement) of a runtime.data.BodyData: the shape of the
+    modal outputs modal.eta[e,i], modal.eta_rate[e,i]."""
+    se = data.superelements[0]
+    return len(data.superelements), se.n - 6 * len(se.nodes)
+
+
+def body_variables(ports, node_positions, parameters: dict, damping=None,
+                   modes: tuple[int, int] = (0, 0)) -> list[Variable]:
     """Every variable of a body FMU, in value-reference order.
 
     ports: objects with name, node, translation, rotation (runtime.data.PortData);
     node_positions: reference node positions (start values of motion-driven r inputs);
     parameters: defaults with keys step, rho_inf, gravity (3), terms (name), initial_velocity (3),
     initial_angular_velocity (3), port_displacements {port: (3,)} (force-driven translations);
-    damping: the body's runtime.damping.Damping (the damping parameters' defaults), None: undamped.
+    damping: the body's runtime.damping.Damping (the damping parameters' defaults), None: undamped;
+    modes: `modal_shape` of the body, the modal outputs (none for (0, 0)).
     """
     out: list[Variable] = []
     for p in ports:
@@ -194,6 +211,12 @@ def body_variables(ports, node_positions, parameters: dict, damping=None) -> lis
                                 f"elastic displacement of port {seen} seen from the frame of port {frame} (geradin eq. 92): "
                                 f"R_{frame}^T (r_{seen} - r_{frame}) - (X_{seen} - X_{frame}), axis {i + 1} of the {frame} frame "
                                 "[output at the communication point]", None, "probe", field=name, index=(i,)))
+    for field, text in MODAL.items():  # superelement e, mode i: 1-based in the name, 0-based in `index`
+        for e in range(modes[0]):
+            for i in range(modes[1]):
+                out.append(Variable(component_name(f"modal.{field}", (e, i)), "Real", "output", "continuous", None,
+                                    text + " [output at the communication point]", None,
+                                    "modal", field=field, index=(e, i)))
     for key, meaning in ENERGIES.items():
         out.append(Variable(f"energy.{key}", "Real", "output", "continuous", "J", meaning, None, "energy", field=key))
     out.append(

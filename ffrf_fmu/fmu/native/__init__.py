@@ -34,7 +34,7 @@ from ... import __version__
 from ...runtime.body import BodySystem
 from ...runtime.data import BodyData
 from ...runtime.terms import TERM_SETS
-from ..variables import (DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, UNITS,
+from ..variables import (DIRECTIONAL_DERIVATIVES, modal_shape, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, UNITS,
                          body_variables, equations_text, identifier)
 from . import build as native_build
 from .resource import ResourceContent, pack
@@ -161,7 +161,8 @@ def fmi3_variables(variables) -> list[Fmi3Variable]:
     for k, run in enumerate(runs):
         members = tuple(variables[i] for i in run)
         first = members[0]
-        shape = () if "[" not in first.name else ((3, 3) if len(run) == 9 else (len(run),))
+        # the shape of an array: its last element's index, 1-based (P.R[3,3]: (3, 3); modal.eta[E,nm]: (E, nm))
+        shape = () if "[" not in first.name else tuple(int(i) for i in members[-1].name.rpartition("[")[2][:-1].split(","))
         out.append(Fmi3Variable(first.name.partition("[")[0], k + 1, run[0], shape, members))
     return out
 
@@ -301,7 +302,7 @@ def build_native_fmu(data: BodyData, dest, params, *, origin=None, build_info: d
         if dest.suffix and not dest.is_dir():
             raise native_build.NativeBuildError(f"{dest}: an FMU file name must end in .fmu (or name a directory)")
         dest = dest / f"{data.name}.fmu"
-    variables = body_variables(data.ports, data.node_positions, config, data.damping)
+    variables = body_variables(data.ports, data.node_positions, config, data.damping, modal_shape(data))
     images, system = _images(data, config)
     if system is None:
         raise native_build.NativeBuildError(f"term set {config['terms']!r} needs the inertia data W1, W2 (build the "

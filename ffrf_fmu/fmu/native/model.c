@@ -78,7 +78,8 @@ static const char *repr3(const double v[3], char *buf, size_t len)
 fmi2Status model_setup(fmu_instance *m)
 {
     const int n = m->desc.n_vars;
-    size_t n_row = (size_t)m->desc.n_ports * FFRF_OUTPUT_WIDTH + FFRF_N_ENERGIES + 1 + 3 * (size_t)m->desc.n_probes;
+    size_t n_row = (size_t)m->desc.n_ports * FFRF_OUTPUT_WIDTH + FFRF_N_ENERGIES + 1 + 3 * (size_t)m->desc.n_probes +
+                   2 * (size_t)m->desc.n_modal;
     m->values = calloc((size_t)n, sizeof(double));
     m->start_values = calloc((size_t)n, sizeof(double));
     m->initialized_with = calloc((size_t)n, sizeof(double));
@@ -648,8 +649,9 @@ static void save_start(fmu_instance *m)
     m->rollback_lu_valid = 1;
 }
 
-/* the outputs of m->row (the body's output row, iterations last) and the probes (eq. 92):
- * d = R_f^T (r_s - r_f) - (X_s - X_f) */
+/* the outputs of m->row (the body's output row, iterations last), the probes (eq. 92):
+ * d = R_f^T (r_s - r_f) - (X_s - X_f), then every superelement's modal coordinates eta and their rates (the
+ * eta slots of the rates yd, cfg_map columns 6 .. 6 + nm; resource.py output_map) */
 static void outputs_into(fmu_instance *m, int iterations, double *values)
 {
     const fmu_description *d = &m->desc;
@@ -664,6 +666,15 @@ static void outputs_into(fmu_instance *m, int iterations, double *values)
                 acc += f[3 + 3 * j + i] * (s[j] - f[j]);
             row[base + 3 * k + i] = acc - d->probe_dX[3 * k + i];
         }
+    }
+    const ffrf_body *b = m->body;
+    if (b && d->n_modal == b->dims.E * b->dims.nm) { /* (every image of an FMU is of the same body) */
+        double *eta = row + base + 3 * (size_t)d->n_probes, *rate = eta + d->n_modal;
+        for (int e = 0; e < b->dims.E; e++)
+            for (int i = 0; i < b->dims.nm; i++) {
+                eta[e * b->dims.nm + i] = b->state.eta[e * b->dims.nm + i];
+                rate[e * b->dims.nm + i] = b->state.yd[b->data.cfg_map[(size_t)e * b->dims.nc + 6 + i]];
+            }
     }
     for (int i = 0; i < d->n_out; i++)
         values[d->out_vr[i]] = row[d->out_src[i]];

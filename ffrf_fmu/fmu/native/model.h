@@ -21,7 +21,7 @@
 #include "ffrf_runtime.h"
 
 #define FMU_MESSAGE 1024          /* longest kept message (initialization failure, last discard) */
-#define FMU_FORMAT_VERSION 1      /* of resources/body.bin (resource.py FORMAT_VERSION) */
+#define FMU_FORMAT_VERSION 2      /* of resources/body.bin (resource.py FORMAT_VERSION) */
 #define FMU_STATE_VERSION 1       /* of a serialized FMU state */
 #define FMU_API(m) ((m)->fmi ? (m)->fmi : "fmi2") /* the FMI function prefix of messages */
 #define FMU_TERM_SETS 3           /* linear, gyroscopic, full (runtime/terms.py TERM_SETS) */
@@ -63,6 +63,7 @@ typedef struct {
     const int32_t *probe_seen;    /* [n_probes] port rows (eq. 92) */
     const int32_t *probe_frame;
     const double *probe_dX;       /* [n_probes][3] X_seen - X_frame */
+    int n_modal;                  /* modal outputs modal.eta[e,i]: superelements x modes (their rates as many) */
     int vr_step, vr_rho_inf, vr_terms, vr_iterations;
     int vr_gravity[3], vr_velocity[3], vr_angular_velocity[3];
     const int32_t *disp_vr;       /* [n_ports][3] initial.<port>.d, -1 */
@@ -104,7 +105,7 @@ typedef struct {
     int initialized;              /* initialized_with holds the inputs and parameters of the last initialization */
     double *initialized_with;     /* [n_vars] */
     double *point_values;         /* [n_ports][FFRF_POINT_WIDTH] work: the point values of a step */
-    double *row;                  /* output row, then the probes [n_probes][3] */
+    double *row;                  /* output row, then the probes [n_probes][3], eta [n_modal], its rates [n_modal] */
     size_t state_size;            /* ffrf_body_state_size */
     double *rollback;             /* [state_size] the body at t_c of the current doStep (whole: ffrf_body_get_state) */
     uint64_t rollback_lu_version; /* the factors in rollback are those of this matrix version */

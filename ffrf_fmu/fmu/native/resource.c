@@ -224,14 +224,16 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     NEED("about", (size_t)-1, &s);
     snprintf(d->description, sizeof d->description, "%.*s", (int)(s.size ? s.size - 1 : 0), (const char *)s.data);
     NEED("names", (size_t)-1, &names);
-    NEED("counts", 16, &s);
+    NEED("counts", 20, &s);
     const int32_t *counts = (const int32_t *)s.data;
     d->n_vars = counts[0];
     d->n_ports = counts[1];
     d->n_out = counts[2];
     d->n_probes = counts[3];
+    d->n_modal = counts[4];
     if (d->n_vars <= 0 || d->n_ports < 0 || d->n_out < 0 || d->n_probes < 0 || d->n_vars > 1 << 24 ||
-        d->n_ports > 1 << 16 || d->n_out > d->n_vars || d->n_probes > d->n_vars)
+        d->n_ports > 1 << 16 || d->n_out > d->n_vars || d->n_probes > d->n_vars || d->n_modal < 0 ||
+        d->n_modal > d->n_vars)
         goto bad_content;
     NEED("vars", (size_t)d->n_vars * 48, &s);
     d->vars = calloc((size_t)d->n_vars, sizeof *d->vars);
@@ -324,7 +326,8 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
             if (d->probe_seen[i] < 0 || d->probe_seen[i] >= d->n_ports || d->probe_frame[i] < 0 ||
                 d->probe_frame[i] >= d->n_ports)
                 goto bad_content;
-        size_t n_src = (size_t)d->n_ports * FFRF_OUTPUT_WIDTH + FFRF_N_ENERGIES + 1 + 3 * (size_t)d->n_probes;
+        size_t n_src = (size_t)d->n_ports * FFRF_OUTPUT_WIDTH + FFRF_N_ENERGIES + 1 + 3 * (size_t)d->n_probes +
+                       2 * (size_t)d->n_modal;
         for (int i = 0; i < d->n_out; i++)
             if (d->out_src[i] < 0 || (size_t)d->out_src[i] >= n_src || d->out_vr[i] < 0)
                 goto bad_content;

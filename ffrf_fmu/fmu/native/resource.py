@@ -34,7 +34,7 @@ from ...runtime.terms import TERM_SETS
 from ..variables import Variable
 
 MAGIC = b"FFRFFMU\0"
-FORMAT_VERSION = 1  # model.h FMU_FORMAT_VERSION
+FORMAT_VERSION = 2  # model.h FMU_FORMAT_VERSION (2: the modal outputs)
 HEADER = struct.Struct("<8sIIQQQ")
 PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
@@ -79,7 +79,8 @@ def point_map(variables, ports) -> np.ndarray:
 
 
 def output_map(variables, ports, probes) -> tuple[np.ndarray, np.ndarray]:
-    """(value references, positions in [output row, probes]) of every output (core.py `_build_output_map`)."""
+    """(value references, positions in [output row, probes, eta, eta rates]) of every output (core.py
+    `_build_output_map`)."""
     index = _index(variables)
     dst, src = [], []
     for j, p in enumerate(ports):
@@ -105,6 +106,11 @@ def output_map(variables, ports, probes) -> tuple[np.ndarray, np.ndarray]:
     for i, name in enumerate(probes):
         dst += index[("probe", name)]
         src += [size + 3 * i + k for k in range(3)]
+    base = size + 3 * len(probes)  # then eta and its rates, superelement by superelement (model.c outputs_into)
+    for k, field in enumerate(("eta", "eta_rate")):
+        ix = index.get(("modal", field), [])
+        dst += ix
+        src += [base + k * len(ix) + i for i in range(len(ix))]
     return np.array(dst, dtype=np.int32), np.array(src, dtype=np.int32)
 
 
@@ -168,7 +174,7 @@ def payload(c: ResourceContent) -> bytes:
     # structural damping: [vr of damping.alpha, of damping.beta, k, vr of the k ratios] (k = 1: one for every mode)
     ratios = index[("parameter", "damping_ratio")]
     damping = [par("damping_alpha")[0], par("damping_beta")[0], len(ratios), *ratios]
-    counts = [len(variables), len(ports), len(out_vr), len(c.probes)]
+    counts = [len(variables), len(ports), len(out_vr), len(c.probes), len(index.get(("modal", "eta"), ()))]
     sections = [
         _section("guid", c.guid.encode() + b"\0"),
         _section("about", c.about.encode("utf-8")[:150] + b"\0"),
