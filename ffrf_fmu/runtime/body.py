@@ -469,7 +469,7 @@ class BodySystem(GeneralizedAlpha):
                 c = np.zeros(L.ny)
                 c[6 * p.node : 6 * p.node + 3] = u / np.linalg.norm(u)
                 rows.append(c)
-            if p.name not in displaced or p.rotation == "motion":
+            if np.linalg.norm(u) == 0.0 or p.rotation == "motion":  # an undisplaced port, listed with zeros or not
                 relax[6 * p.node + 3 : 6 * p.node + 6] = False
         idx = np.flatnonzero(relax)
         C = np.array(rows).reshape(len(rows), L.ny)[:, idx]

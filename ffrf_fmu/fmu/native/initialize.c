@@ -163,8 +163,9 @@ static int relax(ffrf_body *b, const double *disp, const char *const *port_names
                 dirs[(size_t)n_rows * ny + 6 * node + i] = u[i] / norm;
             n_rows++;
         }
-        /* a port without a displacement parameter (its translation not force-driven) keeps its rotation too */
-        if (D->port_mode[2 * j] != PART_FORCE || D->port_mode[2 * j + 1] == PART_MOTION)
+        /* an undisplaced port (a zero displacement parameter, or none: its translation not force-driven) keeps its
+         * rotation too, as a port the scene does not displace (body.py `_relax`); only a displaced one turns */
+        if (norm == 0.0 || D->port_mode[2 * j + 1] == PART_MOTION)
             for (int i = 3; i < 6; i++)
                 free_slot[6 * node + i] = 0;
     }
