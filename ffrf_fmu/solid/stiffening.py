@@ -77,11 +77,11 @@ STRAIN_RANK_TOL = 1e-9  # energy eigenvalues below this fraction of the largest 
 def membrane_tensors(strain, Yf: np.ndarray) -> dict:
     """{"vk_a" (r, n), "vk_B" (r, n, n)} of the basis Yf (3 N, n) on the mesh of `strain`
     (mesh.MeshStrain): module doc. Also "K_strain" (n, n) = S^T C S, which equals Y^T K Y (a check)."""
-    from .mesh import _element, element_geometry, lame
+    from .mesh import _element, element_geometry, lame, quadrature_order
 
     lam, mu = lame(strain.material)
     n = Yf.shape[1]
-    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element))
+    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element), quadrature_order(strain.element))
     if 3 * N != Yf.shape[0]:
         raise ValueError(f"basis has {Yf.shape[0]} rows, the mesh {3 * N} dofs")
     Ks = np.zeros((n, n))
@@ -122,10 +122,10 @@ def geometric_stiffness(strain, u: np.ndarray):
     model's stress stiffening, against which the reduced one is checked)."""
     import scipy.sparse as sp
 
-    from .mesh import _element, element_geometry, lame
+    from .mesh import _element, element_geometry, lame, quadrature_order
 
     lam, mu = lame(strain.material)
-    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element))
+    _, _, N, chunks = element_geometry(strain.mesh, _element(strain.element), quadrature_order(strain.element))
     rows, cols, vals = [], [], []
     for _, vd, dphi, dx in chunks:
         ne, nq, nloc, _ = dphi.shape
