@@ -15,6 +15,9 @@ machine (benchmarks/newton_iterations.py measures times, against a baseline revi
 point values at each communication point t_c = k N h (runtime/input_rule.py, BodySystem.run_extrapolated), N internal
 steps per communication step; the standalone column, then one per N (the thetas then take the first value
 only).
+--tolerances T1,T2,...: the Newton tolerance instead (BodySystem tol, default 1e-9): per configuration and
+tolerance, the whole scene on the native backend (simulate.run): Newton iterations per step, the maximum tip
+deflection and its change against the default tolerance's run.
 """
 from __future__ import annotations
 
@@ -87,6 +90,7 @@ def main(argv=None) -> int:
     ap.add_argument("--refresh-after", default="2:3")
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--point-steps", default="", help="internal steps per communication step of the FMU's input rule")
+    ap.add_argument("--tolerances", default="", help="Newton tolerances to compare (native backend)")
     ap.add_argument("--held", help=argparse.SUPPRESS)  # the old spelling, refused below
     args = ap.parse_args(argv)
     if args.held is not None:
@@ -94,6 +98,8 @@ def main(argv=None) -> int:
                  "'held' names inputs kept constant over a step)")
     if args.point_steps:
         return point_table(args)
+    if args.tolerances:
+        return tolerance_table(args)
     print(f"B1 spin-up, {args.duration:g} s, REFRESH_AFTER {args.refresh_after}; Newton iterations / factorizations per step")
     print(f"{'h [ms]':>7} {'SE x modes':>10} " + " ".join(f"{'theta ' + t:>17}" for t in args.thetas.split(",")))
     for h in (float(x) for x in args.steps.split(",")):
@@ -128,6 +134,41 @@ def point_table(args) -> int:
                                        args.duration, n)
                 cells.append(f"{it:7.3f} / {fac:6.3f}{'*' if failure else ' '}")
             print(f"{1e3 * h:7g} {cfg:>10} " + " ".join(cells))
+    return 0
+
+
+def tolerance_table(args) -> int:
+    """--tolerances: simulate.run (native) per tolerance, the scene's BodySystem built with that tol."""
+    import functools
+
+    from ffrf_fmu.runtime.body import BodySystem
+    from ffrf_fmu.simulate import loop
+
+    default = 1e-9  # BodySystem's tol
+    tols = sorted({float(x) for x in args.tolerances.split(",")} | {default})
+    print(f"B1 spin-up, {args.duration:g} s, native; per tolerance: Newton iterations per step, max tip deflection [m], "
+          f"its change against tol = {default:g} (relative)")
+    for h in (float(x) for x in args.steps.split(",")):
+        for cfg in args.configs.split(","):
+            n_se, modes = (int(v) for v in cfg.split("x"))
+            model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={args.duration}"])
+            scene = model.scene("spinup")
+            body = reduce_body(model.body).data
+            out = {}
+            for tol in tols:
+                loop.BodySystem = functools.partial(BodySystem, tol=tol)
+                try:
+                    res = sim.run(body, scene, origin=model.body.origin, progress=False, backend="native")
+                finally:
+                    loop.BodySystem = BodySystem
+                out[tol] = res.summary
+            ref = out[default]["metrics"]["tip_deflection_max_m"]
+            for tol in tols:
+                s = out[tol]
+                tip = s["metrics"].get("tip_deflection_max_m")
+                fail = f"  FAILED: {s['failure']}" if s["failure"] else ""
+                print(f"{1e3 * h:7g} ms {cfg:>5} tol {tol:7.0e}: {s['newton_iterations_mean']:6.3f} it/step  "
+                      f"tip {tip:.12f}  {(tip - ref) / ref:+.1e}{fail}", flush=True)
     return 0
 
 
