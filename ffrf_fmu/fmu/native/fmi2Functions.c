@@ -264,100 +264,46 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return fmi2OK;
 }
 
-/* ------------------------------------------------------------------ FMU state: its serialized bytes */
-
-typedef struct {
-    size_t size;
-    unsigned char bytes[];
-} saved_state;
+/* ------------------------------------------------------------------ FMU state (model.c model_state_*) */
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
     fmu_instance *m = allowed(c, "fmi2GetFMUstate", ANY_MODE);
-    if (!m || !FMUstate)
-        return fmi2Error;
-    size_t size = model_serialized_size(m);
-    saved_state *s = *FMUstate;
-    if (s && s->size != size) { /* a state given back to be overwritten, of another size: a fresh one */
-        free(s);
-        s = NULL;
-    }
-    if (!s)
-        s = malloc(sizeof *s + size);
-    if (!s) {
-        fmu_log(m, fmi2Error, "fmi2GetFMUstate: out of memory");
-        return fmi2Error;
-    }
-    s->size = size;
-    model_serialize(m, s->bytes);
-    *FMUstate = s;
-    return fmi2OK;
+    return m && FMUstate ? model_state_get(m, "fmi2GetFMUstate", FMUstate) : fmi2Error;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
     fmu_instance *m = allowed(c, "fmi2SetFMUstate", ANY_MODE);
-    if (!m)
-        return fmi2Error;
-    if (!FMUstate) {
-        fmu_log(m, fmi2Error, "fmi2SetFMUstate: NULL state");
-        return fmi2Error;
-    }
-    const saved_state *s = FMUstate;
-    return model_deserialize(m, s->bytes, s->size);
+    return m ? model_state_set(m, "fmi2SetFMUstate", FMUstate) : fmi2Error;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
     (void)c;
-    if (FMUstate) {
-        free(*FMUstate);
-        *FMUstate = NULL;
-    }
+    model_state_free(FMUstate);
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
-    fmu_instance *m = allowed(c, "fmi2SerializedFMUstateSize", ANY_MODE);
-    if (!m || !FMUstate || !size)
-        return fmi2Error;
-    *size = ((const saved_state *)FMUstate)->size;
-    return fmi2OK;
+    return allowed(c, "fmi2SerializedFMUstateSize", ANY_MODE) ? model_state_size(FMUstate, size) : fmi2Error;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
 {
     fmu_instance *m = allowed(c, "fmi2SerializeFMUstate", ANY_MODE);
-    if (!m || !FMUstate || !serializedState)
-        return fmi2Error;
-    const saved_state *s = FMUstate;
-    if (size < s->size) {
-        fmu_log(m, fmi2Error, "fmi2SerializeFMUstate: buffer of %zu bytes, the state needs %zu", size, s->size);
-        return fmi2Error;
-    }
-    memcpy(serializedState, s->bytes, s->size);
-    return fmi2OK;
+    return m ? model_state_serialize(m, "fmi2SerializeFMUstate", FMUstate, (unsigned char *)serializedState, size)
+             : fmi2Error;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
     fmu_instance *m = allowed(c, "fmi2DeSerializeFMUstate", ANY_MODE);
-    if (!m || !FMUstate || (!serializedState && size))
-        return fmi2Error;
-    /* checked here (version, FMU, size, checksum): a damaged state is refused now, not at fmi2SetFMUstate */
-    if (model_serialized_check(m, (const unsigned char *)serializedState, size) != fmi2OK)
-        return fmi2Error;
-    saved_state *s = malloc(sizeof *s + size);
-    if (!s) {
-        fmu_log(m, fmi2Error, "fmi2DeSerializeFMUstate: out of memory");
-        return fmi2Error;
-    }
-    s->size = size;
-    memcpy(s->bytes, serializedState, size);
-    *FMUstate = s;
-    return fmi2OK;
+    return m ? model_state_deserialize(m, "fmi2DeSerializeFMUstate", (const unsigned char *)serializedState, size,
+                                       FMUstate)
+             : fmi2Error;
 }
 
 /* ------------------------------------------------------------------ derivatives */

@@ -736,100 +736,46 @@ fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference 
     return refused(instance, "fmi3ActivateModelPartition", CO_SIMULATION_ONLY);
 }
 
-/* ------------------------------------------------------------------ FMU state: its serialized bytes */
-
-typedef struct {
-    size_t size;
-    unsigned char bytes[];
-} saved_state;
+/* ------------------------------------------------------------------ FMU state (model.c model_state_*) */
 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     fmi3_instance *x = allowed(instance, "fmi3GetFMUState", ANY_MODE);
-    if (!x || !FMUState)
-        return fmi3Error;
-    size_t size = model_serialized_size(&x->m);
-    saved_state *s = *FMUState;
-    if (s && s->size != size) { /* a state given back to be overwritten, of another size: a fresh one */
-        free(s);
-        s = NULL;
-    }
-    if (!s)
-        s = malloc(sizeof *s + size);
-    if (!s) {
-        fmu_log(&x->m, fmi2Error, "fmi3GetFMUState: out of memory");
-        return fmi3Error;
-    }
-    s->size = size;
-    model_serialize(&x->m, s->bytes);
-    *FMUState = s;
-    return fmi3OK;
+    return x && FMUState ? status3(model_state_get(&x->m, "fmi3GetFMUState", FMUState)) : fmi3Error;
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
 {
     fmi3_instance *x = allowed(instance, "fmi3SetFMUState", ANY_MODE);
-    if (!x)
-        return fmi3Error;
-    if (!FMUState) {
-        fmu_log(&x->m, fmi2Error, "fmi3SetFMUState: NULL state");
-        return fmi3Error;
-    }
-    const saved_state *s = FMUState;
-    return status3(model_deserialize(&x->m, s->bytes, s->size));
+    return x ? status3(model_state_set(&x->m, "fmi3SetFMUState", FMUState)) : fmi3Error;
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     (void)instance;
-    if (FMUState) {
-        free(*FMUState);
-        *FMUState = NULL;
-    }
+    model_state_free(FMUState);
     return fmi3OK;
 }
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
-    fmi3_instance *x = allowed(instance, "fmi3SerializedFMUStateSize", ANY_MODE);
-    if (!x || !FMUState || !size)
-        return fmi3Error;
-    *size = ((const saved_state *)FMUState)->size;
-    return fmi3OK;
+    return allowed(instance, "fmi3SerializedFMUStateSize", ANY_MODE) ? status3(model_state_size(FMUState, size))
+                                                                     : fmi3Error;
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size)
 {
     fmi3_instance *x = allowed(instance, "fmi3SerializeFMUState", ANY_MODE);
-    if (!x || !FMUState || !serializedState)
-        return fmi3Error;
-    const saved_state *s = FMUState;
-    if (size < s->size) {
-        fmu_log(&x->m, fmi2Error, "fmi3SerializeFMUState: buffer of %zu bytes, the state needs %zu", size, s->size);
-        return fmi3Error;
-    }
-    memcpy(serializedState, s->bytes, s->size);
-    return fmi3OK;
+    return x ? status3(model_state_serialize(&x->m, "fmi3SerializeFMUState", FMUState, serializedState, size))
+             : fmi3Error;
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
                                    fmi3FMUState *FMUState)
 {
     fmi3_instance *x = allowed(instance, "fmi3DeserializeFMUState", ANY_MODE);
-    if (!x || !FMUState || (!serializedState && size))
-        return fmi3Error;
-    /* checked here (version, FMU, size, checksum): a damaged state is refused now, not at fmi3SetFMUState */
-    if (model_serialized_check(&x->m, (const unsigned char *)serializedState, size) != fmi2OK)
-        return fmi3Error;
-    saved_state *s = malloc(sizeof *s + size);
-    if (!s) {
-        fmu_log(&x->m, fmi2Error, "fmi3DeserializeFMUState: out of memory");
-        return fmi3Error;
-    }
-    s->size = size;
-    memcpy(s->bytes, serializedState, size);
-    *FMUState = s;
-    return fmi3OK;
+    return x ? status3(model_state_deserialize(&x->m, "fmi3DeserializeFMUState", serializedState, size, FMUState))
+             : fmi3Error;
 }
 
 /* ------------------------------------------------------------------ derivatives */

@@ -1014,6 +1014,91 @@ fmi2Status model_serialized_check(fmu_instance *m, const unsigned char *in, size
     return fmi2OK;
 }
 
+/* ------------------------------------------------------------------ FMU state objects */
+
+typedef struct {
+    size_t size;
+    unsigned char bytes[];
+} saved_state;
+
+fmi2Status model_state_get(fmu_instance *m, const char *call, void **state)
+{
+    size_t size = model_serialized_size(m);
+    saved_state *s = *state;
+    if (s && s->size != size) { /* a state given back to be overwritten, of another size: a fresh one */
+        free(s);
+        s = NULL;
+    }
+    if (!s)
+        s = malloc(sizeof *s + size);
+    if (!s) {
+        fmu_log(m, fmi2Error, "%s: out of memory", call);
+        return fmi2Error;
+    }
+    s->size = size;
+    model_serialize(m, s->bytes);
+    *state = s;
+    return fmi2OK;
+}
+
+fmi2Status model_state_set(fmu_instance *m, const char *call, const void *state)
+{
+    if (!state) {
+        fmu_log(m, fmi2Error, "%s: NULL state", call);
+        return fmi2Error;
+    }
+    const saved_state *s = state;
+    return model_deserialize(m, s->bytes, s->size);
+}
+
+void model_state_free(void **state)
+{
+    if (state) {
+        free(*state);
+        *state = NULL;
+    }
+}
+
+fmi2Status model_state_size(const void *state, size_t *size)
+{
+    if (!state || !size)
+        return fmi2Error;
+    *size = ((const saved_state *)state)->size;
+    return fmi2OK;
+}
+
+fmi2Status model_state_serialize(fmu_instance *m, const char *call, const void *state, unsigned char *out, size_t size)
+{
+    if (!state || !out)
+        return fmi2Error;
+    const saved_state *s = state;
+    if (size < s->size) {
+        fmu_log(m, fmi2Error, "%s: buffer of %zu bytes, the state needs %zu", call, size, s->size);
+        return fmi2Error;
+    }
+    memcpy(out, s->bytes, s->size);
+    return fmi2OK;
+}
+
+fmi2Status model_state_deserialize(fmu_instance *m, const char *call, const unsigned char *in, size_t size, void **state)
+{
+    if (!state || (!in && size))
+        return fmi2Error;
+    /* checked here (version, FMU, size, checksum): a damaged state is refused now, not when it is set */
+    if (model_serialized_check(m, in, size) != fmi2OK)
+        return fmi2Error;
+    saved_state *s = malloc(sizeof *s + size);
+    if (!s) {
+        fmu_log(m, fmi2Error, "%s: out of memory", call);
+        return fmi2Error;
+    }
+    s->size = size;
+    if (size)
+        memcpy(s->bytes, in, size);
+    *state = s;
+    return fmi2OK;
+}
+
 double model_time(const fmu_instance *m)
 {
     return m->body ? m->body->state.t : m->start_time;

@@ -155,6 +155,18 @@ enum { DERIV_FMI = 0, DERIV_STEP = 1 };
 fmi2Status model_directional_derivative(fmu_instance *m, int meaning, const fmi2ValueReference unknown[],
                                         size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
                                         const fmi2Real seed[], fmi2Real out[]);
+/* FMU state objects (fmi2GetFMUstate ... fmi2DeSerializeFMUstate and their FMI 3.0 twins call these; `call` names
+ * the function in the messages): a saved state is its serialized form in one allocation, owned through the
+ * caller's pointer. get reuses *state when it has the size; deserialize checks the bytes first (a damaged state
+ * is refused there, not at set); free of NULL or of a NULL pointer does nothing. */
+fmi2Status model_state_get(fmu_instance *m, const char *call, void **state);
+fmi2Status model_state_set(fmu_instance *m, const char *call, const void *state);
+void model_state_free(void **state);
+fmi2Status model_state_size(const void *state, size_t *size);
+fmi2Status model_state_serialize(fmu_instance *m, const char *call, const void *state, unsigned char *out,
+                                 size_t size);
+fmi2Status model_state_deserialize(fmu_instance *m, const char *call, const unsigned char *in, size_t size,
+                                   void **state);
 /* FMU state: a self-contained copy, and its serialized form (version, size, checksum) */
 size_t model_serialized_size(const fmu_instance *m);
 void model_serialize(const fmu_instance *m, unsigned char *out);
