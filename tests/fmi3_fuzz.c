@@ -11,10 +11,9 @@
  * are none, absurd steps and times, states restored into other instances, damaged serialized states,
  * derivatives and adjoints of anything, calls of the functions this FMU does not provide. Statuses must be
  * fmi3OK..fmi3Error (never Fatal); a sanitizer report, a crash or a leak ends the process with a non-zero
- * status. Prints the number of calls per status and how far the sequences got. */
-#include <math.h>
+ * status. Prints the number of calls per status and how far the sequences got. The sequences, slots and counts
+ * are tests/fuzz_driver.h's (shared with tests/fmi2_fuzz.c); the calls are FMI 3.0's. */
 #include <stdint.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -23,6 +22,7 @@
 #pragma GCC diagnostic ignored "-Wstrict-prototypes"
 #endif
 #include "fmi3Functions.h"
+#include "fuzz_driver.h"
 
 /* the body FMU's derivatives of its last step (fmi3Functions.c, not FMI functions) */
 fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance, const fmi3ValueReference[], size_t, const fmi3ValueReference[],
@@ -33,36 +33,6 @@ fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance, const fmi3ValueReference[
 #pragma GCC diagnostic pop
 #endif
 
-static uint64_t rng = 88172645463325252ull;
-
-static uint64_t next(void)
-{
-    rng ^= rng << 13;
-    rng ^= rng >> 7;
-    rng ^= rng << 17;
-    return rng;
-}
-
-static int pick(int n)
-{
-    return (int)(next() % (uint64_t)n);
-}
-
-static double value(void)
-{
-    static const double special[] = {0.0, 1.0, -1.0, 0.5, 2.0, 1e308, -1e308, 1e-300, 7.0, 0.01};
-    switch (pick(6)) {
-    case 0:
-        return NAN;
-    case 1:
-        return pick(2) ? INFINITY : -INFINITY;
-    case 2:
-        return special[pick(10)];
-    default:
-        return ((double)(next() % 2000001) - 1000000.0) * 1e-6 * (pick(4) ? 1.0 : 100.0);
-    }
-}
-
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
 {
     (void)env;
@@ -71,7 +41,6 @@ static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3Stri
     (void)message;
 }
 
-#define N_INST 3
 #define MAX_VR 200
 #define MAX_VALUES 64
 
@@ -108,198 +77,187 @@ static size_t refs(int sane, const array_ref *list, int n_list, fmi3ValueReferen
     return total < MAX_VALUES ? total : MAX_VALUES;
 }
 
+/* the FMU under test: its resource path, instantiation token, Float64 input and output arrays (main's arguments) */
+static const char *path, *token;
+static array_ref inputs[MAX_VR], outputs[MAX_VR];
+static int n_in, n_out;
+
+static void *instantiate(void) /* mostly right, sometimes a wrong token, path or event mode */
+{
+    const char *p = pick(10) ? path : (pick(2) ? "/nonexistent/" : "file://host/x");
+    const char *g = pick(10) ? token : "{bad}";
+    return fmi3InstantiateCoSimulation("fuzz", g, p, fmi3False, (fmi3Boolean)pick(2), pick(20) == 0, (fmi3Boolean)pick(2),
+                                       NULL, 0, NULL, log_message, NULL);
+}
+
+static void free_instance(void *c)
+{
+    fmi3FreeInstance(c);
+}
+
+static void free_state(void *c, void **state)
+{
+    fmi3FreeFMUState(c, state);
+}
+
+static int call(fuzz_run *r, int i, int op, int sane)
+{
+    fmi3Instance c = r->inst[i];
+    fmi3Status s = fmi3OK;
+    fmi3ValueReference vr[4], u[4];
+    size_t n_vr, n_u;
+    double x[MAX_VALUES], y[MAX_VALUES];
+    fmi3Boolean event, terminate, early;
+    fmi3Float64 last;
+    size_t nx = refs(sane, inputs, n_in, vr, &n_vr);
+    for (size_t j = 0; j < MAX_VALUES; j++)
+        x[j] = sane && pick(10) ? 1e-3 * ((double)pick(2001) - 1000.0) : value();
+    switch (op) {
+    case 1:
+        s = fmi3EnterInitializationMode(c, fmi3False, 0.0, pick(4) ? 0.0 : value(), (fmi3Boolean)pick(2), value());
+        break;
+    case 2:
+        s = fmi3ExitInitializationMode(c);
+        r->t[i] = 0.0;
+        break;
+    case 3:
+    case 4:
+        s = fmi3SetFloat64(c, vr, n_vr, x, nx);
+        break;
+    case 5: {
+        fmi3Int32 v[MAX_VALUES];
+        for (size_t j = 0; j < MAX_VALUES; j++)
+            v[j] = pick(3) ? pick(4) : (fmi3Int32)next();
+        s = fmi3SetInt32(c, vr, n_vr, v, nx);
+        break;
+    }
+    case 6: {
+        size_t ny = refs(sane, outputs, n_out, u, &n_u);
+        s = fmi3GetFloat64(c, u, n_u, y, ny);
+        break;
+    }
+    case 7: {
+        fmi3Int32 v[MAX_VALUES];
+        s = fmi3GetInt32(c, vr, n_vr, v, nx);
+        break;
+    }
+    case 8:
+    case 9:
+    case 10: { /* doStep: mostly where the FMU is, sometimes anywhere */
+        double H = pick(8) ? 0.01 * (1 + pick(3)) : value();
+        for (int j = 0; j < 20 && sane && pick(4); j++) { /* a few steps in a row */
+            if (fmi3DoStep(c, r->t[i], H, fmi3True, &event, &terminate, &early, &last) != fmi3OK)
+                break;
+            r->t[i] += H;
+            r->steps_ok++;
+        }
+        double tc = pick(8) ? r->t[i] : value();
+        s = fmi3DoStep(c, tc, H, fmi3True, &event, &terminate, &early, &last);
+        if (s == fmi3OK) {
+            r->t[i] = tc + H;
+            r->steps_ok++;
+        }
+        break;
+    }
+    case 11:
+        s = fmi3GetFMUState(c, &r->states[i]);
+        break;
+    case 12: { /* a state of any instance into this one */
+        int j = pick(N_INST);
+        if (r->states[j])
+            s = fmi3SetFMUState(c, r->states[j]);
+        r->restored_ok += s == fmi3OK && r->states[j];
+        break;
+    }
+    case 13: { /* serialize, maybe damage, deserialize, set */
+        if (!r->states[i])
+            break;
+        size_t size = 0;
+        if (fmi3SerializedFMUStateSize(c, r->states[i], &size) != fmi3OK)
+            break;
+        free(r->blob);
+        r->blob = malloc(size ? size : 1);
+        if (!r->blob || fmi3SerializeFMUState(c, r->states[i], r->blob, size) != fmi3OK)
+            break;
+        if (pick(2) && size)
+            r->blob[pick((int)size)] ^= (unsigned char)(1 + pick(255));
+        fmi3FMUState other = NULL;
+        size_t given = pick(5) ? size : (size_t)pick((int)size + 1);
+        s = fmi3DeserializeFMUState(c, r->blob, given, &other);
+        if (s == fmi3OK) {
+            s = fmi3SetFMUState(c, other);
+            fmi3FreeFMUState(c, &other);
+        }
+        break;
+    }
+    case 14:
+    case 15: { /* directional or adjoint derivative of anything */
+        size_t ny = refs(sane, outputs, n_out, u, &n_u);
+        int step = pick(2); /* FMI's partial derivatives at the communication point, or the last step's (docs/fmu.md) */
+        if (op == 14) {
+            s = step ? ffrf3GetStepDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny)
+                     : fmi3GetDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny);
+            r->derivatives_ok += s == fmi3OK;
+        } else {
+            s = step ? ffrf3GetStepAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx)
+                     : fmi3GetAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx);
+            r->adjoints_ok += s == fmi3OK;
+        }
+        break;
+    }
+    case 16: /* the whole start-up in one go */
+        fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0);
+        s = fmi3ExitInitializationMode(c);
+        r->t[i] = 0.0;
+        break;
+    case 17: { /* what this FMU does not provide */
+        fmi3Boolean b[MAX_VALUES];
+        fmi3Int32 orders[MAX_VALUES] = {0};
+        size_t nd = 0;
+        switch (pick(5)) {
+        case 0:
+            s = fmi3GetBoolean(c, vr, n_vr, b, nx);
+            break;
+        case 1:
+            s = fmi3EnterEventMode(c);
+            break;
+        case 2:
+            s = fmi3GetNumberOfVariableDependencies(c, vr[0], &nd);
+            break;
+        case 3:
+            s = fmi3EnterStepMode(c);
+            break;
+        default:
+            s = fmi3GetOutputDerivatives(c, vr, n_vr, orders, x, nx);
+        }
+        break;
+    }
+    default:
+        switch (pick(3)) {
+        case 0:
+            s = fmi3Reset(c);
+            r->t[i] = 0.0;
+            break;
+        case 1:
+            s = fmi3Terminate(c);
+            break;
+        default:
+            s = fmi3SetDebugLogging(c, (fmi3Boolean)pick(2), 0, NULL);
+        }
+    }
+    return (int)s;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 7)
         return 2;
-    static array_ref inputs[MAX_VR], outputs[MAX_VR];
-    int n_in = parse_list(argv[5], inputs, MAX_VR), n_out = parse_list(argv[6], outputs, MAX_VR);
+    n_in = parse_list(argv[5], inputs, MAX_VR);
+    n_out = parse_list(argv[6], outputs, MAX_VR);
     if (!n_in || !n_out)
         return 2;
-    const char *path = argv[1], *token = argv[2];
-    rng ^= strtoull(argv[3], NULL, 10) * 0x9E3779B97F4A7C15ull;
-    long calls = atol(argv[4]);
-    fmi3Instance inst[N_INST] = {NULL};
-    fmi3FMUState states[N_INST] = {NULL};
-    double t[N_INST] = {0};
-    long count[5] = {0}, steps_ok = 0, restored_ok = 0, derivatives_ok = 0, adjoints_ok = 0;
-    unsigned char *blob = NULL;
-    fmi3Boolean event, terminate, early;
-    fmi3Float64 last;
-    for (long k = 0; k < calls; k++) {
-        int i = pick(N_INST);
-        fmi3Instance c = inst[i];
-        fmi3Status s = fmi3OK;
-        fmi3ValueReference vr[4], u[4];
-        size_t n_vr, n_u;
-        double x[MAX_VALUES], y[MAX_VALUES];
-        int sane = pick(4) != 0; /* mostly inputs with moderate values: the runs get somewhere */
-        size_t nx = refs(sane, inputs, n_in, vr, &n_vr);
-        for (size_t j = 0; j < MAX_VALUES; j++)
-            x[j] = sane && pick(10) ? 1e-3 * ((double)pick(2001) - 1000.0) : value();
-        int op = c ? pick(19) : 0;
-        switch (op) {
-        case 0: { /* (re)instantiate: mostly right, sometimes a wrong token, path or event mode */
-            if (c)
-                fmi3FreeInstance(c);
-            if (states[i]) {
-                free(states[i]); /* fmi3FreeFMUState needs an instance: the state is a malloc'd block */
-                states[i] = NULL;
-            }
-            const char *p = pick(10) ? path : (pick(2) ? "/nonexistent/" : "file://host/x");
-            const char *g = pick(10) ? token : "{bad}";
-            inst[i] = fmi3InstantiateCoSimulation("fuzz", g, p, fmi3False, (fmi3Boolean)pick(2), pick(20) == 0,
-                                                  (fmi3Boolean)pick(2), NULL, 0, NULL, log_message, NULL);
-            t[i] = 0.0;
-            continue;
-        }
-        case 1:
-            s = fmi3EnterInitializationMode(c, fmi3False, 0.0, pick(4) ? 0.0 : value(), (fmi3Boolean)pick(2), value());
-            break;
-        case 2:
-            s = fmi3ExitInitializationMode(c);
-            t[i] = 0.0;
-            break;
-        case 3:
-        case 4:
-            s = fmi3SetFloat64(c, vr, n_vr, x, nx);
-            break;
-        case 5: {
-            fmi3Int32 v[MAX_VALUES];
-            for (size_t j = 0; j < MAX_VALUES; j++)
-                v[j] = pick(3) ? pick(4) : (fmi3Int32)next();
-            s = fmi3SetInt32(c, vr, n_vr, v, nx);
-            break;
-        }
-        case 6: {
-            size_t ny = refs(sane, outputs, n_out, u, &n_u);
-            s = fmi3GetFloat64(c, u, n_u, y, ny);
-            break;
-        }
-        case 7: {
-            fmi3Int32 v[MAX_VALUES];
-            s = fmi3GetInt32(c, vr, n_vr, v, nx);
-            break;
-        }
-        case 8:
-        case 9:
-        case 10: { /* doStep: mostly where the FMU is, sometimes anywhere */
-            double H = pick(8) ? 0.01 * (1 + pick(3)) : value();
-            for (int j = 0; j < 20 && sane && pick(4); j++) { /* a few steps in a row */
-                if (fmi3DoStep(c, t[i], H, fmi3True, &event, &terminate, &early, &last) != fmi3OK)
-                    break;
-                t[i] += H;
-                steps_ok++;
-            }
-            double tc = pick(8) ? t[i] : value();
-            s = fmi3DoStep(c, tc, H, fmi3True, &event, &terminate, &early, &last);
-            if (s == fmi3OK) {
-                t[i] = tc + H;
-                steps_ok++;
-            }
-            break;
-        }
-        case 11:
-            s = fmi3GetFMUState(c, &states[i]);
-            break;
-        case 12: { /* a state of any instance into this one */
-            int j = pick(N_INST);
-            if (states[j])
-                s = fmi3SetFMUState(c, states[j]);
-            restored_ok += s == fmi3OK && states[j];
-            break;
-        }
-        case 13: { /* serialize, maybe damage, deserialize, set */
-            if (!states[i])
-                break;
-            size_t size = 0;
-            if (fmi3SerializedFMUStateSize(c, states[i], &size) != fmi3OK)
-                break;
-            free(blob);
-            blob = malloc(size ? size : 1);
-            if (!blob || fmi3SerializeFMUState(c, states[i], blob, size) != fmi3OK)
-                break;
-            if (pick(2) && size)
-                blob[pick((int)size)] ^= (unsigned char)(1 + pick(255));
-            fmi3FMUState other = NULL;
-            size_t given = pick(5) ? size : (size_t)pick((int)size + 1);
-            s = fmi3DeserializeFMUState(c, blob, given, &other);
-            if (s == fmi3OK) {
-                s = fmi3SetFMUState(c, other);
-                fmi3FreeFMUState(c, &other);
-            }
-            break;
-        }
-        case 14:
-        case 15: { /* directional or adjoint derivative of anything */
-            size_t ny = refs(sane, outputs, n_out, u, &n_u);
-            int step = pick(2); /* FMI's partial derivatives at the communication point, or the last step's (docs/fmu.md) */
-            if (op == 14) {
-                s = step ? ffrf3GetStepDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny)
-                         : fmi3GetDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny);
-                derivatives_ok += s == fmi3OK;
-            } else {
-                s = step ? ffrf3GetStepAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx)
-                         : fmi3GetAdjointDerivative(c, u, n_u, vr, n_vr, x, ny, y, nx);
-                adjoints_ok += s == fmi3OK;
-            }
-            break;
-        }
-        case 16: /* the whole start-up in one go */
-            fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0);
-            s = fmi3ExitInitializationMode(c);
-            t[i] = 0.0;
-            break;
-        case 17: { /* what this FMU does not provide */
-            fmi3Boolean b[MAX_VALUES];
-            fmi3Int32 orders[MAX_VALUES] = {0};
-            size_t nd = 0;
-            switch (pick(5)) {
-            case 0:
-                s = fmi3GetBoolean(c, vr, n_vr, b, nx);
-                break;
-            case 1:
-                s = fmi3EnterEventMode(c);
-                break;
-            case 2:
-                s = fmi3GetNumberOfVariableDependencies(c, vr[0], &nd);
-                break;
-            case 3:
-                s = fmi3EnterStepMode(c);
-                break;
-            default:
-                s = fmi3GetOutputDerivatives(c, vr, n_vr, orders, x, nx);
-            }
-            break;
-        }
-        default:
-            switch (pick(3)) {
-            case 0:
-                s = fmi3Reset(c);
-                t[i] = 0.0;
-                break;
-            case 1:
-                s = fmi3Terminate(c);
-                break;
-            default:
-                s = fmi3SetDebugLogging(c, (fmi3Boolean)pick(2), 0, NULL);
-            }
-        }
-        if (s < fmi3OK || s > fmi3Error) {
-            fprintf(stderr, "call %ld (op %d): status %d\n", k, op, (int)s);
-            return 3;
-        }
-        count[s]++;
-    }
-    for (int i = 0; i < N_INST; i++) {
-        if (inst[i] && states[i])
-            fmi3FreeFMUState(inst[i], &states[i]);
-        free(states[i]);
-        if (inst[i])
-            fmi3FreeInstance(inst[i]);
-    }
-    free(blob);
-    printf("ok %ld discard %ld error %ld steps_ok %ld restored_ok %ld derivatives_ok %ld adjoints_ok %ld\n", count[0],
-           count[2], count[3], steps_ok, restored_ok, derivatives_ok, adjoints_ok);
-    return 0;
+    path = argv[1];
+    token = argv[2];
+    const fuzz_api api = {19, fmi3Error, 1, instantiate, free_instance, free_state, call};
+    return fuzz_main(&api, strtoull(argv[3], NULL, 10), atol(argv[4]));
 }
