@@ -58,7 +58,7 @@ def test_whole_steps_refuses_what_cannot_be_split(span, step):
 
 
 def test_row_columns_are_the_rows_of_the_body():
-    """A row: 24 columns per port (r, R row-major, v, w, f, t), the energies, the Newton iterations;
+    """A row: 30 columns per port (r, R row-major, v, w, f, t, a, dw), the energies, the Newton iterations;
     BodySystem.output_row has exactly that many values."""
     from ffrf_fmu import simulate as sim
     from ffrf_fmu.reduction import reduce_scene_body

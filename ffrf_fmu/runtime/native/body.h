@@ -254,7 +254,7 @@ int ffrf_step(ffrf_body *b, double h, int last_it);
 /* ---- advance.c: inputs by kind, output rows, many steps in one call ---- */
 void ffrf_scheduled_inputs(ffrf_body *b, double t, double h);
 void ffrf_extrapolated_inputs(ffrf_body *b, double t, double t_c);
-/* One output row (simulate.record's layout): per port r, R, v, w, f, t (24), then kinetic_rigid,
+/* One output row (simulate.record's layout): per port r, R, v, w, f, t, a, dw (FFRF_OUTPUT_WIDTH), then kinetic_rigid,
  * kinetic_elastic, strain, work_external, iterations. */
 void ffrf_record(const ffrf_body *b, double *row);
 /* ---- accel.c: a port's true accelerations at the end of the step (runtime/accelerations.py) ---- */
