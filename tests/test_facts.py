@@ -59,7 +59,8 @@ def test_whole_steps_refuses_what_cannot_be_split(span, step):
 
 def test_row_columns_are_the_rows_of_the_body():
     """A row: 30 columns per port (r, R row-major, v, w, f, t, a, dw), the energies, the Newton iterations;
-    BodySystem.output_row has exactly that many values."""
+    BodySystem.output_row has exactly that many values. The FMU variables of a port come in the same
+    field order as the row's columns."""
     from ffrf_fmu import simulate as sim
     from ffrf_fmu.reduction import reduce_scene_body
 
@@ -71,6 +72,12 @@ def test_row_columns_are_the_rows_of_the_body():
     assert names[:4] == ["hub.r[1]", "hub.r[2]", "hub.r[3]", "hub.R[1,1]"] and names[-1] == "solver.newton_iterations"
     system, _ = sim.build_system(body, scene, backend="numpy")
     assert len(system.output_row()) == len(names) == len(sim.column_names(body))
+    from ffrf_fmu.fmu.variables import body_variables
+
+    params = {"step": 0.01, "rho_inf": 0.9, "gravity": [0.0] * 3, "terms": "linear", "initial_velocity": [0.0] * 3,
+              "initial_angular_velocity": [0.0] * 3, "port_displacements": {}}
+    hub = [v.name for v in body_variables(body.ports, body.node_positions, params) if v.name.startswith("hub.")]
+    assert hub == names[:OUTPUT_WIDTH]
 
 
 def test_tip_from_hub_eq92():

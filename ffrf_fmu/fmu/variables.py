@@ -17,7 +17,7 @@ import re
 from dataclasses import dataclass
 from xml.etree.ElementTree import Element, SubElement
 
-from ..runtime.outputs import (ENERGIES, FIELDS, PORT_FIELD_ORDER, _indices, component_name, field_shape,  # noqa: F401
+from ..runtime.outputs import (ENERGIES, FIELDS, OUTPUT_FIELDS, _indices, component_name, field_shape,  # noqa: F401
                                parse_port_variable, port_variable, port_variables)
 from ..runtime.rotation import ROTATION_TOL
 from ..runtime.terms import TERM_SETS
@@ -175,7 +175,7 @@ def body_variables(ports, node_positions, parameters: dict, damping=None,
     out: list[Variable] = []
     for p in ports:
         r_ref = [float(x) for x in node_positions[p.node]]
-        for field in PORT_FIELD_ORDER:
+        for field in OUTPUT_FIELDS:
             shape, unit, meaning = FIELDS[field]
             causality = port_field_causality(p.translation, p.rotation, field)
             part = "translation" if field in PART_FIELDS["translation"] else "rotation"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# (shape, unit, meaning) of the six fields of a port
+# (shape, unit, meaning) of the eight fields of a port
 FIELDS = {
     "r": ((3,), "m", "position of the nodal frame origin, world axes"),
     "R": ((3, 3), None, "rotation matrix of the nodal frame: R[i,j] = world component i of nodal axis j"),
@@ -22,12 +22,12 @@ FIELDS = {
     "a": ((3,), "m/s2", "acceleration of the node, world axes"),
     "dw": ((3,), "rad/s2", "angular acceleration of the nodal frame, world axes"),
 }
-PORT_FIELD_ORDER = ("r", "R", "v", "w", "f", "t", "a", "dw")
 
-# The outputs of every port in a time-series row, in this order, 3 or 9 columns each (R row-major):
-# BodySystem.port_array's columns, advance.c ffrf_record's (FFRF_OUTPUT_WIDTH), the FMUs' output maps.
-# a, dw: the true accelerations of the port's node at the end of the step (runtime/accelerations.py)
-OUTPUT_FIELDS = ("r", "R", "v", "w", "f", "t", "a", "dw")
+# The fields of every port, in this order: a time-series row's columns, 3 or 9 each (R row-major:
+# BodySystem.port_array's columns, advance.c ffrf_record's (FFRF_OUTPUT_WIDTH), the FMUs' output maps) and
+# the FMUs' value references (fmu/variables.py). a, dw: the true accelerations of the port's node at the
+# end of the step (runtime/accelerations.py)
+OUTPUT_FIELDS = tuple(FIELDS)
 OUTPUT_WIDTH = sum(int(np.prod(FIELDS[f][0])) for f in OUTPUT_FIELDS)  # 30 columns per port
 
 ENERGIES = {
