@@ -257,6 +257,16 @@ def test_a_list_of_the_wrong_length_names_the_count(tmp_path, beam_toml):
         reduce_body(model.body)
 
 
+def test_the_full_order_reference_refuses_a_damped_body(tmp_path, beam_toml):
+    """The reference beam has no structural damping: a damped body's reference run (simulate --solver
+    reference, chart, advise --check) is refused naming the key, not run undamped against a damped product."""
+    from ffrf_fmu.simulate import run_reference
+
+    model = load_model(_model(tmp_path, beam_toml, "ratio = 0.02"))
+    with pytest.raises(ModelError, match="body.damping: the full-order reference beam has no structural damping"):
+        run_reference(model, model.scene())
+
+
 def test_damping_survives_save_and_load(tmp_path, b1):
     data = _b1_data(b1, Damping((0.01,), 0.2, 3e-4))
     data.save(tmp_path / "b.npz")

@@ -183,6 +183,29 @@ def test_public_names_mean_one_thing_and_old_spellings_are_refused():
         ffrf_fmu.nope  # noqa: B018
 
 
+def test_readme_from_python_matches_the_api():
+    """Each call of the README's "From Python" table names the function's own parameters after the first
+    (which the table may name for what it takes, e.g. fmu_or_model), in the function's order: a keyword
+    the README shows is one the function takes."""
+    import inspect
+    import re
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("### From Python", 1)[1].split("\n#", 1)[0]
+    calls = dict(re.findall(r"^\| `(\w+)\((.*?)\)` \|", section, flags=re.M))
+    assert set(calls) == set(ffrf_fmu.__all__) - {"__version__"}, calls
+    for name, args in calls.items():
+        shown = [a.split("=")[0].strip() for a in args.split(",")][1:]
+        params = list(inspect.signature(getattr(ffrf_fmu, name)).parameters)[1:]
+        assert shown == [p for p in params if p in shown], (name, shown, params)
+
+
+def test_run_scene_refuses_overrides_it_would_ignore():
+    model = ffrf_fmu.load_model(ROOT / "models" / "haug_beam.toml", ["superelements=1", "modes=2"])
+    with pytest.raises(ValueError, match="load_model"):
+        ffrf_fmu.run_scene(model, scene="spinup", overrides=["duration=0.1"])
+
+
 def test_long_modules_say_why():
     """Every module over 400 lines says in its docstring why it is not split: a paragraph "Over 400
     lines: <reason>" of at least a sentence (60 characters), not the phrase alone."""

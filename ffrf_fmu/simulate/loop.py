@@ -182,14 +182,18 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     return result
 
 
-def run_scene(model: Model | str, scene_name: str | None = None, overrides: Sequence[str] = (), progress=False,
+def run_scene(model: Model | str, scene: str | None = None, overrides: Sequence[str] = (), progress=False,
               backend: str = "native"):
     """Load (if a path), build and reduce the body for the scene (or load it from the cache of reduced
-    bodies, body_cache.py), run it standalone."""
+    bodies, body_cache.py), run it standalone. overrides apply to a path as it is loaded; a Model is
+    already loaded, so overrides with it are refused (load_model(path, overrides) takes them)."""
     from ..body_cache import scene_body_data
 
     if not isinstance(model, Model):
         model = load_model(model, overrides)
-    scene = model.scene(scene_name)
+    elif overrides:
+        raise ValueError(f"run_scene: overrides {list(overrides)} with a loaded Model would be ignored: give them to "
+                         "load_model(path, overrides), or pass the model file's path")
+    scene = model.scene(scene)
     body = scene_body_data(model.body, scene)
     return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)

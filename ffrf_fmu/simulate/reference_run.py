@@ -23,6 +23,11 @@ def run_reference(model: Model, scene: Scene, n_elements: int | None = None, ste
 
         raise ModelError(f"{model.path}: the full-order reference is the geometrically exact beam; a solid has none "
                          "(docs/solids.md: its quality report compares the reduction with the full FE model)")
+    if body.damping is not None and body.damping.kind != "none":
+        from ..checked_toml import ModelError
+
+        raise ModelError(f"{model.path}: body.damping: the full-order reference beam has no structural damping, so it "
+                         "cannot be the reference of a damped body (compare the undamped body, without [body.damping])")
     n = n_elements or body.superelements * body.elements_per_superelement
     ref = simulate_reference(body, scene, n_elements=n, step=step)
     L, e = body.length, np.asarray(body.direction, float) / np.linalg.norm(body.direction)
