@@ -17,23 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .model import steady_spin_drive
 from .runtime.ports import StepFailure
 
 
 def _spin(scene, t0: float) -> np.ndarray:
     """The spin vector w of the scene's rotation drive at t0 (steady_spin): rate x axis; its angular
-    acceleration must be 0 there (a steady spin)."""
-    from .runtime.drives import evaluate
-
-    drives = [d for d in scene.drives if d.rotation is not None]
-    if not drives:
-        raise ValueError(f"scene {scene.name!r}: initial state 'steady_spin' needs a rotation drive")
-    d = drives[0]
-    _, rate, acc = evaluate(d.rotation.angle.kind, dict(d.rotation.angle.params), t0)
-    if rate == 0.0 or acc != 0.0:
-        raise ValueError(f"scene {scene.name!r}: initial state 'steady_spin' needs the drive {d.port}.rotation to "
-                         f"spin steadily at t = {t0:g} (rate {rate:g} rad/s, acceleration {acc:g} rad/s^2): e.g. a "
-                         "ramp that started before t = 0")
+    acceleration must be 0 there (a steady spin: model.steady_spin_drive, which the parser checks at t = 0)."""
+    d, rate = steady_spin_drive(scene.name, scene.drives, t0)
     axis = np.asarray(d.rotation.axis, dtype=float)
     return rate * axis / np.linalg.norm(axis)
 

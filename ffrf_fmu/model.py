@@ -796,6 +796,14 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
     if initial.state != "rest" and (displacements or any(initial.velocity) or any(initial.angular_velocity)):
         r.fail(join(ip, "state"), f"state {initial.state!r} sets the body's deformation and velocities itself: "
                "no port_displacements, velocity or angular_velocity with it")
+    if initial.state != "rest" and any("compliant" in parts for parts in effective.values()):
+        r.fail(join(ip, "state"), f"state {initial.state!r} is not available with compliant ports (compliant in this "
+               f"scene: {sorted(p for p, parts in effective.items() if 'compliant' in parts)})")
+    if initial.state == "steady_spin":
+        try:
+            steady_spin_drive(name, drives)
+        except ValueError as e:
+            r.fail(join(ip, "state"), str(e))
 
     duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=positive)
     outputs = t.get("outputs", [])
@@ -823,6 +831,24 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         full_terms=_full_terms(r, t, sp),
         reference=_reference(r, t, sp),
     )
+
+
+def steady_spin_drive(scene_name: str, drives: Sequence[Drive], t0: float = 0.0) -> tuple[Drive, float]:
+    """The rotation drive a scene with initial state 'steady_spin' spins with, and its rate at t0 [rad/s]:
+    the scene's first rotation drive, which must spin steadily there (a rate, no angular acceleration).
+    ValueError naming the cause otherwise (the parser reports it at the scene's initial.state)."""
+    from .runtime.drives import evaluate
+
+    rotating = [d for d in drives if d.rotation is not None]
+    if not rotating:
+        raise ValueError(f"scene {scene_name!r}: initial state 'steady_spin' needs a rotation drive")
+    d = rotating[0]
+    _, rate, acc = evaluate(d.rotation.angle.kind, dict(d.rotation.angle.params), t0)
+    if rate == 0.0 or acc != 0.0:
+        raise ValueError(f"scene {scene_name!r}: initial state 'steady_spin' needs the drive {d.port}.rotation to "
+                         f"spin steadily at t = {t0:g} (rate {rate:g} rad/s, acceleration {acc:g} rad/s^2): e.g. a "
+                         "ramp that started before t = 0")
+    return d, float(rate)
 
 
 def _reference(r: Reader, t: dict, sp: str) -> ReferenceOptions:

@@ -74,7 +74,9 @@ def test_start_state_refuses_other_parameters_and_inputs(tmp_path):
     fmu = _build(tmp_path, "checks", SHORT)
     body = fmu_body(fmu)
     cases = {"gravity": (SHORT, {"gravity[3]": -9.0}, "parameter gravity = [0.0, 0.0, -9.0] is not the [0.0, 0.0, -9.81]"),
-             "held hub": ([*SHORT, 'scenes.lag_kick.drives.root.rotation.angle={kind = "constant", value = 2.0}'], {},
+             # the inputs of a scene whose hub stands still (a scene that cannot start steady: it starts at rest)
+             "held hub": ([*SHORT, 'scenes.lag_kick.drives.root.rotation.angle={kind = "constant", value = 2.0}',
+                           'scenes.lag_kick.initial.state="rest"'], {},
                           "port root's rotation rate element 2 = 2, the inputs at t0 give 0")}
     for name, (ov, values, cause) in cases.items():
         sc = load_model(ROTOR, ov).scene("lag_kick")
