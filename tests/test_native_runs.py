@@ -7,7 +7,7 @@ numpy run then replays those decisions (GeneralizedAlpha.newton_replay) instead 
 that a convergence or refresh test that round-off tips (a compiled step flipped one of 301 steps of the
 coned beam) cannot make the compared runs differ by more than round-off, and the comparison
 is tight: 1e-10 of each kinematic output field's largest value over all ports (r, R, v, w), as
-tests/test_backends.py argued for the numba kernel. The decisions themselves are checked: along the
+tests/test_backends.py argues for the C runtime's communication steps. The decisions themselves are checked: along the
 replayed run the numpy path still evaluates its own rules and logs every decision they would take
 otherwise (NewtonReplay.disagreements), so a C Newton policy that differs from integrator.py's
 (a threshold, the refresh rule REFRESH_AFTER, the serves verdict) fails the test.
@@ -54,7 +54,7 @@ RUNS = {
     "coned-full-W2-coriolis": ("models/coned_beam.toml", "spinup", ["terms=full", 'full_terms=["inertia_W2", "coriolis"]',
                                                                     "duration=3.0"], "schedule"),
     # the spin-up in 2 s instead of 20: at 4 s of the 20 s spin-up the tip's speed is 1.2 mm/s, and the runs'
-    # round-off floor of ~3e-12 m/s (numba against numpy alike: 2.2e-9 of it) is not 1e-10 of that
+    # round-off floor of ~3e-12 m/s (2.2e-9 of it) is not 1e-10 of that
     "disk_rotor-full": ("models/disk_rotor.toml", "spinup", ["terms=full", "duration=4.0", "scenes.spinup.drives.hub.rotation.angle="
                                                              '{ kind = "haug_spinup", omega = 0.9, T = 2.0 }'], "schedule"),
     "B5-compliant": ("models/haug_beam.toml", "hub_free", COMPLIANT_B5, "schedule"),
@@ -131,7 +131,7 @@ def test_native_run_matches_numpy_with_the_same_newton_decisions(name):
     fast, t_fast, decisions = _native_run(model, sc, body, how, n)
     ref, t_ref, disagreements = _numpy_run(model, sc, body, how, n, decisions)
     # the C run's policy is the numpy path's: its decisions are those the numpy rules take along the replayed
-    # run, but for a test that round-off tips (none measured in these runs; the numba kernel flipped one in 300)
+    # run, but for a test that round-off tips (none measured in these runs; a compiled step flipped one of 301 steps of the coned beam, module doc)
     assert len(disagreements) <= 2, disagreements
     # the decisions cover both branches of modified Newton: matrices built and matrices kept
     refreshes = sum(len(d.refreshed) for d in decisions)

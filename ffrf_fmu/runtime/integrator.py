@@ -371,7 +371,7 @@ class GeneralizedAlpha:
     # tolerances, 1e3 at tol = 1e-9; a bound of its own, so that a tighter tolerance keeps its super-converged
     # fresh matrices), where a second increment follows whatever the matrix (an FMU's extrapolated inputs: 1e4-1e8
     # tolerances; B1's standalone run at 20 ms: ~130). Near the tolerance the iteration count hinges on the
-    # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s, numba) fell into a run of 2-iteration steps on
+    # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s) fell into a run of 2-iteration steps on
     # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved
     # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it)
     KEEP_MISS = 1e-6

@@ -2,9 +2,9 @@
 
 Plain per-term functions, vectorized over the E superelements of a body, returning residual
 contributions in a superelement's local rows and their derivatives with respect to the local
-variables (q_bar, q_bar_dot, Omega0, Omega0_dot). They are the readable oracle of the body kernel:
-`system.py` adds them to g (eq. 78) and to the CM rotation row (77) and chains the derivatives with
-Dq (eq. 91) exactly as it does for K q.
+variables (q_bar, q_bar_dot, Omega0, Omega0_dot). They are the readable oracle of the C runtime
+(runtime/native/superelement.c): runtime/equations.py adds them to g (eq. 78) and to the CM rotation
+row (77) and chains the derivatives with Dq (eq. 91) exactly as it does for K q.
 
 Two terms, both from a potential or a kinetic energy, so both enter the energy balance:
 

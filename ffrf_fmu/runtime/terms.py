@@ -1,5 +1,5 @@
 """The term sets of the body equations, defined once (the model file's `terms`, the FMU's
-`solver.terms` enumeration, BodySystem and the kernel all name them from here). Standard library
+`solver.terms` enumeration, BodySystem and the C runtime's image all name them from here). Standard library
 only: the model parser and the FMU variable table import it without numpy.
 
 - `linear`: the two-field FFRF equations (geradin eqs. 77-79) without the inertia coupling S(q)

@@ -60,7 +60,7 @@ MAX_SUPERELEMENTS = 32  # the chain search stops here (a cap, with a warning in 
 NONLINEAR_ERROR = 4.4
 # Per-step cost against 1 superelement `linear`, per backend (benchmarks/term_cost.py on disk_rotor, 2 modes,
 # h = 10 ms, CPU, best of 3, ratios within one run). The advisor prices with the backend that will run.
-# numpy (2026-11-25, before the kernel covered full): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8
+# numpy (`python benchmarks/term_cost.py --backend numpy`, 2026-11-25): linear x 1.14 / 1.40 / 1.68 with 2 / 4 / 8
 # superelements, i.e. 0.13 per added superelement up to 4 (the step's fixed Python and LU overhead dominates
 # a short chain); gyroscopic x 1.35 and full x 2.71 at 1 SE (full x 2.95 at 2 SE).
 # native (C runtime; `python benchmarks/term_cost.py --backend native`, 2026-11-27, load ~1): linear x 1.14 with

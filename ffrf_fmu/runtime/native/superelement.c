@@ -3,13 +3,14 @@
  * `_jacobian` and `_evaluate` (runtime/equations.py is the oracle; equation numbers are those of
  * Geradin's two-field paper, docs/equations.md).
  *
- * The loops and the order of every sum were those of the numba kernel this replaced, statement by statement, so
- * both agree to round-off: a C sum `s += a + b` is s + (a + b) as in Python. Build without
- * floating-point contraction (gcc's default in ISO mode, -std=c11; clang needs -ffp-contract=off)
- * for the results to be the kernel's to the last bit where the kernel's are LLVM's plain IEEE ones.
+ * The loops keep the order of every sum of the equations, statement by statement (a C sum `s += a + b` is
+ * s + (a + b) as in Python), so that the C runtime agrees with the numpy path to round-off
+ * (tests/test_native_runs.py: 1e-10 of each kinematic field). Build without floating-point contraction
+ * (gcc's default in ISO mode, -std=c11; clang needs -ffp-contract=off): a fused multiply-add rounds once
+ * where the numpy path rounds twice.
  *
  * Arrays are viewed through pointers to variably modified types (double (*)[n]) so that indexing
- * reads like the kernel's (GW[i][j] for GW[i, j]); nothing is allocated here.
+ * reads like numpy's (GW[i][j] for GW[i, j]); nothing is allocated here.
  *
  * Term sets: `linear` (gyro = 0), `gyroscopic` (gyro = CORIOLIS | COUPLING), `full`
  * (either part of gyro, W1 possibly zero, W2 possibly absent: n_w2 = 0), each with or without the
