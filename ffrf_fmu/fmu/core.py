@@ -29,7 +29,7 @@ import numpy as np
 from ..runtime import input_rule
 from ..runtime.damping import Damping
 from ..runtime.data import BodyData
-from ..runtime.outputs import tip_from_hub
+from ..runtime.outputs import FIELD_COLUMNS, tip_from_hub
 from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
@@ -492,7 +492,8 @@ class BodyCoSim:
         extra = []
         if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f), one per probe
             pr = row[: BodySystem.OUTPUT_WIDTH * len(self.data.ports)].reshape(len(self.data.ports), -1)
-            extra.append(tip_from_hub(pr[frame, 3:12].reshape(-1, 3, 3), pr[frame, 0:3], pr[seen, 0:3], dX).ravel())
+            R, r = FIELD_COLUMNS["R"], FIELD_COLUMNS["r"]
+            extra.append(tip_from_hub(pr[frame, R].reshape(-1, 3, 3), pr[frame, r], pr[seen, r], dX).ravel())
         if ("modal", "eta") in self.index:  # the modal coordinates and their rates (the eta slots of the rates)
             nm = self.system.layout.nm
             extra += [self.system.eta.ravel(), self.system.yd[self.system.layout.cfg_map[:, 6 : 6 + nm].ravel()]]
@@ -506,10 +507,9 @@ class BodyCoSim:
         dst, src = [], []
         n_ports, width = len(self.data.ports), BodySystem.OUTPUT_WIDTH
         for j, p in enumerate(self.data.ports):
-            col = 0
-            for field in BodySystem.OUTPUT_FIELDS:
+            for field, columns in FIELD_COLUMNS.items():
                 ix = self.index[(p.name, field)]
-                cols = j * width + col + np.arange(ix.size)
+                cols = j * width + np.arange(columns.start, columns.stop)
                 if self.causality[ix[0]] == "output":
                     dst.append(ix)
                     src.append(cols)
@@ -517,7 +517,6 @@ class BodyCoSim:
                 if node is not None:
                     dst.append(node)
                     src.append(cols)
-                col += ix.size
         for i, k in enumerate(BodySystem.ENERGY_FIELDS):
             if ("energy", k) in self.index:
                 dst.append(self.index[("energy", k)])

@@ -300,8 +300,6 @@ class BodySystem(GeneralizedAlpha):
         """Prescribed node frames/rates and applied loads at time t from the port inputs, checked:
         present, the right shape, finite, R a rotation. Returns (xN, RN, zN, f, t), views of one fresh
         buffer; nodes without motion inputs keep the current frame, without loads zero loads."""
-        L = self.layout
-        N = L.n_nodes
         buf = np.concatenate([self.xN.ravel(), self.RN.ravel(), self._zeros_inputs])
         xN, RN, zN, f, tq = (buf[sl].reshape(shape) for sl, shape in self._input_views)
         springs = []
@@ -551,8 +549,7 @@ class BodySystem(GeneralizedAlpha):
     def outputs(self) -> dict[str, PortValues]:
         rows = self.port_array()
         return {
-            p.name: PortValues(r=row[0:3], R=row[3:12].reshape(3, 3), v=row[12:15], w=row[15:18], f=row[18:21], t=row[21:24],
-                               a=row[24:27], dw=row[27:30])
+            p.name: PortValues(**{f: row[cols].reshape(outputs.FIELDS[f][0]) for f, cols in outputs.FIELD_COLUMNS.items()})
             for p, row in zip(self.data.ports, rows)
         }
 

@@ -30,6 +30,18 @@ FIELDS = {
 OUTPUT_FIELDS = tuple(FIELDS)
 OUTPUT_WIDTH = sum(int(np.prod(FIELDS[f][0])) for f in OUTPUT_FIELDS)  # 30 columns per port
 
+
+def _field_columns() -> dict[str, slice]:
+    cols, start = {}, 0
+    for f in OUTPUT_FIELDS:
+        width = int(np.prod(FIELDS[f][0]))
+        cols[f] = slice(start, start + width)
+        start += width
+    return cols
+
+
+FIELD_COLUMNS = _field_columns()  # field -> its columns in a port's OUTPUT_WIDTH part of a row
+
 ENERGIES = {
     "kinetic_rigid": "kinetic energy of the rigid (CM frame) motion of all superelements",
     "kinetic_elastic": "kinetic energy of the elastic velocity field, 1/2 r^T M r",
