@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..runtime.rotation import cross, logm, skew
+from ..runtime.rotation import cross, expm, logm, skew
 
 # The coefficient functions of exp and its right Jacobians with their derivatives in p = phi^2,
 # which the exact tangent needs (the SO(3) basics are runtime/rotation.py's). The arrays are
@@ -47,6 +47,15 @@ _TAYLOR = np.array(
     ]
 )
 _POW = np.arange(5)
+
+
+def newton_update(x: np.ndarray, R: np.ndarray, d: np.ndarray, length: float, tol: float):
+    """A static Newton correction d (nn, 6: node translations, material rotation increments) applied to the
+    node positions x and frames R (R exp(theta^): the right perturbation the forces and tangent are taken
+    in), and whether Newton has converged: every node moved by less than tol * length and turned by less
+    than tol rad. (x, R, converged)."""
+    return (x + d[:, :3], R @ expm(d[:, 3:]),
+            bool(np.abs(d[:, :3]).max() < tol * length and np.abs(d[:, 3:]).max() < tol))
 
 
 def coefficients(p: np.ndarray, derivatives: bool = False) -> np.ndarray:

@@ -56,7 +56,7 @@ from scipy.linalg import lapack
 
 from ..model import Body, Scene, scene_body
 from ..runtime.drives import evaluate, window_share
-from .beam import BeamElements
+from .beam import BeamElements, newton_update
 from ..runtime.rotation import cross, expm, skew, tangent
 from ..runtime.outputs import tip_from_hub as eq92_tip_from_hub
 from ..runtime.steps import whole_steps
@@ -779,9 +779,8 @@ def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: in
             d = (y1 + Y2 @ lam).reshape(nn, 6)
             if not np.all(np.isfinite(d)):
                 break
-            x = x + d[:, :3]
-            R = R @ expm(d[:, 3:])
-            if np.abs(d[:, :3]).max() < tol * mesh.length and np.abs(d[:, 3:]).max() < tol:
+            x, R, converged = newton_update(x, R, d, mesh.length, tol)
+            if converged:
                 break
         else:
             d[:] = np.inf
@@ -847,9 +846,8 @@ def static_reference(
             Ke = mesh.elements.tangent_from(st)
             Kr = -skew(Tmat)
             d = band.solve(band.factor(Ke, Kr), -r.ravel()).reshape(nn, 6)
-            x = x + d[:, :3]
-            R = R @ expm(d[:, 3:])
-            if np.abs(d[:, :3]).max() < tol * mesh.length and np.abs(d[:, 3:]).max() < tol:
+            x, R, converged = newton_update(x, R, d, mesh.length, tol)
+            if converged:
                 break
         else:
             raise RuntimeError(f"reference: static Newton did not converge at load factor {lam:.3g}")

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..runtime.drives import evaluate
 from ..runtime.rotation import cross, expm, skew
+from .beam import newton_update
 
 
 def spin_of(scene, t0: float = 0.0) -> tuple[np.ndarray, float, np.ndarray]:
@@ -81,9 +82,8 @@ def steady_spin_state(mesh, sc, w, phi: float, F: np.ndarray, T: np.ndarray, *, 
             d = band.solve(band.factor(mesh.elements.tangent_from(st) + Kc, Kr), -(r * free).ravel()).reshape(nn, 6)
             if not np.all(np.isfinite(d)):
                 break
-            x = x + d[:, :3]
-            R = R @ expm(d[:, 3:])
-            if np.abs(d[:, :3]).max() < tol * mesh.length and np.abs(d[:, 3:]).max() < tol:
+            x, R, converged = newton_update(x, R, d, mesh.length, tol)
+            if converged:
                 break
         else:
             d = np.full(1, np.inf)
