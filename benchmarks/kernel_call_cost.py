@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 from ffrf_fmu.model import load_model, scene_body  # noqa: E402
 from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime import input_rule  # noqa: E402
-from ffrf_fmu.simulate import build_system, record, scene_inputs, scene_schedule, whole_steps  # noqa: E402
+from ffrf_fmu.simulate import build_system, record, scene_schedule, whole_steps  # noqa: E402
 
 
 def run_chunks(body, scene, chunk: int) -> list[float]:

@@ -45,7 +45,6 @@ import numpy as np
 import scipy.linalg as sla
 
 from .fe import FEModel
-from .fe.beam import tensor_kernel
 from .model import Body, Scene
 
 DEFLECTION = 0.01  # characteristic amplitude: largest elastic displacement = 1 % of the superelement length

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .runtime.data import BodyData, SuperelementData
-from .runtime.rotation import expm, skew
+from .runtime.rotation import skew
 
 
 def boundary_rigid_modes(X_B: np.ndarray) -> np.ndarray:

@@ -24,7 +24,6 @@ FMU's is the whole fmpy run.
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 # numpy is imported by the functions that compute (the CLI reads the tolerances below without it)

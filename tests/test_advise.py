@@ -8,7 +8,6 @@ fitted to: the promise (the pick reaches the tolerance) is checked on scenes tha
 other spins, generated bodies of other length, stiffness and spin profile, and the two bundled 3D scenes
 (models/blade.toml, models/sagging_rotor.toml) against their converged references stored beside them."""
 import json
-import math
 import os
 import subprocess
 import sys

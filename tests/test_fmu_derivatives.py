@@ -135,7 +135,6 @@ def test_directional_derivatives_equal_finite_differences_of_two_fmu_runs(small,
         md = inst.md
         outs = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
         out_vr = [inst.variable(n).valueReference for n in outs]
-        groups = _groups(outs)
         t = _run(inst, inputs, 5)
         state = inst.fmu.getFMUstate()
         cases = []

@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import brentq
 
 from ffrf_fmu import linear
-from ffrf_fmu.fe import lumped_kernels, rigid_modes, skew, with_lumped_masses
+from ffrf_fmu.fe import lumped_kernels, rigid_modes, with_lumped_masses
 from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.fe.beam import tensor_kernel
 from ffrf_fmu.model import ModelError, PointMass, load_model

@@ -6,7 +6,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from ffrf_fmu import simulate as sim
@@ -14,7 +13,6 @@ from ffrf_fmu.term_rule import TERM_SHARE, choose_term_set, steady_term_effects
 from ffrf_fmu.model import load_model, scene_body
 from ffrf_fmu.studies import advise as ad
 from ffrf_fmu.studies.check import format_check
-from ffrf_fmu.studies import calibration as cal
 
 ROOT = Path(__file__).resolve().parent.parent
 DISK, HAUG, CONED = (str(ROOT / "models" / f) for f in ("disk_rotor.toml", "haug_beam.toml", "coned_beam.toml"))
@@ -56,7 +54,7 @@ def test_b1_and_coned_beam_picks():
 
 
 def test_indicator_predicts_full_minus_linear_within_a_factor_2():
-    """The issue's acceptance on the new scene: the time runs of `full` and `linear` (1 SE, 2 modes,
+    """On the centrifugally soft scene: the time runs of `full` and `linear` (1 SE, 2 modes,
     h = 20 ms, the spin-up and 6 s at speed: the peak is at 24 s) differ in the maximum transverse tip
     deflection by what the steady-spin indicator predicts, within a factor 2 (measured at 10 ms over
     40 s: -3.26 % against the predicted 2.65 %)."""

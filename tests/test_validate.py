@@ -1,8 +1,6 @@
 """validate.py: what makes a validation pass, and comparisons only where both runs have values."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 

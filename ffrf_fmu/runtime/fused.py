@@ -396,7 +396,7 @@ class FusedResidual:
         Fy[:, oT0 : oT0 + 3, V + 3 : V + 6] += W0x @ self.J0
         if self.inertia_coupling:
             Gq, Gr = s["Gq"], s["Gr"]
-            rb, rbd, q, qd = s["rb"], s["rbd"], s["q"], s["qd"]
+            rbd, qd = s["rbd"], s["qd"]
             Grd = np.einsum("ekij,ej->eik", self.G, rbd)
             GqdT = np.einsum("ekij,ej->eik", self.G, qd)
             GqT = np.swapaxes(Gq, 1, 2)  # (E, 3, n): row k = (G_k q)^T

@@ -59,7 +59,7 @@ from .calibration import (CHAIN_SHARE, FMU_INPUT_FACTOR, MAX_SUPERELEMENTS, MIN_
                           STIFFENING_SIGMA)
 from .chart import label, primary_metric
 from .indicators import (excitation, drive_time_scale, first_frequency, free_free_frequencies, largest_step,
-                         excited_directions, nice_step, period_error, rechain, reduced, southwell_coefficient,
+                         excited_directions, nice_step, period_error, rechain, southwell_coefficient,
                          spin_history, step_cost, stiffened_frequencies, valid_count)
 
 
@@ -140,7 +140,7 @@ def advise(model: Model | str, scene_name: str | None = None, tolerance: float =
         rate, acc = rate * normal, acc * normal
         spin = float(np.max(np.abs(rate)))
     else:
-        t = rate = acc = axis = None
+        rate = acc = axis = None
         source, spin, normal = "none", 0.0, 0.0
     sigma = (spin / w1) ** 2 if w1 > 0 else 0.0
     # the first bending frequency of each direction at the top spin, from the body linearized about it

@@ -29,7 +29,6 @@ without FMUs and without the co-simulation master whose schemes the map judges.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 
 import numpy as np
