@@ -1,4 +1,4 @@
-"""ffrf-fmu: flexible beams as two-field FFRF superelement chains, shipped as FMI co-simulation FMUs.
+"""ffrf-fmu: flexible bodies (beams as chains of two-field FFRF superelements, solids as one) as FMI co-simulation FMUs.
 
 The public API: `load_model(path, overrides)`, `build_body(model, scene)` (the reduced body as the
 scene runs it), `run_scene(model, scene)` (the standalone run), `build_fmu(model_path, dest,

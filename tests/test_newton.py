@@ -1,5 +1,5 @@
 """Newton of the integrator on B1 (runtime/integrator.py `_step`, `_newton`): iterations per step at
-the step the issue names (20 ms), the accuracy they buy, and the 50 ms step that used to fail.
+B1's 20 ms step, the accuracy they buy, and a 50 ms step.
 
 An iteration is one residual evaluation followed by one solve; the counts here are the calls of
 `_residual_at` themselves (wrapped), so they hold whatever `step` reports. Counts, not times.
