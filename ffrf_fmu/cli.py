@@ -789,7 +789,7 @@ def _add_arguments(parser: argparse.ArgumentParser, arguments) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog=PROG, description="Flexible beams as FFRF superelement FMUs.")
+    parser = argparse.ArgumentParser(prog=PROG, description="Flexible bodies (beams and solids) as FFRF superelement FMUs.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for fn, arguments in _COMMANDS:
         doc = (fn.__doc__ or "").strip()

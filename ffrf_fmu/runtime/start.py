@@ -18,6 +18,9 @@ import numpy as np
 # what a start state holds (BodySystem._STATE_FIELDS without the port loads, which are recomputed at t0)
 START_FIELDS = ("xN", "RN", "x0", "R0", "eta", "v", "yd", "yd_prev", "yd_prev2", "a")
 MOTION_TOL = 1e-9  # relative to max(1, |value|): the inputs at t0 against the start's motion-driven ports
+# relative to max(1, |built gravity|): the gravity parameter against the one the start is the equilibrium of
+# (a parameter set to the scene's value is that value to round-off); fmu/native/model.c start_state the same
+GRAVITY_TOL = 1e-12
 
 
 def capture(system) -> dict[str, np.ndarray]:
@@ -51,7 +54,7 @@ def parameter_mismatch(state: str, built_gravity, gravity, velocity, angular_vel
     """'' when the FMU's parameters are those the start state was made with: the scene's gravity (the
     equilibrium depends on it), no initial velocities or port displacements (the state sets them); else why
     not, naming the parameter."""
-    if np.any(np.abs(np.asarray(gravity, float) - np.asarray(built_gravity, float)) > 1e-12 * max(1.0, float(np.abs(built_gravity).max()))):
+    if np.any(np.abs(np.asarray(gravity, float) - np.asarray(built_gravity, float)) > GRAVITY_TOL * max(1.0, float(np.abs(built_gravity).max()))):
         return (f"parameter gravity = {np.asarray(gravity, float).tolist()} is not the {np.asarray(built_gravity, float).tolist()} "
                 f"the start state ({state}, made at build) is the equilibrium of: build the FMU for this gravity")
     for name, value in (("initial_velocity", velocity), ("initial_angular_velocity", angular_velocity),
