@@ -169,18 +169,22 @@ def test_a_rigid_spin_is_not_damped(superelements):
     energy keep their values to round-off (1 superelement: q_bar_dot = 0, measured 2.8e-14 and 0) or, for
     the chain of 2 (whose superelement CM frames see a centrifugal load and ring, 7.7e-6 J of strain), to
     the undamped run's own drift (measured 6.0e-7 undamped, 6.7e-7 damped): damping acts on the
-    elastic rates, never on the rigid motion."""
-    runs = {}
+    elastic rates, never on the rigid motion. The power the damping takes (BodySystem.damping_power) of
+    the single superelement stays at round-off, at most 1.1e-11 of K0 omega (measured; 1.3e-5 for the
+    ringing chain of 2); allowed 1e-10."""
+    runs, power = {}, 0.0
     for name, damping in (("undamped", None), ("damped", Damping((0.05,)))):
         s = BodySystem(_free_beam(damping, superelements), terms="linear", rho_inf=1.0)
         s.initialize(0.0, lambda t: FREE, angular_velocity=(0.0, 0.0, 2.0))
         L0, K0 = s.momenta()[1], s.energies()["kinetic_rigid"]
         for _ in range(1000):
             s.step(2e-3, lambda t: FREE)
+            power = max(power, s.damping_power() / (K0 * 2.0))
         runs[name] = (np.linalg.norm(s.momenta()[1] - L0) / np.linalg.norm(L0),
                       abs(s.energies()["kinetic_rigid"] / K0 - 1))
     if superelements == 1:
         assert max(runs["damped"]) <= 1e-12
+        assert power <= 1e-10
     else:
         assert runs["damped"][0] <= 2 * max(runs["undamped"][0], 1e-12)
         assert runs["damped"][1] <= 2 * max(runs["undamped"][1], 1e-12)
@@ -206,7 +210,6 @@ def test_energy_lost_is_the_work_of_the_damping_force():
         qd = qd_next
     assert work > 0.9 * E0
     assert abs(energy() - E0 + work) <= 1e-4 * work
-    assert s.damping_power() >= 0.0
 
 
 # ------------------------------------------------------------------ the model file and the image
