@@ -165,9 +165,11 @@ def test_shipped_modules_import_only_numpy_scipy():
 
 
 def test_build_cli(small, tmp_path):
+    # The first build on a machine pays zig's one-time win64 C library: README measures 848 s for it
+    # under load (96 s quiet), so the guard is above that, not a speed claim.
     out = subprocess.run([sys.executable, str(ROOT / "build_fmu.py"), str(small), "--scene", "spinup",
                           "--set", "modes=1", "-o", str(tmp_path / "B.fmu")],
-                         capture_output=True, text=True, timeout=300, cwd=tmp_path,
+                         capture_output=True, text=True, timeout=1200, cwd=tmp_path,
                          env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert out.returncode == 0, out.stderr
     assert "native runtime" in out.stdout  # the default
