@@ -29,7 +29,7 @@ import numpy as np
 from ..runtime import input_rule
 from ..runtime.damping import Damping
 from ..runtime.data import BodyData
-from ..runtime.outputs import FIELD_COLUMNS, tip_from_hub
+from ..runtime.outputs import FIELD_COLUMNS, output_sources, tip_from_hub
 from ..runtime.ports import StepFailure
 from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
@@ -502,44 +502,18 @@ class BodyCoSim:
         return dst, row[src]
 
     def _build_output_map(self) -> tuple:
-        """(value references, positions in [output_row, probes, eta, eta rates], then per probe the rows of its
-        seen and frame ports and X_s - X_f) of `_output_values`."""
-        dst, src = [], []
-        n_ports, width = len(self.data.ports), BodySystem.OUTPUT_WIDTH
-        for j, p in enumerate(self.data.ports):
-            for field, columns in FIELD_COLUMNS.items():
-                ix = self.index[(p.name, field)]
-                cols = j * width + np.arange(columns.start, columns.stop)
-                if self.causality[ix[0]] == "output":
-                    dst.append(ix)
-                    src.append(cols)
-                node = self.index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
-                if node is not None:
-                    dst.append(node)
-                    src.append(cols)
-        for i, k in enumerate(BodySystem.ENERGY_FIELDS):
-            if ("energy", k) in self.index:
-                dst.append(self.index[("energy", k)])
-                src.append([width * n_ports + i])
-        size = width * n_ports + len(BodySystem.ENERGY_FIELDS) + 1  # output_row's length, iterations last
-        dst.append(self.index[("solver", "newton_iterations")])
-        src.append([size - 1])
+        """(value references, positions in [output_row, probes, eta, eta rates] (variables.output_sources), then
+        per probe the rows of its seen and frame ports and X_s - X_f) of `_output_values`."""
+        probes = list(self.config["parameters"].get("probes", ()))
+        dst, src = output_sources(self.variables, self.data.ports, probes)
         row_of = {p.name: j for j, p in enumerate(self.data.ports)}
         X, seen, frame, dX = self.data.node_positions, [], [], []
-        for i, name in enumerate(self.config["parameters"].get("probes", ())):
+        for name in probes:
             s, _, f = name.partition("_from_")
             seen.append(row_of[s])
             frame.append(row_of[f])
             dX.append(X[self.data.port(s).node] - X[self.data.port(f).node])
-            dst.append(self.index[("probe", name)])
-            src.append(size + 3 * i + np.arange(3))
-        base = size + 3 * len(seen)  # then eta and its rates, superelement by superelement (variables.MODAL)
-        for k, field in enumerate(("eta", "eta_rate")):
-            if ("modal", field) in self.index:
-                ix = self.index[("modal", field)]
-                dst.append(ix)
-                src.append(base + k * ix.size + np.arange(ix.size))
-        return (np.concatenate(dst), np.concatenate(src).astype(int), np.array(seen, dtype=int),
+        return (np.array(dst, dtype=int), np.array(src, dtype=int), np.array(seen, dtype=int),
                 np.array(frame, dtype=int), np.array(dX, dtype=float).reshape(-1, 3))
 
     def _write_outputs(self, iterations: int) -> None:

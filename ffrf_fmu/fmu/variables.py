@@ -146,8 +146,8 @@ def port_field_causality(translation: str, rotation: str, field: str) -> str:
     return "output" if motion == is_load else "input"
 
 
-MODAL = {  # the modal coordinates of every superelement as outputs: field -> what a value is (one text for
-    # every element, so that FMI 3.0's array modal.eta[E, nm] has it too)
+MODAL = {  # the modal coordinates of every superelement as outputs (runtime/outputs.py MODAL_FIELDS): field -> what
+    # a value is (one text for every element, so that FMI 3.0's array modal.eta[E, nm] has it too)
     "eta": "modal coordinate eta[e,i]: the amplitude of free-free mode i of superelement e (1-based indices) in the "
            "reduction basis (eq. 76; the mode shapes are mass-normalized, so eta is in sqrt(kg) m)",
     "eta_rate": "rate d(eta[e,i])/dt of the modal coordinate of free-free mode i of superelement e (sqrt(kg) m/s)",

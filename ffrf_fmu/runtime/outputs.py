@@ -49,6 +49,8 @@ ENERGIES = {
     "work_external": "work done on the body by the port loads and gravity since initialization",
 }
 ENERGY_FIELDS = tuple(ENERGIES)  # a row's energies, in this order (BodySystem.energies' keys)
+# an FMU's modal outputs (fmu/variables.py MODAL): every superelement's eta, then their rates, after the probes
+MODAL_FIELDS = ("eta", "eta_rate")
 
 
 def component_name(base: str, index: tuple[int, ...]) -> str:
@@ -98,6 +100,46 @@ def row_columns(ports) -> list[str]:
     `ports`: port names in the body's order."""
     names = [n for p in ports for fld in OUTPUT_FIELDS for n in port_variables(p, fld)]
     return names + [f"energy.{k}" for k in ENERGY_FIELDS] + ["solver.newton_iterations"]
+
+
+def output_sources(variables, ports, probes) -> tuple[list[int], list[int]]:
+    """(value references, positions) of every output: where each output's value is in [the body's output row
+    (runtime/outputs.py: every port's OUTPUT_FIELDS, the energies, the iterations last), the probes (3 each, in
+    `probes` order), the modal coordinates eta, their rates (superelement by superelement)]. The one map of both
+    FMUs: fmu/native/resource.py writes it into body.bin for model.c, the pythonfmu slave (core.py) gathers by it.
+    variables: fmu/variables.py Variable rows (name, causality, kind, port, field); ports: with .name."""
+    index: dict[tuple[str, str], list[int]] = {}
+    for i, v in enumerate(variables):
+        index.setdefault((v.port, v.field) if v.port else (v.kind, v.field), []).append(i)
+    dst: list[int] = []
+    src: list[int] = []
+    for j, p in enumerate(ports):
+        for field, columns in FIELD_COLUMNS.items():
+            ix = index[(p.name, field)]
+            cols = list(range(j * OUTPUT_WIDTH + columns.start, j * OUTPUT_WIDTH + columns.stop))
+            if variables[ix[0]].causality == "output":
+                dst += ix
+                src += cols
+            node = index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
+            if node is not None:
+                dst += node
+                src += cols
+    size = OUTPUT_WIDTH * len(ports) + len(ENERGY_FIELDS) + 1  # the row's length, iterations last
+    for i, k in enumerate(ENERGY_FIELDS):
+        if ("energy", k) in index:
+            dst += index[("energy", k)]
+            src.append(OUTPUT_WIDTH * len(ports) + i)
+    dst += index[("solver", "newton_iterations")]
+    src.append(size - 1)
+    for i, name in enumerate(probes):
+        dst += index[("probe", name)]
+        src += [size + 3 * i + k for k in range(3)]
+    base = size + 3 * len(probes)
+    for k, field in enumerate(MODAL_FIELDS):
+        ix = index.get(("modal", field), [])
+        dst += ix
+        src += [base + k * len(ix) + i for i in range(len(ix))]
+    return dst, src
 
 
 def tip_from_hub(R_hub: np.ndarray, x_hub: np.ndarray, x_tip: np.ndarray, X_tip: np.ndarray) -> np.ndarray:

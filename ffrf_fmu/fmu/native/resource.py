@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...runtime import input_rule
-from ...runtime.outputs import ENERGY_FIELDS, OUTPUT_FIELDS, OUTPUT_WIDTH  # the output row's layout
 from ...runtime.start import START_FIELDS
 from ...runtime.terms import TERM_SETS
+from ...runtime.outputs import output_sources
 from ..variables import Variable
 
 MAGIC = b"FFRFFMU\0"
@@ -79,38 +79,9 @@ def point_map(variables, ports) -> np.ndarray:
 
 
 def output_map(variables, ports, probes) -> tuple[np.ndarray, np.ndarray]:
-    """(value references, positions in [output row, probes, eta, eta rates]) of every output (core.py
-    `_build_output_map`)."""
-    index = _index(variables)
-    dst, src = [], []
-    for j, p in enumerate(ports):
-        col = 0
-        for field in OUTPUT_FIELDS:
-            ix = index[(p.name, field)]
-            cols = list(range(j * OUTPUT_WIDTH + col, j * OUTPUT_WIDTH + col + len(ix)))
-            if variables[ix[0]].causality == "output":
-                dst += ix
-                src += cols
-            node = index.get((p.name, "node." + field))  # the body's own node frame at a compliant part
-            if node is not None:
-                dst += node
-                src += cols
-            col += len(ix)
-    size = OUTPUT_WIDTH * len(ports) + len(ENERGY_FIELDS) + 1
-    for i, k in enumerate(ENERGY_FIELDS):
-        if ("energy", k) in index:
-            dst += index[("energy", k)]
-            src.append(OUTPUT_WIDTH * len(ports) + i)
-    dst += index[("solver", "newton_iterations")]
-    src.append(size - 1)
-    for i, name in enumerate(probes):
-        dst += index[("probe", name)]
-        src += [size + 3 * i + k for k in range(3)]
-    base = size + 3 * len(probes)  # then eta and its rates, superelement by superelement (model.c outputs_into)
-    for k, field in enumerate(("eta", "eta_rate")):
-        ix = index.get(("modal", field), [])
-        dst += ix
-        src += [base + k * len(ix) + i for i in range(len(ix))]
+    """(value references, positions in [output row, probes, eta, eta rates]) of every output
+    (fmu/variables.py output_sources, the pythonfmu slave's map too)."""
+    dst, src = output_sources(variables, ports, probes)
     return np.array(dst, dtype=np.int32), np.array(src, dtype=np.int32)
 
 
