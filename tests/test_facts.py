@@ -113,3 +113,24 @@ def test_scene_spin_is_read_the_same_by_info_the_term_rule_and_the_advisor():
     # h^2/6 max|d3 rate/dt3| = (2e-3)^2/6 (4/15) (2 pi/15)^2 = 3e-8 rad/s^2; 1e-6 leaves round-off room
     assert np.allclose(np.gradient(s.rate, s.t)[1:-1], s.acceleration[1:-1], rtol=0, atol=1e-6)
     assert scene_spin(model.scene("hub_free")) is None and info_spin(model.scene("hub_free")) == (None, None, "none")
+
+
+def test_the_native_fmu_start_checks_are_the_python_ones():
+    """The FMU's C checks of a start state (fmu/native: model.c, initialize.c) carry the tolerances and the
+    state names of runtime/start.py and model.py as literals (C has no import); they must be the same
+    numbers, or an FMU would accept a start the standalone run refuses (or the reverse)."""
+    import re
+
+    from ffrf_fmu.model import INITIAL_STATES
+    from ffrf_fmu.runtime.start import GRAVITY_TOL, MOTION_TOL
+
+    native = ROOT / "ffrf_fmu" / "fmu" / "native"
+    model_c, initialize_c = (native / "model.c").read_text(), (native / "initialize.c").read_text()
+
+    def define(text, name):
+        return float(re.search(rf"#define {name} (\S+)", text).group(1))
+
+    assert define(model_c, "START_GRAVITY_TOL") == GRAVITY_TOL
+    assert define(initialize_c, "START_MOTION_TOL") == MOTION_TOL
+    states = re.search(r"STATES\[\d+\] = \{([^}]*)\}", model_c).group(1)
+    assert tuple(s.strip().strip('"') for s in states.split(",")) == INITIAL_STATES

@@ -478,7 +478,7 @@ done:
  * start has them (positions, rotations and their rates to START_MOTION_TOL relative, `mismatch`), then the
  * START_FIELDS are copied in and the port loads at t0 computed from the state (`adopt`). start: the
  * START_FIELDS (xN, RN, x0, R0, eta, v, yd, yd_prev, yd_prev2, a) of `count` doubles; 0, or -1 with err set. */
-#define START_MOTION_TOL 1e-9
+#define START_MOTION_TOL 1e-9 /* runtime/start.py MOTION_TOL (tests/test_facts.py) */
 int fmu_start_body(ffrf_body *b, double t0, const double *start, size_t count, const char *const *port_names,
                    char *err, size_t err_len)
 {

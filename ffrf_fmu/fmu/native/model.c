@@ -502,9 +502,10 @@ static void write_outputs(fmu_instance *m, int iterations);
 /* The body just initialized at the inputs of t0 put in the start state made at build, after the checks that it
  * holds for these parameters (runtime/start.py `parameter_mismatch`, the same messages) and inputs
  * (initialize.c `fmu_start_body`); 0, or 1 with why set. */
+#define START_GRAVITY_TOL 1e-12 /* runtime/start.py GRAVITY_TOL (tests/test_facts.py) */
 static int start_state(fmu_instance *m, const char *const *names, char *why, size_t len)
 {
-    static const char *const STATES[3] = {"rest", "static", "steady_spin"}; /* resource.py START_STATES */
+    static const char *const STATES[3] = {"rest", "static", "steady_spin"}; /* model.py INITIAL_STATES (tests/test_facts.py) */
     const fmu_description *d = &m->desc;
     int terms = terms_of(m);
     const double *start = d->start[terms];
@@ -513,7 +514,7 @@ static int start_state(fmu_instance *m, const char *const *names, char *why, siz
     for (int i = 0; i < 3; i++)
         gmax = fmax(gmax, fabs(start[1 + i]));
     for (int i = 0; i < 3; i++)
-        if (fabs(m->values[d->vr_gravity[i]] - start[1 + i]) > 1e-12 * gmax) {
+        if (fabs(m->values[d->vr_gravity[i]] - start[1 + i]) > START_GRAVITY_TOL * gmax) {
             char a[3][32], b[3][32];
             for (int k = 0; k < 3; k++) {
                 py_repr(m->values[d->vr_gravity[k]], a[k], sizeof a[k]);

@@ -148,7 +148,7 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
  *            communication point (v_unknown = h(v_known, v_rest)); zero here, no output depends directly on an input
  *            (ModelStructure dependencies=""). fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative, the adjoint.
  * DERIV_STEP the derivatives of the last communication step: of the outputs at t_c + H with respect to the inputs
- *            held over [t_c, t_c + H], the state at t_c fixed (central differences of two re-runs). Not an FMI
+ *            set at t_c for [t_c, t_c + H] (FMU input rule: motion extrapolated, loads held), the state at t_c fixed (central differences of two re-runs). Not an FMI
  *            function: ffrf2GetStepDerivative, ffrf3GetStepDirectionalDerivative, ffrf3GetStepAdjointDerivative,
  *            for the interface-Jacobian master (ffrf_fmu/master/interface.py). */
 enum { DERIV_FMI = 0, DERIV_STEP = 1 };

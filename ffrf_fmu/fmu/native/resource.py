@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...model import INITIAL_STATES
 from ...runtime import input_rule
 from ...runtime.start import START_FIELDS
 from ...runtime.terms import TERM_SETS
@@ -40,7 +41,7 @@ PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
 DKIND = {"f": 0, "t": 0, "r": 1, "R": 1, "v": 2, "w": 2, "a": 3, "dw": 3}
 MAX_PORTS = 64  # initialize.c names at most this many ports
-START_STATES = ("rest", "static", "steady_spin")  # a start section's state code (model.c start_state STATES)
+START_STATES = INITIAL_STATES  # a start section's state code: its index here (model.c start_state STATES)
 
 
 @dataclass(frozen=True)
