@@ -11,10 +11,11 @@ rigid modes, eq. 11) and G_e the free flexibility (K x = P b with U^T M x = 0):
     eq. (76)               Y = [Y_B, Xi - Y_B (L Xi)]                           (L Y = [I, 0])
 
 Every column is mass-orthogonal to the rigid modes (eq. 74). Nothing dense of size n_dof x n_dof is
-formed: K and M stay scipy.sparse, and ONE sparse LU (scipy's SuperLU, nested-dissection order) of K - sigma M, sigma < 0
-(positive definite while K is singular), serves both the modes (ARPACK in shift-invert mode about
-sigma) and the static solves of G_e (exact on the computed modes, preconditioned Richardson on the
-rest: free_static). Only tall n_dof x (6 n_f + modes) arrays are dense.
+formed: K and M stay scipy.sparse, and ONE sparse LU (scipy's SuperLU, nested-dissection order,
+solid/ordering.py) of K - sigma M, sigma < 0 (positive definite while K is singular), serves both the
+modes (ARPACK in shift-invert mode about sigma) and the static solves of G_e (exact on the computed
+modes, conjugate gradients preconditioned by the LU on the rest: free_static). Only tall
+n_dof x (6 n_f + modes) arrays are dense.
 
 Invariants from the sparse node-block mass M = M_s (x) I_3 (solid/__init__.py): with Y_n the basis as
 (n_nodes, 3, n), Q_ab = Y_n[:, a]^T M_s Y_n[:, b] (= Y^T T_ab Y),

@@ -5,11 +5,12 @@ on a fill-reducing ordering by geometric nested dissection of the mesh's node gr
 Nested dissection (George 1973): split the nodes by a plane normal to the longest extent of their
 bounding box, take as separator S the nodes on the lower side coupled to a node on the upper side,
 order the two halves first (recursively) and S last. Eliminating a half then creates fill only inside
-it and in S, so the factor of a 3D mesh grows as n^(4/3) and its work as n^2 (measured n^1.4 and n^2.0
-on the benchmark bar from 56k to 230k dofs). Any mesh: the planes come from the node coordinates, the
-separators from the matrix's couplings (tetrahedra, partners' exports). The plane is chosen among the node coordinates
-between the 40 % and 60 % quantiles of the set as the one with the smallest separator: on a
-quadratic mesh a plane through element faces cuts one layer of nodes, a plane through mid-nodes two.
+it and in S, so the factor of a 3D mesh grows as n^(4/3) and its work as n^2 (measured n^1.4 and
+n^1.7 to n^2.0 on the benchmark bar from 56k to 230k dofs). Any mesh: the planes come from the node
+coordinates, the separators from the matrix's couplings (tetrahedra, partners' exports). The plane is
+chosen among the node coordinates between the 40 % and 60 % quantiles of the set as the one with the
+smallest separator: on a quadratic mesh a plane through element faces cuts one layer of nodes, a
+plane through mid-nodes two.
 Measured on the benchmark bar of hex27 (docs/solids.md, "Scale") against SuperLU's MMD_AT_PLUS_A
 ordering: 38,475 dofs, LU 11.2 -> 6.8 CPU s; 107,163 dofs, LU 159 -> 52 CPU s, factors 2.95e8 -> 1.98e8
 entries.
