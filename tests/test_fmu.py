@@ -447,6 +447,11 @@ def test_master_connect_ports_wiring_and_errors(small, tmp_path):
     assert {m.kind for m in motion} == {"translation", "rotation"}
     assert motion[1].src_pos[1] == "A.cut.R[1,2]" and motion[1].dst_rate[2] == "B.cut.w[3]"
     assert {(h.src, h.dst, h.gain) for h in signals} >= {("B.cut.f[1]", "A.cut.f[1]", -1.0), ("B.cut.t[3]", "A.cut.t[3]", -1.0)}
+    assert all(m.src_acc == m.dst_acc == () for m in motion)  # positions, rates and loads only by default
+    acc = [l for l in body_port_links("A", "cut", "B", "cut", {"translation": "force", "rotation": "force"},
+                                      {"translation": "motion", "rotation": "motion"}, accelerations=True)
+           if isinstance(l, Motion)]
+    assert acc[0].src_acc[0] == "A.cut.a[1]" and acc[1].dst_acc[2] == "B.cut.dw[3]"
     with pytest.raises(CoSimulationError, match="motion-driven on both sides"):
         body_port_links("A", "p", "B", "q", {"translation": "motion", "rotation": "force"},
                         {"translation": "motion", "rotation": "motion"})
@@ -609,6 +614,22 @@ def test_master_link_values():
                 ("R.p.v[1]", "R.p.v[2]", "R.p.v[3]"))
     got = sim._fresh(tr, H, {}, {"S.p.r[1]": 2.0, "S.p.v[1]": 5.0})
     assert got["R.p.r[1]"] + H * got["R.p.v[1]"] == pytest.approx(2.0)
+    # with accelerations the receiver's second-order extrapolation ends on the source's frame and rate
+    dw1 = np.array([2.0, -1.0, 0.5])
+    acc = Motion("rotation", rot.src_pos, rot.src_rate, rot.dst_pos, rot.dst_rate,
+                 tuple(f"S.p.dw[{i}]" for i in (1, 2, 3)), tuple(f"R.p.dw[{i}]" for i in (1, 2, 3)))
+    got = sim._fresh(acc, H, {}, fresh | dict(zip(acc.src_acc, dw1)))
+    R0 = np.array([got[n] for n in acc.dst_pos]).reshape(3, 3)
+    w0, dw = np.array([got[n] for n in acc.dst_rate]), np.array([got[n] for n in acc.dst_acc])
+    assert np.array_equal(dw, dw1) and np.allclose(w0 + H * dw, w1, atol=1e-15)
+    assert np.allclose(expm(H * w0 + 0.5 * H * H * dw) @ R0, R1, atol=1e-14)
+    assert not np.allclose(R0, np.array([sim._fresh(rot, H, {}, fresh)[n] for n in rot.dst_pos]).reshape(3, 3))
+    tra = Motion("translation", tr.src_pos, tr.src_rate, tr.dst_pos, tr.dst_rate, ("S.p.a[1]",) * 3,
+                 ("R.p.a[1]", "R.p.a[2]", "R.p.a[3]"))
+    got = sim._fresh(tra, H, {}, {"S.p.r[1]": 2.0, "S.p.v[1]": 5.0, "S.p.a[1]": -30.0})
+    assert got["R.p.r[1]"] + H * got["R.p.v[1]"] + 0.5 * H * H * got["R.p.a[1]"] == pytest.approx(2.0, abs=1e-14)
+    assert got["R.p.v[1]"] + H * got["R.p.a[1]"] == pytest.approx(5.0, abs=1e-14)
+    assert sim._stale(tra, H, {}, {"S.p.r[1]": 2.0, "S.p.v[1]": 5.0, "S.p.a[1]": -30.0})["R.p.a[2]"] == -30.0
 
 
 def test_master_connect_by_name(halves):

@@ -24,7 +24,10 @@ Two kinds of connection:
   r_c + v_c (t - t_c) and expm((t - t_c) skew(w_c)) R_c (docs/fmu.md). Stale: the source's
   frame and rate at t_c. Fresh: (r_1 - H v_1, v_1) and (expm(-H w_1) R_1, w_1) from the
   source's frame and rate at t_c + H, so that the receiver's extrapolation ends exactly on the
-  source's frame and rate.
+  source's frame and rate. With accelerations (`connect_ports(..., accelerations=True)`: (a, dw)
+  from a force-driven part's outputs) the receiver extrapolates to second order; stale: the
+  source's a at t_c; fresh: (r_1 - v_1 H + a_1 H^2/2, v_1 - a_1 H, a_1) and
+  (expm(-(w_1 H - dw_1 H^2/2)) R_1, w_1 - dw_1 H, dw_1), ending on the source's frame and rate again.
 
 `iterations > 1` makes the coupling implicit: the FMU states are saved at t_c and the sweep is
 repeated from them until the held inputs that came from stale sources equal what their sources

@@ -110,7 +110,7 @@ class InterfaceJacobian:
         """Directional derivative of `_fresh` (the values a fresh link gives) at `fresh` along
         `dfresh`: exact for Signal links and translations (linear), central differences of the closed
         form for a rotation's expm(-H w) R (relative step 1e-7: ~1e-9 relative error)."""
-        src = (link.src,) if isinstance(link, Signal) else link.src_pos + link.src_rate
+        src = (link.src,) if isinstance(link, Signal) else link.src
         d = np.array([dfresh.get(n, 0.0) for n in src])
         if not d.any():
             return {}

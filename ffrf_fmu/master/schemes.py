@@ -127,13 +127,18 @@ class CoSimulation(InterfaceJacobian):
         self._check(dst, "input")
         self.links.append(Signal(src, dst, float(gain)))
 
-    def connect_ports(self, a: str, port_a: str, b: str, port_b: str | None = None) -> None:
-        """Join a body port of FMU a to a body port of FMU b (both parts; docs/fmu.md causality)."""
+    def connect_ports(self, a: str, port_a: str, b: str, port_b: str | None = None, *,
+                      accelerations: bool = False) -> None:
+        """Join a body port of FMU a to a body port of FMU b (both parts; docs/fmu.md causality).
+        accelerations: the motion-driven side also gets the force-driven side's P.a, P.dw for its
+        second-order extrapolation (docs/cosim.md, "Acceleration links"); off: as docs/stability.md ran."""
         port_b = port_b or port_a
         ca = port_causality(self.instances[a], port_a)
         cb = port_causality(self.instances[b], port_b)
-        for link in body_port_links(a, port_a, b, port_b, ca, cb):
-            for n in (link.dst_pos + link.dst_rate) if isinstance(link, Motion) else (link.dst,):
+        for link in body_port_links(a, port_a, b, port_b, ca, cb, accelerations):
+            for n in link.src if isinstance(link, Motion) else ():
+                self._check(n, "output")
+            for n in link.dst if isinstance(link, Motion) else (link.dst,):
                 self._check(n, "input")
             self.links.append(link)
 
@@ -144,7 +149,7 @@ class CoSimulation(InterfaceJacobian):
         taken = {l.dst for l in self.links if isinstance(l, Signal)}
         for l in self.links:
             if isinstance(l, Motion):
-                taken.update(l.dst_pos + l.dst_rate)
+                taken.update(l.dst)
         for dname, dst in self.instances.items():
             for var in dst.names("input"):
                 if f"{dname}.{var}" in taken:
@@ -162,7 +167,7 @@ class CoSimulation(InterfaceJacobian):
         """Every output read by a link, grouped per instance."""
         need: dict[str, list[str]] = {k: [] for k in self.instances}
         for l in self.links:
-            names = (l.src_pos + l.src_rate) if isinstance(l, Motion) else (l.src,)
+            names = l.src if isinstance(l, Motion) else (l.src,)
             for full in names:
                 inst, var = _split(full)
                 if var not in need[inst]:
@@ -185,9 +190,7 @@ class CoSimulation(InterfaceJacobian):
             if self.extrapolation and prev:
                 y = y + 0.5 * (y - prev[link.src])
             return {link.dst: link.gain * y}
-        out = dict(zip(link.dst_pos, (cur[n] for n in link.src_pos)))
-        out.update(zip(link.dst_rate, (cur[n] for n in link.src_rate)))
-        return out
+        return dict(zip(link.dst, (cur[n] for n in link.src)))
 
     def _fresh(self, link, H: float, cur: dict, fresh: dict) -> dict:
         """The source has reached t_c + H. Signal: the end value (its midpoint with the t_c value
@@ -201,12 +204,16 @@ class CoSimulation(InterfaceJacobian):
             return {link.dst: link.gain * y}
         p1 = np.array([fresh[n] for n in link.src_pos])
         rate = np.array([fresh[n] for n in link.src_rate])
+        acc = np.array([fresh[n] for n in link.src_acc]) if link.src_acc else np.zeros(3)
+        # r_0 + v_0 s + a s^2/2 (R: expm(w_0 s + dw s^2/2) R_0) ends on r_1, v_1: v_0 = v_1 - a H, r_0 = r_1 - (v_1 H - a H^2/2)
+        rate0, back = rate - H * acc, H * rate - 0.5 * H * H * acc
         if link.kind == "translation":
-            p0 = p1 - H * rate
+            p0 = p1 - back
         else:
-            p0 = (expm(-H * rate) @ p1.reshape(3, 3)).ravel()
+            p0 = (expm(-back) @ p1.reshape(3, 3)).ravel()
         out = dict(zip(link.dst_pos, p0))
-        out.update(zip(link.dst_rate, rate))
+        out.update(zip(link.dst_rate, rate0))
+        out.update(zip(link.dst_acc, acc))
         return out
 
     def _links_into(self, inst: str) -> list:

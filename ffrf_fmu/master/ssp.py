@@ -124,7 +124,7 @@ def body_port_connections(a: str, port_a: str, b: str, port_b: str, fmus: dict[s
     out = []
     for link in links:
         if isinstance(link, Motion):
-            out += [Connection(s, d) for s, d in zip(link.src_pos + link.src_rate, link.dst_pos + link.dst_rate)]
+            out += [Connection(s, d) for s, d in zip(link.src, link.dst)]
         else:
             out.append(Connection(link.src, link.dst, link.gain))
     return out

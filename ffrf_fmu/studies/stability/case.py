@@ -188,7 +188,9 @@ class CosimCase:
 
     def run(self, H: float, scheme: str = "gauss-seidel", extrapolation: bool = False, order: str = "fwd",
             iterations: int = 1, duration: float | None = None, one_body: bool = False,
-            interface_jacobian: bool = False, jacobian: str = "auto") -> CosimRun:
+            interface_jacobian: bool = False, jacobian: str = "auto", accelerations: bool = False) -> CosimRun:
+        """One co-simulation run of the case. accelerations: connect_ports(..., accelerations=True), the
+        motion-driven side's extrapolation gets the force-driven side's P.a / P.dw (docs/cosim.md)."""
         from ...master import CoSimulation
 
         duration = self.duration if duration is None else duration
@@ -199,7 +201,7 @@ class CosimCase:
             with CoSimulation(self.fmus, step=H, scheme=scheme, extrapolation=extrapolation, order=self.order[order],
                               start_values=sv, **self._implicit(iterations),
                               interface_jacobian=interface_jacobian, jacobian=jacobian) as sim:
-                sim.connect_ports("beam", self.beam.hub, "drive", "hub")  # the drive FMU's port is "hub"
+                sim.connect_ports("beam", self.beam.hub, "drive", "hub", accelerations=accelerations)  # the drive FMU's port is "hub"
                 res = sim.run(duration, record=rec)
             c = res.columns
             R = np.stack([c[n] for n in _vec("beam", self.beam.hub, "R")], -1).reshape(-1, 3, 3)
@@ -217,7 +219,7 @@ class CosimCase:
                 with CoSimulation(self.fmus, step=H, scheme=scheme, extrapolation=extrapolation,
                                   order=self.order[order], start_values=sv("A", "B"), **self._implicit(iterations),
                                   interface_jacobian=interface_jacobian, jacobian=jacobian) as sim:
-                    sim.connect_ports("A", "cut", "B", "cut")
+                    sim.connect_ports("A", "cut", "B", "cut", accelerations=accelerations)
                     res = sim.run(duration, sources=self._hub_sources("A"), record=rec)
                 tip, torque = _vec("B", "tip", "r"), res.columns["A.cut.t[3]"]
             c = res.columns
@@ -252,7 +254,7 @@ class CosimCase:
             conns = []
             for link in links:
                 if isinstance(link, Motion):
-                    conns += [(s, d, 1.0) for s, d in zip(link.src_pos + link.src_rate, link.dst_pos + link.dst_rate)]
+                    conns += [(s, d, 1.0) for s, d in zip(link.src, link.dst)]
                 else:
                     conns.append((link.src, link.dst, link.gain))
             start = {f"{n}.solver.step": H for n in ("A", "B")} if self.settings.split_internal_is_H else {}
