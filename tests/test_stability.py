@@ -467,3 +467,7 @@ def test_split_beam_compliant_cut_fails_under_plain_jacobi(tmp_path):
     assert k["A.cut.coupling.k[1]"] == pytest.approx(0.25 / 0.01 ** 2 * 0.804, rel=1e-9)  # omega_c^2 m_P, m_P = 4 m x 0.201 kg/m
     run = cut.run(c, s, 0.01, 0.01, duration=0.4)
     assert run.stopped_early.startswith("B: doStep") and 0.15 < run.t[-1] < 0.3, run.stopped_early
+    # acceleration links (B's cut accelerations into the spring's far end) do not rescue it: the stale
+    # acceleration carries B's overcorrection, and the run fails sooner (measured 0.17 s, in A)
+    fast = cut.run(c, s, 0.01, 0.01, duration=0.4, accelerations=True)
+    assert fast.stopped_early and fast.t[-1] < run.t[-1], fast.stopped_early

@@ -60,9 +60,11 @@ def coefficients(cut: CompliantCut, H_c: float) -> dict[str, float]:
     return out
 
 
-def run(cut: CompliantCut, settings: CosimSettings, H: float, H_c: float, duration: float | None = None) -> CosimRun:
+def run(cut: CompliantCut, settings: CosimSettings, H: float, H_c: float, duration: float | None = None,
+        accelerations: bool = False) -> CosimRun:
     """Plain Jacobi at H with the cut of the rule for H_c; the hub of A driven by the fast spin-up
-    (settings.split_T) with its acceleration; the FMUs' internal step = H."""
+    (settings.split_T) with its acceleration; the FMUs' internal step = H. accelerations: the
+    spring's far end (A's cut inputs) also gets B's cut accelerations (connect_ports, docs/cosim.md)."""
     from ...master import CoSimulation
     from .case import CosimCase
 
@@ -73,7 +75,7 @@ def run(cut: CompliantCut, settings: CosimSettings, H: float, H_c: float, durati
     t0 = time.perf_counter()
     rec = _vec("B", settings.beam.tip, "r") + ["A.cut.t[3]"]
     with CoSimulation(cut.fmus, step=H, scheme="jacobi", start_values=sv) as sim:
-        sim.connect_ports("A", "cut", "B", "cut")
+        sim.connect_ports("A", "cut", "B", "cut", accelerations=accelerations)
         res = sim.run(duration, sources=helper._hub_sources("A"), record=rec)
     c = res.columns
     r_tip = np.stack([c[n] for n in _vec("B", settings.beam.tip, "r")], -1)
