@@ -74,6 +74,24 @@ def _start(v) -> str:
     return str(int(v.start)) if v.type == "Integer" else repr(float(v.start))
 
 
+def _shared_sections(root, variables, experiment) -> None:
+    """The sections FMI 2.0 and 3.0 model descriptions write alike, in the order both schemas want them
+    after the interface element: UnitDefinitions (the units the variables use), LogCategories and the
+    DefaultExperiment."""
+    used = sorted({v.unit for v in variables if v.unit})
+    units = SubElement(root, "UnitDefinitions")
+    for u in used:
+        SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
+    cats = SubElement(root, "LogCategories")
+    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
+                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
+                      ("logAll", "everything else")):
+        SubElement(cats, "Category", {"name": cat, "description": text})
+    if experiment:
+        SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),
+                                               "stepSize": repr(experiment["step_size"])})
+
+
 def model_description(variables, *, name: str, identifier: str, guid: str, description: str,
                       experiment: dict | None) -> bytes:
     """modelDescription.xml: the variables of fmu/variables.py with units and min/max, co-simulation
@@ -89,18 +107,7 @@ def model_description(variables, *, name: str, identifier: str, guid: str, descr
         "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
         "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
-    used = sorted({v.unit for v in variables if v.unit})
-    units = SubElement(root, "UnitDefinitions")
-    for u in used:
-        SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
-    cats = SubElement(root, "LogCategories")
-    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
-                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
-                      ("logAll", "everything else")):
-        SubElement(cats, "Category", {"name": cat, "description": text})
-    if experiment:
-        SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),
-                                               "stepSize": repr(experiment["step_size"])})
+    _shared_sections(root, variables, experiment)
     mv = SubElement(root, "ModelVariables")
     for vr, v in enumerate(variables):
         attrs = {"name": v.name, "valueReference": str(vr), "description": v.description, "causality": v.causality,
@@ -194,18 +201,7 @@ def model_description3(variables, *, name: str, identifier: str, token: str, des
         "providesIntermediateUpdate": "false", "mightReturnEarlyFromDoStep": "false",
         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
         "providesEvaluateDiscreteStates": "false"})
-    used = sorted({v.unit for v in variables if v.unit})
-    units = SubElement(root, "UnitDefinitions")
-    for u in used:
-        SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
-    cats = SubElement(root, "LogCategories")
-    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
-                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
-                      ("logAll", "everything else")):
-        SubElement(cats, "Category", {"name": cat, "description": text})
-    if experiment:
-        SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),
-                                               "stepSize": repr(experiment["step_size"])})
+    _shared_sections(root, variables, experiment)
     mv = SubElement(root, "ModelVariables")
     SubElement(mv, "Float64", {"name": "time", "valueReference": "0", "causality": "independent",
                                "variability": "continuous", "unit": "s", "description": "simulation time"})

@@ -19,25 +19,6 @@
 #define RELAX_TOL 1e-12
 #define RELAX_MAX_ITER 30
 
-/* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py) */
-static const char *status_text(int status)
-{
-    switch (status) {
-    case FFRF_NOT_FINITE:
-        return "the residual is not finite (NaN or overflow)";
-    case FFRF_NOT_CONVERGED:
-        return "Newton did not converge";
-    case FFRF_NOT_FACTORED:
-        return "iteration matrix cannot be factored (not finite or singular)";
-    case FFRF_ROTATION_ALIAS:
-        return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
-    case FFRF_BAD_STEP:
-        return "step size must be positive and finite";
-    default:
-        return "step failed";
-    }
-}
-
 /* p (global ydot layout) of the current configuration: positions, eta and velocities in their stage slots,
  * rotation increments 0; R the node then CM frames. */
 static void stage_of_state(const ffrf_body *b, double *p, double *R)
@@ -451,7 +432,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
     memcpy(yd0, st->yd, sizeof(double) * (size_t)ny);
     ffrf_body_set_state(b, saved, state_size);
     if (step != FFRF_OK) {
-        snprintf(err, err_len, "%s (the consistent initial rates: a backward-Euler step of %g s)", status_text(step),
+        snprintf(err, err_len, "%s (the consistent initial rates: a backward-Euler step of %g s)", fmu_failure_text(step),
                  MICRO_STEP);
         goto done;
     }

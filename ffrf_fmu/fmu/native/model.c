@@ -687,7 +687,7 @@ static void write_outputs(fmu_instance *m, int iterations)
 }
 
 /* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py) */
-static const char *failure_text(int status)
+const char *fmu_failure_text(int status)
 {
     switch (status) {
     case FFRF_NOT_FINITE:
@@ -718,7 +718,7 @@ static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, ch
         if (status == FFRF_NOT_CONVERGED)
             snprintf(why, len, "t = %.6g s: Newton did not converge in %d iterations", t0 + (done + 1) * hh, b->max_iter);
         else
-            snprintf(why, len, "t = %.6g s: %s", t0 + (done + 1) * hh, failure_text(status));
+            snprintf(why, len, "t = %.6g s: %s", t0 + (done + 1) * hh, fmu_failure_text(status));
         return 1;
     }
     return 0;
