@@ -19,6 +19,26 @@
 #define RELAX_TOL 1e-12
 #define RELAX_MAX_ITER 30
 
+/* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py); here, below
+ * model.c, which reports the steps of doStep with them, so that no file of the FMU calls one above it */
+const char *fmu_failure_text(int status)
+{
+    switch (status) {
+    case FFRF_NOT_FINITE:
+        return "the residual is not finite (NaN or overflow)";
+    case FFRF_NOT_CONVERGED:
+        return "Newton did not converge";
+    case FFRF_NOT_FACTORED:
+        return "iteration matrix cannot be factored (not finite or singular)";
+    case FFRF_ROTATION_ALIAS:
+        return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
+    case FFRF_BAD_STEP:
+        return "step size must be positive and finite";
+    default:
+        return "step failed";
+    }
+}
+
 /* p (global ydot layout) of the current configuration: positions, eta and velocities in their stage slots,
  * rotation increments 0; R the node then CM frames. */
 static void stage_of_state(const ffrf_body *b, double *p, double *R)

@@ -686,25 +686,6 @@ static void write_outputs(fmu_instance *m, int iterations)
     outputs_into(m, iterations, m->values);
 }
 
-/* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py) */
-const char *fmu_failure_text(int status)
-{
-    switch (status) {
-    case FFRF_NOT_FINITE:
-        return "the residual is not finite (NaN or overflow)";
-    case FFRF_NOT_CONVERGED:
-        return "Newton did not converge";
-    case FFRF_NOT_FACTORED:
-        return "iteration matrix cannot be factored (not finite or singular)";
-    case FFRF_ROTATION_ALIAS:
-        return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
-    case FFRF_BAD_STEP:
-        return "step size must be positive and finite";
-    default:
-        return "step failed";
-    }
-}
-
 /* n internal steps of H / n from the body's state with the point values in m->point_values; the output row into
  * m->row. 0, or 1 with the failure in why (the body then is at its last completed step). */
 static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, char *why, size_t len)

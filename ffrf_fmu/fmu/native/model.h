@@ -179,7 +179,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
                         const double origin[3], const double *port_displacements, const char *const *port_names,
                         char *err, size_t err_len);
 
-/* The message of a failed runtime step status (FFRF_NOT_FINITE, ...), the numpy path's words (model.c). */
+/* initialize.c: the message of a failed runtime step status (FFRF_NOT_FINITE, ...), the numpy path's words */
 const char *fmu_failure_text(int status);
 /* initialize.c: the start state made at build (runtime/start.py) taken at t0 by a body just initialized */
 int fmu_start_body(ffrf_body *b, double t0, const double *start, size_t count, const char *const *port_names,
