@@ -313,23 +313,19 @@ def test_b1_newton_fails_between_100_and_200_ms():
     assert bad.unstable and "Newton" in bad.failure and 4.0 < bad.t[-1] < 6.0
 
 
-def test_b2_runs_through_at_200_ms_and_fails_at_500_ms():
+def test_b2_runs_through_at_200_ms_and_500_ms():
     """B2 (20 s), with each load window applied as its mean over the step (docs/equations.md, "Loads
-    between steps"): at h = 0.2 s rho_inf = 0.8 runs through; the trapezoidal rule (rho_inf = 1, no
-    dissipation) keeps the modes the tip impulse excites and fails at t = 19.2 s (measured; before the
-    window mean, whose one-step shift of the load changed this marginal case, it ran through); at h = 0.5 s,
-    one step longer than the 0.2 s tip-load window, rho_inf = 0.8 now runs through (the step carries the
-    window's impulse as 40 N over 0.5 s, where the former point rule applied the full 100 N over the whole
-    step: 2.5 x the impulse, and Newton failed at 15.5 s) and the trapezoidal rule fails after the load
-    (t = 17 s: a rotation increment over pi)."""
+    between steps"): rho_inf = 0.8 runs through at h = 0.2 s and at h = 0.5 s, one step longer than the
+    0.2 s tip-load window (the step carries the window's impulse as 40 N over 0.5 s, where the former point
+    rule applied the full 100 N over the whole step: 2.5 x the impulse, and Newton failed at 15.5 s).
+    The trapezoidal rule (rho_inf = 1, no dissipation) is not asserted: its verdicts are marginal and
+    depend on the CPU's round-off. Measured: at h = 0.2 s it failed at t = 19.2 s on one x86-64 CPU and
+    ran through on another; at h = 0.5 s it failed at t = 17 s (a rotation increment over pi) on one and
+    ran through on another; at h = 1 s Newton failed at t = 17 s (docs/stability.md, "Marginal points")."""
     s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("spherical_beam", "torque_then_tip")])
-    ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.2, 0.8, s)
-    assert ok.completed and ok.t[-1] == pytest.approx(20.0)
-    ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", 0.5, 0.8, s)
-    assert ok.completed and ok.t[-1] == pytest.approx(20.0)
-    for h, t_fail in ((0.2, 19.2), (0.5, 17.0)):
-        bad, _ = st.integrator_run(SPHERICAL, "torque_then_tip", h, 1.0, s)
-        assert bad.unstable and f"t = {t_fail:g} s" in bad.failure
+    for h in (0.2, 0.5):
+        ok, _ = st.integrator_run(SPHERICAL, "torque_then_tip", h, 0.8, s)
+        assert ok.completed and ok.t[-1] == pytest.approx(20.0)
 
 
 # ------------------------------------------------------------------------------------ established engine
