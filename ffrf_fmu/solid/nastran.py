@@ -158,7 +158,10 @@ def _read(path: str):
     except Exception as exc:  # pyNastran raises many kinds; name the card it stopped on
         msg = str(exc)
         where = ""
-        for name in MODEL_CARDS + HARMLESS_CARDS:
+        card = re.search(r"card=\['(\w+)', '([^']*)'", msg)  # pyNastran quotes the card's fields
+        if card:
+            where = "; " + locate_card(path, card.group(1).upper(), card.group(2).strip())
+        for name in () if card else MODEL_CARDS + HARMLESS_CARDS:
             if re.search(rf"\b{name}\b", msg):
                 where = "; " + locate_card(path, name)
                 break
