@@ -397,3 +397,28 @@ def read_nastran(path: str) -> NastranFE:
                      autospc_dofs=autospc, grid_sets={"spc": spc_grids}, wtmass=wtmass,
                      mass_form="lumped" if lumped else "coupled", ignored_cards=ignored,
                      notes=tuple(sorted(notes)))
+
+
+def main(argv=None) -> None:
+    """python -m ffrf_fmu.solid.nastran DECK [N [EIGENVALUES_CSV]]: the lowest N frequencies,
+    with Nastran's (column cycles_hz of the CSV) beside them if given."""
+    import sys
+
+    args = sys.argv[1:] if argv is None else argv
+    fe = read_nastran(args[0])
+    n = int(args[1]) if len(args) > 1 else 10
+    f = fe.frequencies(n)
+    ref = None
+    if len(args) > 2:
+        ref = np.loadtxt(args[2], delimiter=",", skiprows=2, usecols=4)  # comment, header
+    print(f"{fe.path}: {len(fe.node_ids)} grids, {fe.K.shape[0]} dofs, {len(fe.free_dofs)} free, "
+          f"mass {fe.mass_form}, WTMASS {fe.wtmass:g}; not read: {', '.join(fe.ignored_cards)}")
+    for note in fe.notes:
+        print("note:", note)
+    for k, fk in enumerate(f, 1):
+        extra = "" if ref is None else f"  Nastran {ref[k - 1]:14.6e}  rel {fk / ref[k - 1] - 1:+.2e}"
+        print(f"mode {k:3d}  {fk:14.6e} Hz{extra}")
+
+
+if __name__ == "__main__":
+    main()
