@@ -101,3 +101,40 @@ def test_missing_pynastran_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "pyNastran.bdf.bdf", None)  # import fails as if not installed
     with pytest.raises(ImportError, match=r"ffrf-fmu\[nastran\]"):
         read_nastran(DECK)
+
+
+def test_grids_in_a_cord2r_frame(tmp_path):
+    """The GRIDs of beam_modes given in a shifted, rotated CORD2R frame (local x = basic x, local
+    z = basic y, origin (5, 5, 5)): same basic positions, same K, M and frequencies."""
+    shutil.copy(DECK, tmp_path)
+    lines = []
+    for ln in (DATA / "cbar_cbeam.blk").read_text().splitlines():
+        if ln.startswith("GRID"):
+            nid, x = int(ln[8:16]), float(ln[24:32])
+            ln = f"GRID,{nid},1,{x - 5.0},5.0,-5.0"
+        lines.append(ln)
+    lines.append("CORD2R,1,0,5.0,5.0,5.0,5.0,6.0,5.0")  # origin A, z-axis point B
+    lines.append(",6.0,5.0,5.0")  # point C in the local x-z plane
+    (tmp_path / "cbar_cbeam.blk").write_text("\n".join(lines) + "\n")
+    fe, base = read_nastran(tmp_path / "beam_modes.dat"), read_nastran(DECK)
+    np.testing.assert_allclose(fe.coords, base.coords, atol=1e-12)
+    assert abs(fe.K - base.K).max() <= 1e-10 * abs(base.K).max()
+    np.testing.assert_allclose(fe.frequencies(10), base.frequencies(10), rtol=1e-10)
+
+
+def test_crod_chain_against_the_discrete_solution(tmp_path):
+    """Fixed-free CROD chain, n elements, Nastran's lumped mass (m h / 2 per end): the exact
+    eigenvalues of that discrete chain are omega_j = (2 c / h) sin((2 j - 1) pi / (4 n)),
+    c = sqrt(E / rho); only the axial dofs are left free (SPC1 23456 everywhere: the lumped rod has
+    no torsional mass, no lateral or bending stiffness)."""
+    n, h, E, rho = 6, 0.5, 2.1e11, 7800.0
+    deck = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK", f"MAT1,1,{E},,0.3,{rho}", "PROD,2,1,3.0e-4,1.0e-8"]
+    deck += [f"GRID,{i + 1},,{i * h},0.0,0.0" for i in range(n + 1)]
+    deck += [f"CROD,{i + 1},2,{i + 1},{i + 2}" for i in range(n)]
+    deck += ["SPC1,1,123456,1", f"SPC1,1,23456,2,THRU,{n + 1}", "ENDDATA"]
+    (tmp_path / "rod.bdf").write_text("\n".join(deck) + "\n")
+    fe = read_nastran(tmp_path / "rod.bdf")
+    assert len(fe.free_dofs) == n
+    j = np.arange(1, n + 1)
+    exact = 2 * np.sqrt(E / rho) / h * np.sin((2 * j - 1) * np.pi / (4 * n)) / (2 * np.pi)
+    np.testing.assert_allclose(fe.frequencies(n), exact, rtol=1e-10)
