@@ -31,6 +31,7 @@ import scipy.sparse as sp
 
 from ..fe.beam import element_matrices
 from ..model import Section
+from .nastran_deck import locate_card
 
 # cards that do not enter K or M (solution control, output sets, loads); read, listed in
 # NastranFE.ignored_cards, never silently
@@ -97,52 +98,6 @@ class NastranFE:
         M = self.M[f][:, f].toarray()
         mu = eigh(M, K, eigvals_only=True, subset_by_index=[len(f) - n, len(f) - 1])[::-1]
         return 1.0 / np.sqrt(mu) / (2 * np.pi)
-
-
-def _bulk_lines(path: str):
-    """(file, line number, text) of every bulk data line of the deck, following INCLUDEs."""
-    out, in_bulk = [], False
-    with open(path, errors="replace") as fh:
-        lines = fh.read().splitlines()
-    has_bulk = any(ln.upper().startswith("BEGIN BULK") for ln in lines)
-    in_bulk = not has_bulk
-
-    def walk(p, lines, bulk):
-        for k, text in enumerate(lines, 1):
-            u = text.upper()
-            if not bulk:
-                bulk = u.startswith("BEGIN BULK")
-                continue
-            m = re.match(r"\s*INCLUDE\s+'([^']+)'", text, re.I)
-            if m:
-                q = os.path.join(os.path.dirname(p), m.group(1))
-                if os.path.exists(q):
-                    with open(q, errors="replace") as fh:
-                        walk(q, fh.read().splitlines(), True)
-                continue
-            out.append((p, k, text))
-        return bulk
-
-    walk(path, lines, in_bulk)
-    return out
-
-
-def _card_name(text: str) -> str:
-    head = text.split(",")[0] if "," in text[:9] else text[:8]
-    return head.strip().rstrip("*").upper()
-
-
-def locate_card(path: str, card: str, card_id=None):
-    """First line of card `card` (with id card_id if given) in the deck: 'file:line: text'."""
-    for p, k, text in _bulk_lines(path):
-        if text.startswith("$") or _card_name(text) != card:
-            continue
-        if card_id is not None:
-            fields = text.split(",") if "," in text else [text[i : i + 8] for i in range(0, 80, 8)]
-            if len(fields) < 2 or fields[1].strip() != str(card_id):
-                continue
-        return f"{p}:{k}: {text.rstrip()}"
-    return f"{path}: (card {card} not found in the bulk data text)"
 
 
 def _read(path: str):
