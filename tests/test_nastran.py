@@ -122,19 +122,27 @@ def test_grids_in_a_cord2r_frame(tmp_path):
     np.testing.assert_allclose(fe.frequencies(10), base.frequencies(10), rtol=1e-10)
 
 
-def test_crod_chain_against_the_discrete_solution(tmp_path):
-    """Fixed-free CROD chain, n elements, Nastran's lumped mass (m h / 2 per end): the exact
-    eigenvalues of that discrete chain are omega_j = (2 c / h) sin((2 j - 1) pi / (4 n)),
-    c = sqrt(E / rho); only the axial dofs are left free (SPC1 23456 everywhere: the lumped rod has
+@pytest.mark.parametrize("coupmass", [-1, 1])
+def test_crod_chain_against_the_discrete_solution(tmp_path, coupmass):
+    """Fixed-free CROD chain, n elements, c = sqrt(E / rho), theta_j = (2 j - 1) pi / (2 n): the
+    exact eigenvalues of the discrete chain are, with Nastran's lumped mass (m h / 2 per end),
+    omega_j = (2 c / h) sin(theta_j / 2); with the coupled mass (PARAM COUPMASS 1, m h / 6 [2 1; 1 2])
+    omega_j^2 = (6 c^2 / h^2) (1 - cos theta_j) / (2 + cos theta_j); only the axial dofs are left free (SPC1 23456 everywhere: the lumped rod has
     no torsional mass, no lateral or bending stiffness)."""
     n, h, E, rho = 6, 0.5, 2.1e11, 7800.0
-    deck = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK", f"MAT1,1,{E},,0.3,{rho}", "PROD,2,1,3.0e-4,1.0e-8"]
+    deck = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK", f"PARAM,COUPMASS,{coupmass}",
+            f"MAT1,1,{E},,0.3,{rho}", "PROD,2,1,3.0e-4,1.0e-8"]
     deck += [f"GRID,{i + 1},,{i * h},0.0,0.0" for i in range(n + 1)]
     deck += [f"CROD,{i + 1},2,{i + 1},{i + 2}" for i in range(n)]
     deck += ["SPC1,1,123456,1", f"SPC1,1,23456,2,THRU,{n + 1}", "ENDDATA"]
     (tmp_path / "rod.bdf").write_text("\n".join(deck) + "\n")
     fe = read_nastran(tmp_path / "rod.bdf")
     assert len(fe.free_dofs) == n
-    j = np.arange(1, n + 1)
-    exact = 2 * np.sqrt(E / rho) / h * np.sin((2 * j - 1) * np.pi / (4 * n)) / (2 * np.pi)
+    assert fe.mass_form == ("coupled" if coupmass > 0 else "lumped")
+    c, th = np.sqrt(E / rho), (2 * np.arange(1, n + 1) - 1) * np.pi / (2 * n)
+    if coupmass > 0:
+        omega = np.sqrt(6 * c**2 / h**2 * (1 - np.cos(th)) / (2 + np.cos(th)))
+    else:
+        omega = 2 * c / h * np.sin(th / 2)
+    exact = omega / (2 * np.pi)
     np.testing.assert_allclose(fe.frequencies(n), exact, rtol=1e-10)
