@@ -156,16 +156,21 @@ def _section(path, elem, prop, lumped, notes):
     GA2 = GA3 = None
     if prop.type == "PBAR":
         A, I1, I2, I12, J, nsm = prop.A, prop.i1, prop.i2, prop.i12, prop.j, prop.nsm
-        if prop.k1 is not None and prop.k1 > 0.0:
+        # blank K1/K2: shear rigid in Nastran; pyNastran stores blank as 1e8
+        if prop.k1 is not None and 0.0 < prop.k1 < 1e8:
             GA2 = prop.k1 * A * G
-        if prop.k2 is not None and prop.k2 > 0.0:
+        if prop.k2 is not None and 0.0 < prop.k2 < 1e8:
             GA3 = prop.k2 * A * G
     elif prop.type == "PBEAM":
-        if len(prop.A) != 2 or not (np.allclose(prop.A[0], prop.A[-1])
-                                    and np.allclose(prop.i1[0], prop.i1[-1])):
-            _refuse(path, "PBEAM", prop.pid, "tapered PBEAM (several stations) not supported")
+        ends = np.array([[q[0], q[-1]] for q in (prop.A, prop.i1, prop.i2, prop.j)], dtype=float)
+        if len(prop.A) > 2 or not np.allclose(ends[:, 0], ends[:, 1], rtol=1e-3, atol=0.0):
+            _refuse(path, "PBEAM", prop.pid, "tapered PBEAM (stations differing by more than 1e-3 "
+                    "relative) not supported")
+        if np.any(ends[:, 0] != ends[:, 1]):
+            notes.add(f"PBEAM {prop.pid}: end B differs from end A by at most "
+                      f"{np.max(np.abs(ends[:, 1] / ends[:, 0] - 1)):.1e} relative; end A used")
         A, I1, I2, I12, J, nsm = prop.A[0], prop.i1[0], prop.i2[0], prop.i12[0], prop.j[0], prop.nsm[0]
-        if any(abs(v or 0.0) > 0 for v in (prop.cw_a, prop.cw_b)):
+        if any(abs(v or 0.0) > 0 for v in np.r_[prop.cwa, prop.cwb]):
             _refuse(path, "PBEAM", prop.pid, "warping coefficient CW not supported")
         if prop.k1:  # PBEAM K1, K2 default 1.0 in Nastran; 0 -> shear rigid
             GA2 = prop.k1 * A * G
