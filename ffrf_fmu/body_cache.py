@@ -11,9 +11,12 @@ to read whole (a solid is reduced afresh every time).
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 from importlib import metadata
 from pathlib import Path
+
+import numpy as np
 
 from .model import Body, scene_body
 from .runtime.data import BodyData
@@ -28,9 +31,21 @@ def _code_digest() -> bytes:
         p = HERE / name
         for f in sorted(p.rglob("*.py")) if p.is_dir() else [p]:
             h.update(f.name.encode() + b"\0" + f.read_bytes())
-    for dist in ("numpy", "scipy"):
-        h.update(metadata.version(dist).encode())
+    h.update(np.__version__.encode())
+    h.update(_scipy_version())
     return h.digest()
+
+
+def _scipy_version() -> bytes:
+    """The text of scipy's version.py (version and git revision), read without importing scipy:
+    importlib.metadata.version parses every installed distribution's METADATA with the email parser
+    (about 3 ms of each CLI run's 4 ms body load)."""
+    spec = importlib.util.find_spec("scipy")
+    origin = spec.origin if spec is not None else None
+    if origin is None:
+        return b"no scipy"
+    version_py = Path(origin).with_name("version.py")
+    return version_py.read_bytes() if version_py.is_file() else metadata.version("scipy").encode()
 
 
 def key(body: Body, options: dict) -> str:
