@@ -3,7 +3,7 @@ model file of a small B1-like beam, and a body state far from its reference with
 difference iteration matrix at it."""
 import os
 
-# as the CLI does (ffrf_fmu/cli.py): one BLAS thread for the small body matrices, before numpy loads
+# as the CLI does (ffrf_fmu/cli/): one BLAS thread for the small body matrices, before numpy loads
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

@@ -72,7 +72,7 @@ def test_bad_file_exits_2_with_message(tmp_path):
 
 
 def test_every_command_is_in_cli_and_build_fmu_is_build():
-    """All argparse code is in cli.py: build, validate and the reference's convergence study are
+    """All argparse code is in cli/: build, validate and the reference's convergence study are
     subcommands, and build_fmu.py is `build` under its own name."""
     from ffrf_fmu.cli import build_parser, command_parser
 

@@ -66,6 +66,8 @@ Limits: relative rotation across one element below pi (always true on sane meshe
 Entry points: `simulate_reference`, `static_reference`, `tip_from_hub`; convergence study on B1:
 `ffrf-fmu convergence`.
 """
-from .solver import Mesh, ReferenceResult, StaticResult, simulate_reference, static_reference, tip_from_hub
+from .mesh import Mesh
+from .solver import ReferenceResult, simulate_reference, tip_from_hub
+from .statics import StaticResult, static_reference
 
 __all__ = ["ReferenceResult", "StaticResult", "Mesh", "simulate_reference", "static_reference", "tip_from_hub"]

@@ -40,7 +40,7 @@ def spin_of(scene, t0: float = 0.0) -> tuple[np.ndarray, float, np.ndarray]:
 def steady_spin_state(mesh, sc, w, phi: float, F: np.ndarray, T: np.ndarray, *, banded, internal, load_steps: int = 4,
                       tol: float = 1e-10, max_iterations: int = 40):
     """(x, R, v, vd) of the relative equilibrium at the spin w (module doc) on `mesh` with the scene's
-    causality, gravity and drives `sc` (solver._Scene), port loads F, T (nn, 3) world; R are the nodal
+    causality, gravity and drives `sc` (assembly._Scene), port loads F, T (nn, 3) world; R are the nodal
     section frames, v (nn, 6) the velocities (world translational, material angular), vd the accelerations.
     The drives' axis must pass through the origin (initial_state: the same relative equilibrium).
     banded, internal: solver's band matrix and internal forces (passed in: solver imports this module)."""

@@ -1,0 +1,4 @@
+"""`python -m ffrf_fmu.cli` = the `ffrf-fmu` command."""
+from . import main
+
+raise SystemExit(main())
