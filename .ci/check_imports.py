@@ -20,7 +20,8 @@ except ModuleNotFoundError:  # Python 3.10: tomli is a dependency there
 
 MODULE = {"libcosimpy": "libcosimpy.CosimExecution",  # the package imports lazily: load its library
           "dask[distributed]": "distributed",  # the extra is what the project uses
-          "scikit-fem": "skfem"}
+          "scikit-fem": "skfem",
+          "pynastran": "pyNastran"}  # its module keeps the capitals
 
 
 def _import(name: str) -> None:
