@@ -2,12 +2,12 @@
 free-free square plate against Leissa's frequency parameters at a/h = 100, 1000, 2000 (no locking),
 Witteveen's 3.9 kg plate, and CalculiX S4 on the same mesh."""
 import shutil
-import subprocess
 
 import numpy as np
 import pytest
 
 from ffrf_fmu.solid.shell import ShellMaterial, assemble_shells, free_modes, plate_mesh, rigid_modes
+from ffrf_fmu.solid.shell_calculix import calculix_frequencies, run_calculix
 
 STEEL = ShellMaterial(E=210e9, nu=0.3, rho=7800.0)
 # Free-free square plate, nu = 0.3, lambda = omega a^2 sqrt(rho h / D), the first five elastic modes
@@ -78,40 +78,11 @@ def test_witteveen_plate_3_9_kg():
     assert abs(f[0] - 1.69) < 0.02  # Hz
 
 
-def calculix_deck(nodes, quads, h, mat: ShellMaterial, n_modes: int, element: str = "S4") -> str:
-    lines = ["*NODE"] + [f"{i + 1},{x:.15g},{y:.15g},{z:.15g}" for i, (x, y, z) in enumerate(nodes)]
-    lines += [f"*ELEMENT,TYPE={element},ELSET=EALL"]
-    lines += [f"{e + 1}," + ",".join(str(k + 1) for k in q) for e, q in enumerate(quads)]
-    lines += ["*MATERIAL,NAME=STEEL", "*ELASTIC", f"{mat.E:.15g},{mat.nu:.15g}", "*DENSITY", f"{mat.rho:.15g}",
-              "*SHELL SECTION,ELSET=EALL,MATERIAL=STEEL", f"{h:.15g}", "*STEP", "*FREQUENCY", f"{n_modes}", "*END STEP"]
-    return "\n".join(lines) + "\n"
-
-
-def calculix_frequencies(dat: str) -> np.ndarray:
-    """Frequencies [Hz] (the CYCLES/TIME column) of the eigenvalue table of a ccx .dat file."""
-    lines = dat.splitlines()
-    try:
-        start = next(i for i, s in enumerate(lines) if "E I G E N V A L U E   O U T P U T" in s)
-    except StopIteration:
-        raise ValueError("ccx .dat: no eigenvalue output table") from None
-    f = []
-    for s in lines[start + 1:]:
-        parts = s.split()
-        if len(parts) == 5 and parts[0].isdigit():
-            f.append(float(parts[3]))
-        elif f and not parts:
-            break
-    return np.array(f)
-
-
 @pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not on PATH")
-def test_against_calculix_s4(tmp_path):
+def test_against_calculix_s4():
     h, n = 0.01, 16
     nodes, quads = plate_mesh(1.0, 1.0, n, n)
-    (tmp_path / "plate.inp").write_text(calculix_deck(nodes, quads, h, STEEL, 16))
-    run = subprocess.run(["ccx", "plate"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0, run.stdout[-2000:]
-    f_ccx = calculix_frequencies((tmp_path / "plate.dat").read_text())[6:16]
+    f_ccx = run_calculix(nodes, quads, h, STEEL, 16, timeout=120)[6:16]
     fe = assemble_shells(nodes, quads, h, STEEL)
     f = np.sqrt(np.abs(free_modes(fe, 16, shift=-1.0)[0][6:])) / (2 * np.pi)
     # S4 is expanded to C3D8I bricks (3D elasticity through the thickness, no 5/6 shear factor):
@@ -120,3 +91,16 @@ def test_against_calculix_s4(tmp_path):
     # and 1.0-1.8 % (modes 6-10) (16 x 16 against 32 x 32), so the bounds are 1.5 % and 3 %.
     np.testing.assert_allclose(f[:5], f_ccx[:5], rtol=0.015)
     np.testing.assert_allclose(f[5:], f_ccx[5:], rtol=0.03)
+
+
+def test_calculix_table_parse_and_errors():
+    dat = ("\n     E I G E N V A L U E   O U T P U T\n\n MODE NO    EIGENVALUE\n\n"
+           "      1   0.4497400E+05   0.2120707E+03   0.3375211E+02   0.0000000E+00\n"
+           "      2   0.9503604E+05   0.3082792E+03   0.4906415E+02   0.0000000E+00\n\n P A R T\n")
+    np.testing.assert_allclose(calculix_frequencies(dat), [33.75211, 49.06415])
+    with pytest.raises(ValueError, match="no eigenvalue output"):
+        calculix_frequencies("nothing here")
+    with pytest.raises(ValueError, match="thickness"):
+        assemble_shells(*plate_mesh(1, 1, 1, 1), 0.0, STEEL)
+    with pytest.raises(ValueError, match="out of range"):
+        assemble_shells(np.zeros((3, 3)), [[0, 1, 2, 3]], 0.01, STEEL)
