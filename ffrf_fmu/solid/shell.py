@@ -1,0 +1,212 @@
+"""Flat 4-node shell (MITC4 bending + bilinear membrane + drilling penalty) on 6-dof nodes (docs/shells.md).
+
+Dofs are node-major, 6 per node: dof 6 i + c, c = ux uy uz rx ry rz (global axes). Each quad is
+flat (a warped quad is projected on the plane through its centre spanned by its mid-side vectors).
+In the element frame (e1, e2 in plane, e3 normal), with the fibre rotations beta_x = ry, beta_y = -rx:
+  membrane   eps = (u_x, v_y, u_y + v_x),            C_m = E t / (1 - nu^2) [[1 nu 0][nu 1 0][0 0 (1-nu)/2]]
+  bending    kappa = (bx_x, by_y, bx_y + by_x),      C_b = t^2/12 C_m
+  shear      gamma = (w_x + bx, w_y + by),           C_s = k G t I, k = 5/6
+2 x 2 Gauss points; the transverse shear is Bathe & Dvorkin's (1986) assumed covariant strain
+(MITC4): gamma_xi from the tying points (0, +-1), gamma_eta from (+-1, 0), interpolated linearly
+and mapped to the Cartesian frame with J^-1 at the Gauss point; this removes shear locking.
+Drilling (rz about e3): the penalty k_d sum_i (rz_i - omega_c)^2, omega_c = (v_x - u_y)/2 at the
+centre (Hughes & Brezzi type, one point), k_d = DRILL * the smallest membrane diagonal of the
+element: no energy in any rigid motion, and small enough to leave the plate modes unchanged.
+Mass: consistent (2 x 2 Gauss), rho t N^T N on each translation and the rotary inertia
+rho t^3 / 12 N^T N on rx, ry; none on the drilling rotation (a fibre has no spin inertia), so M
+is singular on drilling dofs of a flat plate: use shift-invert eigensolvers (free_modes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+DRILL = 1e-3  # drilling penalty / smallest membrane stiffness diagonal of the element
+SHEAR_FACTOR = 5.0 / 6.0
+_G = 1.0 / np.sqrt(3.0)
+_GAUSS = [(-_G, -_G), (_G, -_G), (_G, _G), (-_G, _G)]
+_XI = np.array([-1.0, 1.0, 1.0, -1.0])
+_ETA = np.array([-1.0, -1.0, 1.0, 1.0])
+
+
+@dataclass(frozen=True)
+class ShellMaterial:
+    E: float  # Young's modulus [Pa]
+    nu: float  # Poisson's ratio
+    rho: float  # density [kg/m^3]
+
+
+@dataclass(frozen=True, eq=False)
+class ShellFE:
+    """A linear shell FE model: nodes, quads, per-element thickness, sparse K and M on 6 dofs per
+    node (dof 6 node + c, c = ux uy uz rx ry rz)."""
+
+    coords: np.ndarray  # (n, 3) [m]
+    quads: np.ndarray  # (e, 4) node indices, counter-clockwise about the element normal
+    thickness: np.ndarray  # (e,) [m]
+    material: ShellMaterial
+    K: sp.csr_matrix  # (6n, 6n)
+    M: sp.csr_matrix  # (6n, 6n)
+
+    @property
+    def n_nodes(self) -> int:
+        return self.coords.shape[0]
+
+    @property
+    def n_dof(self) -> int:
+        return 6 * self.coords.shape[0]
+
+    def dof(self, node, component: int):
+        return 6 * np.asarray(node) + component
+
+
+def _shape(xi, eta):
+    N = 0.25 * (1 + _XI * xi) * (1 + _ETA * eta)
+    dN = np.array([0.25 * _XI * (1 + _ETA * eta), 0.25 * _ETA * (1 + _XI * xi)])  # (2, 4): d/dxi, d/deta
+    return N, dN
+
+
+def element_frame(X: np.ndarray):
+    """Rotation T (rows e1, e2, e3) and the in-plane coordinates (4, 2) of a quad's corners X (4, 3)."""
+    c = X.mean(axis=0)
+    g1 = (X[1] + X[2] - X[0] - X[3]) / 2
+    g2 = (X[2] + X[3] - X[0] - X[1]) / 2
+    e3 = np.cross(g1, g2)
+    if np.linalg.norm(e3) <= 1e-14 * np.linalg.norm(g1) * np.linalg.norm(g2) + 1e-300:
+        raise ValueError("degenerate quad: its mid-side vectors are parallel")
+    e3 /= np.linalg.norm(e3)
+    e1 = g1 / np.linalg.norm(g1)
+    e2 = np.cross(e3, e1)
+    T = np.array([e1, e2, e3])
+    return T, (X - c) @ T[:2].T
+
+
+def element_matrices(xy: np.ndarray, t: float, mat: ShellMaterial):
+    """Local 24 x 24 K, M of a flat quad with in-plane corners xy (4, 2), local dofs per node
+    (u v w rx ry rz)."""
+    E, nu, rho = mat.E, mat.nu, mat.rho
+    Cm = E * t / (1 - nu**2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
+    Cb = Cm * t**2 / 12
+    Cs = SHEAR_FACTOR * E / (2 * (1 + nu)) * t * np.eye(2)
+    K = np.zeros((24, 24))
+    M = np.zeros((24, 24))
+    iu, iv, iw, irx, iry, irz = (np.arange(4) * 6 + k for k in range(6))
+
+    def covariant_shear(xi, eta):  # rows gamma_xi, gamma_eta (2, 24) at (xi, eta)
+        N, dN = _shape(xi, eta)
+        J = dN @ xy
+        B = np.zeros((2, 24))
+        for r in range(2):
+            B[r, iw] = dN[r]
+            B[r, iry] += N * J[r, 0]  # beta_x = ry
+            B[r, irx] -= N * J[r, 1]  # beta_y = -rx
+        return B
+
+    gA, gC = covariant_shear(0, 1)[0], covariant_shear(0, -1)[0]
+    gB, gD = covariant_shear(-1, 0)[1], covariant_shear(1, 0)[1]
+    area = 0.0
+    for xi, eta in _GAUSS:
+        N, dN = _shape(xi, eta)
+        J = dN @ xy
+        detJ = np.linalg.det(J)
+        if detJ <= 0:
+            raise ValueError(f"quad with corners {xy.tolist()} is inverted or not convex (det J = {detJ:.3g})")
+        dNx = np.linalg.solve(J, dN)  # (2, 4): d/dx, d/dy
+        area += detJ
+        Bm = np.zeros((3, 24))
+        Bm[0, iu] = dNx[0]
+        Bm[1, iv] = dNx[1]
+        Bm[2, iu] = dNx[1]
+        Bm[2, iv] = dNx[0]
+        Bb = np.zeros((3, 24))
+        Bb[0, iry] = dNx[0]
+        Bb[1, irx] = -dNx[1]
+        Bb[2, iry] = dNx[1]
+        Bb[2, irx] = -dNx[0]
+        g_nat = np.array([0.5 * (1 + eta) * gA + 0.5 * (1 - eta) * gC,
+                          0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB])
+        Bs = np.linalg.solve(J, g_nat)
+        K += (Bm.T @ Cm @ Bm + Bb.T @ Cb @ Bb + Bs.T @ Cs @ Bs) * detJ
+        NN = np.outer(N, N) * detJ
+        for idx, m in ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12)):
+            M[np.ix_(idx, idx)] += m * NN
+    kd = DRILL * np.min(np.diag(K)[np.concatenate([iu, iv])])
+    N, dN = _shape(0, 0)
+    dNx = np.linalg.solve(dN @ xy, dN)
+    omega = np.zeros(24)
+    omega[iv] = 0.5 * dNx[0]
+    omega[iu] = -0.5 * dNx[1]
+    for i in range(4):
+        b = -omega.copy()
+        b[irz[i]] += 1.0
+        K += kd * np.outer(b, b)
+    return K, M
+
+
+def assemble_shells(nodes, quads, thickness, material: ShellMaterial) -> ShellFE:
+    """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads on `nodes` (n, 3) [m];
+    `thickness` a number or one per quad [m] (PSHELL-like)."""
+    X = np.asarray(nodes, dtype=float)
+    Q = np.asarray(quads, dtype=int)
+    if X.ndim != 2 or X.shape[1] != 3:
+        raise ValueError(f"nodes: shape {X.shape}, expected (n, 3)")
+    if Q.ndim != 2 or Q.shape[1] != 4:
+        raise ValueError(f"quads: shape {Q.shape}, expected (e, 4)")
+    if Q.size and (Q.min() < 0 or Q.max() >= len(X)):
+        raise ValueError(f"quads: node index out of range 0..{len(X) - 1}")
+    t = np.broadcast_to(np.asarray(thickness, dtype=float), (len(Q),)).copy()
+    if np.any(t <= 0):
+        raise ValueError(f"thickness: element {int(np.argmin(t))} has t = {t.min():g} <= 0")
+    rows, cols, kv, mv = [], [], [], []
+    for e, q in enumerate(Q):
+        T, xy = element_frame(X[q])
+        Ke, Me = element_matrices(xy, t[e], material)
+        R = np.kron(np.eye(8), T)  # local = R global (translations and rotations of 4 nodes)
+        Ke, Me = R.T @ Ke @ R, R.T @ Me @ R
+        d = (6 * q[:, None] + np.arange(6)).ravel()
+        rows.append(np.repeat(d, 24))
+        cols.append(np.tile(d, 24))
+        kv.append(Ke.ravel())
+        mv.append(Me.ravel())
+    n = 6 * len(X)
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    K = sp.csr_matrix((np.concatenate(kv), (r, c)), shape=(n, n))
+    M = sp.csr_matrix((np.concatenate(mv), (r, c)), shape=(n, n))
+    return ShellFE(X, Q, t, material, K, M)
+
+
+def rigid_modes(coords: np.ndarray, centre=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(6n, 6) rigid motions: 3 translations, 3 rotations about `centre` (small-angle)."""
+    X = np.asarray(coords, dtype=float) - np.asarray(centre, dtype=float)
+    n = len(X)
+    R = np.zeros((6 * n, 6))
+    for k in range(3):
+        R[k::6, k] = 1.0
+        e = np.eye(3)[k]
+        R[np.arange(n)[:, None] * 6 + np.arange(3), 3 + k] = np.cross(e, X)
+        R[3 + k::6, 3 + k] = 1.0
+    return R
+
+
+def free_modes(fe: ShellFE, count: int, shift: float | None = None):
+    """The lowest `count` eigenpairs (omega^2, modes) of K x = omega^2 M x, by shift-invert Lanczos
+    about a small negative shift (M is singular on drilling dofs, module doc)."""
+    from scipy.sparse.linalg import eigsh
+
+    if shift is None:
+        shift = -1e-3 * abs(fe.K.diagonal()).max() / abs(fe.M.diagonal()).max() * 1e-6
+    w, V = eigsh(fe.K.tocsc(), k=count, M=fe.M.tocsc(), sigma=shift, which="LM")
+    order = np.argsort(w)
+    return w[order], V[:, order]
+
+
+def plate_mesh(a: float, b: float, nx: int, ny: int):
+    """Nodes (z = 0) and quads of an a x b rectangle [m] from the origin, nx x ny cells."""
+    x, y = np.meshgrid(np.linspace(0, a, nx + 1), np.linspace(0, b, ny + 1), indexing="xy")
+    nodes = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="xy")
+    n0 = (j * (nx + 1) + i).ravel()
+    quads = np.column_stack([n0, n0 + 1, n0 + nx + 2, n0 + nx + 1])
+    return nodes, quads

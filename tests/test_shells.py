@@ -1,0 +1,106 @@
+"""Flat MITC4 shells (ffrf_fmu/solid/shell.py, docs/shells.md): rigid modes, mass and inertia, the
+free-free square plate against Leissa's frequency parameters at a/h = 100, 1000, 2000 (no locking),
+Witteveen's 3.9 kg plate, and CalculiX S4 on the same mesh."""
+import shutil
+
+import numpy as np
+import pytest
+
+from ffrf_fmu.solid.shell import ShellMaterial, assemble_shells, free_modes, plate_mesh, rigid_modes
+from ffrf_fmu.solid.shell_calculix import calculix_frequencies, run_calculix
+
+STEEL = ShellMaterial(E=210e9, nu=0.3, rho=7800.0)
+# Free-free square plate, nu = 0.3, lambda = omega a^2 sqrt(rho h / D), the first five elastic modes
+# (Leissa 1969, NASA SP-160, after Barton; quoted in code_aster's benchmark SDLS01, VPCS sheet):
+LEISSA = np.array([13.49, 19.79, 24.43, 35.02, 35.02])
+# Tolerance: 16 x 16 MITC4 against these values differs by at most 0.6 % (docs/shells.md, measured
+# 13.49 19.69 24.45 35.01 35.01 at a/h = 1000); the reference's own (Ritz) digits are 0.1-1 %
+# (Gorman's superposition values for mode 2 are 19.60): 1.5 % covers both, a locking element is off
+# by factors.
+TOL = 0.015
+
+
+def _plate(n, h, a=1.0, mat=STEEL):
+    nodes, quads = plate_mesh(a, a, n, n)
+    return assemble_shells(nodes, quads, h, mat)
+
+
+def _lambda(fe, h, a=1.0, mat=STEEL, count=11):
+    D = mat.E * h**3 / (12 * (1 - mat.nu**2))
+    w2, _ = free_modes(fe, count, shift=-1e-2 * D / (mat.rho * h * a**4))
+    return np.sqrt(np.abs(w2)) * a**2 * np.sqrt(mat.rho * h / D)
+
+
+def test_rigid_modes_mass_and_inertia():
+    a, b, h = 1.2, 0.8, 0.01
+    nodes, quads = plate_mesh(a, b, 6, 4)
+    nodes = nodes @ np.array([[0.6, 0.8, 0], [-0.8, 0.6, 0], [0, 0, 1.0]])  # in-plane rotated: local frames differ
+    tilt = np.array([[1, 0, 0], [0, np.cos(0.4), -np.sin(0.4)], [0, np.sin(0.4), np.cos(0.4)]])
+    fe = assemble_shells(nodes @ tilt.T, quads, h, STEEL)
+    c = fe.coords.mean(axis=0)
+    R = rigid_modes(fe.coords, c)
+    assert np.abs(fe.K @ R).max() < 1e-10 * np.abs(fe.K).max()
+    mRR = R.T @ fe.M @ R
+    m = STEEL.rho * a * b * h
+    np.testing.assert_allclose(np.diag(mRR[:3, :3]), m, rtol=1e-12)
+    # plate inertia about its centre in its own axes (x along a, y along b, z normal), then rotated
+    I_local = m / 12 * np.diag([b**2 + h**2, a**2 + h**2, a**2 + b**2])
+    Q = tilt @ np.array([[0.6, 0.8, 0], [-0.8, 0.6, 0], [0, 0, 1.0]]).T
+    np.testing.assert_allclose(mRR[3:, 3:], Q @ I_local @ Q.T, atol=1e-12 * m)
+    np.testing.assert_allclose(mRR[:3, 3:], 0, atol=1e-12 * m)
+    w2 = np.linalg.eigvalsh(fe.K.toarray())
+    assert np.sum(np.abs(w2) < 1e-9 * w2.max()) == 6
+
+
+@pytest.mark.parametrize("a_over_h", [100, 1000, 2000])
+def test_free_square_plate_leissa_no_locking(a_over_h):
+    h = 1.0 / a_over_h
+    lam = _lambda(_plate(16, h), h)
+    assert np.all(lam[:6] < 1e-3 * lam[6])  # six rigid modes
+    np.testing.assert_allclose(lam[6:], LEISSA, rtol=TOL)
+
+
+def test_no_locking_thin_equals_moderate():
+    # the parameters must not rise with a/h: 2000 within 0.05 % of 1000 (locking would raise them)
+    lam1, lam2 = (_lambda(_plate(12, 1 / r), 1 / r)[6:] for r in (1000, 2000))
+    assert np.all(lam2 < lam1 * 1.0005)
+
+
+def test_witteveen_plate_3_9_kg():
+    # 1000 x 1000 x 0.5 mm steel: 3.9 kg; f_k = lambda_k / (2 pi a^2) sqrt(D / (rho h))
+    h = 0.5e-3
+    fe = _plate(16, h)
+    R = rigid_modes(fe.coords)
+    np.testing.assert_allclose((R.T @ fe.M @ R)[0, 0], 3.9, rtol=1e-12)
+    D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
+    f = np.sqrt(np.abs(free_modes(fe, 11, shift=-1.0)[0][6:])) / (2 * np.pi)
+    np.testing.assert_allclose(f, LEISSA / (2 * np.pi) * np.sqrt(D / (STEEL.rho * h)), rtol=TOL)
+    assert abs(f[0] - 1.69) < 0.02  # Hz
+
+
+@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not on PATH")
+def test_against_calculix_s4():
+    h, n = 0.01, 16
+    nodes, quads = plate_mesh(1.0, 1.0, n, n)
+    f_ccx = run_calculix(nodes, quads, h, STEEL, 16, timeout=120)[6:16]
+    fe = assemble_shells(nodes, quads, h, STEEL)
+    f = np.sqrt(np.abs(free_modes(fe, 16, shift=-1.0)[0][6:])) / (2 * np.pi)
+    # S4 is expanded to C3D8I bricks (3D elasticity through the thickness, no 5/6 shear factor):
+    # the same mesh, not the same element. Measured (docs/shells.md): modes 1-5 within 0.75 %, modes
+    # 6-10 within 1.9 %; the discretization error of ours on this mesh is itself 0.1-0.6 % (modes 1-5)
+    # and 1.0-1.8 % (modes 6-10) (16 x 16 against 32 x 32), so the bounds are 1.5 % and 3 %.
+    np.testing.assert_allclose(f[:5], f_ccx[:5], rtol=0.015)
+    np.testing.assert_allclose(f[5:], f_ccx[5:], rtol=0.03)
+
+
+def test_calculix_table_parse_and_errors():
+    dat = ("\n     E I G E N V A L U E   O U T P U T\n\n MODE NO    EIGENVALUE\n\n"
+           "      1   0.4497400E+05   0.2120707E+03   0.3375211E+02   0.0000000E+00\n"
+           "      2   0.9503604E+05   0.3082792E+03   0.4906415E+02   0.0000000E+00\n\n P A R T\n")
+    np.testing.assert_allclose(calculix_frequencies(dat), [33.75211, 49.06415])
+    with pytest.raises(ValueError, match="no eigenvalue output"):
+        calculix_frequencies("nothing here")
+    with pytest.raises(ValueError, match="thickness"):
+        assemble_shells(*plate_mesh(1, 1, 1, 1), 0.0, STEEL)
+    with pytest.raises(ValueError, match="out of range"):
+        assemble_shells(np.zeros((3, 3)), [[0, 1, 2, 3]], 0.01, STEEL)
