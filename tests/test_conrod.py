@@ -84,12 +84,12 @@ def test_first_free_free_frequency_against_the_full_mesh(reduced):
 
 
 def test_the_script_reproduces_the_committed_mesh(tmp_path):
-    import subprocess
-    import sys
-
     """The committed mesh is the script's: gmsh (the test extra) remeshes it to the same number of nodes and the
     same bounding box (to 1e-9 m; node positions are not compared, since a mesher's choices may move with the
     CPU's round-off)."""
+    import subprocess
+    import sys
+
     out = tmp_path / "conrod.msh"
     subprocess.run([sys.executable, str(DATA / "make_conrod.py"), str(out)], check=True, timeout=60)
     a, b = meshio.read(out), meshio.read(DATA / "conrod.msh")

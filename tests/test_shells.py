@@ -1,7 +1,6 @@
 """Flat MITC4 shells (ffrf_fmu/solid/shell.py, docs/shells.md): rigid modes, mass and inertia, the
 free-free square plate against Leissa's frequency parameters at a/h = 100, 1000, 2000 (no locking),
 Witteveen's 3.9 kg plate, and CalculiX S4 on the same mesh."""
-import shutil
 
 import numpy as np
 import pytest
@@ -78,7 +77,6 @@ def test_witteveen_plate_3_9_kg():
     assert abs(f[0] - 1.69) < 0.02  # Hz
 
 
-@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not on PATH")
 def test_against_calculix_s4():
     h, n = 0.01, 16
     nodes, quads = plate_mesh(1.0, 1.0, n, n)
