@@ -9,10 +9,11 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.shell import ShellMaterial, assemble_shells, free_modes, plate_mesh
+from ffrf_fmu.solid.mesh import Material
+from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh
 from ffrf_fmu.solid.shell_calculix import run_calculix
 
-STEEL = ShellMaterial(E=210e9, nu=0.3, rho=7800.0)
+STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
 LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]  # Leissa 1969 (after Barton), modes 1-5
 
 

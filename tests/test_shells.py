@@ -5,10 +5,11 @@ Witteveen's 3.9 kg plate, and CalculiX S4 on the same mesh."""
 import numpy as np
 import pytest
 
-from ffrf_fmu.solid.shell import ShellMaterial, assemble_shells, free_modes, plate_mesh, rigid_modes
+from ffrf_fmu.solid.mesh import Material
+from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh, rigid_modes
 from ffrf_fmu.solid.shell_calculix import calculix_frequencies, run_calculix
 
-STEEL = ShellMaterial(E=210e9, nu=0.3, rho=7800.0)
+STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
 # Free-free square plate, nu = 0.3, lambda = omega a^2 sqrt(rho h / D), the first five elastic modes
 # (Leissa 1969, NASA SP-160, after Barton; quoted in code_aster's benchmark SDLS01, VPCS sheet):
 LEISSA = np.array([13.49, 19.79, 24.43, 35.02, 35.02])

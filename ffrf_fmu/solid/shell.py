@@ -23,19 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
+
 DRILL = 1e-3  # drilling penalty / smallest membrane stiffness diagonal of the element
 SHEAR_FACTOR = 5.0 / 6.0
 _G = 1.0 / np.sqrt(3.0)
 _GAUSS = [(-_G, -_G), (_G, -_G), (_G, _G), (-_G, _G)]
 _XI = np.array([-1.0, 1.0, 1.0, -1.0])
 _ETA = np.array([-1.0, -1.0, 1.0, 1.0])
-
-
-@dataclass(frozen=True)
-class ShellMaterial:
-    E: float  # Young's modulus [Pa]
-    nu: float  # Poisson's ratio
-    rho: float  # density [kg/m^3]
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +41,7 @@ class ShellFE:
     coords: np.ndarray  # (n, 3) [m]
     quads: np.ndarray  # (e, 4) node indices, counter-clockwise about the element normal
     thickness: np.ndarray  # (e,) [m]
-    material: ShellMaterial
+    material: Material
     K: sp.csr_matrix  # (6n, 6n)
     M: sp.csr_matrix  # (6n, 6n)
 
@@ -83,7 +78,7 @@ def element_frame(X: np.ndarray):
     return T, (X - c) @ T[:2].T
 
 
-def element_matrices(xy: np.ndarray, t: float, mat: ShellMaterial):
+def element_matrices(xy: np.ndarray, t: float, mat: Material):
     """Local 24 x 24 K, M of a flat quad with in-plane corners xy (4, 2), local dofs per node
     (u v w rx ry rz)."""
     E, nu, rho = mat.E, mat.nu, mat.rho
@@ -145,7 +140,7 @@ def element_matrices(xy: np.ndarray, t: float, mat: ShellMaterial):
     return K, M
 
 
-def assemble_shells(nodes, quads, thickness, material: ShellMaterial) -> ShellFE:
+def assemble_shells(nodes, quads, thickness, material: Material) -> ShellFE:
     """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads on `nodes` (n, 3) [m];
     `thickness` a number or one per quad [m] (PSHELL-like)."""
     X = np.asarray(nodes, dtype=float)

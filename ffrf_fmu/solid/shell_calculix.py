@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .shell import ShellMaterial
+from .mesh import Material
 
 EIGEN_TABLE = "E I G E N V A L U E   O U T P U T"
 
 
-def calculix_deck(nodes, quads, thickness: float, mat: ShellMaterial, n_modes: int, element: str = "S4") -> str:
+def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4") -> str:
     """The text of a free-free *FREQUENCY deck of the quads (1-based node and element numbers)."""
     if element not in ("S4", "S4R"):
         raise ValueError(f"element {element!r}: expected S4 or S4R")
@@ -46,7 +46,7 @@ def calculix_frequencies(dat: str, where: str = "ccx .dat") -> np.ndarray:
     return np.array(f)
 
 
-def run_calculix(nodes, quads, thickness: float, mat: ShellMaterial, n_modes: int, element: str = "S4",
+def run_calculix(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4",
                  timeout: float = 600.0) -> np.ndarray:
     """Run `ccx` on the deck in a temporary directory; the frequencies [Hz], rigid modes included."""
     ccx = shutil.which("ccx")
