@@ -6,6 +6,7 @@ from pathlib import Path
 
 import meshio
 import numpy as np
+from scipy.integrate import trapezoid
 import pytest
 import scipy.sparse.linalg as spla
 
@@ -23,7 +24,7 @@ def geometric_volume() -> float:
     """Volume of the stated geometry: the two rings plus the shank strip between the eyes' outer circles."""
     z = np.linspace(-W / 2, W / 2, 20001)
     strip = (L_EYES - np.sqrt(R_SMALL**2 - z**2)) - np.sqrt(R_BIG**2 - z**2)
-    area = np.pi * (R_BIG**2 - r_BIG**2) + np.pi * (R_SMALL**2 - r_SMALL**2) + np.trapz(strip, z)
+    area = np.pi * (R_BIG**2 - r_BIG**2) + np.pi * (R_SMALL**2 - r_SMALL**2) + trapezoid(strip, z)
     return area * T
 
 

@@ -147,6 +147,14 @@ def _param(model, name, default):
     return default if p is None else p.values[0]
 
 
+def _round_section(beam_type, dim):
+    """A, I1, I2, I12, J of the closed round PBARL/PBEAML sections (MSC QRG: ROD DIM1 = R, TUBE DIM1 = R
+    outer, DIM2 = R inner), written out because pyNastran's values differ between its releases."""
+    r_out, r_in = dim[0], (dim[1] if beam_type == "TUBE" else 0.0)
+    inertia = np.pi * (r_out**4 - r_in**4) / 4
+    return np.pi * (r_out**2 - r_in**2), inertia, inertia, 0.0, 2 * inertia
+
+
 def _section(path, elem, prop, lumped, notes):
     """Section of a CBAR/CBEAM property; also returns the per-length lumped torsion inertia."""
     mat = prop.mid_ref
@@ -177,12 +185,13 @@ def _section(path, elem, prop, lumped, notes):
         if prop.k2:
             GA3 = prop.k2 * A * G
     elif prop.type in ("PBARL", "PBEAML"):
-        A, I1, I2, I12, J = prop.Area(), prop.I11(), prop.I22(), prop.I12(), prop.J()
         nsm = float(np.atleast_1d(prop.nsm)[0] or 0.0)
         if prop.type == "PBEAML" and np.asarray(prop.dim).shape[0] != 1:
             _refuse(path, "PBEAML", prop.pid, "tapered PBEAML (several stations) not supported")
-        if J is None and prop.beam_type == "ROD":  # pyNastran 1.4 gives no J for a PBEAML ROD
-            J = np.pi * float(np.ravel(prop.dim)[0]) ** 4 / 2
+        if prop.beam_type in ("ROD", "TUBE"):
+            A, I1, I2, I12, J = _round_section(prop.beam_type, np.ravel(prop.dim).astype(float))
+        else:  # pyNastran's section library (1.3 gives None for every PBEAML inertia, 1.4 for a ROD's J)
+            A, I1, I2, I12, J = prop.Area(), prop.I11(), prop.I22(), prop.I12(), prop.J()
         k = SHEAR_FACTOR_L.get(prop.beam_type)
         if k is not None:
             GA2 = GA3 = k * A * G
