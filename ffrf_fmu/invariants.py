@@ -333,11 +333,11 @@ def solid_invariants(red):
     Q, R = node_kernels(fe, Phi, Ur)
     G, W1, W2 = inertia_terms(Q, R)
     mass = float(red.data.mass)
-    disp = np.maximum(np.linalg.norm(Phi.reshape(fe.n_nodes, 3, n), axis=1).max(0), 1.0 / math.sqrt(mass))
+    disp = np.maximum(np.linalg.norm(fe.translations(Phi), axis=1).max(0), 1.0 / math.sqrt(mass))
     length = float(np.linalg.norm(fe.coords.max(0) - fe.coords.min(0)))
     return Invariants(
         Phi=Phi, omega=np.sqrt(np.maximum(w2, 0.0)), n_vibration=len(red.data.frequencies_hz), mass=mass,
         length=length, I0=red.data.J0, W1=W1, W2=W2, W3=G.transpose(2, 0, 1), C0=Ur.T @ (fe.M @ Phi),
         G=0.5 * (G - G.transpose(0, 2, 1)), P=Q.transpose(2, 3, 0, 1), amplitude=DEFLECTION * length / disp,
-        dofs_per_node=3,
+        dofs_per_node=fe.dofs_per_node,
     )

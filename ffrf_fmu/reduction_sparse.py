@@ -17,12 +17,12 @@ modes (ARPACK in shift-invert mode about sigma) and the static solves of G_e (ex
 modes, conjugate gradients preconditioned by the LU on the rest: free_static). Only tall
 n_dof x (6 n_f + modes) arrays are dense.
 
-Invariants from the sparse node-block mass M = M_s (x) I_3 (solid/__init__.py): with Y_n the basis as
-(n_nodes, 3, n), Q_ab = Y_n[:, a]^T M_s Y_n[:, b] (= Y^T T_ab Y),
+Invariants from the tensor kernels T_ab of the sparse mass (solid/__init__.py: the node-block mass
+M_s (x) I_3 of the translations plus the mass points of shell fibres and offset masses), Q_ab = Y^T T_ab Y,
     G_k = Y^T M_k Y = sum_ab e_k~[a, b] Q_ab            (geradin 53)
     W1_j = C_j + C_j^T,  C_j[:, k] = U_r^T M_k Y_j       (Witteveen; invariants.py)
     W2_jl = tr(P_jl) I - P_jl^T,  P_jl[a, b] = Q_ab[j, l]
-    J0 = U_r^T M U_r (eq. 13), mass = 1^T M_s 1, x_cm = M_s-weighted mean of the nodes.
+    J0 = U_r^T M U_r (eq. 13), mass and x_cm from M and the rigid fields (mass_properties).
 The result is a runtime SuperelementData of the same form as a beam superelement's: one superelement
 whose boundary nodes are the frames.
 """
@@ -39,7 +39,7 @@ import scipy.sparse.linalg as spla
 
 from .runtime.data import SuperelementData
 from .runtime.rotation import skew
-from .solid import SolidFE
+from .solid import SolidFE, tensor_products
 from .solid.frames import averaging_weights, check_set
 from .solid.ordering import factor
 
@@ -53,7 +53,7 @@ MAX_MODES = 200  # a frequency cutoff keeps at most this many modes
 class Constraints:
     """u = T z (RBE2 frames eliminated), q_B = L z, rigid modes U_z about the CM in z."""
 
-    T: sp.csr_matrix  # (3n, n_z)
+    T: sp.csr_matrix  # (n_dof, n_z)
     L: sp.csr_matrix  # (6 n_f, n_z)
     U: np.ndarray  # (n_z, 6)
     dof_node: np.ndarray  # (n_z,) the FE node of each z dof, -1 for a rigid frame's own 6 (the LU's ordering)
@@ -64,8 +64,8 @@ class SolidReduction:
     """A reduced solid: the runtime data and what reports and result recovery need."""
 
     data: SuperelementData
-    Y: np.ndarray  # (3 n_nodes, n) basis of eq. (76) on the solid's FE dofs
-    U: np.ndarray  # (3 n_nodes, 6) rigid modes about the CM
+    Y: np.ndarray  # (n_dof, n) basis of eq. (76) on the solid's FE dofs
+    U: np.ndarray  # (n_dof, 6) rigid modes about the CM
     orthogonality_error: float  # max|U^T M Y| / max|M|
     block_diagonality_error: float  # max|K_bar boundary-modal block| / max|K_bar|
     n_fe_dofs: int
@@ -77,10 +77,21 @@ class SolidReduction:
 
 
 def mass_properties(fe: SolidFE) -> tuple[float, np.ndarray]:
-    """Mass and CM from the node mass: m = 1^T M_s 1, m x_cm = 1^T M_s X."""
-    w = np.asarray(fe.M_scalar.sum(axis=0)).ravel()
-    mass = float(w.sum())
-    return mass, (w @ fe.coords) / mass
+    """Mass and CM from the mass matrix and the rigid fields about the origin: with t_j the unit
+    translations and r_k the rotations about e_k, m = tr(t^T M t) / 3 and t_j^T M r_k = -(m x_cm)~[j, k]
+    (exact for any mass that moves rigidly with the nodes: node-block, shell fibres, offset masses)."""
+    Ut = np.zeros((fe.n_nodes, fe.dofs_per_node, 3))
+    Ut[:, :3] = np.eye(3)
+    Ur0 = np.zeros((fe.n_nodes, fe.dofs_per_node, 3))
+    Ur0[:, :3] = -skew(fe.coords)
+    if fe.dofs_per_node == 6:
+        Ur0[:, 3:] = np.eye(3)
+    Ut, Ur0 = Ut.reshape(fe.n_dof, 3), Ur0.reshape(fe.n_dof, 3)
+    MUt = np.asarray(fe.M @ Ut)
+    mass = float(np.trace(Ut.T @ MUt)) / 3
+    S = MUt.T @ Ur0  # = -(m x_cm)~
+    c = 0.5 * np.array([S[1, 2] - S[2, 1], S[2, 0] - S[0, 2], S[0, 1] - S[1, 0]])
+    return mass, c / mass
 
 
 def rigid_rows(X: np.ndarray) -> np.ndarray:
@@ -91,10 +102,21 @@ def rigid_rows(X: np.ndarray) -> np.ndarray:
     return out
 
 
+def active_rotations(fe: SolidFE) -> np.ndarray:
+    """(n_nodes, 3) bool: the rotation dofs some element stiffens (all False on 3-dof nodes). A 6-dof
+    node of bricks only has none: its rotations carry neither stiffness nor mass and are left out."""
+    if fe.dofs_per_node == 3:
+        return np.zeros((fe.n_nodes, 3), dtype=bool)
+    d = np.abs(fe.K.diagonal()).reshape(fe.n_nodes, 6)
+    return d[:, 3:] > 0.0
+
+
 def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
-    """T, L and U_z (module doc). Rigid sets are eliminated; averaging sets act on the remaining dofs.
-    A node in two rigid sets, or in a rigid and an averaging set, is an error naming both ports."""
-    n = fe.n_nodes
+    """T, L and U_z (module doc). Rigid sets are eliminated (their nodes' translations follow the frame
+    rigidly, their rotations are the frame's); averaging sets act on the translations of the remaining
+    dofs. Rotation dofs no element stiffens are not in z. A node in two rigid sets, or in a rigid and an
+    averaging set, is an error naming both ports."""
+    n, d = fe.n_nodes, fe.dofs_per_node
     owner = -np.ones(n, dtype=int)
     for f, fr in enumerate(frames):
         check_set(fr, fe.coords)
@@ -104,22 +126,27 @@ def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
                 raise ValueError(f"ports {frames[owner[clash[0]]].name!r} and {fr.name!r}: node {clash[0]} is in two "
                                  "rigid sets")
             owner[fr.nodes] = f
-    free = np.flatnonzero(owner < 0)
-    zfree = -np.ones(n, dtype=int)
-    zfree[free] = 3 * np.arange(free.size)
+    rot = active_rotations(fe)
+    keep = np.concatenate([np.ones((n, 3), dtype=bool), rot], axis=1)[:, :d]  # (n, d) dofs in z when free
+    keep[owner >= 0] = False
+    free_dofs = np.flatnonzero(keep.reshape(-1))  # global dofs of the free nodes, node-major
+    n_free = free_dofs.size
+    zof = -np.ones(d * n, dtype=int)
+    zof[free_dofs] = np.arange(n_free)
     rigid = [f for f, fr in enumerate(frames) if fr.coupling == "rigid"]
-    zframe = {f: 3 * free.size + 6 * i for i, f in enumerate(rigid)}
-    n_z = 3 * free.size + 6 * len(rigid)
-    rows, cols, vals = [np.repeat(3 * free, 3) + np.tile(np.arange(3), free.size)], \
-        [np.repeat(zfree[free], 3) + np.tile(np.arange(3), free.size)], [np.ones(3 * free.size)]
+    zframe = {f: n_free + 6 * i for i, f in enumerate(rigid)}
+    n_z = n_free + 6 * len(rigid)
+    rows, cols, vals = [free_dofs], [np.arange(n_free)], [np.ones(n_free)]
     for f in rigid:
         nodes = frames[f].nodes
         B = np.concatenate([np.broadcast_to(np.eye(3), (len(nodes), 3, 3)),
                             -skew(fe.coords[nodes] - frames[f].point)], axis=2)  # (k, 3, 6)
-        rows.append(np.repeat(3 * nodes[:, None] + np.arange(3), 6).ravel())
+        rows.append(np.repeat(d * nodes[:, None] + np.arange(3), 6).ravel())
         cols.append(np.tile(zframe[f] + np.arange(6), 3 * len(nodes)))
         vals.append(B.ravel())
-    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * n, n_z))
+        rn, rc = np.nonzero(rot[nodes])  # the set's stiffened rotations are the frame's
+        rows.append(d * nodes[rn] + 3 + rc), cols.append(zframe[f] + 3 + rc), vals.append(np.ones(rn.size))
+    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(d * n, n_z))
     Lr, Lc, Lv = [], [], []
     for f, fr in enumerate(frames):
         if fr.coupling == "rigid":
@@ -130,16 +157,19 @@ def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
                 raise ValueError(f"port {fr.name!r} (averaging) shares node {clash[0]} with the rigid set of port "
                                  f"{frames[owner[clash[0]]].name!r}")
             W = averaging_weights(fe.coords, fr)  # (6, 3k)
-            zc = (zfree[fr.nodes][:, None] + np.arange(3)).ravel()
+            zc = zof[(d * fr.nodes[:, None] + np.arange(3)).ravel()]
             Lr.append(np.repeat(6 * f + np.arange(6), zc.size)), Lc.append(np.tile(zc, 6)), Lv.append(W.ravel())
     L = sp.csr_matrix((np.concatenate(Lv), (np.concatenate(Lr), np.concatenate(Lc))), shape=(6 * len(frames), n_z))
     Uz = np.zeros((n_z, 6))
-    Uz[: 3 * free.size] = rigid_rows(fe.coords[free] - x_cm).reshape(-1, 6)
+    node_of, comp_of = np.divmod(free_dofs, d)
+    tr = comp_of < 3
+    Uz[np.flatnonzero(tr)] = rigid_rows(fe.coords[node_of[tr]] - x_cm)[np.arange(tr.sum()), comp_of[tr]]
+    Uz[np.flatnonzero(~tr), comp_of[~tr]] = 1.0  # a node's rotation dof c in the rigid rotation c
     for f in rigid:
         Uz[zframe[f] : zframe[f] + 3] = rigid_rows((frames[f].point - x_cm)[None])[0]
         Uz[zframe[f] + 3 : zframe[f] + 6, 3:] = np.eye(3)
     dof_node = np.full(n_z, -1)
-    dof_node[: 3 * free.size] = np.repeat(free, 3)
+    dof_node[:n_free] = node_of
     return Constraints(T, L, Uz, dof_node)
 
 
@@ -155,17 +185,30 @@ def ritz_estimate(fe: SolidFE) -> float:
     modes are in the space, give 0 and are passed over, so the 7th Ritz value bounds the first elastic
     eigenvalue; without the constants only the 3 rotations were, and the 7th bounded the 4th elastic one:
     281 Hz against 77.2 Hz on the benchmark bar of docs/solids.md, now 92.3 Hz). Within a few 10 % on a
-    bar (a factor on a complex part, which only moves the shift)."""
+    bar (a factor on a complex part, which only moves the shift). On 6-dof nodes the rotations get the
+    fields of degree <= 2 besides (30 more: the rotations of a bending field of degree <= 3, so a
+    shear-deformable plate bends without shear in the space), and the directions the mass does not see
+    (a drilling rotation) are left out of the Ritz space."""
     X = fe.coords - fe.coords.mean(0)
     X = X / np.abs(X).max(0).clip(min=1e-300)
-    powers = [(a, b, c) for a in range(4) for b in range(4) for c in range(4) if a + b + c <= 3]
-    mono = np.stack([X[:, 0] ** a * X[:, 1] ** b * X[:, 2] ** c for a, b, c in powers], axis=1)  # (n, 20)
-    V = np.zeros((fe.n_nodes, 3, 3 * mono.shape[1]))
-    for comp in range(3):
-        V[:, comp, comp * mono.shape[1] : (comp + 1) * mono.shape[1]] = mono
+
+    def monomials(degree):
+        powers = [(a, b, c) for a in range(4) for b in range(4) for c in range(4) if a + b + c <= degree]
+        return np.stack([X[:, 0] ** a * X[:, 1] ** b * X[:, 2] ** c for a, b, c in powers], axis=1)
+
+    parts = [(range(3), monomials(3))] + ([(range(3, 6), monomials(2))] if fe.dofs_per_node == 6 else [])
+    V = np.zeros((fe.n_nodes, fe.dofs_per_node, sum(3 * m.shape[1] for _, m in parts)))
+    col = 0
+    for comps, mono in parts:
+        for comp in comps:
+            V[:, comp, col : col + mono.shape[1]] = mono
+            col += mono.shape[1]
     V, _ = np.linalg.qr(V.reshape(fe.n_dof, -1))
-    w2 = sla.eigh(V.T @ (fe.K @ V), V.T @ (fe.M @ V), eigvals_only=True)
-    return float(w2[6])
+    Mr = V.T @ (fe.M @ V)
+    m, E = np.linalg.eigh(0.5 * (Mr + Mr.T))
+    E = E[:, m > 1e-10 * m.max()] / np.sqrt(m[m > 1e-10 * m.max()])  # M-orthonormal on what M sees
+    Kr = E.T @ (V.T @ (fe.K @ (V @ E)))
+    return float(np.linalg.eigvalsh(0.5 * (Kr + Kr.T))[6])
 
 
 def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None, sigma: float, w2_scale: float):
@@ -266,14 +309,9 @@ def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
 
 
 def node_kernels(fe: SolidFE, Yf: np.ndarray, Ur: np.ndarray):
-    """Q (3, 3, n, n) with Q_ab = Y_n[:, a]^T M_s Y_n[:, b], R (3, 3, 3, n) with R_ab = U_r,n[:, a]^T M_s Y_n[:, b]."""
-    n = Yf.shape[1]
-    Yn = Yf.reshape(fe.n_nodes, 3, n)
-    Un = Ur.reshape(fe.n_nodes, 3, 3)
-    MsY = np.stack([fe.M_scalar @ Yn[:, b, :] for b in range(3)])  # (3, n_nodes, n)
-    Q = np.einsum("iaj,bil->abjl", Yn, MsY, optimize=True)
-    R = np.einsum("iar,bil->abrl", Un, MsY, optimize=True)
-    return Q, R
+    """Q (3, 3, n, n) with Q_ab = Y^T T_ab Y, R (3, 3, 3, n) with R_ab = U_r^T T_ab Y (solid/__init__.py:
+    the node-block mass and the mass points)."""
+    return tensor_products(fe, Yf, Yf), tensor_products(fe, Ur, Yf)
 
 
 def inertia_terms(Q, R):
@@ -294,8 +332,8 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     the membrane tensors of solid/stiffening.py; needs fe.strain, a mesh assembled here).
     Frames become the boundary nodes 0..n_f-1 in the given order."""
     if stiffening and fe.strain is None:
-        raise ValueError("geometric stiffening needs the element stresses of a mesh and its material; "
-                         f"{fe.source or 'this solid'} is given by its matrices only: set stiffening = false")
+        raise ValueError("geometric stiffening needs the element stresses of a solid mesh and its material; "
+                         f"{fe.source or 'this body'} has none (an export, shells or beams): set stiffening = false")
     if len(frames) < 2:
         raise ValueError(f"a solid needs at least 2 ports (interface frames), got {len(frames)}: with one, its "
                          "attachment modes vanish (the body moves rigidly with that frame)")

@@ -85,7 +85,7 @@ def test_newton_jacobian_of_a_stiffened_solid_matches_finite_differences(scale, 
 def test_a_solid_from_matrices_alone_refuses_stiffening():
     """A partner's export has no mesh stresses: `stiffening = true` is refused, saying why."""
     m = load_model(MODELS / "rotor_abaqus.toml", ["stiffening=true"])
-    with pytest.raises(ModelError, match="matrices only: set stiffening = false"):
+    with pytest.raises(ModelError, match=r"has none \(an export, shells or beams\): set stiffening = false"):
         reduce_scene_body(m.body, m.scenes[0])
 
 

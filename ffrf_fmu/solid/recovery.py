@@ -62,7 +62,7 @@ def run_recorded(model, scene_name=None, every: int = 10, backend: str = "numpy"
 
 def deformed_positions(red, x0, R0, q) -> np.ndarray:
     """Node positions (n, 3), world axes, of the reduced solid at one state (module doc)."""
-    u = (red.Y @ q).reshape(-1, 3)
+    u = red.fe.translations(red.Y @ q[:, None])[:, :, 0]
     return x0 + (red.fe.coords - red.data.x_cm + u) @ R0.T
 
 

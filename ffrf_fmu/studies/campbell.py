@@ -87,9 +87,9 @@ def full_frequencies(fe, frames, fixed_parts, rates, axis, n: int, stress: bool 
             fixed.update(c.L[6 * f + k].indices.tolist())
     free = np.setdiff1d(np.arange(T.shape[1]), np.fromiter(fixed, dtype=int))
     Tf = T[:, free]
-    S = sp.kron(fe.M_scalar, sp.csr_matrix(np.eye(3) - np.outer(a, a)), format="csr")
-    Gc = sp.kron(fe.M_scalar, sp.csr_matrix(skew(a)), format="csr")
-    X = fe.coords.reshape(-1)
+    S = fe.kernel(np.eye(3) - np.outer(a, a))  # spin softening, solid/__init__.py
+    Gc = fe.kernel(skew(a))
+    X = fe.field(fe.coords)
     sub = lambda A: (Tf.T @ (A @ Tf)).tocsc()  # noqa: E731
     M, K, Sz, Gz = sub(fe.M), sub(fe.K), sub(S), sub(Gc)
     m = len(free)
