@@ -118,15 +118,15 @@ def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
     averaging set, is an error naming both ports."""
     n, d = fe.n_nodes, fe.dofs_per_node
     owner = -np.ones(n, dtype=int)
+    rot = active_rotations(fe)
     for f, fr in enumerate(frames):
-        check_set(fr, fe.coords)
+        check_set(fr, fe.coords, rotations=bool(rot[fr.nodes].all()))
         if fr.coupling == "rigid":
             clash = fr.nodes[owner[fr.nodes] >= 0]
             if clash.size:
                 raise ValueError(f"ports {frames[owner[clash[0]]].name!r} and {fr.name!r}: node {clash[0]} is in two "
                                  "rigid sets")
             owner[fr.nodes] = f
-    rot = active_rotations(fe)
     keep = np.concatenate([np.ones((n, 3), dtype=bool), rot], axis=1)[:, :d]  # (n, d) dofs in z when free
     keep[owner >= 0] = False
     free_dofs = np.flatnonzero(keep.reshape(-1))  # global dofs of the free nodes, node-major
@@ -248,6 +248,7 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
 
 
 STATIC_TOL = 1e-10  # relative residual of the static solves (round-off stalls them near 1e-12)
+ROUND_OFF = 1e3 * np.finfo(float).eps  # |K y - b| below this x | |K| |y| |: as exact as K y can be computed
 STATIC_MAXITER = 300
 
 
@@ -280,13 +281,19 @@ def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
     y = np.zeros_like(b)
     r = r0.copy()
     scale = np.linalg.norm(r0, axis=0).max()
+    absK = abs(K)
+
+    def converged(r):  # to STATIC_TOL, or to the round-off of K y (dofs of mixed units: mm and rad)
+        floor = ROUND_OFF * np.linalg.norm(absK @ np.abs(y), axis=0)
+        return bool(np.all(np.linalg.norm(r, axis=0) <= np.maximum(STATIC_TOL * scale, floor)))
+
     z = precondition(r)
     p = z
     rz = np.einsum("ij,ij->j", r, z)
     for it in range(STATIC_MAXITER):
-        if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+        if converged(r):
             r = r0 - K @ y  # the recursive residual drifts: confirm with the true one
-            if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+            if converged(r):
                 break
             z = precondition(r)
             p, rz = z, np.einsum("ij,ij->j", r, z)

@@ -20,6 +20,33 @@ def _generated_mesh(spec):
     return cylinder_points(p["radius"], p["length"], p["radial"], p["axial"], p["origin"])
 
 
+def _shell_fe(spec, files, material) -> SolidFE:
+    """A shell mesh (a generated plate, or the quads of a mesh file) assembled with MITC4 (shell.py) as a
+    6-dof SolidFE (shell_body.py)."""
+    from .shell import assemble_shells, plate_mesh
+    from .shell_body import shell_body
+
+    if "mesh" in files:
+        from .mesh import read_mesh
+
+        mesh, sets = read_mesh(files["mesh"])
+        quads = [c.data for c in mesh.cells if c.type == "quad"]
+        other = sorted({c.type for c in mesh.cells} - {"quad", "line", "vertex"})
+        if other or not quads:
+            raise ValueError(f"{files['mesh']}: element {spec.element} needs quad cells, the mesh has "
+                             f"{other or 'no quads'}")
+        nodes, quads, source = np.asarray(mesh.points, dtype=float), np.concatenate(quads), files["mesh"]
+        if nodes.shape[1] == 2:
+            nodes = np.column_stack([nodes, np.zeros(len(nodes))])
+    else:
+        p = dict(spec.generated[1])
+        nodes, quads = plate_mesh(*p["size"], *p["divisions"])
+        nodes = nodes + np.asarray(p["origin"], dtype=float)
+        sets, source = {}, "generated plate"
+    shell = assemble_shells(nodes, quads, spec.thickness, material)
+    return shell_body(shell, sets, f"{source} ({spec.element}, t = {spec.thickness:g} m)")
+
+
 @functools.lru_cache(maxsize=8)
 def solid_fe(spec) -> SolidFE:
     """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
@@ -34,6 +61,8 @@ def solid_fe(spec) -> SolidFE:
         return read_ansys(files["stiffness"], files["mass"], files["mapping"], files["nodes"], files.get("elements"))
     from .mesh import Material, assemble, read_mesh
 
+    if spec.thickness is not None:
+        return _shell_fe(spec, files, Material(*spec.material))
     if "mesh" in files:
         mesh, sets = read_mesh(files["mesh"])
         source = files["mesh"]
@@ -46,7 +75,7 @@ def solid_size(spec) -> float:
     """The diagonal of the bounding box of the solid's nodes [m] (the body's length scale)."""
     if spec.generated:
         p = dict(spec.generated[1])
-        if spec.generated[0] == "box":
+        if spec.generated[0] in ("box", "plate"):
             return float(np.linalg.norm(p["size"]))
         return float(np.hypot(2 * p["radius"], p["length"]))
     X = solid_fe(spec).coords
