@@ -10,7 +10,8 @@ import pytest
 from ffrf_fmu.checked_toml import ModelError
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import reduce_body
-from ffrf_fmu.reduction_sparse import mass_properties, reduce_solid
+from ffrf_fmu.reduction_sparse import reduce_solid
+from ffrf_fmu.solid.constraints import mass_properties
 from ffrf_fmu.runtime.rotation import skew
 from ffrf_fmu.solid.frames import Frame
 from ffrf_fmu.solid.mesh import Material
