@@ -23,7 +23,8 @@ def _generated_mesh(spec):
 def _shell_fe(spec, files, material) -> SolidFE:
     """A shell mesh (a generated plate, or the quads of a mesh file) assembled with MITC4 (shell.py) as a
     6-dof SolidFE (shell_body.py)."""
-    from .shell import assemble_shells, plate_mesh
+    from .shell import plate_mesh
+    from .shell_batch import assemble_mitc4
     from .shell_body import shell_body
 
     if "mesh" in files:
@@ -43,7 +44,7 @@ def _shell_fe(spec, files, material) -> SolidFE:
         nodes, quads = plate_mesh(*p["size"], *p["divisions"])
         nodes = nodes + np.asarray(p["origin"], dtype=float)
         sets, source = {}, "generated plate"
-    shell = assemble_shells(nodes, quads, spec.thickness, material)
+    shell = assemble_mitc4(nodes, quads, spec.thickness, material)
     return shell_body(shell, sets, f"{source} ({spec.element}, t = {spec.thickness:g} m)")
 
 
