@@ -103,7 +103,7 @@ class SolidSpec:
     cutoff_hz: float | None = None  # keep every free-free mode up to this frequency (besides or instead of modes)
     frames: tuple[SolidFrame, ...] = ()
     units: str = ""  # the units assumed for an export (stated in the model file)
-    thickness: float | None = None  # shell thickness [m] (shell elements only)
+    thickness: float | str | None = None  # shell thickness [m], or the mesh file's cell data field of it (shells only)
 
 
 @dataclass(frozen=True)
@@ -525,7 +525,8 @@ MESH_KEYS = {
     "plate": "a table {size = [lx, ly] m, divisions = [nx, ny], origin = [x, y, z] m} (shells in the XY plane)",
     "element": "one of hex8, hex20, hex27, tet4, tet10 (hex8 and tet4 lock in bending: docs/solids.md) or the "
                "shell mitc4 (docs/shells.md)",
-    "thickness": "a positive shell thickness [m] (shell elements only)",
+    "thickness": "a positive shell thickness [m], or {cell_data = NAME}: the mesh file's cell data field of the "
+                 "thickness of each quad [m] (shell elements only)",
 }
 SOLID_ELEMENTS = ("hex8", "hex20", "hex27", "tet4", "tet10")
 SHELL_ELEMENTS = ("mitc4",)
@@ -620,7 +621,15 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
             r.fail(join(mp, given[0]), f"element {element!r} is a shell: generate a plate, or give a file of quads")
         if not shell and given[0] == "plate":
             r.fail(join(mp, "plate"), f"a plate is meshed with shells (element one of {SHELL_ELEMENTS}), not {element!r}")
-        thickness = r.real(mt, mp, "thickness", MESH_KEYS["thickness"], ok=positive) if shell else None
+        thickness = None
+        if shell and isinstance(mt["thickness"], dict):
+            tt = r.table(mt["thickness"], join(mp, "thickness"), {"cell_data": "the name of a cell data field"},
+                         required=("cell_data",))
+            if "file" not in mt:
+                r.fail(join(mp, "thickness"), "a thickness from cell data needs a mesh file")
+            thickness = r.string(tt, join(mp, "thickness"), "cell_data", "the name of a cell data field")
+        elif shell:
+            thickness = r.real(mt, mp, "thickness", MESH_KEYS["thickness"], ok=positive)
         if "file" in mt:
             f = base / r.string(mt, mp, "file", MESH_KEYS["file"])
             if not f.is_file():

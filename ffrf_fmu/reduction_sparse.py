@@ -42,7 +42,17 @@ from .solid import SolidFE, tensor_products
 from .solid.constraints import Constraints, constraints, mass_properties
 from .solid.ordering import factor
 
-RIGID_GAP = 1e-4  # an elastic eigenvalue below this x the Ritz estimate of w_1^2 is a mechanism
+MECHANISM = 1e-12  # an elastic eigenvalue below this x the element scale (median K_ii / M_ii) is a mechanism
+
+
+def element_scale(K: sp.spmatrix, M: sp.spmatrix) -> float:
+    """The median of K_ii / M_ii over the dofs with mass [rad^2/s^2]: the square of a frequency of one
+    element's dof. A mode of zero strain energy (a mechanism, a part not connected) has an eigenvalue at
+    the round-off of K, about 1e-16 of it; the softest true mode of a structure is many orders above
+    (the roof sway of a body on slender pillars, where the Ritz estimate of w_1^2 is 1e4 times too high)."""
+    k, m = K.diagonal(), M.diagonal()
+    has = m > 0
+    return float(np.median(k[has] / m[has]))
 SHIFT_FRACTION = 0.1  # sigma = -SHIFT_FRACTION x (estimate of w_1^2): rigid and elastic eigenvalues well apart
 DEFLATE = 6  # at least this many modes are computed: the static solves converge on the rest
 MAX_MODES = 200  # a frequency cutoff keeps at most this many modes
@@ -108,8 +118,8 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
     of K - sigma M followed by the projection that removes the rigid modes (M-orthogonal to U): the
     rigid modes map to 0 in the shifted spectrum, so ARPACK never has to resolve their six-fold
     eigenvalue (with a plain shift it missed one of the six on a box). Mass-normalized, U^T M Xi = 0.
-    n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES). A mode below RIGID_GAP x
-    w2_scale (the Ritz estimate of w_1^2) is a mechanism: an error. Returns (Xi (n_z, k), w^2 (k,))."""
+    n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES). A mode below MECHANISM x
+    w2_scale (element_scale) is a mechanism: an error. Returns (Xi (n_z, k), w^2 (k,))."""
     n = K.shape[0]
     MU = np.asarray(M @ U)
 
@@ -128,9 +138,9 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
         if n_modes is not None or w2[-1] > (2 * math.pi * cutoff_hz) ** 2 or k >= min(n - 7, MAX_MODES):
             break
         want *= 2
-    if w2[0] < RIGID_GAP * w2_scale:
-        raise ValueError(f"the body has more than 6 rigid modes: free-free eigenvalue {w2[0]:.3g} against "
-                         f"{w2_scale:.3g} expected near the first (a mechanism, or a part not connected)")
+    if w2[0] < MECHANISM * w2_scale:
+        raise ValueError(f"the body has more than 6 rigid modes: free-free eigenvalue {w2[0]:.3g} rad^2/s^2, "
+                         f"{w2[0] / w2_scale:.1e} of its elements' K_ii / M_ii (a mechanism, or a part not connected)")
     if cutoff_hz is not None and n_modes is None:
         keep = w2 <= (2 * math.pi * cutoff_hz) ** 2
         w2, X = w2[keep], X[:, keep]
@@ -252,7 +262,7 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     AU = c.U.T @ (M @ c.U)
     n_keep = n_modes
     Xi_all, w2_all = free_free_modes(K, M, c.U, AU, lu, None if n_modes is None else max(n_modes, DEFLATE),
-                                     cutoff_hz, sigma, w2_est)
+                                     cutoff_hz, sigma, element_scale(K, M))
     Xi, w2 = (Xi_all[:, :n_keep], w2_all[:n_keep]) if n_keep is not None else (Xi_all, w2_all)
     t["modes"] = time.process_time()
     F = free_static(K, M, c.U, lu, Xi_all, w2_all, c.L.T.toarray())  # free attachment modes F = G_e L^T

@@ -252,3 +252,43 @@ def test_batched_assembly_equals_the_element_loop():
     with pytest.raises(ValueError, match="quad 1"):  # a bow-tie: named, not assembled
         bad = ref.coords[ref.quads[:2]].reshape(-1, 3)
         batch.assemble_mitc4(bad, [[0, 1, 2, 3], [4, 5, 7, 6]], 0.01, STEEL)
+
+
+def test_two_loose_plates_are_a_mechanism_and_a_soft_one_is_not():
+    """Two plates that share no node have 12 zero modes: refused, saying so. One plate on frames at two
+    corners, 0.5 mm thick (its first mode 1.68 Hz, 1e-12 of nothing: the mechanism bound is relative to
+    the elements' K_ii / M_ii, not to a Ritz estimate of w_1^2 that a soft structure undercuts) is reduced."""
+    n1, q1 = plate_mesh(0.2, 0.2, 2, 2)
+    n2 = n1 + [0.5, 0.0, 0.0]
+    shell = assemble_shells(np.vstack([n1, n2]), np.vstack([q1, q1 + len(n1)]), 0.002, STEEL)
+    fe = shell_body(shell)
+    frames = [Frame("a", np.arange(9), "rigid", np.zeros(3)), Frame("b", 9 + np.arange(9), "rigid", n2[0])]
+    with pytest.raises(ValueError, match="more than 6 rigid modes"):
+        reduce_solid(fe, frames, n_modes=2)
+
+
+def test_thickness_from_cell_data(tmp_path):
+    """A mesh file's cell data gives each quad its thickness ([body.mesh] thickness = {cell_data = NAME}):
+    a plate of two halves, 1 and 3 mm, weighs rho (1 + 3) mm x half its area; a missing field or a
+    non-positive thickness is an error naming the file and the field."""
+    import meshio
+
+    nodes, quads = plate_mesh(1.0, 1.0, 20, 20)  # the model's corner frames need the corner's neighbours
+    t = np.where(nodes[quads].mean(1)[:, 0] < 0.5, 0.001, 0.003)
+    text = (MODELS / "witteveen_plate.toml").read_text()
+    head, rest = text.split("[body.mesh]\n", 1)
+    rest = rest.split("\n\n", 1)[1]
+    for name, field, why in (("good", t, None), ("missing", None, "no cell data 'thickness'"),
+                             ("negative", -t, "quad 0 has thickness")):
+        mesh = tmp_path / f"{name}.vtu"
+        data = {"thickness": [field]} if field is not None else {"other": [t]}
+        meshio.write(mesh, meshio.Mesh(nodes, [("quad", quads)], cell_data=data))
+        f = tmp_path / f"{name}.toml"
+        f.write_text(f'{head}[body.mesh]\nfile = "{mesh.name}"\nelement = "mitc4"\n'
+                     f'thickness = {{ cell_data = "thickness" }}\n\n{rest}')
+        if why is None:
+            (red,) = reduce_body(load_model(f).body).reductions
+            assert red.data.mass == pytest.approx(STEEL.rho * 0.5 * (0.001 + 0.003), rel=1e-12)
+        else:
+            with pytest.raises((ModelError, ValueError), match=why):
+                reduce_body(load_model(f).body)

@@ -27,16 +27,27 @@ def _shell_fe(spec, files, material) -> SolidFE:
     from .shell_batch import assemble_mitc4
     from .shell_body import shell_body
 
+    thickness = spec.thickness
     if "mesh" in files:
         from .mesh import read_mesh
 
         mesh, sets = read_mesh(files["mesh"])
-        quads = [c.data for c in mesh.cells if c.type == "quad"]
+        blocks = [k for k, c in enumerate(mesh.cells) if c.type == "quad"]
         other = sorted({c.type for c in mesh.cells} - {"quad", "line", "vertex"})
-        if other or not quads:
+        if other or not blocks:
             raise ValueError(f"{files['mesh']}: element {spec.element} needs quad cells, the mesh has "
                              f"{other or 'no quads'}")
-        nodes, quads, source = np.asarray(mesh.points, dtype=float), np.concatenate(quads), files["mesh"]
+        nodes, source = np.asarray(mesh.points, dtype=float), files["mesh"]
+        quads = np.concatenate([mesh.cells[k].data for k in blocks])
+        if isinstance(thickness, str):
+            if thickness not in mesh.cell_data:
+                raise ValueError(f"{source}: no cell data {thickness!r} for the thickness (cell data: "
+                                 f"{sorted(mesh.cell_data) or 'none'})")
+            thickness = np.concatenate([np.asarray(mesh.cell_data[thickness][k], dtype=float).ravel() for k in blocks])
+            bad = np.flatnonzero(~(np.isfinite(thickness) & (thickness > 0)))
+            if bad.size:
+                raise ValueError(f"{source}: cell data {spec.thickness!r}: quad {int(bad[0])} has thickness "
+                                 f"{thickness[bad[0]]:g} (expected > 0 [m])")
         if nodes.shape[1] == 2:
             nodes = np.column_stack([nodes, np.zeros(len(nodes))])
     else:
@@ -44,8 +55,10 @@ def _shell_fe(spec, files, material) -> SolidFE:
         nodes, quads = plate_mesh(*p["size"], *p["divisions"])
         nodes = nodes + np.asarray(p["origin"], dtype=float)
         sets, source = {}, "generated plate"
-    shell = assemble_mitc4(nodes, quads, spec.thickness, material)
-    return shell_body(shell, sets, f"{source} ({spec.element}, t = {spec.thickness:g} m)")
+    shell = assemble_mitc4(nodes, quads, thickness, material)
+    t = np.asarray(thickness, dtype=float)
+    what = f"t = {float(t):g} m" if t.ndim == 0 else f"t = {t.min():g} .. {t.max():g} m from {spec.thickness!r}"
+    return shell_body(shell, sets, f"{source} ({spec.element}, {what})")
 
 
 @functools.lru_cache(maxsize=8)
