@@ -93,9 +93,10 @@ class SolidSpec:
     """[body] kind = "solid" (docs/model-format.md): where K and M come from and how it is reduced.
 
     source "mesh": a mesh (a file read with meshio, or a generated box/cylinder) assembled with
-    scikit-fem from the material; "abaqus"/"ansys": a partner's exported matrices, read as they are."""
+    scikit-fem from the material; "abaqus"/"ansys": a partner's exported matrices, read as they are;
+    "calculix": a deck whose matrices ccx assembles (solid/calculix_engine.py)."""
 
-    source: str  # "mesh" | "abaqus" | "ansys"
+    source: str  # "mesh" | "abaqus" | "ansys" | "calculix"
     files: tuple[tuple[str, str], ...] = ()  # (role, absolute path): mesh | inp, stiffness, mass | mapping, nodes, elements
     generated: tuple[tuple[str, Any], ...] = ()  # ("box"|"cylinder", parameters as sorted pairs), when no mesh file
     element: str = ""  # hex8 | hex20 | hex27 | tet4 | tet10 | mitc4 (mesh only; mitc4: shells, SHELL_ELEMENTS)
@@ -533,8 +534,9 @@ SHELL_ELEMENTS = ("mitc4",)
 MATERIAL_KEYS = {"E": "a positive Young's modulus [Pa]", "nu": "a Poisson's ratio in [0, 0.5)",
                  "rho": "a positive density [kg/m^3]"}
 EXPORT_KEYS = {
-    "format": "'abaqus' (*MATRIX OUTPUT .mtx + .inp) or 'ansys' (Matrix Market + dof mapping + node table)",
-    "inp": "the Abaqus input deck (.inp): nodes and node sets",
+    "format": "'abaqus' (*MATRIX OUTPUT .mtx + .inp), 'ansys' (Matrix Market + dof mapping + node table) or "
+              "'calculix' (a CalculiX/Abaqus deck assembled by ccx: solid/calculix_engine.py)",
+    "inp": "the Abaqus or CalculiX input deck (.inp): nodes and node sets",
     "stiffness": "the exported stiffness matrix file",
     "mass": "the exported mass matrix file",
     "mapping": "the Ansys dof mapping vector file (Matrix Market)",
@@ -542,7 +544,8 @@ EXPORT_KEYS = {
     "elements": "the Ansys element table (optional: cells for VTK output)",
     "units": "a text stating the units assumed (the files do not say)",
 }
-EXPORT_FILES = {"abaqus": ("inp", "stiffness", "mass"), "ansys": ("stiffness", "mass", "mapping", "nodes")}
+EXPORT_FILES = {"abaqus": ("inp", "stiffness", "mass"), "ansys": ("stiffness", "mass", "mapping", "nodes"),
+                "calculix": ("inp",)}
 SOLID_PORT_KEYS = {
     "select": "a node selection table: {set = NAME} | {plane = {point, normal, tol}} | {cylinder = {point, axis, "
               "radius, tol}} | {box = {min, max}} | {near = {point | set, radius}}",

@@ -65,6 +65,10 @@ def _shell_fe(spec, files, material) -> SolidFE:
 def solid_fe(spec) -> SolidFE:
     """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
     files = dict(spec.files)
+    if spec.source == "calculix":
+        from .calculix_engine import run_ccx
+
+        return run_ccx(files["inp"])
     if spec.source == "abaqus":
         from .exports import read_abaqus
 
