@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..directions import directional_tip_metrics
 from ..model import Scene
 from ..runtime.data import BodyData
 from ..runtime.outputs import tip_from_hub
@@ -141,9 +142,7 @@ def metrics(result: SimulationResult, scene: Scene) -> dict:
             after = t > T_spin
             signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
             out["oscillation_frequency_hz"] = frequency(t[after], signed, *m.band_hz)
-        from ..directions import directional_tip_metrics  # 3D: in and out of the plane of rotation
-
-        out |= directional_tip_metrics(t, d, scene, axis, frequency)
+        out |= directional_tip_metrics(t, d, scene, axis, frequency)  # 3D: in and out of the plane of rotation
         return out
     if m.kind == "hub_rates":
         root, tip = end_ports(result.body)
