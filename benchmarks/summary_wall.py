@@ -2,6 +2,7 @@
 wall_time_s (set-up, steps and recording), setup_time_s and metrics_time_s, best of N.
 
     python benchmarks/summary_wall.py [--repeat 5] [--config "superelements=1 modes=2 stiffening=true step=0.04" ...]
+                                      [--checkout DIR ...]
 
 Each configuration (default: issue 32's, below) runs once untimed (the C runtime compiled and the body
 reduced into the cache when missing, the bytecode written), then `--repeat` times, the configurations
@@ -9,6 +10,8 @@ interleaved round by round so that a burst of the machine's load falls on all of
 cache is on (PYTHONDONTWRITEBYTECODE dropped, as on a user's machine). Per configuration: steps, the best
 (minimum) and median of wall_time_s, setup_time_s and metrics_time_s, and wall_time_s / steps, the per-step
 figure as the summary reports it (recording included). Best of N: on a shared machine the noise only adds.
+--checkout (repeatable) runs the package of each checkout given (A/B against another commit, interleaved
+with this one's runs; its bytecode cached under a temporary prefix, not written into that checkout).
 """
 from __future__ import annotations
 
@@ -32,10 +35,13 @@ USER_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE
 KEYS = ("wall_time_s", "setup_time_s", "metrics_time_s")
 
 
-def run(config: str, out: Path) -> dict:
+def run(config: str, out: Path, checkout: Path = ROOT, pycache: str | None = None) -> dict:
     sets = [w for kv in config.split() for w in ("--set", kv)]
+    env = dict(USER_ENV, PYTHONPATH=str(checkout))
+    if pycache:
+        env["PYTHONPYCACHEPREFIX"] = pycache
     subprocess.run([sys.executable, "-m", "ffrf_fmu", "simulate", MODEL, "--scene", "spinup", *sets, "--summary", str(out)],
-                   check=True, capture_output=True, env=USER_ENV, cwd=ROOT)
+                   check=True, capture_output=True, env=env, cwd=checkout)
     return json.loads(out.read_text())
 
 
@@ -43,21 +49,26 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--config", action="append", help="KEY=V words of one configuration (repeatable)")
+    ap.add_argument("--checkout", action="append", type=Path, help="a checkout to run besides this one (repeatable)")
     args = ap.parse_args(argv)
-    configs = args.config or list(CONFIGS)
-    runs: dict[str, list[dict]] = {c: [] for c in configs}
+    checkouts = [ROOT] + [c.resolve() for c in args.checkout or []]
+    jobs = [(k, c) for k in checkouts for c in args.config or CONFIGS]
+    runs: dict[tuple, list[dict]] = {j: [] for j in jobs}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp, "summary.json")
-        for c in configs:
-            run(c, out)  # untimed
+        pycache = {k: None if k == ROOT else str(Path(tmp, f"pycache{i}")) for i, k in enumerate(checkouts)}
+        for k, c in jobs:
+            run(c, out, k, pycache[k])  # untimed
         for r in range(args.repeat):
-            for c in configs if r % 2 == 0 else configs[::-1]:
-                runs[c].append(run(c, out))
+            for k, c in jobs if r % 2 == 0 else jobs[::-1]:
+                runs[k, c].append(run(c, out, k, pycache[k]))
     print(f"B1 spin-up 20 s, `ffrf-fmu simulate --summary`, fresh process each, best of {args.repeat} "
           f"(median in brackets); load average {os.getloadavg()[0]:.2f}")
     print(f"{'configuration':48s} {'steps':>6s} {'wall_time_s [ms]':>18s} {'setup [ms]':>14s} {'metrics [ms]':>14s} "
           f"{'per step [us]':>14s}")
-    for c, rs in runs.items():
+    for (k, c), rs in runs.items():
+        if len(checkouts) > 1:
+            c = f"{k.name}: {c}"
         cols = []
         for k in KEYS:
             vals = [s.get(k) for s in rs if s.get(k) is not None]

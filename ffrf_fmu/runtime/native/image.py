@@ -60,25 +60,29 @@ def remembered_checksum(payload: bytes) -> int:
     """checksum(payload), remembered in the cache of the compiled runtime (<cache>/image_checksums/) under
     the payload's BLAKE2b digest: FNV-1a runs word after word, in Python about 0.2 us a word (0.5 ms of a
     B1 body's set-up), the digest in C (30 us). A run of a body set up before reads 16 hex digits; without
-    a writable cache the checksum is computed each time."""
+    a writable cache the checksum is computed each time. (Plain strings and os: pathlib's first calls in
+    a process cost as much as the checksum.)"""
     import hashlib
     import os
 
     from .build import cache_root
 
     name = hashlib.blake2b(payload, digest_size=16).hexdigest()
-    memo = cache_root() / "image_checksums" / name[:2] / name
+    folder = os.path.join(os.fspath(cache_root()), "image_checksums", name[:2])
+    memo = os.path.join(folder, name)
     try:
-        text = memo.read_text(encoding="ascii")
+        with open(memo, "rb") as fh:
+            text = fh.read(17)
         if len(text) == 16:
             return int(text, 16)
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, ValueError):
         pass
     value = checksum(payload)
     try:
-        memo.parent.mkdir(parents=True, exist_ok=True)
-        tmp = memo.with_name(f".{name}.{os.getpid()}.tmp")
-        tmp.write_text(f"{value:016x}", encoding="ascii")
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{name}.{os.getpid()}.tmp")
+        with open(tmp, "w", encoding="ascii") as fh:
+            fh.write(f"{value:016x}")
         os.replace(tmp, memo)
     except OSError:  # a read-only cache: computed again next time
         pass
