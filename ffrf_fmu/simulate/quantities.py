@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..directions import directional_tip_metrics
+from ..directions import cross3, directional_tip_metrics
 from ..model import Scene
 from ..runtime.data import BodyData
 from ..runtime.outputs import tip_from_hub
@@ -140,7 +140,7 @@ def metrics(result: SimulationResult, scene: Scene) -> dict:
         frequency = _LastFrequency()
         if m.band_hz and T_spin is not None and t[-1] > T_spin + m.min_window_s:
             after = t > T_spin
-            signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
+            signed = d[after] @ cross3([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
             out["oscillation_frequency_hz"] = frequency(t[after], signed, *m.band_hz)
         out |= directional_tip_metrics(t, d, scene, axis, frequency)  # 3D: in and out of the plane of rotation
         return out
