@@ -11,7 +11,8 @@ cache is on (PYTHONDONTWRITEBYTECODE dropped, as on a user's machine). Per confi
 (minimum) and median of wall_time_s, setup_time_s and metrics_time_s, and wall_time_s / steps, the per-step
 figure as the summary reports it (recording included). Best of N: on a shared machine the noise only adds.
 --checkout (repeatable) runs the package of each checkout given (A/B against another commit, interleaved
-with this one's runs; its bytecode cached under a temporary prefix, not written into that checkout).
+with this one's runs; its bytecode cached under a temporary prefix, not written into that checkout) and
+prints its best wall_time_s and setup_time_s over this checkout's, per configuration.
 """
 from __future__ import annotations
 
@@ -76,6 +77,11 @@ def main(argv=None) -> int:
         steps = rs[0]["steps"]
         per = 1e6 * min(s["wall_time_s"] for s in rs) / steps
         print(f"{c:48s} {steps:6d} {cols[0]:>18s} {cols[1]:>14s} {cols[2]:>14s} {per:14.1f}")
+    for k in checkouts[1:]:  # the baseline ratios, of the same run's best times
+        for c in args.config or CONFIGS:
+            ratio = {key: min(s[key] for s in runs[k, c]) / min(s[key] for s in runs[ROOT, c])
+                     for key in ("wall_time_s", "setup_time_s")}
+            print(f"{k.name} / {ROOT.name}: {c}: wall_time_s {ratio['wall_time_s']:.3f}, setup {ratio['setup_time_s']:.3f}")
     return 0
 
 
