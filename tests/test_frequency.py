@@ -122,6 +122,7 @@ def test_b1_run_against_the_previous_estimator():
 @pytest.mark.parametrize("t, y, band, why", [
     (np.arange(4.0), np.zeros(4), (0.1, 1.0), "length >= 5"),
     (np.arange(10.0), np.zeros(9), (0.1, 1.0), "length >= 5"),
+    (np.ones(10), np.zeros(10), (0.1, 1.0), "span no time"),
     (np.arange(10.0), np.zeros(10), (0.0, 1.0), "0 < f_min < f_max"),
     (np.arange(10.0), np.zeros(10), (1.0, 0.5), "0 < f_min < f_max"),
 ])

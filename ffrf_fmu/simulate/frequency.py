@@ -47,6 +47,8 @@ def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float)
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     if t.ndim != 1 or t.shape != y.shape or t.size < 5:
         raise ValueError(f"dominant_frequency: t and y must be 1-D of one length >= 5, got {t.shape}, {y.shape}")
+    if not t[-1] > t[0]:
+        raise ValueError(f"dominant_frequency: the samples span no time (t from {t[0]} to {t[-1]})")
     if not 0.0 < f_min < f_max:
         raise ValueError(f"dominant_frequency: band [{f_min}, {f_max}] Hz: expected 0 < f_min < f_max")
     fit = TrendFit(t, y)
