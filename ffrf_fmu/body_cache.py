@@ -3,37 +3,50 @@ reduction and the import of scipy (together most of a short CLI run's process ti
 
 The key is the body as the scene runs it (model.scene_body: every value of the [body] table, with the
 scene's causality), the reduction's options, the sources of the code that reduces (reduction.py, fe/,
-invariants.py, runtime/data.py) and the numpy and scipy versions: any change reduces afresh. Entries
-are BodyData's own .npz (BodyData.save/load), written atomically under <cache>/bodies/ (the cache of
-runtime/native/build.py). Only beam bodies: a solid's mesh or export lives in files the key would have
-to read whole (a solid is reduced afresh every time).
+invariants.py, runtime/data.py) and the numpy and scipy versions: any change reduces afresh. The
+sources' digest is remembered under their stat signature (runtime/native/build.py remembered_digest).
+Entries are BodyData's arrays in one raw file (`write`, `read`: a JSON index, then the values, read
+with one system call and no zip or .npy header to parse), written atomically under <cache>/bodies/ (the
+cache of runtime/native/build.py); the cached path imports neither scipy nor the reduction. Only beam
+bodies: a solid's mesh or export lives in files the key would have to read whole (a solid is reduced
+afresh every time).
 """
 from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
+import math
 import os
+import struct
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
-from .model import Body, scene_body
+from .model import Body, reduction_options, scene_body
 from .runtime.data import BodyData
+from .runtime.native.build import cache_root, remembered_digest
 
 HERE = Path(__file__).resolve().parent
+HERE_STR = str(HERE)
 REDUCING_CODE = ("reduction.py", "invariants.py", "runtime/data.py", "fe")
 
 
-def _code_digest() -> bytes:
-    h = hashlib.sha256()
+def _code_files() -> list[str]:
+    """The files of REDUCING_CODE (a folder's .py files at any depth), in a fixed order."""
+    out = []
     for name in REDUCING_CODE:
-        p = HERE / name
-        for f in sorted(p.rglob("*.py")) if p.is_dir() else [p]:
-            h.update(f.name.encode() + b"\0" + f.read_bytes())
-    h.update(np.__version__.encode())
-    h.update(_scipy_version())
-    return h.digest()
+        p = os.path.join(HERE_STR, name)
+        if os.path.isdir(p):
+            out += sorted(os.path.join(root, f) for root, _, files in os.walk(p) for f in files if f.endswith(".py"))
+        else:
+            out.append(p)
+    return out
+
+
+def _code_digest() -> bytes:
+    return remembered_digest(_code_files(), (np.__version__, _scipy_version().decode(errors="replace"))).encode()
 
 
 def _scipy_version() -> bytes:
@@ -56,19 +69,59 @@ def key(body: Body, options: dict) -> str:
     return h.hexdigest()[:24]
 
 
+MAGIC = b"FFRF-BODY-CACHE1"  # 16 bytes (the last the format version), then u64 index bytes, the JSON index, the values (8-aligned)
+HEAD = struct.Struct("<16sQ")
+
+
+def write(data: BodyData, path: Path) -> None:
+    """BodyData's arrays (BodyData.arrays) in one file: MAGIC, the JSON index {"meta", "arrays": [name,
+    dtype, shape, offset]}, then each array's bytes (C order) at its offset."""
+    arrays, meta = data.arrays()
+    index, blobs, offset = [], [], 0
+    for name, value in arrays.items():
+        a = np.ascontiguousarray(value)
+        if a.dtype.kind not in "fiub":
+            raise ValueError(f"body cache: array {name!r} of dtype {a.dtype} is not numeric")
+        index.append([name, a.dtype.str, list(a.shape), offset])
+        blobs.append(a.tobytes())
+        offset += -(-len(blobs[-1]) // 8) * 8
+        blobs[-1] += b"\0" * (-len(blobs[-1]) % 8)
+    text = json.dumps({"meta": meta, "arrays": index}).encode()
+    text += b" " * (-(HEAD.size + len(text)) % 8)
+    with open(path, "wb") as fh:
+        fh.write(HEAD.pack(MAGIC, len(text)) + text + b"".join(blobs))
+
+
+def read(path: Path) -> BodyData:
+    """The BodyData of a file `write` wrote; ValueError when it is not one (or is cut short)."""
+    with open(path, "rb") as fh:
+        raw = bytearray(fh.read())  # writable: the arrays are views of it, as np.load's are their own
+    if len(raw) < HEAD.size:
+        raise ValueError(f"{path}: not a cached body")
+    magic, n = HEAD.unpack_from(raw)
+    if magic != MAGIC or len(raw) < HEAD.size + n:
+        raise ValueError(f"{path}: not a cached body of this version")
+    index = json.loads(bytes(raw[HEAD.size: HEAD.size + n]))
+    base, arrays = HEAD.size + n, {}
+    for name, dtype, shape, offset in index["arrays"]:
+        dt = np.dtype(dtype)
+        count = math.prod(shape)
+        if base + offset + count * dt.itemsize > len(raw):
+            raise ValueError(f"{path}: cut short (array {name!r})")
+        arrays[name] = np.frombuffer(raw, dtype=dt, count=count, offset=base + offset).reshape(shape)
+    return BodyData.from_arrays(arrays, index["meta"])
+
+
 def scene_body_data(body: Body, scene) -> BodyData:
     """reduction.reduce_scene_body(body, scene).data, from the cache when this body was reduced before."""
-    from .reduction import reduction_options
-    from .runtime.native.build import cache_root
-
     if body.solid is not None:
         from .reduction import reduce_scene_body
 
         return reduce_scene_body(body, scene).data
     run_body, options = scene_body(body, scene), reduction_options(scene)
-    path = cache_root() / "bodies" / f"{key(run_body, options)}.npz"
+    path = cache_root() / "bodies" / f"{key(run_body, options)}.body"
     try:
-        return BodyData.load(path)
+        return read(path)
     except (OSError, ValueError, KeyError):
         pass
     from .reduction import reduce_body
@@ -76,8 +129,8 @@ def scene_body_data(body: Body, scene) -> BodyData:
     data = reduce_body(run_body, **options).data
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.stem}.{os.getpid()}.npz")
-        data.save(tmp)
+        tmp = path.with_name(f".{path.stem}.{os.getpid()}.body")
+        write(data, tmp)
         os.replace(tmp, path)
     except OSError:  # a read-only cache: the run goes on without it
         pass

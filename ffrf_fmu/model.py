@@ -943,6 +943,11 @@ def scene_body(body: Body, scene: Scene) -> Body:
     return dataclasses.replace(body, ports=ports)
 
 
+def reduction_options(scene: Scene) -> dict:
+    """reduce_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
+    return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
+
+
 def write_model(raw: dict, path, comment: str = "") -> Model:
     """Write the raw tables as a model file and load it back (a ModelError names what is wrong)."""
     Path(path).write_text(toml_text(raw, comment), encoding="utf-8")

@@ -16,7 +16,7 @@ import numpy as np
 
 from .fe import FEModel, node_dofs, rigid_modes, with_lumped_masses
 from .fe.beam import beam_model, local_frame, strain_kernels, tensor_kernel
-from .model import Body, ModelError, body_damping, scene_body
+from .model import Body, ModelError, body_damping, reduction_options, scene_body  # noqa: F401 (reduction_options: its name here too)
 from .port_data import compliance, port_data
 from .runtime.data import BodyData, ReducedBody, SuperelementData
 
@@ -253,11 +253,6 @@ def reduce_superelement(
         block_diagonality_error=float(np.abs(K_bar[:n_b, n_b:]).max(initial=0.0) / np.abs(K_bar).max()),
         n_fe_dofs=fe.n_dof,
     )
-
-
-def reduction_options(scene) -> dict:
-    """reduce_body's options for a scene: stiffening (scene key) and the inertia data of `full`."""
-    return {"stiffening": scene.stiffening, "inertia": scene.terms == "full"}
 
 
 def build_body(model, scene: str | None = None) -> BodyData:

@@ -77,45 +77,53 @@ class BodyData:
         raise KeyError(f"body {self.name!r} has no port {name!r}; ports: {[p.name for p in self.ports]}")
 
     def save(self, path) -> None:
-        arrays = {"node_positions": self.node_positions}
-        for i, se in enumerate(self.superelements):
-            for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz") + _OPTIONAL:
-                if getattr(se, key) is not None:
-                    arrays[f"se{i}_{key}"] = getattr(se, key)
-            arrays[f"se{i}_mass"] = np.array(se.mass)
-        meta = {
-            "name": self.name,
-            "n_se": len(self.superelements),
-            "ports": [[p.name, p.node, p.translation, p.rotation, list(p.compliance)] for p in self.ports],
-            "damping": self.damping.as_meta() if self.damping is not None else None,
-        }
         import json
 
-        arrays["meta"] = np.array(json.dumps(meta))
-        np.savez(path, **arrays)
+        arrays, meta = self.arrays()
+        np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
 
     @classmethod
     def load(cls, path) -> "BodyData":
         import json
 
         with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            ses = tuple(
-                SuperelementData(
-                    mass=float(z[f"se{i}_mass"]),
-                    **{k: z[f"se{i}_{k}"] for k in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz")},
-                    **{k: z[f"se{i}_{k}"] for k in _OPTIONAL if f"se{i}_{k}" in z},
-                )
-                for i in range(meta["n_se"])
+            return cls.from_arrays(z, json.loads(str(z["meta"])))
+
+    def arrays(self) -> tuple[dict[str, np.ndarray], dict]:
+        """The body as named arrays and a JSON-able meta dict (`save`'s .npz, body_cache's file)."""
+        arrays = {"node_positions": self.node_positions}
+        for i, se in enumerate(self.superelements):
+            for key in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz") + _OPTIONAL:
+                if getattr(se, key) is not None:
+                    arrays[f"se{i}_{key}"] = getattr(se, key)
+            arrays[f"se{i}_mass"] = np.asarray(se.mass, dtype=float).reshape(())  # one value (a stiffened body's is (1,))
+        meta = {
+            "name": self.name,
+            "n_se": len(self.superelements),
+            "ports": [[p.name, p.node, p.translation, p.rotation, list(p.compliance)] for p in self.ports],
+            "damping": self.damping.as_meta() if self.damping is not None else None,
+        }
+        return arrays, meta
+
+    @classmethod
+    def from_arrays(cls, z, meta: dict) -> "BodyData":
+        """The body of `arrays` (z: a mapping of the names to arrays) and its meta."""
+        ses = tuple(
+            SuperelementData(
+                mass=float(np.ravel(z[f"se{i}_mass"])[0]),
+                **{k: z[f"se{i}_{k}"] for k in ("J0", "x_cm", "X_B", "nodes", "K", "M", "G", "frequencies_hz")},
+                **{k: z[f"se{i}_{k}"] for k in _OPTIONAL if f"se{i}_{k}" in z},
             )
-            return cls(
-                name=meta["name"],
-                superelements=ses,
-                node_positions=z["node_positions"],
-                ports=tuple(PortData(n, int(k), t, r, tuple(float(x) for x in (c[0] if c else ())))
-                            for n, k, t, r, *c in meta["ports"]),
-                damping=Damping.from_meta(meta.get("damping")),
-            )
+            for i in range(meta["n_se"])
+        )
+        return cls(
+            name=meta["name"],
+            superelements=ses,
+            node_positions=z["node_positions"],
+            ports=tuple(PortData(n, int(k), t, r, tuple(float(x) for x in (c[0] if c else ())))
+                        for n, k, t, r, *c in meta["ports"]),
+            damping=Damping.from_meta(meta.get("damping")),
+        )
 
 
 @dataclass(frozen=True, eq=False)

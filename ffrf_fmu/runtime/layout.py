@@ -17,6 +17,8 @@ Local layout of one superelement (the rows and columns of its residual and Jacob
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,7 +110,7 @@ class Segments:
         self.slices, self.shapes, i = {}, {}, 0
         for name, shape in shapes.items():
             shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-            size = int(np.prod(shape))
+            size = int(math.prod(shape))  # (math: np.prod costs 8 us a call, 50 calls a body's set-up)
             self.slices[name], self.shapes[name] = slice(i, i + size), shape
             i += size
         self.size = i

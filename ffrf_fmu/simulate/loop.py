@@ -178,7 +178,9 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
         "energy_balance_max_rel": energy_balance(columns),
     }
     result = SimulationResult(times, columns, summary, body)
+    t_metrics = time.perf_counter()
     summary["metrics"] = metrics(result, scene)
+    summary["metrics_time_s"] = time.perf_counter() - t_metrics  # after wall_time_s: not part of it
     return result
 
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..directions import cross3, directional_tip_metrics
 from ..model import Scene
 from ..runtime.data import BodyData
 from ..runtime.outputs import tip_from_hub
 from ..runtime.rotation import logm
+from .frequency import dominant_frequency
 from .results import SimulationResult, free_body_keys, free_body_series
 
 
@@ -25,48 +27,22 @@ def elastic_tip(result: SimulationResult, hub: str, tip: str) -> np.ndarray:
     return tip_from_hub(result.port(hub, "R"), result.port(hub, "r"), result.port(tip, "r"), X)
 
 
-def dominant_frequency(t: np.ndarray, y: np.ndarray, f_min: float, f_max: float) -> float:
-    """Frequency of the best-fitting sinusoid (plus a linear trend) to y(t), searched in [f_min, f_max].
+class _LastFrequency:
+    """dominant_frequency that gives the last call's result again for the same series and band (the
+    tip_deflection metrics ask twice for one series: the oscillation after the spin-up is the in-plane
+    vibration of directional_tip_metrics when the plane's vector is the one used here, bit for bit)."""
 
-    A least-squares fit resolves a frequency from a couple of periods, where an FFT could not. The
-    misfit of the 4-column fit [sin, cos, 1, t] is evaluated on a grid of GRID frequencies at once
-    (normal equations, batched: misfit = |y|^2 - coef . A^T y), then refined by golden-section search in the bracket around the
-    grid's best to FREQUENCY_XTOL (numpy only: scipy's optimizer costs more to import than a run)."""
-    tau = t - t[0]
+    def __init__(self):
+        self.last = None
 
-    def misfit(f):
-        w = 2 * np.pi * f
-        A = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t), tau])
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        return float(np.sum((A @ coef - y) ** 2))
-
-    grid = np.linspace(f_min, f_max, GRID)
-    w = 2 * np.pi * grid[:, None]
-    shape = (GRID, t.size)
-    cols = (np.sin(w * t), np.cos(w * t), np.broadcast_to(np.ones_like(t), shape), np.broadcast_to(tau, shape))
-    dot = lambda u, v: np.einsum("gn,gn->g", u, np.broadcast_to(v, shape))  # noqa: E731
-    AtA = np.stack([np.stack([dot(u, v) for v in cols], -1) for u in cols], -2)  # (GRID, 4, 4)
-    Aty = np.stack([dot(u, y) for u in cols], -1)
-    coef = np.linalg.solve(AtA, Aty[..., None])[..., 0]
-    i = int(np.argmax(np.einsum("gi,gi->g", coef, Aty)))  # least misfit |y|^2 - coef . A^T y
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, GRID - 1)]
-    g = (np.sqrt(5.0) - 1.0) / 2.0
-    a, b = hi - g * (hi - lo), lo + g * (hi - lo)
-    fa, fb = misfit(a), misfit(b)
-    while hi - lo > FREQUENCY_XTOL:
-        if fa < fb:
-            hi, b, fb = b, a, fa
-            a = hi - g * (hi - lo)
-            fa = misfit(a)
-        else:
-            lo, a, fa = a, b, fb
-            b = lo + g * (hi - lo)
-            fb = misfit(b)
-    return float(0.5 * (lo + hi))
-
-
-GRID = 400  # frequencies of dominant_frequency's first search
-FREQUENCY_XTOL = 1e-6  # Hz: the refined frequency's bracket (far below any metric's tolerance)
+    def __call__(self, t, y, f_min, f_max) -> float:
+        if self.last is not None:
+            (t0, y0, band), f = self.last
+            if band == (f_min, f_max) and np.array_equal(t0, t) and np.array_equal(y0, y):
+                return f
+        f = dominant_frequency(t, y, f_min, f_max)
+        self.last = (t, y, (f_min, f_max)), f
+        return f
 
 
 def energy_balance(columns: dict[str, np.ndarray]) -> float:
@@ -161,13 +137,12 @@ def metrics(result: SimulationResult, scene: Scene) -> dict:
         i = int(np.argmax(transverse))
         out = {"tip_deflection_max_m": float(transverse[i]), "tip_axial_at_max_m": float(axial[i]), "t_at_max_s": float(t[i])}
         T_spin = next((dict(dr.rotation.angle.params).get("T") for dr in scene.drives if dr.rotation), None)
+        frequency = _LastFrequency()
         if m.band_hz and T_spin is not None and t[-1] > T_spin + m.min_window_s:
             after = t > T_spin
-            signed = d[after] @ np.cross([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
-            out["oscillation_frequency_hz"] = dominant_frequency(t[after], signed, *m.band_hz)
-        from ..directions import directional_tip_metrics  # 3D: in and out of the plane of rotation
-
-        out |= directional_tip_metrics(t, d, scene, axis, dominant_frequency)
+            signed = d[after] @ cross3([0, 0, 1.0], axis) if abs(axis[2]) < 0.9 else d[after, 0]
+            out["oscillation_frequency_hz"] = frequency(t[after], signed, *m.band_hz)
+        out |= directional_tip_metrics(t, d, scene, axis, frequency)  # 3D: in and out of the plane of rotation
         return out
     if m.kind == "hub_rates":
         root, tip = end_ports(result.body)

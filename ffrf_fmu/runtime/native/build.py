@@ -49,12 +49,51 @@ def sources() -> list[Path]:
 
 def source_digest(extra: tuple[str, ...] = ()) -> str:
     """sha256 of the runtime's sources and headers (and the compile command's words): the cache key."""
+    return remembered_digest([HERE / name for name in SOURCES + HEADERS], extra)
+
+
+def file_digest(paths, extra: tuple[str, ...] = ()) -> str:
+    """sha256 over each file's name and contents, then the words of `extra`: 16 hex digits."""
     h = hashlib.sha256()
-    for name in SOURCES + HEADERS:
-        h.update(name.encode() + b"\0" + (HERE / name).read_bytes() + b"\0")
+    for path in paths:
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     for word in extra:
         h.update(word.encode() + b"\0")
     return h.hexdigest()[:16]
+
+
+def remembered_digest(paths, extra: tuple[str, ...] = ()) -> str:
+    """file_digest(paths, extra), remembered in the cache (<cache>/digests/) under the files' stat
+    signature (path, size, modification time in ns) and `extra`: a process whose files did not change
+    since the last one reads one small file, not every source (a run's set-up would pay reading and
+    hashing them, about 0.7 ms for the runtime's). An edited file changes its signature and is read
+    afresh; without a writable cache the digest is computed each time. (Plain strings and os: pathlib's
+    first calls in a process cost more than the memo saves.)"""
+    names = [os.fspath(q) for q in paths]
+    try:
+        words = [f"{q}\0{st.st_size}\0{st.st_mtime_ns}" for q, st in ((q, os.stat(q)) for q in names)]
+    except OSError:
+        return file_digest([Path(q) for q in names], extra)
+    signature = hashlib.sha256("\0\0".join([*words, *extra]).encode()).hexdigest()[:32]
+    folder = os.path.join(os.fspath(cache_root()), "digests")
+    memo = os.path.join(folder, signature)
+    try:
+        with open(memo, "rb") as fh:
+            digest = fh.read(17).decode("ascii")
+        if len(digest) == 16:
+            return digest
+    except (OSError, UnicodeDecodeError):
+        pass
+    digest = file_digest([Path(q) for q in names], extra)
+    try:
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{signature}.{os.getpid()}.tmp")
+        with open(tmp, "w", encoding="ascii") as fh:
+            fh.write(digest)
+        os.replace(tmp, memo)
+    except OSError:  # a read-only cache: computed again next time
+        pass
+    return digest
 
 
 def compiler() -> list[str]:
@@ -105,7 +144,7 @@ def library(sanitize: bool = False) -> Path:
     extra = SANITIZE if sanitize else ()
     cc = compiler()
     digest = source_digest((*cc[-1:], *FLAGS, *extra))
-    for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
+    for root in _cache_roots():
         d = root / "native" / (digest + ("-sanitize" if sanitize else ""))
         lib = d / _library_name()
         if lib.exists():
@@ -119,6 +158,13 @@ def library(sanitize: bool = False) -> Path:
         os.replace(tmp, lib)
         return lib
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
+
+
+def _cache_roots():
+    """The cache, then a temporary directory (asked for only when the cache cannot be written:
+    tempfile.gettempdir's first call writes a probe file)."""
+    yield cache_root()
+    yield Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"
 
 
 def ship(dest: Path) -> None:

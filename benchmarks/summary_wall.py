@@ -1,0 +1,89 @@
+"""The run a user makes: `ffrf-fmu simulate MODEL --summary` of B1 in a fresh process, its summary's
+wall_time_s (set-up, steps and recording), setup_time_s and metrics_time_s, best of N.
+
+    python benchmarks/summary_wall.py [--repeat 5] [--config "superelements=1 modes=2 stiffening=true step=0.04" ...]
+                                      [--checkout DIR ...]
+
+Each configuration (default: issue 32's, below) runs once untimed (the C runtime compiled and the body
+reduced into the cache when missing, the bytecode written), then `--repeat` times, the configurations
+interleaved round by round so that a burst of the machine's load falls on all of them. Python's bytecode
+cache is on (PYTHONDONTWRITEBYTECODE dropped, as on a user's machine). Per configuration: steps, the best
+(minimum) and median of wall_time_s, setup_time_s and metrics_time_s, and wall_time_s / steps, the per-step
+figure as the summary reports it (recording included). Best of N: on a shared machine the noise only adds.
+--checkout (repeatable) runs the package of each checkout given (A/B against another commit, interleaved
+with this one's runs; its bytecode cached under a temporary prefix, not written into that checkout) and
+prints its best wall_time_s and setup_time_s over this checkout's, per configuration.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = str(ROOT / "models" / "haug_beam.toml")
+CONFIGS = ("superelements=1 modes=2 stiffening=true step=0.04",
+           "superelements=1 modes=2 stiffening=true step=0.01",
+           "superelements=1 modes=2 step=0.002",
+           "superelements=4 modes=6 step=0.002",
+           "superelements=8 modes=2 step=0.002")
+USER_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+KEYS = ("wall_time_s", "setup_time_s", "metrics_time_s")
+
+
+def run(config: str, out: Path, checkout: Path = ROOT, pycache: str | None = None) -> dict:
+    sets = [w for kv in config.split() for w in ("--set", kv)]
+    env = dict(USER_ENV, PYTHONPATH=str(checkout))
+    if pycache:
+        env["PYTHONPYCACHEPREFIX"] = pycache
+    subprocess.run([sys.executable, "-m", "ffrf_fmu", "simulate", MODEL, "--scene", "spinup", *sets, "--summary", str(out)],
+                   check=True, capture_output=True, env=env, cwd=checkout)
+    return json.loads(out.read_text())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--config", action="append", help="KEY=V words of one configuration (repeatable)")
+    ap.add_argument("--checkout", action="append", type=Path, help="a checkout to run besides this one (repeatable)")
+    args = ap.parse_args(argv)
+    checkouts = [ROOT] + [c.resolve() for c in args.checkout or []]
+    jobs = [(k, c) for k in checkouts for c in args.config or CONFIGS]
+    runs: dict[tuple, list[dict]] = {j: [] for j in jobs}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp, "summary.json")
+        pycache = {k: None if k == ROOT else str(Path(tmp, f"pycache{i}")) for i, k in enumerate(checkouts)}
+        for k, c in jobs:
+            run(c, out, k, pycache[k])  # untimed
+        for r in range(args.repeat):
+            for k, c in jobs if r % 2 == 0 else jobs[::-1]:
+                runs[k, c].append(run(c, out, k, pycache[k]))
+    print(f"B1 spin-up 20 s, `ffrf-fmu simulate --summary`, fresh process each, best of {args.repeat} "
+          f"(median in brackets); load average {os.getloadavg()[0]:.2f}")
+    print(f"{'configuration':48s} {'steps':>6s} {'wall_time_s [ms]':>18s} {'setup [ms]':>14s} {'metrics [ms]':>14s} "
+          f"{'per step [us]':>14s}")
+    for (k, c), rs in runs.items():
+        if len(checkouts) > 1:
+            c = f"{k.name}: {c}"
+        cols = []
+        for k in KEYS:
+            vals = [s.get(k) for s in rs if s.get(k) is not None]
+            cols.append(f"{1e3 * min(vals):7.2f} ({1e3 * statistics.median(vals):6.2f})" if vals else "-")
+        steps = rs[0]["steps"]
+        per = 1e6 * min(s["wall_time_s"] for s in rs) / steps
+        print(f"{c:48s} {steps:6d} {cols[0]:>18s} {cols[1]:>14s} {cols[2]:>14s} {per:14.1f}")
+    for k in checkouts[1:]:  # the baseline ratios, of the same run's best times
+        for c in args.config or CONFIGS:
+            ratio = {key: min(s[key] for s in runs[k, c]) / min(s[key] for s in runs[ROOT, c])
+                     for key in ("wall_time_s", "setup_time_s")}
+            print(f"{k.name} / {ROOT.name}: {c}: wall_time_s {ratio['wall_time_s']:.3f}, setup {ratio['setup_time_s']:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
