@@ -1,6 +1,6 @@
-"""A shell mesh as a CalculiX deck (S4/S4R, *FREQUENCY) and the eigenvalue table of its .dat file:
+"""A shell mesh as a CalculiX deck (S4/S4R quads, S3/S6 triangles; *FREQUENCY) and the eigenvalue table of its .dat file:
 the independent solver the shells are checked against (docs/shells.md). CalculiX expands each shell
-element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R)."""
+element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R, S3 -> C3D6 and S6 -> C3D15 wedges)."""
 from __future__ import annotations
 
 import shutil
@@ -13,12 +13,16 @@ import numpy as np
 from .mesh import Material
 
 EIGEN_TABLE = "E I G E N V A L U E   O U T P U T"
+CORNERS = {"S4": 4, "S4R": 4, "S3": 3, "S6": 6}  # nodes per cell of each CalculiX shell element
 
 
 def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4") -> str:
-    """The text of a free-free *FREQUENCY deck of the quads (1-based node and element numbers)."""
-    if element not in ("S4", "S4R"):
-        raise ValueError(f"element {element!r}: expected S4 or S4R")
+    """The text of a free-free *FREQUENCY deck of the cells `quads` (quads for S4/S4R, triangles for
+    S3, 6-node triangles for S6 (with_midsides); 1-based node and element numbers)."""
+    if element not in CORNERS:
+        raise ValueError(f"element {element!r}: expected one of {', '.join(CORNERS)}")
+    if np.shape(quads)[1:] != (CORNERS[element],):
+        raise ValueError(f"element {element}: cells of shape {np.shape(quads)}, expected (e, {CORNERS[element]})")
     lines = ["*NODE"] + [f"{i + 1},{x:.15g},{y:.15g},{z:.15g}" for i, (x, y, z) in enumerate(np.asarray(nodes, float))]
     lines += [f"*ELEMENT,TYPE={element},ELSET=EALL"]
     lines += [f"{e + 1}," + ",".join(str(int(k) + 1) for k in q) for e, q in enumerate(quads)]
@@ -26,6 +30,17 @@ def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, e
               "*SHELL SECTION,ELSET=EALL,MATERIAL=SHELLMAT", f"{thickness:.15g}",
               "*STEP", "*FREQUENCY", f"{int(n_modes)}", "*END STEP"]
     return "\n".join(lines) + "\n"
+
+
+def with_midsides(nodes, trias):
+    """Nodes and 6-node triangles (corners, then the midsides of 01 12 20: CalculiX's S6 order) of
+    3-node triangles, one new node at the middle of each edge, shared by its two triangles."""
+    X = np.asarray(nodes, dtype=float)
+    T = np.asarray(trias, dtype=int)
+    edges = np.sort(T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 3, 2), axis=2).reshape(-1, 2)
+    unique, index = np.unique(edges, axis=0, return_inverse=True)
+    mid = 0.5 * (X[unique[:, 0]] + X[unique[:, 1]])
+    return np.vstack([X, mid]), np.hstack([T, len(X) + np.asarray(index).reshape(-1, 3)])
 
 
 def calculix_frequencies(dat: str, where: str = "ccx .dat") -> np.ndarray:

@@ -49,6 +49,7 @@ class TriangleRule:
 MASS_RULE = TriangleRule(points=np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]]),
                          weights=np.full(3, 1 / 3))
 _DN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])  # (2, 3): d/dr, d/ds of N
+_EDGES = ((0, 1), (1, 2), (2, 0))  # midside k of the 6-node triangle lies on edge _EDGES[k]
 
 
 def tria_frame(X: np.ndarray):
@@ -66,9 +67,57 @@ def tria_frame(X: np.ndarray):
     return T, (X - X.mean(axis=0)) @ T[:2].T
 
 
-def tria_matrices(xy: np.ndarray, t: float, mat: Material):
-    """Local 18 x 18 K, M of a flat MITC3 triangle with counter-clockwise corners xy (3, 2), local
-    dofs per node (u v w rx ry rz)."""
+def _quadratic(r: float, s: float):
+    """(6,) 6-node shape functions (corners 0 1 2, then midsides 01 12 20) and (2, 6) d/dr, d/ds."""
+    L = np.array([1 - r - s, r, s])
+    dL = _DN
+    N, dN = np.zeros(6), np.zeros((2, 6))
+    for i in range(3):
+        N[i] = L[i] * (2 * L[i] - 1)
+        dN[:, i] = (4 * L[i] - 1) * dL[:, i]
+    for k, (i, j) in enumerate(_EDGES):
+        N[3 + k] = 4 * L[i] * L[j]
+        dN[:, 3 + k] = 4 * (L[j] * dL[:, i] + L[i] * dL[:, j])
+    return N, dN
+
+
+def _dkt_rotations(xy: np.ndarray) -> np.ndarray:
+    """(6, 2, 18) the fibre rotation beta at the corners and midsides of the DKT (Batoz, Bathe & Ho
+    1980, eqs. 9-13) in terms of the 18 local dofs: beta = -grad w at the corners (beta_x = ry,
+    beta_y = -rx); at the midside of edge ij (tangent s, normal n, length L) the Kirchhoff constraint
+    with w cubic along the edge, beta_s = -3/(2L) (w_j - w_i) - (beta_s,i + beta_s,j)/4, and beta_n
+    linear along the edge, beta_n = (beta_n,i + beta_n,j)/2."""
+    B = np.zeros((6, 2, 18))
+    for i in range(3):
+        B[i, 0, 6 * i + 4] = 1.0  # beta_x = ry
+        B[i, 1, 6 * i + 3] = -1.0  # beta_y = -rx
+    for k, (i, j) in enumerate(_EDGES):
+        d = xy[j] - xy[i]
+        L = np.hypot(*d)
+        tan, nor = d / L, np.array([d[1], -d[0]]) / L
+        bs = -0.25 * tan @ (B[i] + B[j])
+        bs[6 * j + 2] -= 1.5 / L
+        bs[6 * i + 2] += 1.5 / L
+        bn = 0.5 * nor @ (B[i] + B[j])
+        B[3 + k] = np.outer(tan, bs) + np.outer(nor, bn)
+    return B
+
+
+def _dkt_curvature(beta: np.ndarray, Jinv: np.ndarray, r: float, s: float) -> np.ndarray:
+    """(3, 18) kappa = (bx_x, by_y, bx_y + by_x) of the quadratic rotation field at (r, s)."""
+    _, dN = _quadratic(r, s)
+    dNx = Jinv @ dN  # (2, 6): d/dx, d/dy
+    bx, by = beta[:, 0, :], beta[:, 1, :]  # (6, 18)
+    return np.array([dNx[0] @ bx, dNx[1] @ by, dNx[1] @ bx + dNx[0] @ by])
+
+
+def tria_matrices(xy: np.ndarray, t: float, mat: Material, bending: str = "dkt"):
+    """Local 18 x 18 K, M of a flat triangle with counter-clockwise corners xy (3, 2), local dofs per
+    node (u v w rx ry rz): CST membrane, drilling penalty, and the bending of the DKT (Kirchhoff, no
+    transverse shear; default) or of the MITC3 (Reissner-Mindlin, `bending="mitc3"`, locks on thin
+    plates: docs/shells.md)."""
+    if bending not in ("dkt", "mitc3"):
+        raise ValueError(f"bending {bending!r}: expected 'dkt' or 'mitc3'")
     sec = plate_section(t, mat)
     iu, iv, iw, irx, iry, irz = (np.arange(3) * 6 + k for k in range(6))
     J = _DN @ xy  # rows g_r, g_s
@@ -76,27 +125,35 @@ def tria_matrices(xy: np.ndarray, t: float, mat: Material):
     if detJ <= 0:
         raise ValueError(f"triangle with corners {xy.tolist()} is clockwise or degenerate (det J = {detJ:.3g})")
     area = detJ / 2
-    dNx = np.linalg.solve(J, _DN)  # (2, 3): d/dx, d/dy
+    Jinv = np.linalg.inv(J)
+    dNx = Jinv @ _DN  # (2, 3): d/dx, d/dy
     Bm = np.zeros((3, 18))
     Bm[0, iu], Bm[1, iv], Bm[2, iu], Bm[2, iv] = dNx[0], dNx[1], dNx[1], dNx[0]
-    Bb = np.zeros((3, 18))
-    Bb[0, iry], Bb[1, irx], Bb[2, iry], Bb[2, irx] = dNx[0], -dNx[1], dNx[1], -dNx[0]
-
-    def covariant(r, s, k):  # row e_rt (k = 0) or e_st (k = 1) of the displacement-based strain at (r, s)
-        N = np.array([1 - r - s, r, s])
-        B = np.zeros(18)
-        B[iw] = _DN[k]
-        B[iry] += N * J[k, 0]  # beta_x = ry
-        B[irx] -= N * J[k, 1]  # beta_y = -rx
-        return B
-
-    e1, e2 = covariant(0.5, 0.0, 0), covariant(0.0, 0.5, 1)
-    c = covariant(0.5, 0.5, 0) - e1 - covariant(0.5, 0.5, 1) + e2
-    K = (Bm.T @ sec.Cm @ Bm + Bb.T @ sec.Cb @ Bb) * area
+    K = Bm.T @ sec.Cm @ Bm * area
     M = np.zeros((18, 18))
+    beta = _dkt_rotations(xy) if bending == "dkt" else None
+    if bending == "mitc3":
+        Bb = np.zeros((3, 18))
+        Bb[0, iry], Bb[1, irx], Bb[2, iry], Bb[2, irx] = dNx[0], -dNx[1], dNx[1], -dNx[0]
+        K += Bb.T @ sec.Cb @ Bb * area
+
+        def covariant(r, s, k):  # row e_rt (k = 0) or e_st (k = 1) of the displacement-based strain
+            N = np.array([1 - r - s, r, s])
+            B = np.zeros(18)
+            B[iw] = _DN[k]
+            B[iry] += N * J[k, 0]  # beta_x = ry
+            B[irx] -= N * J[k, 1]  # beta_y = -rx
+            return B
+
+        e1, e2 = covariant(0.5, 0.0, 0), covariant(0.0, 0.5, 1)
+        c = covariant(0.5, 0.5, 0) - e1 - covariant(0.5, 0.5, 1) + e2
     for (r, s), w, N in zip(MASS_RULE.points, MASS_RULE.weights, MASS_RULE.shape()):
-        Bs = np.linalg.solve(J, np.array([e1 + c * s, e2 - c * r]))
-        K += Bs.T @ sec.Cs @ Bs * (w * area)
+        if bending == "dkt":  # kappa linear: the degree-2 rule integrates its energy exactly
+            Bb = _dkt_curvature(beta, Jinv, r, s)
+            K += Bb.T @ sec.Cb @ Bb * (w * area)
+        else:
+            Bs = Jinv @ np.array([e1 + c * s, e2 - c * r])
+            K += Bs.T @ sec.Cs @ Bs * (w * area)
         NN = np.outer(N, N) * (w * area)
         for idx, m in ((iu, mat.rho * t), (iv, mat.rho * t), (iw, mat.rho * t),
                        (irx, mat.rho * t**3 / 12), (iry, mat.rho * t**3 / 12)):
