@@ -20,6 +20,7 @@ is singular on drilling dofs of a flat plate: use shift-invert eigensolvers (fre
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -150,10 +151,11 @@ def _cells(cells, corners: int, name: str, n_nodes: int) -> np.ndarray:
     return C
 
 
-def assemble_shells(nodes, quads, thickness, material: Material, trias=None) -> ShellFE:
+def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tria_bending: str = "dkt") -> ShellFE:
     """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads and triangles (`trias`,
-    (e3, 3), shell_tri.py) on `nodes` (n, 3) [m]; `thickness` a number or one per element, quads
-    first, then triangles [m] (PSHELL-like). Either cell list may be empty."""
+    (e3, 3), shell_tri.py, bending `tria_bending`: "dkt", or "mitc3" which locks) on `nodes` (n, 3)
+    [m]; `thickness` a number or one per element, quads first, then triangles [m] (PSHELL-like).
+    Either cell list may be empty."""
     X = np.asarray(nodes, dtype=float)
     if X.ndim != 2 or X.shape[1] != 3:
         raise ValueError(f"nodes: shape {X.shape}, expected (n, 3)")
@@ -168,7 +170,8 @@ def assemble_shells(nodes, quads, thickness, material: Material, trias=None) -> 
         raise ValueError(f"thickness: element {int(np.argmin(t))} has t = {t.min():g} <= 0")
     rows, cols, kv, mv = [], [], [], []
     cells = [("quad", e, q, element_frame, element_matrices) for e, q in enumerate(Q)]
-    cells += [("tria", e, q, tria_frame, tria_matrices) for e, q in enumerate(T3)]
+    tria = partial(tria_matrices, bending=tria_bending)
+    cells += [("tria", e, q, tria_frame, tria) for e, q in enumerate(T3)]
     for k, (kind, e, q, frame, matrices) in enumerate(cells):
         where = f"{kind} {e} (nodes {', '.join(str(int(i)) for i in q)})"
         try:

@@ -1,25 +1,29 @@
-"""Flat 3-node shell triangle (MITC3 bending and shear + CST membrane + drilling penalty) on 6-dof
-nodes, the triangle beside shell.py's MITC4 quad (docs/shells.md).
+"""Flat 3-node shell triangle (DKT bending + CST membrane + drilling penalty) on 6-dof nodes, the
+triangle beside shell.py's MITC4 quad (docs/shells.md).
 
 Local dofs per node (u v w rx ry rz) in the element frame (e1 along the side 0 -> 1, e3 the normal
 (X1 - X0) x (X2 - X0), e2 = e3 x e1), the fibre rotations beta_x = ry, beta_y = -rx, and the section
 of shell_section.py, exactly as shell.py's element_matrices. Natural coordinates (r, s): node 0 at
 (0, 0), node 1 at (1, 0), node 2 at (0, 1); N = (1 - r - s, r, s); J = d(x, y)/d(r, s) is constant.
   membrane   CST: eps = (u_x, v_y, u_y + v_x) constant (Turner et al. 1956)
-  bending    kappa = (bx_x, by_y, bx_y + by_x) constant (linear rotations)
-  shear      MITC3 (Lee & Bathe 2004, Comput. Struct. 82, eqs. 13-14): the covariant strains
-             e_rt = w_r + beta . g_r and e_st = w_s + beta . g_s are tied at the edge midpoints,
-             e_rt^(1) at (1/2, 0), e_st^(2) at (0, 1/2), and e_st - e_rt at (1/2, 1/2) (point 3):
+  bending    DKT (Batoz, Bathe & Ho 1980, Int. J. Numer. Meth. Eng. 15): beta quadratic on the
+             6-node triangle, its corner values the nodal rotations and its midside values fixed
+             by the discrete Kirchhoff constraints (_dkt_rotations); kappa = (bx_x, by_y,
+             bx_y + by_x) linear. No transverse shear energy at all, hence no shear locking at any
+             thickness (Kirchhoff plate: the shear flexibility of a thick plate is left out).
+  shear      none with DKT. bending="mitc3": linear beta, constant kappa, and the MITC3 assumed
+             shear (Lee & Bathe 2004, Comput. Struct. 82, eqs. 13-14): the covariant strains
+             e_rt = w_r + beta . g_r, e_st = w_s + beta . g_s tied at the edge midpoints,
                e_rt^AS = e_rt^(1) + c s,  e_st^AS = e_st^(2) - c r,
                c = e_rt^(3) - e_rt^(1) - e_st^(3) + e_st^(2),
-             (constant tangential strain along each edge: the lowest Nedelec space), mapped to
-             Cartesian with J^-1. The Kirchhoff constraint gamma = 0 then leaves the plate its bending
-             modes instead of forcing w and beta both linear and equal: no shear locking.
+             points (1/2, 0), (0, 1/2), (1/2, 1/2), mapped to Cartesian with J^-1. On a mesh of
+             N nodes it sets about 3 N edge constraints against 3 N bending dofs, and it locks on
+             thin plates (measured in docs/shells.md); kept for that comparison only.
 Drilling: the penalty k_d sum_i (rz_i - omega)^2 with the CST rotation omega = (v_x - u_y)/2 and
 k_d = DRILL * the smallest membrane diagonal (as the quad): zero on rigid motion, so a free plate
-has exactly 6 zero modes. Mass: consistent, rho t N^T N on u, v, w and rho t^3/12 N^T N on rx, ry,
-none on rz, integrated with MASS_RULE (exact for N_i N_j); the stiffness uses the same rule (the
-assumed shear is linear, its energy quadratic: exact).
+has exactly 6 zero modes. Mass: consistent, rho t N^T N on u, v, w and rho t^3/12 N^T N on rx, ry
+(linear N), none on rz, integrated with MASS_RULE (exact for N_i N_j); the stiffness uses the same
+rule (DKT's kappa and MITC3's assumed shear are linear, their energies quadratic: exact).
 """
 from __future__ import annotations
 
