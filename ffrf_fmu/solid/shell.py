@@ -27,6 +27,7 @@ import scipy.sparse as sp
 
 from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
 from .shell_section import DRILL, SHEAR_FACTOR, plate_section  # noqa: F401 (DRILL, SHEAR_FACTOR: this module's names too)
+from .shell_mitc9 import quad9_frame, quad9_matrices
 from .shell_tri import tria_frame, tria_matrices
 
 _G = 1.0 / np.sqrt(3.0)
@@ -37,16 +38,17 @@ _ETA = np.array([-1.0, -1.0, 1.0, 1.0])
 
 @dataclass(frozen=True, eq=False)
 class ShellFE:
-    """A linear shell FE model: nodes, quads and triangles, per-element thickness (quads first, then
-    triangles), sparse K and M on 6 dofs per node (dof 6 node + c, c = ux uy uz rx ry rz)."""
+    """A linear shell FE model: nodes, quads, triangles and 9-node quads, per-element thickness (quads,
+    then triangles, then 9-node quads), sparse K and M on 6 dofs per node (dof 6 node + c, c = ux uy uz rx ry rz)."""
 
     coords: np.ndarray  # (n, 3) [m]
     quads: np.ndarray  # (e, 4) node indices, counter-clockwise about the element normal
-    thickness: np.ndarray  # (e + e3,) [m], quads then trias
+    thickness: np.ndarray  # (e + e3 + e9,) [m], quads, then trias, then quads9
     material: Material
     K: sp.csr_matrix  # (6n, 6n)
     M: sp.csr_matrix  # (6n, 6n)
     trias: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=int))  # (e3, 3), counter-clockwise
+    quads9: np.ndarray = field(default_factory=lambda: np.zeros((0, 9), dtype=int))  # (e9, 9), shell_mitc9.py order
 
     @property
     def n_nodes(self) -> int:
@@ -151,20 +153,22 @@ def _cells(cells, corners: int, name: str, n_nodes: int) -> np.ndarray:
     return C
 
 
-def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tria_bending: str = "dkt") -> ShellFE:
-    """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads and triangles (`trias`,
-    (e3, 3), shell_tri.py, bending `tria_bending`: "dkt", or "mitc3" which locks) on `nodes` (n, 3)
-    [m]; `thickness` a number or one per element, quads first, then triangles [m] (PSHELL-like).
-    Either cell list may be empty."""
+def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tria_bending: str = "dkt",
+                    quads9=None) -> ShellFE:
+    """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads, triangles (`trias`,
+    (e3, 3), shell_tri.py, bending `tria_bending`: "dkt", or "mitc3" which locks) and MITC9 quads
+    (`quads9`, (e9, 9), shell_mitc9.py) on `nodes` (n, 3) [m]; `thickness` a number or one per
+    element, quads, then triangles, then 9-node quads [m] (PSHELL-like). Any cell list may be empty."""
     X = np.asarray(nodes, dtype=float)
     if X.ndim != 2 or X.shape[1] != 3:
         raise ValueError(f"nodes: shape {X.shape}, expected (n, 3)")
     Q = _cells(quads, 4, "quads", len(X))
     T3 = _cells(trias, 3, "trias", len(X))
-    n_el = len(Q) + len(T3)
+    Q9 = _cells(quads9, 9, "quads9", len(X))
+    n_el = len(Q) + len(T3) + len(Q9)
     t = np.asarray(thickness, dtype=float)
     if t.ndim and t.shape != (n_el,):
-        raise ValueError(f"thickness: shape {t.shape}, expected a number or ({n_el},) (quads then trias)")
+        raise ValueError(f"thickness: shape {t.shape}, expected a number or ({n_el},) (quads, trias, quads9)")
     t = np.broadcast_to(t, (n_el,)).copy()
     if np.any(t <= 0):
         raise ValueError(f"thickness: element {int(np.argmin(t))} has t = {t.min():g} <= 0")
@@ -172,6 +176,7 @@ def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tri
     cells = [("quad", e, q, element_frame, element_matrices) for e, q in enumerate(Q)]
     tria = partial(tria_matrices, bending=tria_bending)
     cells += [("tria", e, q, tria_frame, tria) for e, q in enumerate(T3)]
+    cells += [("quad9", e, q, quad9_frame, quad9_matrices) for e, q in enumerate(Q9)]
     for k, (kind, e, q, frame, matrices) in enumerate(cells):
         where = f"{kind} {e} (nodes {', '.join(str(int(i)) for i in q)})"
         try:
@@ -190,7 +195,7 @@ def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tri
     r, c = (np.concatenate(v) if v else np.zeros(0, dtype=int) for v in (rows, cols))
     K = sp.csr_matrix((np.concatenate(kv) if kv else np.zeros(0), (r, c)), shape=(n, n))
     M = sp.csr_matrix((np.concatenate(mv) if mv else np.zeros(0), (r, c)), shape=(n, n))
-    return ShellFE(X, Q, t, material, K, M, T3)
+    return ShellFE(X, Q, t, material, K, M, T3, Q9)
 
 
 def rigid_modes(coords: np.ndarray, centre=(0.0, 0.0, 0.0)) -> np.ndarray:

@@ -1,6 +1,6 @@
-"""A shell mesh as a CalculiX deck (S4/S4R quads, S3/S6 triangles; *FREQUENCY) and the eigenvalue table of its .dat file:
+"""A shell mesh as a CalculiX deck (S4/S4R and S8 quads, S3/S6 triangles; *FREQUENCY) and the eigenvalue table of its .dat file:
 the independent solver the shells are checked against (docs/shells.md). CalculiX expands each shell
-element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R, S3 -> C3D6 and S6 -> C3D15 wedges)."""
+element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R, S8 -> C3D20R, S3 -> C3D6 and S6 -> C3D15 wedges)."""
 from __future__ import annotations
 
 import shutil
@@ -13,12 +13,12 @@ import numpy as np
 from .mesh import Material
 
 EIGEN_TABLE = "E I G E N V A L U E   O U T P U T"
-CORNERS = {"S4": 4, "S4R": 4, "S3": 3, "S6": 6}  # nodes per cell of each CalculiX shell element
+CORNERS = {"S4": 4, "S4R": 4, "S8": 8, "S3": 3, "S6": 6}  # nodes per cell of each CalculiX shell element
 
 
 def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4") -> str:
-    """The text of a free-free *FREQUENCY deck of the cells `quads` (quads for S4/S4R, triangles for
-    S3, 6-node triangles for S6 (with_midsides); 1-based node and element numbers)."""
+    """The text of a free-free *FREQUENCY deck of the cells `quads` (quads for S4/S4R, 8-node quads for
+    S8 (serendipity), triangles for S3, 6-node triangles for S6 (with_midsides); 1-based node and element numbers)."""
     if element not in CORNERS:
         raise ValueError(f"element {element!r}: expected one of {', '.join(CORNERS)}")
     if np.shape(quads)[1:] != (CORNERS[element],):
@@ -41,6 +41,13 @@ def with_midsides(nodes, trias):
     unique, index = np.unique(edges, axis=0, return_inverse=True)
     mid = 0.5 * (X[unique[:, 0]] + X[unique[:, 1]])
     return np.vstack([X, mid]), np.hstack([T, len(X) + np.asarray(index).reshape(-1, 3)])
+
+
+def used_nodes(nodes, cells):
+    """Nodes and cells renumbered to the nodes the cells use (CalculiX has no dofs on a free node)."""
+    C = np.asarray(cells, dtype=int)
+    used, inverse = np.unique(C, return_inverse=True)
+    return np.asarray(nodes, dtype=float)[used], np.asarray(inverse).reshape(C.shape)
 
 
 def calculix_frequencies(dat: str, where: str = "ccx .dat") -> np.ndarray:
