@@ -1,5 +1,6 @@
 """Flat 4-node shell (MITC4 bending + bilinear membrane + drilling penalty) on 6-dof nodes, and the
-assembly of quads and shell_tri.py's MITC3 triangles into one model (docs/shells.md).
+assembly of these quads, shell_tri.py's DKT triangles and shell_mitc9.py's 9-node quads into one
+model (docs/shells.md).
 
 Dofs are node-major, 6 per node: dof 6 i + c, c = ux uy uz rx ry rz (global axes). Each quad is
 flat (a warped quad is projected on the plane through its centre spanned by its mid-side vectors).
@@ -26,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
-from .shell_section import DRILL, SHEAR_FACTOR, plate_section  # noqa: F401 (DRILL, SHEAR_FACTOR: this module's names too)
+from .shell_section import DRILL, SHEAR_FACTOR, plate_section  # noqa: F401 (shell.SHEAR_FACTOR kept)
 from .shell_mitc9 import quad9_frame, quad9_matrices
 from .shell_tri import tria_frame, tria_matrices
 

@@ -1,6 +1,7 @@
-"""A shell mesh as a CalculiX deck (S4/S4R and S8 quads, S3/S6 triangles; *FREQUENCY) and the eigenvalue table of its .dat file:
-the independent solver the shells are checked against (docs/shells.md). CalculiX expands each shell
-element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R, S8 -> C3D20R, S3 -> C3D6 and S6 -> C3D15 wedges)."""
+"""A shell mesh as a CalculiX deck (S4/S4R and S8 quads, S3/S6 triangles; *FREQUENCY) and the
+eigenvalue table of its .dat file: the independent solver the shells are checked against
+(docs/shells.md). CalculiX expands each shell element to a solid through the thickness (S4 -> C3D8I,
+S4R -> C3D8R, S8 -> C3D20R bricks, S3 -> C3D6 and S6 -> C3D15 wedges)."""
 from __future__ import annotations
 
 import shutil
