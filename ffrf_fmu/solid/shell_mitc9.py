@@ -20,6 +20,8 @@ consistent, rho t N^T N on u, v, w and rho t^3/12 N^T N on rx, ry, none on rz, o
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .mesh import Material
@@ -29,8 +31,23 @@ _R = np.array([-1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, -1.0, 0.0])  # natural coord
 _S = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, 0.0])
 _G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _W3 = np.array([5.0, 8.0, 5.0]) / 9.0
-# 3 x 3 Gauss-Legendre on [-1, 1]^2: (9, 2) points (r, s), (9,) weights (sum 4, times det J)
-MASS_RULE_9 = (np.array([(r, s) for s in _G3 for r in _G3]), np.array([wr * ws for ws in _W3 for wr in _W3]))
+
+
+@dataclass(frozen=True)
+class SquareRule:
+    """A quadrature rule on [-1, 1]^2: points (r, s) and weights (sum 4; dA = weight * det J)."""
+
+    points: np.ndarray  # (q, 2)
+    weights: np.ndarray  # (q,)
+
+    def shape(self) -> np.ndarray:
+        """(q, 9) the 9-node shape functions at the points."""
+        return np.array([shape9(r, s)[0] for r, s in self.points])
+
+
+# 3 x 3 Gauss-Legendre: exact for N_i N_j of the biquadratic quad on a parallelogram (degree 4 per axis)
+MASS_RULE_9 = SquareRule(points=np.array([(r, s) for s in _G3 for r in _G3]),
+                         weights=np.array([wr * ws for ws in _W3 for wr in _W3]))
 _A, _B = 1.0 / np.sqrt(3.0), np.sqrt(0.6)  # MITC9 tying abscissae
 
 
@@ -98,7 +115,7 @@ def quad9_matrices(xy: np.ndarray, t: float, mat: Material):
     E_st = np.array([[covariant(rb, sa, 1) for rb in (-_B, 0.0, _B)] for sa in (-_A, _A)])
     K = np.zeros((54, 54))
     M = np.zeros((54, 54))
-    for (r, s), w in zip(*MASS_RULE_9):
+    for (r, s), w in zip(MASS_RULE_9.points, MASS_RULE_9.weights):
         N, dN, J, detJ = jacobian(r, s)
         dNx = np.linalg.solve(J, dN)
         Bm = np.zeros((3, 54))
