@@ -1,4 +1,6 @@
-"""Flat 4-node shell (MITC4 bending + bilinear membrane + drilling penalty) on 6-dof nodes (docs/shells.md).
+"""Flat 4-node shell (MITC4 bending + bilinear membrane + drilling penalty) on 6-dof nodes, and the
+assembly of these quads, shell_tri.py's DKT triangles and shell_mitc9.py's 9-node quads into one
+model (docs/shells.md).
 
 Dofs are node-major, 6 per node: dof 6 i + c, c = ux uy uz rx ry rz (global axes). Each quad is
 flat (a warped quad is projected on the plane through its centre spanned by its mid-side vectors).
@@ -18,15 +20,17 @@ is singular on drilling dofs of a flat plate: use shift-invert eigensolvers (fre
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
 
 from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
+from .shell_section import DRILL, SHEAR_FACTOR, plate_section  # noqa: F401 (shell.SHEAR_FACTOR kept)
+from .shell_mitc9 import quad9_frame, quad9_matrices
+from .shell_tri import tria_frame, tria_matrices
 
-DRILL = 1e-3  # drilling penalty / smallest membrane stiffness diagonal of the element
-SHEAR_FACTOR = 5.0 / 6.0
 _G = 1.0 / np.sqrt(3.0)
 _GAUSS = [(-_G, -_G), (_G, -_G), (_G, _G), (-_G, _G)]
 _XI = np.array([-1.0, 1.0, 1.0, -1.0])
@@ -35,15 +39,17 @@ _ETA = np.array([-1.0, -1.0, 1.0, 1.0])
 
 @dataclass(frozen=True, eq=False)
 class ShellFE:
-    """A linear shell FE model: nodes, quads, per-element thickness, sparse K and M on 6 dofs per
-    node (dof 6 node + c, c = ux uy uz rx ry rz)."""
+    """A linear shell FE model: nodes, quads, triangles and 9-node quads, per-element thickness (quads,
+    then triangles, then 9-node quads), sparse K and M on 6 dofs per node (dof 6 node + c, c = ux uy uz rx ry rz)."""
 
     coords: np.ndarray  # (n, 3) [m]
     quads: np.ndarray  # (e, 4) node indices, counter-clockwise about the element normal
-    thickness: np.ndarray  # (e,) [m]
+    thickness: np.ndarray  # (e + e3 + e9,) [m], quads, then trias, then quads9
     material: Material
     K: sp.csr_matrix  # (6n, 6n)
     M: sp.csr_matrix  # (6n, 6n)
+    trias: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=int))  # (e3, 3), counter-clockwise
+    quads9: np.ndarray = field(default_factory=lambda: np.zeros((0, 9), dtype=int))  # (e9, 9), shell_mitc9.py order
 
     @property
     def n_nodes(self) -> int:
@@ -81,10 +87,9 @@ def element_frame(X: np.ndarray):
 def element_matrices(xy: np.ndarray, t: float, mat: Material):
     """Local 24 x 24 K, M of a flat quad with in-plane corners xy (4, 2), local dofs per node
     (u v w rx ry rz)."""
-    E, nu, rho = mat.E, mat.nu, mat.rho
-    Cm = E * t / (1 - nu**2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
-    Cb = Cm * t**2 / 12
-    Cs = SHEAR_FACTOR * E / (2 * (1 + nu)) * t * np.eye(2)
+    rho = mat.rho
+    sec = plate_section(t, mat)
+    Cm, Cb, Cs = sec.Cm, sec.Cb, sec.Cs
     K = np.zeros((24, 24))
     M = np.zeros((24, 24))
     iu, iv, iw, irx, iry, irz = (np.arange(4) * 6 + k for k in range(6))
@@ -140,36 +145,58 @@ def element_matrices(xy: np.ndarray, t: float, mat: Material):
     return K, M
 
 
-def assemble_shells(nodes, quads, thickness, material: Material) -> ShellFE:
-    """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads on `nodes` (n, 3) [m];
-    `thickness` a number or one per quad [m] (PSHELL-like)."""
+def _cells(cells, corners: int, name: str, n_nodes: int) -> np.ndarray:
+    C = np.zeros((0, corners), dtype=int) if cells is None or np.size(cells) == 0 else np.asarray(cells, dtype=int)
+    if C.ndim != 2 or C.shape[1] != corners:
+        raise ValueError(f"{name}: shape {C.shape}, expected (e, {corners})")
+    if C.size and (C.min() < 0 or C.max() >= n_nodes):
+        raise ValueError(f"{name}: node index out of range 0..{n_nodes - 1}")
+    return C
+
+
+def assemble_shells(nodes, quads, thickness, material: Material, trias=None, tria_bending: str = "dkt",
+                    quads9=None) -> ShellFE:
+    """Global sparse K, M (6 dofs per node, dof 6 node + c) of flat quads, triangles (`trias`,
+    (e3, 3), shell_tri.py, bending `tria_bending`: "dkt", or "mitc3" which locks) and MITC9 quads
+    (`quads9`, (e9, 9), shell_mitc9.py) on `nodes` (n, 3) [m]; `thickness` a number or one per
+    element, quads, then triangles, then 9-node quads [m] (PSHELL-like). Any cell list may be empty."""
     X = np.asarray(nodes, dtype=float)
-    Q = np.asarray(quads, dtype=int)
     if X.ndim != 2 or X.shape[1] != 3:
         raise ValueError(f"nodes: shape {X.shape}, expected (n, 3)")
-    if Q.ndim != 2 or Q.shape[1] != 4:
-        raise ValueError(f"quads: shape {Q.shape}, expected (e, 4)")
-    if Q.size and (Q.min() < 0 or Q.max() >= len(X)):
-        raise ValueError(f"quads: node index out of range 0..{len(X) - 1}")
-    t = np.broadcast_to(np.asarray(thickness, dtype=float), (len(Q),)).copy()
+    Q = _cells(quads, 4, "quads", len(X))
+    T3 = _cells(trias, 3, "trias", len(X))
+    Q9 = _cells(quads9, 9, "quads9", len(X))
+    n_el = len(Q) + len(T3) + len(Q9)
+    t = np.asarray(thickness, dtype=float)
+    if t.ndim and t.shape != (n_el,):
+        raise ValueError(f"thickness: shape {t.shape}, expected a number or ({n_el},) (quads, trias, quads9)")
+    t = np.broadcast_to(t, (n_el,)).copy()
     if np.any(t <= 0):
         raise ValueError(f"thickness: element {int(np.argmin(t))} has t = {t.min():g} <= 0")
     rows, cols, kv, mv = [], [], [], []
-    for e, q in enumerate(Q):
-        T, xy = element_frame(X[q])
-        Ke, Me = element_matrices(xy, t[e], material)
-        R = np.kron(np.eye(8), T)  # local = R global (translations and rotations of 4 nodes)
+    cells = [("quad", e, q, element_frame, element_matrices) for e, q in enumerate(Q)]
+    tria = partial(tria_matrices, bending=tria_bending)
+    cells += [("tria", e, q, tria_frame, tria) for e, q in enumerate(T3)]
+    cells += [("quad9", e, q, quad9_frame, quad9_matrices) for e, q in enumerate(Q9)]
+    for k, (kind, e, q, frame, matrices) in enumerate(cells):
+        where = f"{kind} {e} (nodes {', '.join(str(int(i)) for i in q)})"
+        try:
+            T, xy = frame(X[q])
+            Ke, Me = matrices(xy, t[k], material)
+        except ValueError as err:
+            raise ValueError(f"{where}: {err}") from err
+        R = np.kron(np.eye(2 * len(q)), T)  # local = R global (translations and rotations of the nodes)
         Ke, Me = R.T @ Ke @ R, R.T @ Me @ R
         d = (6 * q[:, None] + np.arange(6)).ravel()
-        rows.append(np.repeat(d, 24))
-        cols.append(np.tile(d, 24))
+        rows.append(np.repeat(d, len(d)))
+        cols.append(np.tile(d, len(d)))
         kv.append(Ke.ravel())
         mv.append(Me.ravel())
     n = 6 * len(X)
-    r, c = np.concatenate(rows), np.concatenate(cols)
-    K = sp.csr_matrix((np.concatenate(kv), (r, c)), shape=(n, n))
-    M = sp.csr_matrix((np.concatenate(mv), (r, c)), shape=(n, n))
-    return ShellFE(X, Q, t, material, K, M)
+    r, c = (np.concatenate(v) if v else np.zeros(0, dtype=int) for v in (rows, cols))
+    K = sp.csr_matrix((np.concatenate(kv) if kv else np.zeros(0), (r, c)), shape=(n, n))
+    M = sp.csr_matrix((np.concatenate(mv) if mv else np.zeros(0), (r, c)), shape=(n, n))
+    return ShellFE(X, Q, t, material, K, M, T3, Q9)
 
 
 def rigid_modes(coords: np.ndarray, centre=(0.0, 0.0, 0.0)) -> np.ndarray:

@@ -1,7 +1,8 @@
-"""A shell mesh as a CalculiX deck (S4/S4R/S8/S8R, *FREQUENCY) and the eigenvalue table of its .dat file:
-the independent solver the shells are checked against (docs/shells.md). CalculiX expands each shell
-element to a brick through the thickness (S4 -> C3D8I, S4R -> C3D8R, S8 -> C3D20, S8R -> C3D20R); the
-linear bricks lock on thin plates (measured: S4 at a/h = 1000), the quadratic ones do not (S8 at 2000)."""
+"""A shell mesh as a CalculiX deck (S4/S4R and S8/S8R quads, S3/S6 triangles; *FREQUENCY) and the
+eigenvalue table of its .dat file: the independent solver the shells are checked against
+(docs/shells.md). CalculiX expands each shell element to a solid through the thickness (S4 -> C3D8I,
+S4R -> C3D8R, S8 -> C3D20, S8R -> C3D20R bricks, S3 -> C3D6 and S6 -> C3D15 wedges); the linear bricks
+lock on thin plates (measured: S4 at a/h = 1000), the quadratic ones do not (S8 at 2000)."""
 from __future__ import annotations
 
 import shutil
@@ -14,15 +15,19 @@ import numpy as np
 from .mesh import Material
 
 EIGEN_TABLE = "E I G E N V A L U E   O U T P U T"
+CORNERS = {"S4": 4, "S4R": 4, "S8": 8, "S8R": 8, "S3": 3, "S6": 6}  # nodes per cell of each CalculiX shell element
 
 
 def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4") -> str:
-    """The text of a free-free *FREQUENCY deck of the quads (1-based node and element numbers); S8/S8R:
-    the quads with a node added at each edge's midpoint (quadratic_quads)."""
-    if element not in ("S4", "S4R", "S8", "S8R"):
-        raise ValueError(f"element {element!r}: expected S4, S4R, S8 or S8R")
-    if element in ("S8", "S8R"):
+    """The text of a free-free *FREQUENCY deck of the cells `quads` (quads for S4/S4R, 8-node quads for
+    S8/S8R (serendipity; 4-node quads are made quadratic by quadratic_quads), triangles for S3, 6-node
+    triangles for S6 (with_midsides); 1-based node and element numbers)."""
+    if element not in CORNERS:
+        raise ValueError(f"element {element!r}: expected one of {', '.join(CORNERS)}")
+    if CORNERS[element] == 8 and np.shape(quads)[1:] == (4,):
         nodes, quads = quadratic_quads(nodes, quads)
+    if np.shape(quads)[1:] != (CORNERS[element],):
+        raise ValueError(f"element {element}: cells of shape {np.shape(quads)}, expected (e, {CORNERS[element]})")
     lines = ["*NODE"] + [f"{i + 1},{x:.15g},{y:.15g},{z:.15g}" for i, (x, y, z) in enumerate(np.asarray(nodes, float))]
     lines += [f"*ELEMENT,TYPE={element},ELSET=EALL"]
     lines += [f"{e + 1}," + ",".join(str(int(k) + 1) for k in q) for e, q in enumerate(quads)]
@@ -42,6 +47,24 @@ def quadratic_quads(nodes, quads):
     unique, inverse = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True)
     mid = 0.5 * (X[unique[:, 0]] + X[unique[:, 1]])
     return np.vstack([X, mid]), np.hstack([Q, len(X) + inverse.reshape(-1, 4)])
+
+
+def with_midsides(nodes, trias):
+    """Nodes and 6-node triangles (corners, then the midsides of 01 12 20: CalculiX's S6 order) of
+    3-node triangles, one new node at the middle of each edge, shared by its two triangles."""
+    X = np.asarray(nodes, dtype=float)
+    T = np.asarray(trias, dtype=int)
+    edges = np.sort(T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 3, 2), axis=2).reshape(-1, 2)
+    unique, index = np.unique(edges, axis=0, return_inverse=True)
+    mid = 0.5 * (X[unique[:, 0]] + X[unique[:, 1]])
+    return np.vstack([X, mid]), np.hstack([T, len(X) + np.asarray(index).reshape(-1, 3)])
+
+
+def used_nodes(nodes, cells):
+    """Nodes and cells renumbered to the nodes the cells use (CalculiX has no dofs on a free node)."""
+    C = np.asarray(cells, dtype=int)
+    used, inverse = np.unique(C, return_inverse=True)
+    return np.asarray(nodes, dtype=float)[used], np.asarray(inverse).reshape(C.shape)
 
 
 def calculix_frequencies(dat: str, where: str = "ccx .dat") -> np.ndarray:

@@ -1,0 +1,53 @@
+"""The free-free square plate (nu = 0.3) on distorted meshes: the interior grid vertices moved at
+random by up to 0.2 of a cell in x and y (seed 5), edges kept straight, for the MITC4 quad, the DKT
+triangle (each cell cut along 0-2) and the MITC9 quad (midsides and centre at their bilinear places);
+a/h 100, 1000, 2000. Prints the table of docs/shells.md.
+
+    python benchmarks/shell_plate_distorted.py
+"""
+import numpy as np
+
+from ffrf_fmu.solid.mesh import Material
+from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh
+from ffrf_fmu.solid.shell_mitc9 import plate_mesh9
+from ffrf_fmu.solid.shell_tri import split_quads
+
+STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
+LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]
+
+
+def vertices(n, seed=5, amount=0.2):
+    V = np.stack(np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="xy"), axis=-1)
+    V[1:-1, 1:-1] += np.random.default_rng(seed).uniform(-amount, amount, V[1:-1, 1:-1].shape) / n
+    return V
+
+
+def mesh(element, n):
+    V = vertices(n)
+    if element == "MITC9":
+        nodes, q9 = plate_mesh9(1.0, 1.0, n, n)
+        J, I = np.divmod(np.arange(len(nodes)), 2 * n + 1)
+        nodes[:, :2] = 0.25 * (V[J // 2, I // 2] + V[J // 2, (I + 1) // 2] + V[(J + 1) // 2, I // 2]
+                               + V[(J + 1) // 2, (I + 1) // 2])
+        return nodes, {"quads": None, "quads9": q9}
+    nodes, quads = plate_mesh(1.0, 1.0, n, n)
+    nodes[:, :2] = V.reshape(-1, 2)
+    return nodes, ({"quads": quads} if element == "MITC4" else {"quads": None, "trias": split_quads(quads, "02")})
+
+
+def main():
+    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..5; Leissa: %s" % LEISSA)
+    for element, sizes in (("MITC4", (8, 16)), ("DKT", (8, 16)), ("MITC9", (4, 8))):
+        for n in sizes:
+            nodes, cells = mesh(element, n)
+            for r in (100, 1000, 2000):
+                h = 1.0 / r
+                D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
+                fe = assemble_shells(nodes, cells["quads"], h, STEEL, **{k: v for k, v in cells.items() if k != "quads"})
+                w2, _ = free_modes(fe, 11, shift=-1e-2 * D / (STEEL.rho * h))
+                lam = np.sqrt(np.abs(w2[6:])) * np.sqrt(STEEL.rho * h / D)
+                print(f"{element:5s} {n:2d}x{n:<2d} distorted a/h={r:<5d}" + " ".join(f"{x:7.3f}" for x in lam))
+
+
+if __name__ == "__main__":
+    main()
