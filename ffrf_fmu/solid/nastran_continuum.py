@@ -1,0 +1,178 @@
+"""Shells and solids of a Nastran deck (ffrf_fmu/solid/nastran.py; docs/nastran.md): K and the mass
+split of solid/nastran_mass.py on the deck's 6-dof nodes.
+
+Shells: CQUAD4 by solid/shell.py's MITC4 element (element_frame, element_matrices) with the
+thickness of its PSHELL, or of a PCOMP whose plies are all of one MAT1 (laid from Z0 = -T/2: the
+laminate is then the homogeneous plate of thickness T = sum t_i, A = E T/(1 - nu^2) [..],
+B = 0, D = T^2/12 A, the same as a PSHELL). CTRIA3 by the same element with its third corner
+repeated (the collapsed MITC4: one rho t N_i N_j and stiffness of a quad whose 4th corner sits on
+the 3rd). Mass: coupled (COUPMASS > 0) rho t int N_i N_j on the translations and the fibres' rotary
+inertia as mass points (solid/shell_body.py: w = rho t det J_g, N = (t / sqrt 12) N(xi_g) (-n~));
+lumped (Nastran's default) rho t A / k at each of the k corners, no rotary inertia.
+
+Solids: CHEXA (8 nodes), CPENTA (6), CTETRA (4, 10) with PSOLID: scikit-fem's reference elements
+(ElementHex1, ElementWedge1, ElementTetP1, ElementTetP2; their shape functions evaluated at the
+deck's nodes, isoparametric on them) and the element matrices of solid/mesh.py (_elasticity):
+    K_(ia)(jb) = int lambda d_a phi_i d_b phi_j + mu (delta_ab grad phi_i . grad phi_j + d_b phi_i d_a phi_j),
+    M_s,ij = int rho phi_i phi_j,
+on Gauss rules exact to degree 3 (hex, tet4, wedge: 3-point-degree-3 triangle x line, as scikit-fem's
+own wedge rule sums its weights to 1/4 of the volume in 12.0) and 6 (tet10). Lumped mass: the row
+sums of M_s (all positive on these linear elements); the 10-node tetrahedron keeps its consistent
+mass (its row sums are negative at the corners) and NastranFE.notes says so. The 3-dof matrices go on
+the translations of the 6-dof nodes; the rotations of a node only solids touch stay without stiffness
+and mass (AUTOSPC or the reduction leaves them out).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .mesh import Material, lame
+from .shell import element_frame, element_matrices, _GAUSS, _shape
+
+SHELL_CARDS = ("CQUAD4", "CTRIA3", "PSHELL", "PCOMP")
+SOLID_CARDS = ("CHEXA", "CPENTA", "CTETRA", "PSOLID")
+TS_T = 0.833333  # Nastran's default TS/T (pyNastran's too); shell.py's k = 5/6
+
+# the deck's node order on the reference cell of scikit-fem's element (MSC QRG connectivity)
+_HEX = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+_TET = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+_TET_EDGES = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]  # G5..G10
+_TET10 = _TET + [tuple((np.add(_TET[a], _TET[b]) / 2).tolist()) for a, b in _TET_EDGES]
+_WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
+
+
+def _material(refuse, mat, card, pid):
+    if mat.type != "MAT1":
+        refuse(card, pid, f"material {mat.type} {mat.mid} not supported (MAT1 only)")
+    if not mat.e or mat.nu is None:
+        refuse(card, pid, f"MAT1 {mat.mid}: E and NU are needed (E = {mat.e}, NU = {mat.nu})")
+    return Material(E=float(mat.e), nu=float(mat.nu), rho=float(mat.rho or 0.0))
+
+
+def shell_property(refuse, prop):
+    """(Material, thickness) of a PSHELL or of a PCOMP of one isotropic MAT1 (module doc)."""
+    if prop.type == "PSHELL":
+        mid1, mid2, mid3 = prop.mid1, prop.mid2, prop.mid3
+        if mid1 is None or mid2 != mid1 or mid3 not in (mid1, None) or prop.mid4 is not None:
+            refuse("PSHELL", prop.pid, f"MID1 = MID2 (= MID3 or blank), no MID4 needed: MID1..4 = "
+                   f"{mid1}, {mid2}, {mid3}, {prop.mid4}")
+        if abs(prop.twelveIt3 - 1.0) > 1e-6 or abs(prop.tst - TS_T) > 1e-6:
+            refuse("PSHELL", prop.pid, f"12I/T^3 = {prop.twelveIt3}, TS/T = {prop.tst}: only the defaults "
+                   f"1.0 and {TS_T} (homogeneous plate) are supported")
+        if prop.nsm:
+            refuse("PSHELL", prop.pid, f"NSM = {prop.nsm} not supported")
+        if not prop.t or prop.t <= 0:
+            refuse("PSHELL", prop.pid, f"thickness T = {prop.t} must be > 0")
+        return _material(refuse, prop.mid1_ref, "PSHELL", prop.pid), float(prop.t)
+    if prop.type == "PCOMP":
+        mids, t = list(prop.mids), np.asarray(prop.thicknesses, dtype=float)
+        if len(set(mids)) != 1 or prop.mids_ref[0].type != "MAT1":
+            refuse("PCOMP", prop.pid, f"plies of materials {mids} ({', '.join(m.type for m in prop.mids_ref)}): "
+                   "only laminates of one MAT1 are supported (classical laminate theory of MAT8 or mixed "
+                   "plies is not implemented)")
+        T = float(t.sum())
+        if prop.lam not in (None, "", "BLANK") or abs(prop.z0 + T / 2) > 1e-9 * T or prop.nsm:
+            refuse("PCOMP", prop.pid, f"LAM = {prop.lam}, Z0 = {prop.z0}, NSM = {prop.nsm}: only LAM blank, "
+                   f"Z0 = -T/2 = {-T / 2:g} and NSM = 0 are supported")
+        if np.any(t <= 0):
+            refuse("PCOMP", prop.pid, f"ply thicknesses {t.tolist()} must be > 0")
+        return _material(refuse, prop.mids_ref[0], "PCOMP", prop.pid), T
+    refuse(prop.type, prop.pid, "not a shell property (PSHELL, PCOMP)")
+
+
+def add_shell(asm, refuse, X, index, elem, lumped: bool):
+    """One CQUAD4 or CTRIA3 into the Assembly asm (module doc)."""
+    nodes = np.array([index[g] for g in elem.nodes], dtype=int)
+    if elem.zoffset:
+        refuse(elem.type, elem.eid, f"ZOFFS = {elem.zoffset} not supported")
+    mat, t = shell_property(refuse, elem.pid_ref)
+    corner_t = [getattr(elem, f"T{k}") for k in range(1, len(nodes) + 1)]
+    if any(c is not None and abs(c - (t if elem.tflag == 0 else 1.0)) > 1e-9 * t for c in corner_t):
+        refuse(elem.type, elem.eid, f"corner thicknesses T1.. = {corner_t} (TFLAG {elem.tflag}) differ "
+               f"from the property's T = {t:g}: not supported")
+    q = nodes if len(nodes) == 4 else nodes[[0, 1, 2, 2]]
+    try:
+        T, xy = element_frame(X[q])
+        Ke, _ = element_matrices(xy, t, mat)
+    except ValueError as exc:
+        refuse(elem.type, elem.eid, str(exc))
+    R = np.kron(np.eye(8), T)
+    d = (6 * q[:, None] + np.arange(6)).ravel()
+    asm.stiffness(d, R.T @ Ke @ R)
+    if lumped:
+        area = sum(np.linalg.det(_shape(*g)[1] @ xy) for g in _GAUSS)
+        asm.node_mass(nodes[:, None], np.full((len(nodes), 1, 1), mat.rho * t * area / len(nodes)))
+        return
+    nrm = -skew_of(T[2])
+    for xi, eta in _GAUSS:
+        N, dN = _shape(xi, eta)
+        w = mat.rho * t * float(np.linalg.det(dN @ xy))
+        asm.node_mass(q, w * np.outer(N, N))
+        Np = t / np.sqrt(12.0) * np.einsum("i,ac->aic", N, nrm).reshape(1, 3, 12)
+        asm.points((6 * q[:, None] + 3 + np.arange(3)).ravel(), Np, [w])
+
+
+def skew_of(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _reference(kind):
+    """(scikit-fem element, reference node positions in the deck's order, quadrature X (3, q), w (q,))."""
+    import skfem
+    from skfem.quadrature import get_quadrature, get_quadrature_line, get_quadrature_tri
+
+    e, ref, order = {"hex8": (skfem.ElementHex1(), _HEX, 3), "wedge6": (skfem.ElementWedge1(), _WEDGE, 3),
+                     "tet4": (skfem.ElementTetP1(), _TET, 3), "tet10": (skfem.ElementTetP2(), _TET10, 6)}[kind]
+    if kind == "wedge6":
+        Xt, wt = get_quadrature_tri(3)
+        Xl, wl = get_quadrature_line(3)
+        Xq = np.vstack([np.repeat(Xt, len(wl), axis=1), np.tile(Xl, len(wt))])
+        wq = np.repeat(wt, len(wl)) * np.tile(wl, len(wt))
+    else:
+        Xq, wq = get_quadrature(e.refdom, order)
+    locs = np.asarray(e.doflocs, dtype=float)
+    perm = [int(np.argmin(np.abs(locs - np.asarray(r)).sum(axis=1))) for r in ref]
+    if sorted(perm) != list(range(len(ref))):  # pragma: no cover - a scikit-fem release with other dof locations
+        raise RuntimeError(f"scikit-fem's {type(e).__name__} dof locations do not match the deck's node order")
+    return e, perm, Xq, wq
+
+
+def solid_kind(elem):
+    n = len(elem.nodes)
+    if any(g is None for g in elem.nodes):
+        return None
+    return {("CHEXA", 8): "hex8", ("CPENTA", 6): "wedge6", ("CTETRA", 4): "tet4", ("CTETRA", 10): "tet10"}.get((elem.type, n))
+
+
+def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
+    """Solid elements of one kind (same node count) into the Assembly asm (module doc)."""
+    e, perm, Xq, wq = _reference(kind)
+    phi = np.stack([e.lbasis(Xq, i)[0] for i in perm])  # (nloc, nq), the deck's node order
+    dphi_ref = np.stack([e.lbasis(Xq, i)[1] for i in perm])  # (nloc, 3, nq)
+    for elem in elems:
+        prop = elem.pid_ref
+        if prop.type != "PSOLID":
+            refuse(elem.type, elem.eid, f"property {prop.type} {prop.pid} is not a PSOLID")
+        if prop.fctn != "SMECH" or prop.isop not in (None, "", "FULL", "REDUCED", 0, 1, 2):
+            refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
+        mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid)
+        nodes = np.array([index[g] for g in elem.nodes], dtype=int)
+        J = np.einsum("ia,ibq->qab", X[nodes], dphi_ref)  # dx_a / dxi_b
+        det = np.linalg.det(J)
+        if np.any(det * np.sign(det[0]) <= 0):
+            refuse(elem.type, elem.eid, "element folded or degenerate (det J changes sign or vanishes)")
+        dphi = np.einsum("ibq,qba->qia", dphi_ref, np.linalg.inv(J))  # (nq, nloc, 3)
+        dx = np.abs(det) * wq
+        lam, mu = lame(mat)
+        n = len(nodes)
+        A = np.einsum("q,qia,qjb->iajb", dx, dphi, dphi)  # int d_a phi_i d_b phi_j
+        Ke = lam * A + mu * A.transpose(0, 3, 2, 1)
+        Ke += mu * np.einsum("icjc->ij", A)[:, None, :, None] * np.eye(3)[None, :, None, :]
+        asm.stiffness((6 * nodes[:, None] + np.arange(3)).ravel(), Ke.reshape(3 * n, 3 * n))
+        Ms = mat.rho * np.einsum("q,iq,jq->ij", dx, phi, phi)
+        if lumped and kind != "tet10":
+            Ms = np.diag(Ms.sum(axis=1))
+        elif lumped:
+            notes.add("CTETRA (10 nodes): consistent mass (the row-sum lumping of the quadratic "
+                      "tetrahedron is negative at the corners); Nastran lumps it its own way")
+        asm.node_mass(nodes, Ms)
