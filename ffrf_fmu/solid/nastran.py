@@ -238,7 +238,7 @@ def _frame(path, model, elem, xa, xb):
 
 
 def _spc_dofs(path, model, index):
-    sub = [s for s in model.case_control_deck.subcases.values() if s.has_parameter("SPC")]
+    sub = [s for s in model.case_control_deck.subcases.values() if "SPC" in s.params]
     if not sub:
         return np.zeros(0, dtype=int)
     sid = int(sub[-1].get_parameter("SPC")[0])
@@ -362,6 +362,9 @@ def read_nastran(path: str) -> NastranFE:
     spc_grids = sorted({int(node_ids[d // 6]) for d in spc})
     ignored = tuple(f"{c} ({model.card_count[c]}x)" for c in model.card_count if c in HARMLESS_CARDS)
     sets = {"spc": spc_grids, **{f"SET1 {sid}": sorted(int(g) for g in s.ids) for sid, s in model.sets.items()}}
+    for sid, grids in ((k, v) for k, v in sets.items() if k != "spc"):
+        if set(grids) - set(index):
+            _refuse(path, "SET1", sid[5:], f"GRID {sorted(set(grids) - set(index))} not in the deck")
     return NastranFE(path=path, node_ids=node_ids, coords=X, K=K, M=M, spc_dofs=spc,
                      autospc_dofs=autospc, grid_sets=sets, M_scalar=Ms, mass_points=points, wtmass=wtmass,
                      mass_form="lumped" if lumped else "coupled", ignored_cards=ignored,

@@ -82,7 +82,7 @@ def shell_property(refuse, prop):
 
 def add_shell(asm, refuse, X, index, elem, lumped: bool):
     """One CQUAD4 or CTRIA3 into the Assembly asm (module doc)."""
-    nodes = np.array([index[g] for g in elem.nodes], dtype=int)
+    nodes = _nodes(refuse, index, elem)
     if elem.zoffset:
         refuse(elem.type, elem.eid, f"ZOFFS = {elem.zoffset} not supported")
     mat, t = shell_property(refuse, elem.pid_ref)
@@ -110,6 +110,12 @@ def add_shell(asm, refuse, X, index, elem, lumped: bool):
         asm.node_mass(q, w * np.outer(N, N))
         Np = t / np.sqrt(12.0) * np.einsum("i,ac->aic", N, nrm).reshape(1, 3, 12)
         asm.points((6 * q[:, None] + 3 + np.arange(3)).ravel(), Np, [w])
+
+
+def _nodes(refuse, index, elem):
+    if len(set(elem.nodes)) != len(elem.nodes):
+        refuse(elem.type, elem.eid, f"a GRID repeated in its connectivity {elem.nodes} (degenerate element)")
+    return np.array([index[g] for g in elem.nodes], dtype=int)
 
 
 def skew_of(v):
@@ -156,7 +162,7 @@ def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
         if prop.fctn != "SMECH" or prop.isop not in (None, "", "FULL", "REDUCED", 0, 1, 2):
             refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
         mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid)
-        nodes = np.array([index[g] for g in elem.nodes], dtype=int)
+        nodes = _nodes(refuse, index, elem)
         J = np.einsum("ia,ibq->qab", X[nodes], dphi_ref)  # dx_a / dxi_b
         det = np.linalg.det(J)
         if np.any(det * np.sign(det[0]) <= 0):
