@@ -1,14 +1,18 @@
-"""Nastran bulk data decks of beams, rods and point masses -> 6-dof-node K and M (docs/nastran.md).
+"""Nastran bulk data decks -> 6-dof-node K and M (docs/nastran.md).
 
 Reading is pyNastran's (optional extra `nastran`); this module turns the cards it parsed into
-scipy.sparse K and M on dofs node_index * 6 + i (i = T1 T2 T3 R1 R2 R3, global axes).
+scipy.sparse K and M on dofs node_index * 6 + i (i = T1 T2 T3 R1 R2 R3, global axes); the mass is
+assembled as node-block mass and mass points (solid/nastran_mass.py), kept in NastranFE for the body
+(solid/nastran_body.py); shells and solids are solid/nastran_continuum.py's.
 
 Supported: GRID (positions through CORD2R/C/S by pyNastran's get_position; displacement frame
 CD must be 0), CBAR and CBEAM (orientation vector X or G0; pin flags, offsets WA/WB and warping
 points refused), CROD (axial + torsion), PBAR, PBARL, PBEAM (constant section), PBEAML (section
 properties A, I1, I2, J as pyNastran computes them; I12 must be 0), PROD, MAT1, CONM2 (mass,
-offset, rotary inertia about the centre of mass), SPC/SPC1/SPCADD (zero values only), PARAM
-WTMASS (scales M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC.
+offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP (one MAT1), CHEXA,
+CPENTA, CTETRA, PSOLID, SET1 (node sets), SPC/SPC1/SPCADD (zero values only), PARAM WTMASS (scales
+M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC. RBE2/RBE3 and any
+other card are refused, named by file and line.
 
 Beam element: ffrf_fmu/fe/beam.py (linear axial and twist, IIE bending): Euler-Bernoulli (GA =
 None, cubic Hermite) unless the property gives shear flexibility, then Timoshenko with
@@ -45,7 +49,7 @@ MODEL_CARDS = (
 )
 # PARAMs read (WTMASS, COUPMASS, AUTOSPC) or output only; any other PARAM is refused
 PARAMS_USED = ("WTMASS", "COUPMASS", "AUTOSPC")
-PARAMS_OUTPUT = ("POST", "POSTEXT", "OUGCORD", "GRDPNT", "PRTMAXIM", "K6ROT")  # K6ROT: shells only
+PARAMS_OUTPUT = ("POST", "POSTEXT", "OUGCORD", "GRDPNT", "PRTMAXIM", "K6ROT")  # K6ROT: shell.py DRILL used
 
 
 # shear factors Nastran uses for PBARL/PBEAML sections (measured: with 0.9 the ROD sections of
