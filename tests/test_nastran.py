@@ -44,11 +44,11 @@ def test_wtmass_scales_mass(tmp_path):
     np.testing.assert_allclose(fe.frequencies(4), 2.0 * base.frequencies(4), rtol=1e-9)
 
 
-@pytest.mark.parametrize("card", ["RBE2          99      11  123456       2       3",
+@pytest.mark.parametrize("card", ["RBAR          99      11      12  123456",
                                   "RBE3          99              11  123456     1.0     123       2       3"])
 def test_unsupported_card_named_with_file_and_line(tmp_path, card):
-    """Rigid elements (RBE2, RBE3) are not implemented (no constraint elimination yet): refused,
-    named with file and line, never dropped."""
+    """A card not implemented (RBAR) and an RBE3 whose independent grids lie on one line (they fix
+    no rigid motion): refused, named with file and line, never dropped."""
     shutil.copy(DECK, tmp_path)
     blk = (DATA / "cbar_cbeam.blk").read_text()
     blk += card + "\n"

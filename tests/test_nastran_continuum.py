@@ -170,6 +170,8 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
                [], "folded or degenerate"),
     "PSOLID": ([("PSOLID   2       1       0", "PSOLID,2,1,0,,,,FFLUID")], [], "FCTN = FFLUID"),
     "SET1": ([], [("SPCADD", "SET1,3,1,2,99\nSPCADD")], r"GRID \[99\] not in the deck"),
+    "RBE2": ([], [("SPCADD", "RBE2,99,13,123,22\nSPCADD")], "also fixed by an SPC"),
+    "RBE3": ([], [("SPCADD", "RBE3,98,,13,123,1.0,123456,9,10,\n,11,12\nSPCADD")], "only 123"),
     "MAT8": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,8,0.4\n")], [("MAT1     1", "MAT8,8,1.0+7,1.0+6,.3,1.0+6,,,.1\nMAT1     1")],
              r"cards not supported .*MAT8"),
 }
@@ -189,3 +191,53 @@ def test_malformed_card_named_with_file_and_line(tmp_path, case):
     line = files[m.group(1)].splitlines()[int(m.group(2)) - 1]
     assert m.group(3).startswith(line.rstrip()), (line, msg)
     assert re.search(why, msg, re.S), msg
+
+
+def _cantilever(tmp_path, extra, name="c.bdf"):
+    """Two CBARs along x (SPC 123456 at GRID 1) and `extra` bulk lines."""
+    deck = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK", "MAT1,1,2.0e11,,0.3,7800.0",
+            "PBAR,1,1,1.0e-4,1.0e-9,2.0e-9,3.0e-9", "GRID,1,,0.0,0.0,0.0", "GRID,2,,1.0,0.0,0.0",
+            "GRID,3,,2.0,0.0,0.0", "CBAR,1,1,1,2,0.0,0.0,1.0", "CBAR,2,1,2,3,0.0,0.0,1.0",
+            "SPC1,1,123456,1", *extra, "ENDDATA"]
+    (tmp_path / name).write_text("\n".join(deck) + "\n")
+    return tmp_path / name
+
+
+@pytest.mark.parametrize("cm", ["123456", "123"])
+def test_rbe2_carrying_a_mass_equals_the_conm2_offset(tmp_path, cm):
+    """A CONM2 on GRID 4 at (2, 0.2, 0.1), tied to the tip GRID 3 by an RBE2, is the CONM2 on GRID 3
+    with offset (0, 0.2, 0.1): same frequencies (the constraint eliminated, no penalty). With
+    CM = 123 the rotations of GRID 4 stay its own: its CONM2 has no inertia then (else they would be
+    free masses without stiffness), and AUTOSPC drops them."""
+    inertia = ",0.02,,0.03,,,0.04" if cm == "123456" else ""
+    rbe = _cantilever(tmp_path, ["GRID,4,,2.0,0.2,0.1", f"RBE2,9,3,{cm},4", "CONM2,21,4,0,0.5", inertia], "a.bdf")
+    ref = _cantilever(tmp_path, ["CONM2,21,3,0,0.5,0.0,0.2,0.1", inertia], "b.bdf")
+    a, b = read_nastran(rbe), read_nastran(ref)
+    assert len(a.mpc_dofs) == len(cm)
+    np.testing.assert_allclose(a.frequencies(8), b.frequencies(8), rtol=1e-9)
+
+
+def test_rbe3_reference_moves_with_the_rigid_fit_and_loads_are_statically_equivalent(tmp_path):
+    """RBE3 of GRID 5 (REFC 123456) on 4 grids with weights 1, 1, 2, 3 (C = 123): a rigid motion
+    of the grids gives the reference the same rigid motion (the least-squares fit is exact), and a
+    force and moment at the reference go to the grids as T^T f with the same resultant and moment."""
+    deck = ["SOL 103", "CEND", "BEGIN BULK", "GRID,1,,0.0,0.0,0.0", "GRID,2,,1.0,0.0,0.2", "GRID,3,,1.2,1.0,0.0",
+            "GRID,4,,0.0,0.8,-0.1", "GRID,5,,0.3,0.6,0.5", "RBE3,9,,5,123456,1.0,123,1,2,", ",2.0,123,3,3.0,123,4",
+            "ENDDATA"]
+    (tmp_path / "r.bdf").write_text("\n".join(deck) + "\n")
+    fe = read_nastran(tmp_path / "r.bdf")
+    np.testing.assert_array_equal(fe.mpc_dofs, fe.dof(5, 1) + np.arange(6))
+    X = fe.coords
+    u0, th = np.array([0.1, -0.3, 0.2]), np.array([0.05, 0.2, -0.1])
+    u = np.zeros((5, 6))
+    u[:, :3], u[:, 3:] = u0 + np.cross(th, X), th
+    np.testing.assert_allclose(fe.T @ u.ravel(), u.ravel(), atol=1e-14)
+    f = np.zeros((5, 6))
+    f[4] = [1.0, -2.0, 3.0, 0.4, -0.5, 0.6]
+    g = (fe.T.T @ f.ravel()).reshape(5, 6)
+    assert np.abs(g[4]).max() == 0.0 and np.abs(g[:, 3:]).max() == 0.0  # all on the grids' translations
+    np.testing.assert_allclose(g.sum(axis=0)[:3], f[4, :3], atol=1e-13)
+    moment = lambda F: np.sum(np.cross(X, F[:, :3]), axis=0) + F[:, 3:].sum(axis=0)  # noqa: E731
+    np.testing.assert_allclose(moment(g), moment(f), atol=1e-13)
+    with pytest.raises(NastranError, match=r"RBE2/RBE3 .* not supported in a body"):
+        nastran_body(tmp_path / "r.bdf")

@@ -11,8 +11,8 @@ points refused), CROD (axial + torsion), PBAR, PBARL, PBEAM (constant section), 
 properties A, I1, I2, J as pyNastran computes them; I12 must be 0), PROD, MAT1, CONM2 (mass,
 offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP (one MAT1), CHEXA,
 CPENTA, CTETRA, PSOLID, SET1 (node sets), SPC/SPC1/SPCADD (zero values only), PARAM WTMASS (scales
-M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC. RBE2/RBE3 and any
-other card are refused, named by file and line.
+M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC, RBE2 and RBE3
+(eliminated: solid/nastran_rigid.py). Any other card is refused, named by file and line.
 
 Beam element: ffrf_fmu/fe/beam.py (linear axial and twist, IIE bending): Euler-Bernoulli (GA =
 None, cubic Hermite) unless the property gives shear flexibility, then Timoshenko with
@@ -39,13 +39,14 @@ from . import MassPoints
 from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shell, add_solids, solid_kind
 from .nastran_deck import locate_card
 from .nastran_mass import Assembly
+from .nastran_rigid import RIGID_CARDS, rigid_elements
 
 # cards that do not enter K or M (solution control, output sets, loads); read, listed in
 # NastranFE.ignored_cards, never silently
 HARMLESS_CARDS = ("PARAM", "EIGRL", "EIGR", "ENDDATA", "USET", "USET1", "LOAD", "FORCE", "MOMENT")
 MODEL_CARDS = (
     "GRID", "CORD2R", "CORD2C", "CORD2S", "CBAR", "CBEAM", "CROD", "PBAR", "PBARL", "PBEAM",
-    "PBEAML", "PROD", "MAT1", "CONM2", "SPC", "SPC1", "SPCADD", "SET1", *SHELL_CARDS, *SOLID_CARDS,
+    "PBEAML", "PROD", "MAT1", "CONM2", "SPC", "SPC1", "SPCADD", "SET1", *SHELL_CARDS, *SOLID_CARDS, *RIGID_CARDS,
 )
 # PARAMs read (WTMASS, COUPMASS, AUTOSPC) or output only; any other PARAM is refused
 PARAMS_USED = ("WTMASS", "COUPMASS", "AUTOSPC")
@@ -73,6 +74,8 @@ class NastranFE:
     M: sp.csr_matrix  # (6n, 6n), WTMASS applied
     spc_dofs: np.ndarray  # dofs fixed by the case control's SPC set
     autospc_dofs: np.ndarray  # dofs without stiffness and mass fixed by PARAM AUTOSPC
+    T: sp.csr_matrix | None = None  # RBE2/RBE3: u = T u, the model T^T K T, T^T M T (nastran_rigid.py)
+    mpc_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # their dependent dofs
     grid_sets: dict = field(default_factory=dict)  # name -> GRID ids: "spc", "SET1 <sid>" of each SET1
     M_scalar: sp.csr_matrix | None = None  # (n, n) node-block mass of the translations (nastran_mass.py)
     mass_points: MassPoints | None = None  # the rest of M: M = S^T (M_scalar (x) I3) S + mass points
@@ -92,7 +95,7 @@ class NastranFE:
 
     @property
     def free_dofs(self) -> np.ndarray:
-        fixed = np.union1d(self.spc_dofs, self.autospc_dofs)
+        fixed = np.union1d(np.union1d(self.spc_dofs, self.autospc_dofs), self.mpc_dofs)
         return np.setdiff1d(np.arange(self.K.shape[0]), fixed)
 
     def frequencies(self, n: int) -> np.ndarray:
@@ -102,9 +105,9 @@ class NastranFE:
         massless rotation dofs of a lumped mass matrix are admitted (they give mu = 0)."""
         from scipy.linalg import eigh
 
-        f = self.free_dofs
-        K = self.K[f][:, f].toarray()
-        M = self.M[f][:, f].toarray()
+        f, T = self.free_dofs, self.T
+        K, M = (self.K, self.M) if T is None else (T.T @ self.K @ T, T.T @ self.M @ T)
+        K, M = K[f][:, f].toarray(), M[f][:, f].toarray()
         mu = eigh(M, K, eigvals_only=True, subset_by_index=[len(f) - n, len(f) - 1])[::-1]
         return 1.0 / np.sqrt(mu) / (2 * np.pi)
 
@@ -345,24 +348,17 @@ def read_nastran(path: str) -> NastranFE:
     for mid, mass in sorted(model.masses.items()):
         if mass.type != "CONM2":  # pragma: no cover - refused by _check_cards
             _refuse(path, mass.type, mid, "mass card not supported")
-        a = index[mass.nid]
-        if mass.cid == -1:
-            r = np.asarray(mass.X, float) - X[a]
-        elif mass.cid == 0:
-            r = np.asarray(mass.X, float)
-        else:
-            _refuse(path, "CONM2", mid, f"CID = {mass.cid} not supported (0 or -1)")
-        I11, I21, I22, I31, I32, I33 = mass.I
-        asm.offset_mass(a, mass.mass, r)  # QRG sign convention of the products of inertia:
-        asm.inertia(a, np.array([[I11, -I21, -I31], [-I21, I22, -I32], [-I31, -I32, I33]]))
+        asm.conm2(refuse, mass, X, index[mass.nid])
 
     wtmass = float(_param(model, "WTMASS", 1.0))
     K, M, Ms, points = asm.matrices(wtmass)
     spc = _spc_dofs(path, model, index)
+    T, mpc = rigid_elements(refuse, model, index, X, spc)
     autospc = np.zeros(0, dtype=int)
     if str(_param(model, "AUTOSPC", "YES")).upper() != "NO":
-        empty = (abs(K).sum(axis=1).A1 == 0.0) & (abs(M).sum(axis=1).A1 == 0.0)
-        autospc = np.setdiff1d(np.flatnonzero(empty), spc)
+        Kc, Mc = (K, M) if T is None else (T.T @ K @ T, T.T @ M @ T)
+        empty = (abs(Kc).sum(axis=1).A1 == 0.0) & (abs(Mc).sum(axis=1).A1 == 0.0)
+        autospc = np.setdiff1d(np.flatnonzero(empty), np.union1d(spc, mpc))
     spc_grids = sorted({int(node_ids[d // 6]) for d in spc})
     ignored = tuple(f"{c} ({model.card_count[c]}x)" for c in model.card_count if c in HARMLESS_CARDS)
     sets = {"spc": spc_grids, **{f"SET1 {sid}": sorted(int(g) for g in s.ids) for sid, s in model.sets.items()}}
@@ -370,7 +366,7 @@ def read_nastran(path: str) -> NastranFE:
         if set(grids) - set(index):
             _refuse(path, "SET1", sid[5:], f"GRID {sorted(set(grids) - set(index))} not in the deck")
     return NastranFE(path=path, node_ids=node_ids, coords=X, K=K, M=M, spc_dofs=spc,
-                     autospc_dofs=autospc, grid_sets=sets, M_scalar=Ms, mass_points=points, wtmass=wtmass,
+                     autospc_dofs=autospc, T=T, mpc_dofs=mpc, grid_sets=sets, M_scalar=Ms, mass_points=points, wtmass=wtmass,
                      mass_form="lumped" if lumped else "coupled", ignored_cards=ignored,
                      notes=tuple(sorted(notes)))
 

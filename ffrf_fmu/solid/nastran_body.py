@@ -19,6 +19,9 @@ def nastran_body(path, node_sets=None) -> SolidFE:
     """The SolidFE (dofs_per_node 6, M_scalar, mass_points) of the deck at `path` (module doc);
     node_sets: name -> GRID ids, added to the deck's "spc" and "SET1 <sid>" sets."""
     fe = read_nastran(path)
+    if fe.T is not None:
+        raise NastranError(f"{fe.path}: RBE2/RBE3 (dependent dofs {len(fe.mpc_dofs)}) are not supported in a body: "
+                           "its nodes keep 6 dofs each; a rigid port is a node set (SET1) of the reduction instead")
     sets = {}
     for name, grids in {**fe.grid_sets, **(node_sets or {})}.items():
         grids = np.asarray(list(grids), dtype=int)

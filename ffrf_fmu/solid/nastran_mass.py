@@ -80,6 +80,16 @@ class Assembly:
         N = np.concatenate([np.eye(3), -skew(d)], axis=1)[None]
         self.points(6 * node + np.arange(6), N, [m])
 
+    def conm2(self, refuse, mass, X, node: int):
+        """A CONM2 on node index `node`: its mass at the offset (CID 0: X the offset in the basic frame,
+        -1: X the position) and its inertia about the centre of mass (MSC QRG: I21, I31, I32 enter J with
+        a minus sign)."""
+        if mass.cid not in (0, -1):
+            refuse("CONM2", mass.eid, f"CID = {mass.cid} not supported (0 or -1)")
+        self.offset_mass(node, mass.mass, np.asarray(mass.X, float) - (X[node] if mass.cid == -1 else 0.0))
+        I11, I21, I22, I31, I32, I33 = mass.I
+        self.inertia(node, np.array([[I11, -I21, -I31], [-I21, I22, -I32], [-I31, -I32, I33]]))
+
     def beam_mass(self, section, L: float, R: np.ndarray, dofs):
         """fe/beam.py's consistent mass of one element (length L, frame columns R) as mass points."""
         Nc, Nt, _ = local_interpolation(section, np.array([L]))
