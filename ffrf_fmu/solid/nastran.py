@@ -295,7 +295,7 @@ def read_nastran(path: str) -> NastranFE:
     solids = {}
     for eid, elem in sorted(model.elements.items()):
         if elem.type in SHELL_CARDS:
-            add_shell(asm, refuse, X, index, elem, lumped)
+            add_shell(asm, refuse, X, index, elem, lumped, notes)
             continue
         if elem.type in SOLID_CARDS:
             kind = solid_kind(elem)

@@ -41,15 +41,19 @@ _TET10 = _TET + [tuple((np.add(_TET[a], _TET[b]) / 2).tolist()) for a, b in _TET
 _WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
 
 
-def _material(refuse, mat, card, pid):
+def _material(refuse, mat, card, pid, notes=None):
     if mat.type != "MAT1":
         refuse(card, pid, f"material {mat.type} {mat.mid} not supported (MAT1 only)")
     if not mat.e or mat.nu is None:
         refuse(card, pid, f"MAT1 {mat.mid}: E and NU are needed (E = {mat.e}, NU = {mat.nu})")
+    G = mat.e / (2 * (1 + mat.nu))
+    if notes is not None and mat.g and abs(mat.g / G - 1) > 1e-6:
+        notes.add(f"MAT1 {mat.mid}: shells and solids use E and NU (G = E / (2 (1 + NU)) = {G:.6g}), not the "
+                  f"card's G = {mat.g:g}; bars, beams and rods use G = {mat.g:g}")
     return Material(E=float(mat.e), nu=float(mat.nu), rho=float(mat.rho or 0.0))
 
 
-def shell_property(refuse, prop):
+def shell_property(refuse, prop, notes=None):
     """(Material, thickness) of a PSHELL or of a PCOMP of one isotropic MAT1 (module doc)."""
     if prop.type == "PSHELL":
         mid1, mid2, mid3 = prop.mid1, prop.mid2, prop.mid3
@@ -63,7 +67,7 @@ def shell_property(refuse, prop):
             refuse("PSHELL", prop.pid, f"NSM = {prop.nsm} not supported")
         if not prop.t or prop.t <= 0:
             refuse("PSHELL", prop.pid, f"thickness T = {prop.t} must be > 0")
-        return _material(refuse, prop.mid1_ref, "PSHELL", prop.pid), float(prop.t)
+        return _material(refuse, prop.mid1_ref, "PSHELL", prop.pid, notes), float(prop.t)
     if prop.type == "PCOMP":
         mids, t = list(prop.mids), np.asarray(prop.thicknesses, dtype=float)
         if len(set(mids)) != 1 or prop.mids_ref[0].type != "MAT1":
@@ -76,16 +80,16 @@ def shell_property(refuse, prop):
                    f"Z0 = -T/2 = {-T / 2:g} and NSM = 0 are supported")
         if np.any(t <= 0):
             refuse("PCOMP", prop.pid, f"ply thicknesses {t.tolist()} must be > 0")
-        return _material(refuse, prop.mids_ref[0], "PCOMP", prop.pid), T
+        return _material(refuse, prop.mids_ref[0], "PCOMP", prop.pid, notes), T
     refuse(prop.type, prop.pid, "not a shell property (PSHELL, PCOMP)")
 
 
-def add_shell(asm, refuse, X, index, elem, lumped: bool):
+def add_shell(asm, refuse, X, index, elem, lumped: bool, notes=None):
     """One CQUAD4 or CTRIA3 into the Assembly asm (module doc)."""
     nodes = _nodes(refuse, index, elem)
     if elem.zoffset:
         refuse(elem.type, elem.eid, f"ZOFFS = {elem.zoffset} not supported")
-    mat, t = shell_property(refuse, elem.pid_ref)
+    mat, t = shell_property(refuse, elem.pid_ref, notes)
     corner_t = [getattr(elem, f"T{k}") for k in range(1, len(nodes) + 1)]
     if any(c is not None and abs(c - (t if elem.tflag == 0 else 1.0)) > 1e-9 * t for c in corner_t):
         refuse(elem.type, elem.eid, f"corner thicknesses T1.. = {corner_t} (TFLAG {elem.tflag}) differ "
@@ -161,7 +165,7 @@ def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
             refuse(elem.type, elem.eid, f"property {prop.type} {prop.pid} is not a PSOLID")
         if prop.fctn != "SMECH" or prop.isop not in (None, "", "FULL", "REDUCED", 0, 1, 2):
             refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
-        mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid)
+        mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid, notes)
         nodes = _nodes(refuse, index, elem)
         J = np.einsum("ia,ibq->qab", X[nodes], dphi_ref)  # dx_a / dxi_b
         det = np.linalg.det(J)
