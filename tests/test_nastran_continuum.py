@@ -119,10 +119,14 @@ def test_solid_patch_linear_field(tmp_path, coupmass):
     lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
     cube = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
     mids = [(.5, 0, 0), (.5, .5, 0), (0, .5, 0), (0, 0, .5), (.5, 0, .5), (0, .5, .5)]  # tet 1 2 4 5 edges
+    edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]
+    hexmids = [tuple((np.add(cube[a], cube[b]) / 2).tolist()) for a, b in edges]  # CHEXA G9..G20
     decks = {"CHEXA": ("CHEXA,1,1,1,2,3,4,5,6,\n,7,8", cube, 1.0),
              "CPENTA": ("CPENTA,1,1,1,2,4,5,6,8", cube, 0.5),
              "CTETRA": ("CTETRA,1,1,1,2,4,5", cube, 1 / 6),
-             "CTETRA10": ("CTETRA,1,1,1,2,4,5,9,10,\n,11,12,13,14", cube + mids, 1 / 6)}
+             "CTETRA10": ("CTETRA,1,1,1,2,4,5,9,10,\n,11,12,13,14", cube + mids, 1 / 6),
+             "CHEXA20": ("CHEXA,1,1,1,2,3,4,5,6,\n,7,8," + ",".join(str(i) for i in range(9, 15)) + "\n,"
+                         + ",".join(str(i) for i in range(15, 21)), cube + hexmids, 1.0)}
     G = np.array([[1.0, 0.3, -0.2], [0.1, -0.5, 0.4], [0.25, 0.0, 0.7]]) * 1e-3
     eps = (G + G.T) / 2
     for name, (card, pts, vol) in decks.items():
@@ -267,3 +271,27 @@ def test_reduced_body_clamped_at_its_spc_port_gives_the_deck_frequencies():
     f = np.sqrt(sla.eigh(BN.T @ (body.K @ BN), BN.T @ (body.M @ BN), eigvals_only=True)[:3]) / (2 * np.pi)
     rel = f / read_nastran(DECK).frequencies(3) - 1.0
     assert np.all(rel > -1e-10) and np.all(rel < 1e-5), rel
+
+
+def test_coupled_beam_mass_points_give_fe_beams_tensor_kernel(tmp_path):
+    """COUPMASS 1: a CBAR chain's mass points (the 4 Gauss points of fe/beam.py, centreline and section
+    second moments) give fe.beam.tensor_kernel's T_ab exactly (the same interpolation and rule):
+    sum_ab A_ab T_ab compared for a non-symmetric A (I1 = I2, so the section axes do not matter)."""
+    from ffrf_fmu.fe.beam import tensor_kernel
+    from ffrf_fmu.model import Section
+
+    E, nu, rho, A, I, n, L = 2.0e11, 0.3, 7800.0, 1.0e-3, 2.0e-7, 3, 1.5
+    d = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    deck = ["SOL 103", "CEND", "BEGIN BULK", "PARAM,COUPMASS,1", f"MAT1,1,{E},,{nu},{rho}",
+            f"PBAR,1,1,{A},{I},{I},{2 * I}"]
+    deck += [f"GRID,{i + 1},,{x[0]!r},{x[1]!r},{x[2]!r}" for i, x in enumerate(np.outer(np.linspace(0, L, n + 1), d))]
+    deck += [f"CBAR,{i + 1},1,{i + 1},{i + 2},0.0,0.0,1.0" for i in range(n)] + ["ENDDATA"]
+    (tmp_path / "b.bdf").write_text("\n".join(deck) + "\n")
+    body = nastran_body(tmp_path / "b.bdf")
+    sec = Section(EA=E * A, GJ=E / (2 * (1 + nu)) * 2 * I, EI2=E * I, EI3=E * I, m=rho * A, m22=rho * I,
+                  m33=rho * I, m11=2 * rho * I)
+    T = tensor_kernel(sec, d, L, n)
+    Amat = np.array([[0.3, -1.2, 0.5], [0.7, 0.1, -0.4], [0.2, 0.9, -0.6]])
+    ref = np.einsum("ab,abij->ij", Amat, T)
+    ours = body.kernel(Amat).toarray()
+    assert np.abs(ours - ref).max() < 1e-12 * np.abs(ref).max()

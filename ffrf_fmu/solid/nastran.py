@@ -300,8 +300,8 @@ def read_nastran(path: str) -> NastranFE:
         if elem.type in SOLID_CARDS:
             kind = solid_kind(elem)
             if kind is None:
-                refuse(elem.type, eid, f"{len(elem.nodes)} nodes ({elem.nodes}) not supported (CHEXA 8, "
-                       "CPENTA 6, CTETRA 4 or 10)")
+                refuse(elem.type, eid, f"{len(elem.nodes)} nodes ({elem.nodes}) not supported (CHEXA 8 or "
+                       "20, CPENTA 6, CTETRA 4 or 10)")
             solids.setdefault(kind, []).append(elem)
             continue
         a, b = index[elem.nodes[0]], index[elem.nodes[1]]

@@ -10,15 +10,15 @@ the 3rd). Mass: coupled (COUPMASS > 0) rho t int N_i N_j on the translations and
 inertia as mass points (solid/shell_body.py: w = rho t det J_g, N = (t / sqrt 12) N(xi_g) (-n~));
 lumped (Nastran's default) rho t A / k at each of the k corners, no rotary inertia.
 
-Solids: CHEXA (8 nodes), CPENTA (6), CTETRA (4, 10) with PSOLID: scikit-fem's reference elements
-(ElementHex1, ElementWedge1, ElementTetP1, ElementTetP2; their shape functions evaluated at the
+Solids: CHEXA (8, 20 nodes), CPENTA (6), CTETRA (4, 10) with PSOLID: scikit-fem's reference elements
+(ElementHex1, ElementHexS2, ElementWedge1, ElementTetP1, ElementTetP2; their shape functions at the
 deck's nodes, isoparametric on them) and the element matrices of solid/mesh.py (_elasticity):
     K_(ia)(jb) = int lambda d_a phi_i d_b phi_j + mu (delta_ab grad phi_i . grad phi_j + d_b phi_i d_a phi_j),
     M_s,ij = int rho phi_i phi_j,
 on Gauss rules exact to degree 3 (hex, tet4, wedge: 3-point-degree-3 triangle x line, as scikit-fem's
-own wedge rule sums its weights to 1/4 of the volume in 12.0) and 6 (tet10). Lumped mass: the row
-sums of M_s (all positive on these linear elements); the 10-node tetrahedron keeps its consistent
-mass (its row sums are negative at the corners) and NastranFE.notes says so. The 3-dof matrices go on
+own wedge rule sums its weights to 1/4 of the volume in 12.0) and 6 (tet10, hex20). Lumped mass: the
+row sums of M_s (all positive on the linear elements); the quadratic ones keep their consistent mass
+(their row sums are negative at the corners) and NastranFE.notes says so. The 3-dof matrices go on
 the translations of the 6-dof nodes; the rotations of a node only solids touch stay without stiffness
 and mass (AUTOSPC or the reduction leaves them out).
 """
@@ -39,6 +39,9 @@ _TET = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
 _TET_EDGES = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]  # G5..G10
 _TET10 = _TET + [tuple((np.add(_TET[a], _TET[b]) / 2).tolist()) for a, b in _TET_EDGES]
 _WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
+_HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]  # G9..G20
+_HEX20 = _HEX + [tuple((np.add(_HEX[a], _HEX[b]) / 2).tolist()) for a, b in _HEX_EDGES]
+QUADRATIC = ("tet10", "hex20")
 
 
 def _material(refuse, mat, card, pid, notes=None):
@@ -131,7 +134,8 @@ def _reference(kind):
     import skfem
     from skfem.quadrature import get_quadrature, get_quadrature_line, get_quadrature_tri
 
-    e, ref, order = {"hex8": (skfem.ElementHex1(), _HEX, 3), "wedge6": (skfem.ElementWedge1(), _WEDGE, 3),
+    e, ref, order = {"hex8": (skfem.ElementHex1(), _HEX, 3), "hex20": (skfem.ElementHexS2(), _HEX20, 6),
+                     "wedge6": (skfem.ElementWedge1(), _WEDGE, 3),
                      "tet4": (skfem.ElementTetP1(), _TET, 3), "tet10": (skfem.ElementTetP2(), _TET10, 6)}[kind]
     if kind == "wedge6":
         Xt, wt = get_quadrature_tri(3)
@@ -151,7 +155,7 @@ def solid_kind(elem):
     n = len(elem.nodes)
     if any(g is None for g in elem.nodes):
         return None
-    return {("CHEXA", 8): "hex8", ("CPENTA", 6): "wedge6", ("CTETRA", 4): "tet4", ("CTETRA", 10): "tet10"}.get((elem.type, n))
+    return {("CHEXA", 8): "hex8", ("CHEXA", 20): "hex20", ("CPENTA", 6): "wedge6", ("CTETRA", 4): "tet4", ("CTETRA", 10): "tet10"}.get((elem.type, n))
 
 
 def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
@@ -180,9 +184,9 @@ def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
         Ke += mu * np.einsum("icjc->ij", A)[:, None, :, None] * np.eye(3)[None, :, None, :]
         asm.stiffness((6 * nodes[:, None] + np.arange(3)).ravel(), Ke.reshape(3 * n, 3 * n))
         Ms = mat.rho * np.einsum("q,iq,jq->ij", dx, phi, phi)
-        if lumped and kind != "tet10":
+        if lumped and kind not in QUADRATIC:
             Ms = np.diag(Ms.sum(axis=1))
         elif lumped:
-            notes.add("CTETRA (10 nodes): consistent mass (the row-sum lumping of the quadratic "
-                      "tetrahedron is negative at the corners); Nastran lumps it its own way")
+            notes.add(f"{elem.type} ({len(nodes)} nodes): consistent mass (the row-sum lumping of a "
+                      "quadratic solid is negative at the corners); Nastran lumps it its own way")
         asm.node_mass(nodes, Ms)
