@@ -284,7 +284,7 @@ def test_coupled_beam_mass_points_give_fe_beams_tensor_kernel(tmp_path):
     d = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
     deck = ["SOL 103", "CEND", "BEGIN BULK", "PARAM,COUPMASS,1", f"MAT1,1,{E},,{nu},{rho}",
             f"PBAR,1,1,{A},{I},{I},{2 * I}"]
-    deck += [f"GRID,{i + 1},,{x[0]!r},{x[1]!r},{x[2]!r}" for i, x in enumerate(np.outer(np.linspace(0, L, n + 1), d))]
+    deck += [f"GRID,{i + 1},,{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}" for i, x in enumerate(np.outer(np.linspace(0, L, n + 1), d))]
     deck += [f"CBAR,{i + 1},1,{i + 1},{i + 2},0.0,0.0,1.0" for i in range(n)] + ["ENDDATA"]
     (tmp_path / "b.bdf").write_text("\n".join(deck) + "\n")
     body = nastran_body(tmp_path / "b.bdf")
