@@ -73,6 +73,8 @@ def test_body_mass_and_centre_of_mass_exact(tmp_path):
     for deck in (DECK, coupled):
         body = nastran_body(deck)
         assert body.dofs_per_node == 6
+        assert {k: len(c) for k, c in body.cells} == {"quad": 4, "triangle": 8, "line": 4, "hexahedron": 1,
+                                                      "wedge": 2, "tetra": 2}  # the deck's card_count
         mass, c = mass_properties(body)
         assert abs(mass / m - 1) < 1e-13 and np.abs(c - cm).max() < 1e-13, (deck, mass, m, c, cm)
 

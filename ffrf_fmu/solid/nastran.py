@@ -79,6 +79,7 @@ class NastranFE:
     grid_sets: dict = field(default_factory=dict)  # name -> GRID ids: "spc", "SET1 <sid>" of each SET1
     M_scalar: sp.csr_matrix | None = None  # (n, n) node-block mass of the translations (nastran_mass.py)
     mass_points: MassPoints | None = None  # the rest of M: M = S^T (M_scalar (x) I3) S + mass points
+    cells: tuple = ()  # ((meshio cell type, (n_cells, k) node indices), ...): the elements, for VTK output
     wtmass: float = 1.0
     mass_form: str = "lumped"
     ignored_cards: tuple = ()
@@ -306,6 +307,7 @@ def read_nastran(path: str) -> NastranFE:
             continue
         a, b = index[elem.nodes[0]], index[elem.nodes[1]]
         dofs = np.r_[6 * a : 6 * a + 6, 6 * b : 6 * b + 6]
+        asm.cell("line", [a, b])
         if elem.type in ("CBAR", "CBEAM"):
             if elem.pa or elem.pb:
                 _refuse(path, elem.type, eid, f"pin flags PA={elem.pa} PB={elem.pb} not supported")
@@ -366,7 +368,7 @@ def read_nastran(path: str) -> NastranFE:
         if set(grids) - set(index):
             _refuse(path, "SET1", sid[5:], f"GRID {sorted(set(grids) - set(index))} not in the deck")
     return NastranFE(path=path, node_ids=node_ids, coords=X, K=K, M=M, spc_dofs=spc,
-                     autospc_dofs=autospc, T=T, mpc_dofs=mpc, grid_sets=sets, M_scalar=Ms, mass_points=points, wtmass=wtmass,
+                     autospc_dofs=autospc, T=T, mpc_dofs=mpc, grid_sets=sets, M_scalar=Ms, cells=asm.cell_blocks(), mass_points=points, wtmass=wtmass,
                      mass_form="lumped" if lumped else "coupled", ignored_cards=ignored,
                      notes=tuple(sorted(notes)))
 

@@ -33,4 +33,4 @@ def nastran_body(path, node_sets=None) -> SolidFE:
         if np.any(bad):
             raise NastranError(f"{fe.path}: node set {name!r}: no GRID {grids[bad].tolist()} in the deck")
         sets[name] = a
-    return six_dof_fe(fe.coords, fe.K, fe.M, fe.M_scalar, fe.mass_points, sets, source=fe.path)
+    return six_dof_fe(fe.coords, fe.K, fe.M, fe.M_scalar, fe.mass_points, sets, source=fe.path, cells=fe.cells)

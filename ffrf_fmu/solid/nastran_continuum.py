@@ -42,6 +42,10 @@ _WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
 _HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]  # G9..G20
 _HEX20 = _HEX + [tuple((np.add(_HEX[a], _HEX[b]) / 2).tolist()) for a, b in _HEX_EDGES]
 QUADRATIC = ("tet10", "hex20")
+# meshio (VTK) cell type and node order of each kind: VTK's 20-node brick takes the top edges before
+# the vertical ones, Nastran's CHEXA the vertical ones first
+VTK = {"hex8": ("hexahedron", slice(None)), "hex20": ("hexahedron20", [*range(12), *range(16, 20), *range(12, 16)]),
+       "wedge6": ("wedge", slice(None)), "tet4": ("tetra", slice(None)), "tet10": ("tetra10", slice(None))}
 
 
 def _material(refuse, mat, card, pid, notes=None):
@@ -98,6 +102,7 @@ def add_shell(asm, refuse, X, index, elem, lumped: bool, notes=None):
         refuse(elem.type, elem.eid, f"corner thicknesses T1.. = {corner_t} (TFLAG {elem.tflag}) differ "
                f"from the property's T = {t:g}: not supported")
     q = nodes if len(nodes) == 4 else nodes[[0, 1, 2, 2]]
+    asm.cell("quad" if len(nodes) == 4 else "triangle", nodes)
     try:
         T, xy = element_frame(X[q])
         Ke, _ = element_matrices(xy, t, mat)
@@ -171,6 +176,7 @@ def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
             refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
         mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid, notes)
         nodes = _nodes(refuse, index, elem)
+        asm.cell(VTK[kind][0], nodes[VTK[kind][1]])
         J = np.einsum("ia,ibq->qab", X[nodes], dphi_ref)  # dx_a / dxi_b
         det = np.linalg.det(J)
         if np.any(det * np.sign(det[0]) <= 0):

@@ -40,6 +40,14 @@ class Assembly:
         self.ms = ([], [], [])
         self.p = ([], [], [])
         self.w = []
+        self.cells = {}  # meshio cell type -> list of node index rows (VTK output)
+
+    def cell(self, kind: str, nodes):
+        """Record an element's nodes as a meshio cell of type `kind` (no effect on K or M)."""
+        self.cells.setdefault(kind, []).append(np.asarray(nodes, dtype=int))
+
+    def cell_blocks(self) -> tuple:
+        return tuple((kind, np.array(rows)) for kind, rows in self.cells.items())
 
     def stiffness(self, dofs, Ke):
         """Element stiffnesses Ke (ne, k, k) on dofs (ne, k)."""
