@@ -72,6 +72,9 @@ def shell_property(refuse, prop, notes=None):
                    f"1.0 and {TS_T} (homogeneous plate) are supported")
         if prop.nsm:
             refuse("PSHELL", prop.pid, f"NSM = {prop.nsm} not supported")
+        if mid3 is None and notes is not None:
+            notes.add(f"PSHELL {prop.pid}: MID3 blank, Nastran's plate is shear rigid; here MITC4 with "
+                      "the transverse shear k G t, k = 5/6 (the same for thin plates)")
         if not prop.t or prop.t <= 0:
             refuse("PSHELL", prop.pid, f"thickness T = {prop.t} must be > 0")
         return _material(refuse, prop.mid1_ref, "PSHELL", prop.pid, notes), float(prop.t)
