@@ -42,6 +42,7 @@ _WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
 _HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]  # G9..G20
 _HEX20 = _HEX + [tuple((np.add(_HEX[a], _HEX[b]) / 2).tolist()) for a, b in _HEX_EDGES]
 QUADRATIC = ("tet10", "hex20")
+_SHAPES = [_shape(xi, eta) for xi, eta in _GAUSS]  # shell.py's N, dN at its 2 x 2 Gauss points
 # meshio (VTK) cell type and node order of each kind: VTK's 20-node brick takes the top edges before
 # the vertical ones, Nastran's CHEXA the vertical ones first
 VTK = {"hex8": ("hexahedron", slice(None)), "hex20": ("hexahedron20", [*range(12), *range(16, 20), *range(12, 16)]),
@@ -111,20 +112,16 @@ def add_shell(asm, refuse, X, index, elem, lumped: bool, notes=None):
         Ke, _ = element_matrices(xy, t, mat)
     except ValueError as exc:
         refuse(elem.type, elem.eid, str(exc))
-    R = np.kron(np.eye(8), T)
-    d = (6 * q[:, None] + np.arange(6)).ravel()
-    asm.stiffness(d, R.T @ Ke @ R)
+    Ke = np.einsum("ai,IaJb,bj->IiJj", T, Ke.reshape(8, 3, 8, 3), T).reshape(24, 24)  # R^T Ke R, R = I_8 (x) T
+    asm.stiffness((6 * q[:, None] + np.arange(6)).ravel(), Ke)
+    N = np.stack([_SHAPES[g][0] for g in range(4)])  # (4 Gauss points, 4 nodes)
+    w = mat.rho * t * np.array([np.linalg.det(_SHAPES[g][1] @ xy) for g in range(4)])
     if lumped:
-        area = sum(np.linalg.det(_shape(*g)[1] @ xy) for g in _GAUSS)
-        asm.node_mass(nodes[:, None], np.full((len(nodes), 1, 1), mat.rho * t * area / len(nodes)))
+        asm.node_mass(nodes[:, None], np.full((len(nodes), 1, 1), w.sum() / len(nodes)))
         return
-    nrm = -skew_of(T[2])
-    for xi, eta in _GAUSS:
-        N, dN = _shape(xi, eta)
-        w = mat.rho * t * float(np.linalg.det(dN @ xy))
-        asm.node_mass(q, w * np.outer(N, N))
-        Np = t / np.sqrt(12.0) * np.einsum("i,ac->aic", N, nrm).reshape(1, 3, 12)
-        asm.points((6 * q[:, None] + 3 + np.arange(3)).ravel(), Np, [w])
+    asm.node_mass(q, np.einsum("g,gi,gj->ij", w, N, N))
+    Np = t / np.sqrt(12.0) * np.einsum("gi,ac->gaic", N, -skew_of(T[2])).reshape(4, 3, 12)
+    asm.points((6 * q[:, None] + 3 + np.arange(3)).ravel(), Np, w)
 
 
 def _nodes(refuse, index, elem):

@@ -40,6 +40,7 @@ class Assembly:
         self.ms = ([], [], [])
         self.p = ([], [], [])
         self.w = []
+        self.n_points = 0
         self.cells = {}  # meshio cell type -> list of node index rows (VTK output)
 
     def cell(self, kind: str, nodes):
@@ -68,7 +69,8 @@ class Assembly:
         """Mass points: N (p, 3, k) on dofs (p, k) (or one (k,) row for all), weights w (p,)."""
         N = np.asarray(N, dtype=float)
         dofs = np.broadcast_to(np.asarray(dofs), (N.shape[0], N.shape[2]))
-        p0 = len(np.concatenate(self.w)) if self.w else 0
+        p0 = self.n_points
+        self.n_points += N.shape[0]
         rows = 3 * (p0 + np.arange(N.shape[0]))[:, None, None] + np.arange(3)[None, :, None]
         self.p[0].append(np.broadcast_to(rows, N.shape).ravel())
         self.p[1].append(np.broadcast_to(dofs[:, None, :], N.shape).ravel())
