@@ -98,11 +98,12 @@ class SolidSpec:
     source: str  # "mesh" | "abaqus" | "ansys"
     files: tuple[tuple[str, str], ...] = ()  # (role, absolute path): mesh | inp, stiffness, mass | mapping, nodes, elements
     generated: tuple[tuple[str, Any], ...] = ()  # ("box"|"cylinder", parameters as sorted pairs), when no mesh file
-    element: str = ""  # hex8 | hex20 | hex27 | tet4 | tet10 (mesh only)
+    element: str = ""  # hex8 | hex20 | hex27 | tet4 | tet10 | mitc4 (mesh only; mitc4: shells, SHELL_ELEMENTS)
     material: tuple[float, float, float] | None = None  # E [Pa], nu, rho [kg/m^3] (mesh only)
     cutoff_hz: float | None = None  # keep every free-free mode up to this frequency (besides or instead of modes)
     frames: tuple[SolidFrame, ...] = ()
     units: str = ""  # the units assumed for an export (stated in the model file)
+    thickness: float | str | None = None  # shell thickness [m], or the mesh file's cell data field of it (shells only)
 
 
 @dataclass(frozen=True)
@@ -511,7 +512,7 @@ SOLID_KEYS = {
     "superelements": "1: a solid is one superelement",
     "modes": "an integer >= 0: the free-free modes kept (or cutoff_hz)",
     "cutoff_hz": "a positive frequency [Hz]: keep every free-free mode up to it (or modes)",
-    "mesh": "a table [body.mesh] {file | box | cylinder, element}",
+    "mesh": "a table [body.mesh] {file | box | cylinder | plate, element, thickness (shells)}",
     "material": "a table [body.material] {E, nu, rho}",
     "export": "a table [body.export] {format, files..., units}",
     "ports": "a table of ports [body.ports.NAME] {select, link, point, translation, rotation, coupling}",
@@ -521,8 +522,14 @@ MESH_KEYS = {
     "file": "a mesh file read with meshio (Gmsh .msh, Abaqus .inp, VTK, ...), relative to the model file",
     "box": "a table {size = [lx, ly, lz] m, divisions = [nx, ny, nz], origin = [x, y, z] m}",
     "cylinder": "a table {radius m, length m, radial = cells across a radius, axial = cells along, origin} (along +Z)",
-    "element": "one of hex8, hex20, hex27, tet4, tet10 (hex8 and tet4 lock in bending: docs/solids.md)",
+    "plate": "a table {size = [lx, ly] m, divisions = [nx, ny], origin = [x, y, z] m} (shells in the XY plane)",
+    "element": "one of hex8, hex20, hex27, tet4, tet10 (hex8 and tet4 lock in bending: docs/solids.md) or the "
+               "shell mitc4 (docs/shells.md)",
+    "thickness": "a positive shell thickness [m], or {cell_data = NAME}: the mesh file's cell data field of the "
+                 "thickness of each quad [m] (shell elements only)",
 }
+SOLID_ELEMENTS = ("hex8", "hex20", "hex27", "tet4", "tet10")
+SHELL_ELEMENTS = ("mitc4",)
 MATERIAL_KEYS = {"E": "a positive Young's modulus [Pa]", "nu": "a Poisson's ratio in [0, 0.5)",
                  "rho": "a positive density [kg/m^3]"}
 EXPORT_KEYS = {
@@ -598,14 +605,31 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
     base = Path(file).parent
     if ("mesh" in t) == ("export" in t):
         r.fail(b, "expected exactly one of [body.mesh] (with [body.material]) or [body.export]")
-    files, generated, element, material, units = [], (), "", None, ""
+    files, generated, element, material, units, thickness = [], (), "", None, "", None
     if "mesh" in t:
         mp = join(b, "mesh")
         mt = r.table(t["mesh"], mp, MESH_KEYS, required=("element",))
-        element = r.string(mt, mp, "element", MESH_KEYS["element"], choices=("hex8", "hex20", "hex27", "tet4", "tet10"))
-        given = [k for k in ("file", "box", "cylinder") if k in mt]
+        element = r.string(mt, mp, "element", MESH_KEYS["element"], choices=SOLID_ELEMENTS + SHELL_ELEMENTS)
+        shell = element in SHELL_ELEMENTS
+        given = [k for k in ("file", "box", "cylinder", "plate") if k in mt]
         if len(given) != 1:
-            r.fail(mp, f"expected exactly one of file, box, cylinder, got {given or 'none'}")
+            r.fail(mp, f"expected exactly one of file, box, cylinder, plate, got {given or 'none'}")
+        if shell != ("thickness" in mt):
+            r.fail(mp, f"a shell mesh (element {SHELL_ELEMENTS}) needs thickness = T [m], a solid one has none"
+                   + (f" (element {element!r})" if not shell else ""))
+        if shell and given[0] in ("box", "cylinder"):
+            r.fail(join(mp, given[0]), f"element {element!r} is a shell: generate a plate, or give a file of quads")
+        if not shell and given[0] == "plate":
+            r.fail(join(mp, "plate"), f"a plate is meshed with shells (element one of {SHELL_ELEMENTS}), not {element!r}")
+        thickness = None
+        if shell and isinstance(mt["thickness"], dict):
+            tt = r.table(mt["thickness"], join(mp, "thickness"), {"cell_data": "the name of a cell data field"},
+                         required=("cell_data",))
+            if "file" not in mt:
+                r.fail(join(mp, "thickness"), "a thickness from cell data needs a mesh file")
+            thickness = r.string(tt, join(mp, "thickness"), "cell_data", "the name of a cell data field")
+        elif shell:
+            thickness = r.real(mt, mp, "thickness", MESH_KEYS["thickness"], ok=positive)
         if "file" in mt:
             f = base / r.string(mt, mp, "file", MESH_KEYS["file"])
             if not f.is_file():
@@ -625,6 +649,17 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
                     r.expected(join(gp, "divisions"), "3 integers >= 1", div)
                 params = {"size": size, "divisions": tuple(div), "origin": r.vec3(gt, gp, "origin", "3 numbers [m]",
                                                                                   (0.0, 0.0, 0.0))}
+            elif kind == "plate":
+                gt = r.table(mt[kind], gp, {"size": "2 positive lengths [m]", "divisions": "2 integers >= 1",
+                                             "origin": "3 numbers [m] (default [0, 0, 0])"}, required=("size", "divisions"))
+                size, div = gt["size"], gt["divisions"]
+                if not (isinstance(size, list) and len(size) == 2 and all(isinstance(x, (int, float))
+                                                                          and not isinstance(x, bool) and x > 0 for x in size)):
+                    r.expected(join(gp, "size"), "2 positive lengths [m]", size)
+                if not (isinstance(div, list) and len(div) == 2 and all(isinstance(x, int) and x >= 1 for x in div)):
+                    r.expected(join(gp, "divisions"), "2 integers >= 1", div)
+                params = {"size": tuple(float(x) for x in size), "divisions": tuple(div),
+                          "origin": r.vec3(gt, gp, "origin", "3 numbers [m]", (0.0, 0.0, 0.0))}
             else:
                 gt = r.table(mt[kind], gp, {"radius": "a positive radius [m]", "length": "a positive length [m]",
                                              "radial": "an integer >= 1", "axial": "an integer >= 1",
@@ -678,7 +713,7 @@ def _parse_solid(r: Reader, t: dict, default_name: str, file: str) -> Body:
         frames.append(SolidFrame(pname, json.dumps(sel, sort_keys=True), link, point))
     if len(ports) < 2:
         r.fail("body.ports", f"a solid needs at least 2 ports (interface frames), got {len(ports)}")
-    spec = SolidSpec(source, tuple(files), generated, element, material, cutoff, tuple(frames), units)
+    spec = SolidSpec(source, tuple(files), generated, element, material, cutoff, tuple(frames), units, thickness)
     from .solid.source import solid_size  # the body's size: messages and scales of the tools that need one
 
     try:

@@ -33,30 +33,29 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .runtime.data import SuperelementData
 from .runtime.rotation import skew
 from .solid import SolidFE, tensor_products
-from .solid.frames import averaging_weights, check_set
+from .solid.constraints import Constraints, constraints, mass_properties
 from .solid.ordering import factor
 
-RIGID_GAP = 1e-4  # an elastic eigenvalue below this x the Ritz estimate of w_1^2 is a mechanism
+MECHANISM = 1e-12  # an elastic eigenvalue below this x the element scale (median K_ii / M_ii) is a mechanism
+
+
+def element_scale(K: sp.spmatrix, M: sp.spmatrix) -> float:
+    """The median of K_ii / M_ii over the dofs with mass [rad^2/s^2]: the square of a frequency of one
+    element's dof. A mode of zero strain energy (a mechanism, a part not connected) has an eigenvalue at
+    the round-off of K, about 1e-16 of it; the softest true mode of a structure is many orders above
+    (the roof sway of a body on slender pillars, where the Ritz estimate of w_1^2 is 1e4 times too high)."""
+    k, m = K.diagonal(), M.diagonal()
+    has = m > 0
+    return float(np.median(k[has] / m[has]))
 SHIFT_FRACTION = 0.1  # sigma = -SHIFT_FRACTION x (estimate of w_1^2): rigid and elastic eigenvalues well apart
 DEFLATE = 6  # at least this many modes are computed: the static solves converge on the rest
 MAX_MODES = 200  # a frequency cutoff keeps at most this many modes
-
-
-@dataclass(frozen=True, eq=False)
-class Constraints:
-    """u = T z (RBE2 frames eliminated), q_B = L z, rigid modes U_z about the CM in z."""
-
-    T: sp.csr_matrix  # (n_dof, n_z)
-    L: sp.csr_matrix  # (6 n_f, n_z)
-    U: np.ndarray  # (n_z, 6)
-    dof_node: np.ndarray  # (n_z,) the FE node of each z dof, -1 for a rigid frame's own 6 (the LU's ordering)
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,103 +73,6 @@ class SolidReduction:
     timings: dict = field(default_factory=dict)  # CPU seconds per stage
     shift: float = 0.0  # sigma of the shift-invert eigensolution [rad^2/s^2]
     lu_fill: int = 0  # entries stored in the LU's factors (its memory: about 12 bytes each)
-
-
-def mass_properties(fe: SolidFE) -> tuple[float, np.ndarray]:
-    """Mass and CM from the mass matrix and the rigid fields about the origin: with t_j the unit
-    translations and r_k the rotations about e_k, m = tr(t^T M t) / 3 and t_j^T M r_k = -(m x_cm)~[j, k]
-    (exact for any mass that moves rigidly with the nodes: node-block, shell fibres, offset masses)."""
-    Ut = np.zeros((fe.n_nodes, fe.dofs_per_node, 3))
-    Ut[:, :3] = np.eye(3)
-    Ur0 = np.zeros((fe.n_nodes, fe.dofs_per_node, 3))
-    Ur0[:, :3] = -skew(fe.coords)
-    if fe.dofs_per_node == 6:
-        Ur0[:, 3:] = np.eye(3)
-    Ut, Ur0 = Ut.reshape(fe.n_dof, 3), Ur0.reshape(fe.n_dof, 3)
-    MUt = np.asarray(fe.M @ Ut)
-    mass = float(np.trace(Ut.T @ MUt)) / 3
-    S = MUt.T @ Ur0  # = -(m x_cm)~
-    c = 0.5 * np.array([S[1, 2] - S[2, 1], S[2, 0] - S[0, 2], S[0, 1] - S[1, 0]])
-    return mass, c / mass
-
-
-def rigid_rows(X: np.ndarray) -> np.ndarray:
-    """(k, 3, 6): the displacement of nodes at X (from the origin of the rotations) in the 6 rigid modes."""
-    out = np.zeros((len(X), 3, 6))
-    out[:, :, :3] = np.eye(3)
-    out[:, :, 3:] = -skew(X)
-    return out
-
-
-def active_rotations(fe: SolidFE) -> np.ndarray:
-    """(n_nodes, 3) bool: the rotation dofs some element stiffens (all False on 3-dof nodes). A 6-dof
-    node of bricks only has none: its rotations carry neither stiffness nor mass and are left out."""
-    if fe.dofs_per_node == 3:
-        return np.zeros((fe.n_nodes, 3), dtype=bool)
-    d = np.abs(fe.K.diagonal()).reshape(fe.n_nodes, 6)
-    return d[:, 3:] > 0.0
-
-
-def constraints(fe: SolidFE, frames, x_cm) -> Constraints:
-    """T, L and U_z (module doc). Rigid sets are eliminated (their nodes' translations follow the frame
-    rigidly, their rotations are the frame's); averaging sets act on the translations of the remaining
-    dofs. Rotation dofs no element stiffens are not in z. A node in two rigid sets, or in a rigid and an
-    averaging set, is an error naming both ports."""
-    n, d = fe.n_nodes, fe.dofs_per_node
-    owner = -np.ones(n, dtype=int)
-    for f, fr in enumerate(frames):
-        check_set(fr, fe.coords)
-        if fr.coupling == "rigid":
-            clash = fr.nodes[owner[fr.nodes] >= 0]
-            if clash.size:
-                raise ValueError(f"ports {frames[owner[clash[0]]].name!r} and {fr.name!r}: node {clash[0]} is in two "
-                                 "rigid sets")
-            owner[fr.nodes] = f
-    rot = active_rotations(fe)
-    keep = np.concatenate([np.ones((n, 3), dtype=bool), rot], axis=1)[:, :d]  # (n, d) dofs in z when free
-    keep[owner >= 0] = False
-    free_dofs = np.flatnonzero(keep.reshape(-1))  # global dofs of the free nodes, node-major
-    n_free = free_dofs.size
-    zof = -np.ones(d * n, dtype=int)
-    zof[free_dofs] = np.arange(n_free)
-    rigid = [f for f, fr in enumerate(frames) if fr.coupling == "rigid"]
-    zframe = {f: n_free + 6 * i for i, f in enumerate(rigid)}
-    n_z = n_free + 6 * len(rigid)
-    rows, cols, vals = [free_dofs], [np.arange(n_free)], [np.ones(n_free)]
-    for f in rigid:
-        nodes = frames[f].nodes
-        B = np.concatenate([np.broadcast_to(np.eye(3), (len(nodes), 3, 3)),
-                            -skew(fe.coords[nodes] - frames[f].point)], axis=2)  # (k, 3, 6)
-        rows.append(np.repeat(d * nodes[:, None] + np.arange(3), 6).ravel())
-        cols.append(np.tile(zframe[f] + np.arange(6), 3 * len(nodes)))
-        vals.append(B.ravel())
-        rn, rc = np.nonzero(rot[nodes])  # the set's stiffened rotations are the frame's
-        rows.append(d * nodes[rn] + 3 + rc), cols.append(zframe[f] + 3 + rc), vals.append(np.ones(rn.size))
-    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(d * n, n_z))
-    Lr, Lc, Lv = [], [], []
-    for f, fr in enumerate(frames):
-        if fr.coupling == "rigid":
-            Lr.append(6 * f + np.arange(6)), Lc.append(zframe[f] + np.arange(6)), Lv.append(np.ones(6))
-        else:
-            clash = fr.nodes[owner[fr.nodes] >= 0]
-            if clash.size:
-                raise ValueError(f"port {fr.name!r} (averaging) shares node {clash[0]} with the rigid set of port "
-                                 f"{frames[owner[clash[0]]].name!r}")
-            W = averaging_weights(fe.coords, fr)  # (6, 3k)
-            zc = zof[(d * fr.nodes[:, None] + np.arange(3)).ravel()]
-            Lr.append(np.repeat(6 * f + np.arange(6), zc.size)), Lc.append(np.tile(zc, 6)), Lv.append(W.ravel())
-    L = sp.csr_matrix((np.concatenate(Lv), (np.concatenate(Lr), np.concatenate(Lc))), shape=(6 * len(frames), n_z))
-    Uz = np.zeros((n_z, 6))
-    node_of, comp_of = np.divmod(free_dofs, d)
-    tr = comp_of < 3
-    Uz[np.flatnonzero(tr)] = rigid_rows(fe.coords[node_of[tr]] - x_cm)[np.arange(tr.sum()), comp_of[tr]]
-    Uz[np.flatnonzero(~tr), comp_of[~tr]] = 1.0  # a node's rotation dof c in the rigid rotation c
-    for f in rigid:
-        Uz[zframe[f] : zframe[f] + 3] = rigid_rows((frames[f].point - x_cm)[None])[0]
-        Uz[zframe[f] + 3 : zframe[f] + 6, 3:] = np.eye(3)
-    dof_node = np.full(n_z, -1)
-    dof_node[:n_free] = node_of
-    return Constraints(T, L, Uz, dof_node)
 
 
 def shifted_lu(K: sp.spmatrix, M: sp.spmatrix, sigma: float, c: Constraints, coords: np.ndarray):
@@ -216,8 +118,8 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
     of K - sigma M followed by the projection that removes the rigid modes (M-orthogonal to U): the
     rigid modes map to 0 in the shifted spectrum, so ARPACK never has to resolve their six-fold
     eigenvalue (with a plain shift it missed one of the six on a box). Mass-normalized, U^T M Xi = 0.
-    n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES). A mode below RIGID_GAP x
-    w2_scale (the Ritz estimate of w_1^2) is a mechanism: an error. Returns (Xi (n_z, k), w^2 (k,))."""
+    n_modes: this many; cutoff_hz: every mode up to it (at most MAX_MODES). A mode below MECHANISM x
+    w2_scale (element_scale) is a mechanism: an error. Returns (Xi (n_z, k), w^2 (k,))."""
     n = K.shape[0]
     MU = np.asarray(M @ U)
 
@@ -236,9 +138,9 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
         if n_modes is not None or w2[-1] > (2 * math.pi * cutoff_hz) ** 2 or k >= min(n - 7, MAX_MODES):
             break
         want *= 2
-    if w2[0] < RIGID_GAP * w2_scale:
-        raise ValueError(f"the body has more than 6 rigid modes: free-free eigenvalue {w2[0]:.3g} against "
-                         f"{w2_scale:.3g} expected near the first (a mechanism, or a part not connected)")
+    if w2[0] < MECHANISM * w2_scale:
+        raise ValueError(f"the body has more than 6 rigid modes: free-free eigenvalue {w2[0]:.3g} rad^2/s^2, "
+                         f"{w2[0] / w2_scale:.1e} of its elements' K_ii / M_ii (a mechanism, or a part not connected)")
     if cutoff_hz is not None and n_modes is None:
         keep = w2 <= (2 * math.pi * cutoff_hz) ** 2
         w2, X = w2[keep], X[:, keep]
@@ -248,6 +150,7 @@ def free_free_modes(K, M, U, A, lu, n_modes: int | None, cutoff_hz: float | None
 
 
 STATIC_TOL = 1e-10  # relative residual of the static solves (round-off stalls them near 1e-12)
+ROUND_OFF = 1e3 * np.finfo(float).eps  # |K y - b| below this x | |K| |y| |: as exact as K y can be computed
 STATIC_MAXITER = 300
 
 
@@ -280,13 +183,19 @@ def free_static(K, M, U, lu, Xi, w2, b) -> np.ndarray:
     y = np.zeros_like(b)
     r = r0.copy()
     scale = np.linalg.norm(r0, axis=0).max()
+    absK = abs(K)
+
+    def converged(r):  # to STATIC_TOL, or to the round-off of K y (dofs of mixed units: mm and rad)
+        floor = ROUND_OFF * np.linalg.norm(absK @ np.abs(y), axis=0)
+        return bool(np.all(np.linalg.norm(r, axis=0) <= np.maximum(STATIC_TOL * scale, floor)))
+
     z = precondition(r)
     p = z
     rz = np.einsum("ij,ij->j", r, z)
     for it in range(STATIC_MAXITER):
-        if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+        if converged(r):
             r = r0 - K @ y  # the recursive residual drifts: confirm with the true one
-            if np.linalg.norm(r, axis=0).max() <= STATIC_TOL * scale:
+            if converged(r):
                 break
             z = precondition(r)
             p, rz = z, np.einsum("ij,ij->j", r, z)
@@ -353,7 +262,7 @@ def reduce_solid(fe: SolidFE, frames, n_modes: int | None = None, cutoff_hz: flo
     AU = c.U.T @ (M @ c.U)
     n_keep = n_modes
     Xi_all, w2_all = free_free_modes(K, M, c.U, AU, lu, None if n_modes is None else max(n_modes, DEFLATE),
-                                     cutoff_hz, sigma, w2_est)
+                                     cutoff_hz, sigma, element_scale(K, M))
     Xi, w2 = (Xi_all[:, :n_keep], w2_all[:n_keep]) if n_keep is not None else (Xi_all, w2_all)
     t["modes"] = time.process_time()
     F = free_static(K, M, c.U, lu, Xi_all, w2_all, c.L.T.toarray())  # free attachment modes F = G_e L^T

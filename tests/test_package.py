@@ -101,6 +101,7 @@ STAGES = {
     "ffrf_fmu.checked_toml": 1, "ffrf_fmu.model": 1, "ffrf_fmu.directions": 1, "ffrf_fmu.spin": 1,
     "ffrf_fmu.solid": 1,  # the solid's FE data (SolidFE) and its sources (mesh, exports), read with the model file
     "ffrf_fmu.fe": 2, "ffrf_fmu.solid.frames": 2, "ffrf_fmu.solid.ordering": 2, "ffrf_fmu.solid.stiffening": 2,
+    "ffrf_fmu.solid.constraints": 2,  # frames as constraints of the FE model (uses frames)
     "ffrf_fmu.solid.nastran": 2,  # Nastran decks to K and M with the beam element of fe/beam.py
     "ffrf_fmu.solid.nastran_mass": 2, "ffrf_fmu.solid.nastran_body": 2,  # the deck's mass split, its body
     "ffrf_fmu.solid.nastran_rigid": 2,  # RBE2/RBE3 eliminated

@@ -47,7 +47,7 @@ def test_correction_mode_holds_the_centrifugal_response(solid_bar):
     correction shapes below 1e-3 of the largest response are dropped; without the correction columns
     the attachment and vibration shapes miss > 1 % of it), and Y^T F is Witteveen's
     f0 = w^T W1 w / 2."""
-    from ffrf_fmu.reduction_sparse import constraints, mass_properties
+    from ffrf_fmu.solid.constraints import constraints, mass_properties
     from ffrf_fmu.solid.stiffening import centrifugal_loads
 
     data, red = solid_bar()

@@ -86,9 +86,12 @@ def select_nodes(coords: np.ndarray, node_sets: dict, select: dict, scale: float
     return np.unique(idx)
 
 
-def check_set(frame: Frame, coords: np.ndarray) -> None:
+def check_set(frame: Frame, coords: np.ndarray, rotations: bool = False) -> None:
     """A frame needs a set that fixes 6 rigid dofs: at least 3 nodes, not on one line (else its
-    rotation about that line is undetermined, for either coupling)."""
+    rotation about that line is undetermined, for either coupling). rotations: the set's nodes have
+    rotation dofs and the link is rigid (they take the frame's rotation): any set will do."""
+    if rotations and len(frame.nodes) and frame.coupling == "rigid":
+        return
     X = coords[frame.nodes] - frame.point
     A = np.concatenate([np.tile(np.eye(3), (len(X), 1)), -skew(X).reshape(-1, 3)], axis=1)
     s = np.linalg.svd(A, compute_uv=False)

@@ -31,8 +31,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
-from ..reduction_sparse import (MAX_MODES, SHIFT_FRACTION, Constraints, constraints, free_free_modes, mass_properties,
-                                rigid_rows, ritz_estimate, shifted_lu)
+from ..reduction_sparse import MAX_MODES, SHIFT_FRACTION, element_scale, free_free_modes, ritz_estimate, shifted_lu
+from .constraints import Constraints, constraints, mass_properties, rigid_rows
 
 
 CLUSTER = 1e-6  # reduced frequencies this close (relative) form one eigenspace for the MAC
@@ -63,7 +63,8 @@ def full_modes(fe, frames, cutoff_hz: float, max_modes: int = 40, full: FullMode
     """Free-free modes of the full model (rigid frames eliminated) up to cutoff_hz: (f [Hz], modes on
     the FE dofs (3n, k))."""
     m = full or full_model(fe, frames)
-    X, w2 = free_free_modes(m.K, m.M, m.c.U, m.c.U.T @ (m.M @ m.c.U), m.lu, None, cutoff_hz, m.sigma, m.w2_est)
+    X, w2 = free_free_modes(m.K, m.M, m.c.U, m.c.U.T @ (m.M @ m.c.U), m.lu, None, cutoff_hz, m.sigma,
+                           element_scale(m.K, m.M))
     X, w2 = X[:, :max_modes], w2[:max_modes]
     return np.sqrt(w2) / (2 * math.pi), np.asarray(m.c.T @ X)
 

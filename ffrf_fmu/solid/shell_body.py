@@ -18,39 +18,16 @@ on the drilling rotation, as T^T diag(1, 1, 0) T = I - n n^T): six_dof_fe checks
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from . import MassPoints, SolidFE, six_dof_fe
-from .shell import _GAUSS, ShellFE, _shape, element_frame
+from .shell import ShellFE
+from .shell_batch import fibre_mass
 
 
 def shell_body(shell: ShellFE, node_sets=None, source: str = "") -> SolidFE:
-    """The SolidFE (6 dofs per node, node-block mass and fibre mass points: module doc) of a shell model."""
-    X, Q, t, rho = shell.coords, shell.quads, shell.thickness, shell.material.rho
-    n = len(X)
-    ms_rows, ms_cols, ms_vals = [], [], []
-    p_rows, p_cols, p_vals, weights = [], [], [], []
-    skew_rows = np.array([[1, 2], [0, 2], [0, 1]])  # the nonzero columns of row a of n~
-    p = 0
-    for e, q in enumerate(Q):
-        T, xy = element_frame(X[q])
-        nrm = T[2]
-        nx = np.array([[0.0, -nrm[2], nrm[1]], [nrm[2], 0.0, -nrm[0]], [-nrm[1], nrm[0], 0.0]])
-        z = t[e] / np.sqrt(12.0)
-        for xi, eta in _GAUSS:
-            N, dN = _shape(xi, eta)
-            detJ = float(np.linalg.det(dN @ xy))
-            ms_rows.append(np.repeat(q, 4)), ms_cols.append(np.tile(q, 4))
-            ms_vals.append(rho * t[e] * detJ * np.outer(N, N).ravel())
-            for a in range(3):  # N_p row a: z N_i (-n~)[a, c] on rotation c of node i
-                c = skew_rows[a]
-                p_rows.append(np.full(8, 3 * p + a))
-                p_cols.append((6 * q[:, None] + 3 + c).ravel())
-                p_vals.append((-z * N[:, None] * nx[a, c]).ravel())
-            weights.append(rho * t[e] * detJ)
-            p += 1
-    Ms = sp.csr_matrix((np.concatenate(ms_vals), (np.concatenate(ms_rows), np.concatenate(ms_cols))), shape=(n, n))
-    Np = sp.csr_matrix((np.concatenate(p_vals), (np.concatenate(p_rows), np.concatenate(p_cols))), shape=(3 * p, 6 * n))
-    cells = (("quad", np.asarray(Q, dtype=int)),) if len(Q) else ()
-    return six_dof_fe(X, shell.K, shell.M, Ms, MassPoints(Np, np.asarray(weights)), node_sets,
-                      source or f"{len(Q)} MITC4 shells", cells)
+    """The SolidFE (6 dofs per node, node-block mass and fibre mass points: module doc) of a shell model;
+    the points are built for all elements at once (shell_batch.fibre_mass)."""
+    Ms, Np, w = fibre_mass(shell)
+    cells = (("quad", np.asarray(shell.quads, dtype=int)),) if len(shell.quads) else ()
+    return six_dof_fe(shell.coords, shell.K, shell.M, Ms, MassPoints(Np, w), node_sets,
+                      source or f"{len(shell.quads)} MITC4 shells", cells)

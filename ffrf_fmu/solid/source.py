@@ -20,6 +20,47 @@ def _generated_mesh(spec):
     return cylinder_points(p["radius"], p["length"], p["radial"], p["axial"], p["origin"])
 
 
+def _shell_fe(spec, files, material) -> SolidFE:
+    """A shell mesh (a generated plate, or the quads of a mesh file) assembled with MITC4 (shell.py) as a
+    6-dof SolidFE (shell_body.py)."""
+    from .shell import plate_mesh
+    from .shell_batch import assemble_mitc4
+    from .shell_body import shell_body
+
+    thickness = spec.thickness
+    if "mesh" in files:
+        from .mesh import read_mesh
+
+        mesh, sets = read_mesh(files["mesh"])
+        blocks = [k for k, c in enumerate(mesh.cells) if c.type == "quad"]
+        other = sorted({c.type for c in mesh.cells} - {"quad", "line", "vertex"})
+        if other or not blocks:
+            raise ValueError(f"{files['mesh']}: element {spec.element} needs quad cells, the mesh has "
+                             f"{other or 'no quads'}")
+        nodes, source = np.asarray(mesh.points, dtype=float), files["mesh"]
+        quads = np.concatenate([mesh.cells[k].data for k in blocks])
+        if isinstance(thickness, str):
+            if thickness not in mesh.cell_data:
+                raise ValueError(f"{source}: no cell data {thickness!r} for the thickness (cell data: "
+                                 f"{sorted(mesh.cell_data) or 'none'})")
+            thickness = np.concatenate([np.asarray(mesh.cell_data[thickness][k], dtype=float).ravel() for k in blocks])
+            bad = np.flatnonzero(~(np.isfinite(thickness) & (thickness > 0)))
+            if bad.size:
+                raise ValueError(f"{source}: cell data {spec.thickness!r}: quad {int(bad[0])} has thickness "
+                                 f"{thickness[bad[0]]:g} (expected > 0 [m])")
+        if nodes.shape[1] == 2:
+            nodes = np.column_stack([nodes, np.zeros(len(nodes))])
+    else:
+        p = dict(spec.generated[1])
+        nodes, quads = plate_mesh(*p["size"], *p["divisions"])
+        nodes = nodes + np.asarray(p["origin"], dtype=float)
+        sets, source = {}, "generated plate"
+    shell = assemble_mitc4(nodes, quads, thickness, material)
+    t = np.asarray(thickness, dtype=float)
+    what = f"t = {float(t):g} m" if t.ndim == 0 else f"t = {t.min():g} .. {t.max():g} m from {spec.thickness!r}"
+    return shell_body(shell, sets, f"{source} ({spec.element}, {what})")
+
+
 @functools.lru_cache(maxsize=8)
 def solid_fe(spec) -> SolidFE:
     """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
@@ -34,6 +75,8 @@ def solid_fe(spec) -> SolidFE:
         return read_ansys(files["stiffness"], files["mass"], files["mapping"], files["nodes"], files.get("elements"))
     from .mesh import Material, assemble, read_mesh
 
+    if spec.thickness is not None:
+        return _shell_fe(spec, files, Material(*spec.material))
     if "mesh" in files:
         mesh, sets = read_mesh(files["mesh"])
         source = files["mesh"]
@@ -46,7 +89,7 @@ def solid_size(spec) -> float:
     """The diagonal of the bounding box of the solid's nodes [m] (the body's length scale)."""
     if spec.generated:
         p = dict(spec.generated[1])
-        if spec.generated[0] == "box":
+        if spec.generated[0] in ("box", "plate"):
             return float(np.linalg.norm(p["size"]))
         return float(np.hypot(2 * p["radius"], p["length"]))
     X = solid_fe(spec).coords

@@ -68,12 +68,12 @@ def reduced_frequencies(data, rates, axis, n: int, terms: str = "linear", f_max:
 def full_frequencies(fe, frames, fixed_parts, rates, axis, n: int, stress: bool = True) -> np.ndarray:
     """(k, n) the first n frequencies [Hz] of the full FE model (SolidFE) about its steady spin at each
     rate (module doc), its rigid frames' node sets eliminated as in the reduction (u = T z,
-    reduction_sparse.constraints) and the frame parts `fixed_parts` fixed: (frame index, 0 | 3) for its
+    solid/constraints.py) and the frame parts `fixed_parts` fixed: (frame index, 0 | 3) for its
     translation | rotation. stress: with the stress stiffening K_G."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from ..reduction_sparse import constraints, mass_properties
+    from ..solid.constraints import constraints, mass_properties
     from ..runtime.rotation import skew
 
     a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)

@@ -1,0 +1,167 @@
+"""MITC4 shells assembled for many elements at once: the element of solid/shell.py (its plain, one
+element at a time twin and oracle: tests/test_shell_body.py compares them entry by entry) written as
+array operations over blocks of elements, so that a mesh of 200,000 dofs assembles in seconds (a
+Python loop over elements spent 2.2 ms per quad; docs/shells.md, "Scale").
+
+Same formulation, symbols and dof order as shell.py: per element the frame T (rows e1, e2, e3), the
+in-plane corners xy, at each of the 2 x 2 Gauss points J = dN xy, the membrane, bending and
+Bathe-Dvorkin shear strains Bm, Bb, Bs, K = sum (Bm^T Cm Bm + Bb^T Cb Bb + Bs^T Cs Bs) det J, the
+drilling penalty at the centre, the consistent mass, then K_global = R^T K R with R = I_8 (x) T.
+Also the fibres' mass points of shell_body.py (one point per Gauss point at z = t / sqrt 12).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .mesh import Material
+from .shell import _ETA, _GAUSS, _XI, DRILL, SHEAR_FACTOR, ShellFE, _shape
+
+BLOCK = 4096  # elements per block: (BLOCK, 24, 24) arrays of 19 MB, a few of them alive at once
+
+
+def element_frames(X: np.ndarray):
+    """(T (e, 3, 3) rows e1, e2, e3; xy (e, 4, 2)) of quads with corners X (e, 4, 3), as shell.element_frame."""
+    c = X.mean(axis=1)
+    g1 = (X[:, 1] + X[:, 2] - X[:, 0] - X[:, 3]) / 2
+    g2 = (X[:, 2] + X[:, 3] - X[:, 0] - X[:, 1]) / 2
+    e3 = np.cross(g1, g2)
+    n3 = np.linalg.norm(e3, axis=1)
+    bad = n3 <= 1e-14 * np.linalg.norm(g1, axis=1) * np.linalg.norm(g2, axis=1) + 1e-300
+    if bad.any():
+        raise ValueError(f"degenerate quad {int(np.flatnonzero(bad)[0])}: its mid-side vectors are parallel")
+    e3 = e3 / n3[:, None]
+    e1 = g1 / np.linalg.norm(g1, axis=1)[:, None]
+    e2 = np.cross(e3, e1)
+    T = np.stack([e1, e2, e3], axis=1)
+    return T, np.einsum("eij,ekj->eik", X - c[:, None], T[:, :2])
+
+
+def _inv2(J):
+    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    inv = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], -1), np.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], 1)
+    return inv / det[:, None, None], det
+
+
+def local_matrices(xy: np.ndarray, t: np.ndarray, mat: Material, first: int = 0):
+    """(K, M) (e, 24, 24) in the element frames, as shell.element_matrices for each element; `first`
+    numbers the elements in messages."""
+    E, nu, rho = mat.E, mat.nu, mat.rho
+    ne = len(xy)
+    C0 = E / (1 - nu**2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
+    kG = SHEAR_FACTOR * E / (2 * (1 + nu))
+    iu, iv, iw, irx, iry, irz = (np.arange(4) * 6 + k for k in range(6))
+    K = np.zeros((ne, 24, 24))
+    M = np.zeros((ne, 24, 24))
+
+    def covariant_shear(xi, eta):  # (e, 2, 24): rows gamma_xi, gamma_eta
+        N, dN = _shape(xi, eta)
+        J = np.einsum("rk,ekj->erj", dN, xy)
+        B = np.zeros((ne, 2, 24))
+        B[:, :, iw] = dN
+        B[:, :, iry] += N[None, None, :] * J[:, :, 0:1]
+        B[:, :, irx] -= N[None, None, :] * J[:, :, 1:2]
+        return B
+
+    gA, gC = covariant_shear(0, 1)[:, 0], covariant_shear(0, -1)[:, 0]
+    gB, gD = covariant_shear(-1, 0)[:, 1], covariant_shear(1, 0)[:, 1]
+    for xi, eta in _GAUSS:
+        N, dN = _shape(xi, eta)
+        J = np.einsum("rk,ekj->erj", dN, xy)
+        Jinv, detJ = _inv2(J)
+        if np.any(detJ <= 0):
+            e = int(np.flatnonzero(detJ <= 0)[0])
+            raise ValueError(f"quad {first + e} with corners {xy[e].tolist()} is inverted or not convex "
+                             f"(det J = {detJ[e]:.3g})")
+        dNx = np.einsum("eij,jk->eik", Jinv, dN)  # (e, 2, 4)
+        Bm = np.zeros((ne, 3, 24))
+        Bm[:, 0, iu], Bm[:, 1, iv], Bm[:, 2, iu], Bm[:, 2, iv] = dNx[:, 0], dNx[:, 1], dNx[:, 1], dNx[:, 0]
+        Bb = np.zeros((ne, 3, 24))
+        Bb[:, 0, iry], Bb[:, 1, irx], Bb[:, 2, iry], Bb[:, 2, irx] = dNx[:, 0], -dNx[:, 1], dNx[:, 1], -dNx[:, 0]
+        g_nat = np.stack([0.5 * (1 + eta) * gA + 0.5 * (1 - eta) * gC, 0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB], 1)
+        Bs = np.einsum("eij,ejk->eik", Jinv, g_nat)
+        w = detJ[:, None, None]
+        BmT, BbT = Bm.transpose(0, 2, 1), Bb.transpose(0, 2, 1)
+        K += (t[:, None, None] * (BmT @ (C0 @ Bm)) + (t**3 / 12)[:, None, None] * (BbT @ (C0 @ Bb))
+              + (kG * t)[:, None, None] * (Bs.transpose(0, 2, 1) @ Bs)) * w
+        NN = np.outer(N, N)[None] * w
+        for idx, m in ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12)):
+            M[:, idx[:, None], idx[None, :]] += m[:, None, None] * NN
+    diag = np.einsum("eii->ei", K)
+    kd = DRILL * np.min(diag[:, np.concatenate([iu, iv])], axis=1)
+    _, dN0 = _shape(0, 0)
+    Jinv0, _ = _inv2(np.einsum("rk,ekj->erj", dN0, xy))
+    dNx0 = np.einsum("eij,jk->eik", Jinv0, dN0)
+    omega = np.zeros((ne, 24))
+    omega[:, iv] = 0.5 * dNx0[:, 0]
+    omega[:, iu] = -0.5 * dNx0[:, 1]
+    for i in range(4):
+        b = -omega.copy()
+        b[:, irz[i]] += 1.0
+        K += kd[:, None, None] * (b[:, :, None] * b[:, None, :])
+    return K, M
+
+
+def to_global(A: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """R^T A R for R = I_8 (x) T, (e, 24, 24): translations and rotations of the 4 nodes."""
+    A = A.reshape(-1, 8, 3, 8, 3).transpose(0, 1, 3, 2, 4)  # (e, 8, 8, 3, 3) node blocks
+    T5 = T[:, None, None]
+    return (T5.transpose(0, 1, 2, 4, 3) @ A @ T5).transpose(0, 1, 3, 2, 4).reshape(-1, 24, 24)
+
+
+def assemble_mitc4(nodes, quads, thickness, material: Material) -> ShellFE:
+    """The ShellFE of shell.assemble_shells (same K and M), assembled block by block (module doc)."""
+    X = np.asarray(nodes, dtype=float)
+    Q = np.asarray(quads, dtype=int)
+    if X.ndim != 2 or X.shape[1] != 3:
+        raise ValueError(f"nodes: shape {X.shape}, expected (n, 3)")
+    if Q.ndim != 2 or Q.shape[1] != 4:
+        raise ValueError(f"quads: shape {Q.shape}, expected (e, 4)")
+    if Q.size and (Q.min() < 0 or Q.max() >= len(X)):
+        raise ValueError(f"quads: node index out of range 0..{len(X) - 1}")
+    t = np.broadcast_to(np.asarray(thickness, dtype=float), (len(Q),)).copy()
+    if np.any(t <= 0):
+        raise ValueError(f"thickness: element {int(np.argmin(t))} has t = {t.min():g} <= 0")
+    n = 6 * len(X)
+    K = sp.csr_matrix((n, n))
+    M = sp.csr_matrix((n, n))
+    for s in range(0, len(Q), BLOCK):
+        q = Q[s : s + BLOCK]
+        T, xy = element_frames(X[q])
+        Kl, Ml = local_matrices(xy, t[s : s + BLOCK], material, first=s)
+        d = (6 * q[:, :, None] + np.arange(6)).reshape(len(q), 24)
+        r, c = np.repeat(d, 24, axis=1).ravel(), np.tile(d, (1, 24)).ravel()
+        K = K + sp.csr_matrix((to_global(Kl, T).ravel(), (r, c)), shape=(n, n))
+        M = M + sp.csr_matrix((to_global(Ml, T).ravel(), (r, c)), shape=(n, n))
+    return ShellFE(X, Q, t, material, K, M)
+
+
+def fibre_mass(shell: ShellFE):
+    """(M_s (n, n), N (3p, 6n), w (p,)): the mid-surface's node-block mass and the fibres' mass points of
+    shell_body.py's module doc, for all quads at once."""
+    X, Q, t, rho = shell.coords, shell.quads, shell.thickness, shell.material.rho
+    n, ne = len(X), len(Q)
+    T, xy = element_frames(X[Q])
+    nrm = T[:, 2]
+    nx = np.zeros((ne, 3, 3))  # n~
+    nx[:, 0, 1], nx[:, 0, 2], nx[:, 1, 0] = -nrm[:, 2], nrm[:, 1], nrm[:, 2]
+    nx[:, 1, 2], nx[:, 2, 0], nx[:, 2, 1] = -nrm[:, 0], -nrm[:, 1], nrm[:, 0]
+    z = t / np.sqrt(12.0)
+    ms_vals, weights, p_vals = [], [], []
+    for xi, eta in _GAUSS:
+        N, dN = _shape(xi, eta)
+        detJ = np.linalg.det(np.einsum("rk,ekj->erj", dN, xy))
+        ms_vals.append(rho * (t * detJ)[:, None] * np.outer(N, N).ravel()[None])
+        weights.append(rho * t * detJ)
+        p_vals.append(-z[:, None, None, None] * N[None, None, :, None] * nx[:, :, None, :])  # (e, a, node, c)
+    Ms = sp.csr_matrix((np.stack(ms_vals, 1).ravel(),
+                        (np.broadcast_to(np.repeat(Q, 4, axis=1)[:, None], (ne, 4, 16)).ravel(),
+                         np.broadcast_to(np.tile(Q, (1, 4))[:, None], (ne, 4, 16)).ravel())), shape=(n, n))
+    P = np.stack(p_vals, 1)  # (e, g, a, node, c): point e * 4 + g
+    p = 4 * ne
+    rows = np.broadcast_to((3 * np.arange(p).reshape(ne, 4)[:, :, None, None, None]
+                            + np.arange(3)[None, None, :, None, None]), P.shape)
+    cols = np.broadcast_to((6 * Q[:, None, None, :, None] + 3 + np.arange(3)), P.shape)
+    Np = sp.csr_matrix((P.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * p, 6 * n))
+    Np.eliminate_zeros()
+    return Ms, Np, np.stack(weights, 1).ravel()
