@@ -165,6 +165,8 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
     "CQUAD4": ([("CQUAD4   6       4       4       1       14      15", "CQUAD4,6,4,4,1,14,15,0.,0.1")], [],
                "ZOFFS = 0.1 not supported"),
     "CTRIA3": ([(TRIA, "CTRIA3,8,4,4,3,16,0.,0.,\n,,0,0.5,0.25,0.25")], [], "corner thicknesses"),
+    "CQUAD4-crossed": ([("CQUAD4   6       4       4       1       14      15", "CQUAD4   6       4       4       1       15      14")],
+                       [], "inverted or not convex|degenerate"),
     "CTRIA3-repeated": ([(TRIA, "CTRIA3   8       4       4       3       4")], [], r"repeated|nodes=\[4, 3, 4\]"),
     "PSHELL": ([("PSHELL   4       1      .25      1               1", "PSHELL,4,1,.25")], [], "MID1 = MID2"),
     "PCOMP": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,2,0.4\n")], [("MAT1     1", "MAT1,2,1.0+7,,.3,.1\nMAT1     1")],
@@ -297,3 +299,37 @@ def test_coupled_beam_mass_points_give_fe_beams_tensor_kernel(tmp_path):
     ref = np.einsum("ab,abij->ij", Amat, T)
     ours = body.kernel(Amat).toarray()
     assert np.abs(ours - ref).max() < 1e-12 * np.abs(ref).max()
+
+
+@pytest.mark.parametrize("coupmass", [-1, 1])
+def test_cquad4_deck_is_shell_pys_mitc4(tmp_path, coupmass):
+    """A 3 x 2 CQUAD4 plate, tilted out of the x-y plane: K equals solid/shell.py's assemble_shells
+    (the one-element MITC4) to 1e-12; the coupled M too, the lumped M is rho t A / 4 per corner."""
+    from ffrf_fmu.solid.mesh import Material
+    from ffrf_fmu.solid.shell import assemble_shells, plate_mesh
+
+    nodes, quads = plate_mesh(0.6, 0.4, 3, 2)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.4), -np.sin(0.4)], [0.0, np.sin(0.4), np.cos(0.4)]])
+    nodes = nodes @ R.T + [0.1, -0.2, 0.3]
+    mat, t = Material(2.1e11, 0.3, 7800.0), 0.004
+    deck = ["SOL 103", "CEND", "BEGIN BULK", f"PARAM,COUPMASS,{coupmass}", f"MAT1,1,{mat.E},,{mat.nu},{mat.rho}",
+            f"PSHELL,1,1,{t},1,,1"]
+    deck += [f"GRID,{i + 1},,{float(x)!r},{float(y)!r},{float(z)!r}" for i, (x, y, z) in enumerate(nodes)]
+    deck += [f"CQUAD4,{e + 1},1,{','.join(str(int(i) + 1) for i in q)}" for e, q in enumerate(quads)] + ["ENDDATA"]
+    (tmp_path / "p.bdf").write_text("\n".join(deck) + "\n")
+    fe = read_nastran(tmp_path / "p.bdf")
+    ref = assemble_shells(nodes, quads, t, mat)
+    assert abs(fe.K - ref.K).max() <= 1e-12 * abs(ref.K).max()
+    if coupmass > 0:
+        assert abs(fe.M - ref.M).max() <= 1e-12 * abs(ref.M).max()
+    else:
+        corner = np.zeros(len(nodes))
+        np.add.at(corner, quads.ravel(), mat.rho * t * 0.2 * 0.2 / 4)
+        np.testing.assert_allclose(fe.M.diagonal()[0::6], corner, rtol=1e-12)
+        assert abs(fe.M.diagonal()[3::6]).max() == 0.0 and abs(fe.M - sp_diag(fe.M)).max() == 0.0
+
+
+def sp_diag(A):
+    import scipy.sparse as sp
+
+    return sp.diags(A.diagonal())

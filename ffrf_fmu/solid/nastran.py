@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from ..fe.beam import element_matrices
 from ..model import Section
 from . import MassPoints
-from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shell, add_solids, solid_kind
+from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shells, add_solids, solid_kind
 from .nastran_deck import locate_card
 from .nastran_mass import Assembly
 from .nastran_rigid import RIGID_CARDS, rigid_elements
@@ -296,7 +296,7 @@ def read_nastran(path: str) -> NastranFE:
     solids = {}
     for eid, elem in sorted(model.elements.items()):
         if elem.type in SHELL_CARDS:
-            add_shell(asm, refuse, X, index, elem, lumped, notes)
+            solids.setdefault("shell", []).append(elem)
             continue
         if elem.type in SOLID_CARDS:
             kind = solid_kind(elem)
@@ -345,7 +345,7 @@ def read_nastran(path: str) -> NastranFE:
         else:  # pragma: no cover - _check_cards refuses other elements first
             _refuse(path, elem.type, eid, "element not supported")
     for kind, elems in solids.items():
-        add_solids(asm, refuse, X, index, elems, kind, lumped, notes)
+        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes)
 
     for mid, mass in sorted(model.masses.items()):
         if mass.type != "CONM2":  # pragma: no cover - refused by _check_cards

@@ -1,7 +1,7 @@
 """Shells and solids of a Nastran deck (ffrf_fmu/solid/nastran.py; docs/nastran.md): K and the mass
 split of solid/nastran_mass.py on the deck's 6-dof nodes.
 
-Shells: CQUAD4 by solid/shell.py's MITC4 element (element_frame, element_matrices) with the
+Shells: CQUAD4 by solid/shell.py's MITC4 element (in blocks: solid/shell_batch.py) with the
 thickness of its PSHELL, or of a PCOMP whose plies are all of one MAT1 (laid from Z0 = -T/2: the
 laminate is then the homogeneous plate of thickness T = sum t_i, A = E T/(1 - nu^2) [..],
 B = 0, D = T^2/12 A, the same as a PSHELL). CTRIA3 by the same element with its third corner
@@ -27,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from .mesh import Material, lame
-from .shell import element_frame, element_matrices, _GAUSS, _shape
+from .shell import _GAUSS, _shape, element_frame, element_matrices
+from .shell_batch import BLOCK, element_frames, local_matrices, to_global
 
 SHELL_CARDS = ("CQUAD4", "CTRIA3", "PSHELL", "PCOMP")
 SOLID_CARDS = ("CHEXA", "CPENTA", "CTETRA", "PSOLID")
@@ -95,8 +96,8 @@ def shell_property(refuse, prop, notes=None):
     refuse(prop.type, prop.pid, "not a shell property (PSHELL, PCOMP)")
 
 
-def add_shell(asm, refuse, X, index, elem, lumped: bool, notes=None):
-    """One CQUAD4 or CTRIA3 into the Assembly asm (module doc)."""
+def _shell_element(asm, refuse, index, elem, notes):
+    """(corners q (4,), thickness, Material) of one CQUAD4 or CTRIA3 (third corner repeated), checked."""
     nodes = _nodes(refuse, index, elem)
     if elem.zoffset:
         refuse(elem.type, elem.eid, f"ZOFFS = {elem.zoffset} not supported")
@@ -105,23 +106,45 @@ def add_shell(asm, refuse, X, index, elem, lumped: bool, notes=None):
     if any(c is not None and abs(c - (t if elem.tflag == 0 else 1.0)) > 1e-9 * t for c in corner_t):
         refuse(elem.type, elem.eid, f"corner thicknesses T1.. = {corner_t} (TFLAG {elem.tflag}) differ "
                f"from the property's T = {t:g}: not supported")
-    q = nodes if len(nodes) == 4 else nodes[[0, 1, 2, 2]]
     asm.cell("quad" if len(nodes) == 4 else "triangle", nodes)
-    try:
-        T, xy = element_frame(X[q])
-        Ke, _ = element_matrices(xy, t, mat)
-    except ValueError as exc:
-        refuse(elem.type, elem.eid, str(exc))
-    Ke = np.einsum("ai,IaJb,bj->IiJj", T, Ke.reshape(8, 3, 8, 3), T).reshape(24, 24)  # R^T Ke R, R = I_8 (x) T
-    asm.stiffness((6 * q[:, None] + np.arange(6)).ravel(), Ke)
-    N = np.stack([_SHAPES[g][0] for g in range(4)])  # (4 Gauss points, 4 nodes)
-    w = mat.rho * t * np.array([np.linalg.det(_SHAPES[g][1] @ xy) for g in range(4)])
-    if lumped:
-        asm.node_mass(nodes[:, None], np.full((len(nodes), 1, 1), w.sum() / len(nodes)))
-        return
-    asm.node_mass(q, np.einsum("g,gi,gj->ij", w, N, N))
-    Np = t / np.sqrt(12.0) * np.einsum("gi,ac->gaic", N, -skew_of(T[2])).reshape(4, 3, 12)
-    asm.points((6 * q[:, None] + 3 + np.arange(3)).ravel(), Np, w)
+    return (nodes if len(nodes) == 4 else nodes[[0, 1, 2, 2]]), t, mat
+
+
+def add_shells(asm, refuse, X, index, elems, kind, lumped: bool, notes=None):
+    """CQUAD4 and CTRIA3 into the Assembly asm (module doc), by shell_batch.py's MITC4 in blocks of one
+    material (an element it refuses is found and named with shell.py's one-element version)."""
+    rows = [_shell_element(asm, refuse, index, elem, notes) for elem in elems]
+    groups = {}
+    for k, (q, t, mat) in enumerate(rows):
+        groups.setdefault(mat, []).append(k)
+    N = np.stack([_SHAPES[g][0] for g in range(4)])  # (4 Gauss points, 4 corners)
+    dN = np.stack([_SHAPES[g][1] for g in range(4)])  # (4, 2, 4)
+    for mat, members in groups.items():
+        for s in range(0, len(members), BLOCK):
+            ks = members[s : s + BLOCK]
+            Q, t = np.array([rows[k][0] for k in ks]), np.array([rows[k][1] for k in ks])
+            try:
+                T, xy = element_frames(X[Q])
+                Ke, _ = local_matrices(xy, t, mat)
+            except ValueError:
+                for k in ks:  # name the element
+                    try:
+                        element_matrices(element_frame(X[rows[k][0]])[1], rows[k][1], mat)
+                    except ValueError as exc:
+                        refuse(elems[k].type, elems[k].eid, str(exc))
+                raise
+            asm.stiffness((6 * Q[:, :, None] + np.arange(6)).reshape(len(ks), 24), to_global(Ke, T))
+            w = mat.rho * t[:, None] * np.linalg.det(np.einsum("grk,ekj->egrj", dN, xy))  # (e, g)
+            if lumped:  # w_e / k on each of the k distinct corners (a triangle's 4th is its 3rd)
+                share = np.where(Q[:, 3] == Q[:, 2], 1 / 3, 1 / 4)[:, None] * np.array([1, 1, 1, 0]) \
+                    + np.where(Q[:, 3] == Q[:, 2], 0, 1 / 4)[:, None] * np.array([0, 0, 0, 1])
+                asm.node_mass(Q, w.sum(axis=1)[:, None, None] * np.eye(4) * share[:, None, :])
+                continue
+            asm.node_mass(Q, np.einsum("eg,gi,gj->eij", w, N, N))
+            nx = -np.stack([skew_of(n) for n in T[:, 2]])  # (e, 3, 3): -n~
+            Np = (t / np.sqrt(12.0))[:, None, None, None, None] * np.einsum("gi,eac->egaic", N, nx)
+            dofs = np.repeat((6 * Q[:, :, None] + 3 + np.arange(3)).reshape(len(ks), 1, 12), 4, axis=1)
+            asm.points(dofs.reshape(-1, 12), Np.reshape(-1, 3, 12), w.ravel())
 
 
 def _nodes(refuse, index, elem):
