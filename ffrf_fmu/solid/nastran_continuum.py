@@ -43,6 +43,7 @@ _WEDGE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1)]
 _HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]  # G9..G20
 _HEX20 = _HEX + [tuple((np.add(_HEX[a], _HEX[b]) / 2).tolist()) for a, b in _HEX_EDGES]
 QUADRATIC = ("tet10", "hex20")
+SOLID_BLOCK = 512  # solids per block: the hex20's (512, 20, 3, 20, 3) integrals are 15 MB
 _SHAPES = [_shape(xi, eta) for xi, eta in _GAUSS]  # shell.py's N, dN at its 2 x 2 Gauss points
 # meshio (VTK) cell type and node order of each kind: VTK's 20-node brick takes the top edges before
 # the vertical ones, Nastran's CHEXA the vertical ones first
@@ -187,35 +188,43 @@ def solid_kind(elem):
 
 
 def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
-    """Solid elements of one kind (same node count) into the Assembly asm (module doc)."""
+    """Solid elements of one kind (same node count) into the Assembly asm (module doc), in blocks of
+    one material."""
     e, perm, Xq, wq = _reference(kind)
     phi = np.stack([e.lbasis(Xq, i)[0] for i in perm])  # (nloc, nq), the deck's node order
     dphi_ref = np.stack([e.lbasis(Xq, i)[1] for i in perm])  # (nloc, 3, nq)
+    groups = {}
     for elem in elems:
         prop = elem.pid_ref
         if prop.type != "PSOLID":
             refuse(elem.type, elem.eid, f"property {prop.type} {prop.pid} is not a PSOLID")
         if prop.fctn != "SMECH" or prop.isop not in (None, "", "FULL", "REDUCED", 0, 1, 2):
             refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
-        mat = _material(refuse, prop.mid_ref, "PSOLID", prop.pid, notes)
         nodes = _nodes(refuse, index, elem)
         asm.cell(VTK[kind][0], nodes[VTK[kind][1]])
-        J = np.einsum("ia,ibq->qab", X[nodes], dphi_ref)  # dx_a / dxi_b
-        det = np.linalg.det(J)
-        if np.any(det * np.sign(det[0]) <= 0):
-            refuse(elem.type, elem.eid, "element folded or degenerate (det J changes sign or vanishes)")
-        dphi = np.einsum("ibq,qba->qia", dphi_ref, np.linalg.inv(J))  # (nq, nloc, 3)
-        dx = np.abs(det) * wq
+        groups.setdefault(_material(refuse, prop.mid_ref, "PSOLID", prop.pid, notes), []).append((elem, nodes))
+    if lumped and kind in QUADRATIC:
+        notes.add(f"{elems[0].type} ({phi.shape[0]} nodes): consistent mass (the row-sum lumping of a "
+                  "quadratic solid is negative at the corners); Nastran lumps it its own way")
+    for mat, members in groups.items():
         lam, mu = lame(mat)
-        n = len(nodes)
-        A = np.einsum("q,qia,qjb->iajb", dx, dphi, dphi)  # int d_a phi_i d_b phi_j
-        Ke = lam * A + mu * A.transpose(0, 3, 2, 1)
-        Ke += mu * np.einsum("icjc->ij", A)[:, None, :, None] * np.eye(3)[None, :, None, :]
-        asm.stiffness((6 * nodes[:, None] + np.arange(3)).ravel(), Ke.reshape(3 * n, 3 * n))
-        Ms = mat.rho * np.einsum("q,iq,jq->ij", dx, phi, phi)
-        if lumped and kind not in QUADRATIC:
-            Ms = np.diag(Ms.sum(axis=1))
-        elif lumped:
-            notes.add(f"{elem.type} ({len(nodes)} nodes): consistent mass (the row-sum lumping of a "
-                      "quadratic solid is negative at the corners); Nastran lumps it its own way")
-        asm.node_mass(nodes, Ms)
+        for s in range(0, len(members), SOLID_BLOCK):
+            block = members[s : s + SOLID_BLOCK]
+            nodes = np.array([m[1] for m in block])  # (ne, nloc)
+            J = np.einsum("eia,ibq->eqab", X[nodes], dphi_ref)  # dx_a / dxi_b
+            det = np.linalg.det(J)
+            bad = np.any(det * np.sign(det[:, :1]) <= 0, axis=1)
+            if np.any(bad):
+                elem = block[int(np.argmax(bad))][0]
+                refuse(elem.type, elem.eid, "element folded or degenerate (det J changes sign or vanishes)")
+            dphi = np.einsum("ibq,eqba->eqia", dphi_ref, np.linalg.inv(J))  # (ne, nq, nloc, 3)
+            dx = np.abs(det) * wq
+            ne, n = nodes.shape
+            A = np.einsum("eq,eqia,eqjb->eiajb", dx, dphi, dphi, optimize=True)  # int d_a phi_i d_b phi_j
+            Ke = lam * A + mu * A.transpose(0, 1, 4, 3, 2)
+            Ke += mu * np.einsum("eicjc->eij", A)[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
+            asm.stiffness((6 * nodes[:, :, None] + np.arange(3)).reshape(ne, 3 * n), Ke.reshape(ne, 3 * n, 3 * n))
+            Ms = mat.rho * np.einsum("eq,iq,jq->eij", dx, phi, phi)
+            if lumped and kind not in QUADRATIC:
+                Ms = Ms.sum(axis=2)[:, :, None] * np.eye(n)
+            asm.node_mass(nodes, Ms)
