@@ -200,6 +200,9 @@ def add_solids(asm, refuse, X, index, elems, kind: str, lumped: bool, notes):
             refuse(elem.type, elem.eid, f"property {prop.type} {prop.pid} is not a PSOLID")
         if prop.fctn != "SMECH" or prop.isop not in (None, "", "FULL", "REDUCED", 0, 1, 2):
             refuse("PSOLID", prop.pid, f"FCTN = {prop.fctn}, ISOP = {prop.isop} not supported (structural solid)")
+        if prop.isop not in (None, ""):
+            notes.add(f"PSOLID {prop.pid}: ISOP = {prop.isop} (Nastran's integration scheme) not used: "
+                      "full Gauss integration here")
         nodes = _nodes(refuse, index, elem)
         asm.cell(VTK[kind][0], nodes[VTK[kind][1]])
         groups.setdefault(_material(refuse, prop.mid_ref, "PSOLID", prop.pid, notes), []).append((elem, nodes))
