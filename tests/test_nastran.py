@@ -44,15 +44,19 @@ def test_wtmass_scales_mass(tmp_path):
     np.testing.assert_allclose(fe.frequencies(4), 2.0 * base.frequencies(4), rtol=1e-9)
 
 
-def test_unsupported_card_named_with_file_and_line(tmp_path):
+@pytest.mark.parametrize("card", ["RBAR          99      11      12  123456",
+                                  "RBE3          99              11  123456     1.0     123       2       3"])
+def test_unsupported_card_named_with_file_and_line(tmp_path, card):
+    """A card not implemented (RBAR) and an RBE3 whose independent grids lie on one line (they fix
+    no rigid motion): refused, named with file and line, never dropped."""
     shutil.copy(DECK, tmp_path)
     blk = (DATA / "cbar_cbeam.blk").read_text()
-    blk += "CQUAD4        99       1       1       2      12       3\n"
+    blk += card + "\n"
     (tmp_path / "cbar_cbeam.blk").write_text(blk)
     with pytest.raises(NastranError) as err:
         read_nastran(tmp_path / "beam_modes.dat")
     n = len(blk.splitlines())
-    assert "CQUAD4" in str(err.value) and f"cbar_cbeam.blk:{n}:" in str(err.value)
+    assert card[:4] in str(err.value) and f"cbar_cbeam.blk:{n}:" in str(err.value)
 
 
 def test_broken_grid_named_with_file_and_line(tmp_path):

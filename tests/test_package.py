@@ -103,6 +103,8 @@ STAGES = {
     "ffrf_fmu.fe": 2, "ffrf_fmu.solid.frames": 2, "ffrf_fmu.solid.ordering": 2, "ffrf_fmu.solid.stiffening": 2,
     "ffrf_fmu.solid.constraints": 2,  # frames as constraints of the FE model (uses frames)
     "ffrf_fmu.solid.nastran": 2,  # Nastran decks to K and M with the beam element of fe/beam.py
+    "ffrf_fmu.solid.nastran_mass": 2, "ffrf_fmu.solid.nastran_body": 2,  # the deck's mass split, its body
+    "ffrf_fmu.solid.nastran_rigid": 2,  # RBE2/RBE3 eliminated
     "ffrf_fmu.port_data": 3, "ffrf_fmu.reduction": 3, "ffrf_fmu.reduction_sparse": 3, "ffrf_fmu.solid.body": 3,
     "ffrf_fmu.solid.quality": 3, "ffrf_fmu.linear": 3, "ffrf_fmu.invariants": 3, "ffrf_fmu.initial_state": 3,
     "ffrf_fmu.term_rule": 3, "ffrf_fmu.body_cache": 3,

@@ -1,14 +1,18 @@
-"""Nastran bulk data decks of beams, rods and point masses -> 6-dof-node K and M (docs/nastran.md).
+"""Nastran bulk data decks -> 6-dof-node K and M (docs/nastran.md).
 
 Reading is pyNastran's (optional extra `nastran`); this module turns the cards it parsed into
-scipy.sparse K and M on dofs node_index * 6 + i (i = T1 T2 T3 R1 R2 R3, global axes).
+scipy.sparse K and M on dofs node_index * 6 + i (i = T1 T2 T3 R1 R2 R3, global axes); the mass is
+assembled as node-block mass and mass points (solid/nastran_mass.py), kept in NastranFE for the body
+(solid/nastran_body.py); shells and solids are solid/nastran_continuum.py's.
 
 Supported: GRID (positions through CORD2R/C/S by pyNastran's get_position; displacement frame
 CD must be 0), CBAR and CBEAM (orientation vector X or G0; pin flags, offsets WA/WB and warping
 points refused), CROD (axial + torsion), PBAR, PBARL, PBEAM (constant section), PBEAML (section
 properties A, I1, I2, J as pyNastran computes them; I12 must be 0), PROD, MAT1, CONM2 (mass,
-offset, rotary inertia about the centre of mass), SPC/SPC1/SPCADD (zero values only), PARAM
-WTMASS (scales M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC.
+offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP (one MAT1), CHEXA,
+CPENTA, CTETRA, PSOLID, SET1 (node sets), SPC/SPC1/SPCADD (zero values only), PARAM WTMASS (scales
+M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC, RBE2 and RBE3
+(eliminated: solid/nastran_rigid.py). Any other card is refused, named by file and line.
 
 Beam element: ffrf_fmu/fe/beam.py (linear axial and twist, IIE bending): Euler-Bernoulli (GA =
 None, cubic Hermite) unless the property gives shear flexibility, then Timoshenko with
@@ -31,18 +35,22 @@ import scipy.sparse as sp
 
 from ..fe.beam import element_matrices
 from ..model import Section
+from . import MassPoints
+from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shells, add_solids, solid_kind
 from .nastran_deck import locate_card
+from .nastran_mass import Assembly
+from .nastran_rigid import RIGID_CARDS, rigid_elements
 
 # cards that do not enter K or M (solution control, output sets, loads); read, listed in
 # NastranFE.ignored_cards, never silently
 HARMLESS_CARDS = ("PARAM", "EIGRL", "EIGR", "ENDDATA", "USET", "USET1", "LOAD", "FORCE", "MOMENT")
 MODEL_CARDS = (
     "GRID", "CORD2R", "CORD2C", "CORD2S", "CBAR", "CBEAM", "CROD", "PBAR", "PBARL", "PBEAM",
-    "PBEAML", "PROD", "MAT1", "CONM2", "SPC", "SPC1", "SPCADD",
+    "PBEAML", "PROD", "MAT1", "CONM2", "SPC", "SPC1", "SPCADD", "SET1", *SHELL_CARDS, *SOLID_CARDS, *RIGID_CARDS,
 )
 # PARAMs read (WTMASS, COUPMASS, AUTOSPC) or output only; any other PARAM is refused
 PARAMS_USED = ("WTMASS", "COUPMASS", "AUTOSPC")
-PARAMS_OUTPUT = ("POST", "POSTEXT", "OUGCORD", "GRDPNT", "PRTMAXIM", "K6ROT")  # K6ROT: shells only
+PARAMS_OUTPUT = ("POST", "POSTEXT", "OUGCORD", "GRDPNT", "PRTMAXIM", "K6ROT")  # K6ROT: shell.py DRILL used
 
 
 # shear factors Nastran uses for PBARL/PBEAML sections (measured: with 0.9 the ROD sections of
@@ -66,7 +74,12 @@ class NastranFE:
     M: sp.csr_matrix  # (6n, 6n), WTMASS applied
     spc_dofs: np.ndarray  # dofs fixed by the case control's SPC set
     autospc_dofs: np.ndarray  # dofs without stiffness and mass fixed by PARAM AUTOSPC
-    grid_sets: dict = field(default_factory=dict)  # name -> GRID ids, for ports (e.g. "spc")
+    T: sp.csr_matrix | None = None  # RBE2/RBE3: u = T u, the model T^T K T, T^T M T (nastran_rigid.py)
+    mpc_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # their dependent dofs
+    grid_sets: dict = field(default_factory=dict)  # name -> GRID ids: "spc", "SET1 <sid>" of each SET1
+    M_scalar: sp.csr_matrix | None = None  # (n, n) node-block mass of the translations (nastran_mass.py)
+    mass_points: MassPoints | None = None  # the rest of M: M = S^T (M_scalar (x) I3) S + mass points
+    cells: tuple = ()  # ((meshio cell type, (n_cells, k) node indices), ...): the elements, for VTK output
     wtmass: float = 1.0
     mass_form: str = "lumped"
     ignored_cards: tuple = ()
@@ -83,7 +96,7 @@ class NastranFE:
 
     @property
     def free_dofs(self) -> np.ndarray:
-        fixed = np.union1d(self.spc_dofs, self.autospc_dofs)
+        fixed = np.union1d(np.union1d(self.spc_dofs, self.autospc_dofs), self.mpc_dofs)
         return np.setdiff1d(np.arange(self.K.shape[0]), fixed)
 
     def frequencies(self, n: int) -> np.ndarray:
@@ -93,9 +106,9 @@ class NastranFE:
         massless rotation dofs of a lumped mass matrix are admitted (they give mu = 0)."""
         from scipy.linalg import eigh
 
-        f = self.free_dofs
-        K = self.K[f][:, f].toarray()
-        M = self.M[f][:, f].toarray()
+        f, T = self.free_dofs, self.T
+        K, M = (self.K, self.M) if T is None else (T.T @ self.K @ T, T.T @ self.M @ T)
+        K, M = K[f][:, f].toarray(), M[f][:, f].toarray()
         mu = eigh(M, K, eigvals_only=True, subset_by_index=[len(f) - n, len(f) - 1])[::-1]
         return 1.0 / np.sqrt(mu) / (2 * np.pi)
 
@@ -233,7 +246,7 @@ def _frame(path, model, elem, xa, xb):
 
 
 def _spc_dofs(path, model, index):
-    sub = [s for s in model.case_control_deck.subcases.values() if s.has_parameter("SPC")]
+    sub = [s for s in model.case_control_deck.subcases.values() if "SPC" in s.params]
     if not sub:
         return np.zeros(0, dtype=int)
     sid = int(sub[-1].get_parameter("SPC")[0])
@@ -274,18 +287,27 @@ def read_nastran(path: str) -> NastranFE:
     n_dof = 6 * len(node_ids)
     coupmass = int(_param(model, "COUPMASS", -1))
     lumped = coupmass <= 0
-    rows, cols, kv, mv = [], [], [], []
     notes = set()
+    asm = Assembly(len(node_ids))
 
-    def add(dofs, Ke, Me):
-        rows.append(np.repeat(dofs, len(dofs)))
-        cols.append(np.tile(dofs, len(dofs)))
-        kv.append(Ke.ravel())
-        mv.append(Me.ravel())
+    def refuse(card, card_id, why):
+        _refuse(path, card, card_id, why)
 
+    solids = {}
     for eid, elem in sorted(model.elements.items()):
+        if elem.type in SHELL_CARDS:
+            solids.setdefault("shell", []).append(elem)
+            continue
+        if elem.type in SOLID_CARDS:
+            kind = solid_kind(elem)
+            if kind is None:
+                refuse(elem.type, eid, f"{len(elem.nodes)} nodes ({elem.nodes}) not supported (CHEXA 8 or "
+                       "20, CPENTA 6, CTETRA 4 or 10)")
+            solids.setdefault(kind, []).append(elem)
+            continue
         a, b = index[elem.nodes[0]], index[elem.nodes[1]]
         dofs = np.r_[6 * a : 6 * a + 6, 6 * b : 6 * b + 6]
+        asm.cell("line", [a, b])
         if elem.type in ("CBAR", "CBEAM"):
             if elem.pa or elem.pb:
                 _refuse(path, elem.type, eid, f"pin flags PA={elem.pa} PB={elem.pb} not supported")
@@ -295,16 +317,14 @@ def read_nastran(path: str) -> NastranFE:
                 _refuse(path, "CBEAM", eid, "warping scalar points SA/SB not supported")
             L, R = _frame(path, model, elem, X[a], X[b])
             sec, rho_ip = _section(path, elem, elem.pid_ref, lumped, notes)
-            Ke, Me, _ = element_matrices(sec, np.array([L]), R[None])
-            Ke, Me = Ke[0], Me[0]
-            if lumped:
-                Me = np.zeros((12, 12))
-                for k in (0, 1, 2, 6, 7, 8):
-                    Me[k, k] = sec.m * L / 2
-                if elem.type == "CBEAM":  # torsional inertia about the element axis
-                    J = rho_ip * L / 2 * np.outer(R[:, 0], R[:, 0])
-                    Me[3:6, 3:6] += J
-                    Me[9:12, 9:12] += J
+            asm.stiffness(dofs, element_matrices(sec, np.array([L]), R[None])[0][0])
+            if not lumped:
+                asm.beam_mass(sec, L, R, dofs)
+                continue
+            asm.node_mass([[a], [b]], np.full((2, 1, 1), sec.m * L / 2))
+            if elem.type == "CBEAM":  # torsional inertia about the element axis
+                for node in (a, b):
+                    asm.inertia(node, rho_ip * L / 2 * np.outer(R[:, 0], R[:, 0]))
         elif elem.type == "CROD":
             prop = elem.pid_ref
             mat = prop.mid_ref
@@ -315,55 +335,40 @@ def read_nastran(path: str) -> NastranFE:
             ex /= L
             P = np.outer(ex, ex)
             Ke = np.zeros((12, 12))
-            Me = np.zeros((12, 12))
             for off, stiff in ((0, mat.e * prop.A / L), (3, mat.G() * prop.j / L)):
                 for i, j, s in ((0, 0, 1), (0, 6, -1), (6, 0, -1), (6, 6, 1)):
                     Ke[off + i : off + i + 3, off + j : off + j + 3] += s * stiff * P
+            asm.stiffness(dofs, Ke)
             m = (mat.rho or 0.0) * prop.A + (prop.nsm or 0.0)
-            if lumped:  # Nastran's lumped rod mass: m L / 2 in every translation
-                for k in (0, 1, 2, 6, 7, 8):
-                    Me[k, k] = m * L / 2
-            else:  # coupled: (m L / 6) [[2, 1], [1, 2]] in every translation
-                for i, j, c in ((0, 0, 2), (0, 6, 1), (6, 0, 1), (6, 6, 2)):
-                    Me[i : i + 3, j : j + 3] += m * L / 6 * c * np.eye(3)
+            # lumped (Nastran's): m L / 2 in every translation; coupled: (m L / 6) [[2, 1], [1, 2]]
+            asm.node_mass([a, b], m * L / 2 * np.eye(2) if lumped else m * L / 6 * np.array([[2, 1], [1, 2]]))
         else:  # pragma: no cover - _check_cards refuses other elements first
             _refuse(path, elem.type, eid, "element not supported")
-        add(dofs, Ke, Me)
+    for kind, elems in solids.items():
+        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes)
 
     for mid, mass in sorted(model.masses.items()):
         if mass.type != "CONM2":  # pragma: no cover - refused by _check_cards
             _refuse(path, mass.type, mid, "mass card not supported")
-        a = index[mass.nid]
-        if mass.cid == -1:
-            r = np.asarray(mass.X, float) - X[a]
-        elif mass.cid == 0:
-            r = np.asarray(mass.X, float)
-        else:
-            _refuse(path, "CONM2", mid, f"CID = {mass.cid} not supported (0 or -1)")
-        I11, I21, I22, I31, I32, I33 = mass.I
-        Jc = np.array([[I11, -I21, -I31], [-I21, I22, -I32], [-I31, -I32, I33]])  # QRG sign convention
-        S = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
-        Me = np.zeros((6, 6))
-        Me[:3, :3] = mass.mass * np.eye(3)
-        Me[:3, 3:] = -mass.mass * S
-        Me[3:, :3] = mass.mass * S
-        Me[3:, 3:] = Jc - mass.mass * S @ S
-        dofs = np.arange(6 * a, 6 * a + 6)
-        add(dofs, np.zeros((6, 6)), Me)
+        asm.conm2(refuse, mass, X, index[mass.nid])
 
-    r, c = (np.concatenate(v) if v else np.zeros(0, int) for v in (rows, cols))
-    K = sp.csr_matrix((np.concatenate(kv) if kv else [], (r, c)), shape=(n_dof, n_dof))
     wtmass = float(_param(model, "WTMASS", 1.0))
-    M = wtmass * sp.csr_matrix((np.concatenate(mv) if mv else [], (r, c)), shape=(n_dof, n_dof))
+    K, M, Ms, points = asm.matrices(wtmass)
     spc = _spc_dofs(path, model, index)
+    T, mpc = rigid_elements(refuse, model, index, X, spc)
     autospc = np.zeros(0, dtype=int)
     if str(_param(model, "AUTOSPC", "YES")).upper() != "NO":
-        empty = (abs(K).sum(axis=1).A1 == 0.0) & (abs(M).sum(axis=1).A1 == 0.0)
-        autospc = np.setdiff1d(np.flatnonzero(empty), spc)
+        Kc, Mc = (K, M) if T is None else (T.T @ K @ T, T.T @ M @ T)
+        empty = (abs(Kc).sum(axis=1).A1 == 0.0) & (abs(Mc).sum(axis=1).A1 == 0.0)
+        autospc = np.setdiff1d(np.flatnonzero(empty), np.union1d(spc, mpc))
     spc_grids = sorted({int(node_ids[d // 6]) for d in spc})
     ignored = tuple(f"{c} ({model.card_count[c]}x)" for c in model.card_count if c in HARMLESS_CARDS)
+    sets = {"spc": spc_grids, **{f"SET1 {sid}": sorted(int(g) for g in s.ids) for sid, s in model.sets.items()}}
+    for sid, grids in ((k, v) for k, v in sets.items() if k != "spc"):
+        if set(grids) - set(index):
+            _refuse(path, "SET1", sid[5:], f"GRID {sorted(set(grids) - set(index))} not in the deck")
     return NastranFE(path=path, node_ids=node_ids, coords=X, K=K, M=M, spc_dofs=spc,
-                     autospc_dofs=autospc, grid_sets={"spc": spc_grids}, wtmass=wtmass,
+                     autospc_dofs=autospc, T=T, mpc_dofs=mpc, grid_sets=sets, M_scalar=Ms, cells=asm.cell_blocks(), mass_points=points, wtmass=wtmass,
                      mass_form="lumped" if lumped else "coupled", ignored_cards=ignored,
                      notes=tuple(sorted(notes)))
 
@@ -385,7 +390,7 @@ def main(argv=None) -> None:
     for note in fe.notes:
         print("note:", note)
     for k, fk in enumerate(f, 1):
-        extra = "" if ref is None else f"  Nastran {ref[k - 1]:14.6e}  rel {fk / ref[k - 1] - 1:+.2e}"
+        extra = "" if ref is None or k > len(ref) else f"  Nastran {ref[k - 1]:14.6e}  rel {fk / ref[k - 1] - 1:+.2e}"
         print(f"mode {k:3d}  {fk:14.6e} Hz{extra}")
 
 
