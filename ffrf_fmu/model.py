@@ -94,9 +94,10 @@ class SolidSpec:
 
     source "mesh": a mesh (a file read with meshio, or a generated box/cylinder) assembled with
     scikit-fem from the material; "abaqus"/"ansys": a partner's exported matrices, read as they are;
-    "calculix": a deck whose matrices ccx assembles (solid/calculix_engine.py)."""
+    "calculix": a deck whose matrices ccx assembles (solid/calculix_engine.py); "nastran": a bulk data deck
+    assembled here (solid/nastran_body.py)."""
 
-    source: str  # "mesh" | "abaqus" | "ansys" | "calculix"
+    source: str  # "mesh" | "abaqus" | "ansys" | "calculix" | "nastran"
     files: tuple[tuple[str, str], ...] = ()  # (role, absolute path): mesh | inp, stiffness, mass | mapping, nodes, elements
     generated: tuple[tuple[str, Any], ...] = ()  # ("box"|"cylinder", parameters as sorted pairs), when no mesh file
     element: str = ""  # hex8 | hex20 | hex27 | tet4 | tet10 | mitc4 (mesh only; mitc4: shells, SHELL_ELEMENTS)
@@ -535,7 +536,9 @@ MATERIAL_KEYS = {"E": "a positive Young's modulus [Pa]", "nu": "a Poisson's rati
                  "rho": "a positive density [kg/m^3]"}
 EXPORT_KEYS = {
     "format": "'abaqus' (*MATRIX OUTPUT .mtx + .inp), 'ansys' (Matrix Market + dof mapping + node table) or "
-              "'calculix' (a CalculiX/Abaqus deck assembled by ccx: solid/calculix_engine.py)",
+              "'calculix' (a CalculiX/Abaqus deck assembled by ccx: solid/calculix_engine.py) or 'nastran' (a "
+              "Nastran bulk data deck read with pyNastran: solid/nastran_body.py)",
+    "deck": "the Nastran bulk data deck (.bdf, .dat; its INCLUDEs beside it)",
     "inp": "the Abaqus or CalculiX input deck (.inp): nodes and node sets",
     "stiffness": "the exported stiffness matrix file",
     "mass": "the exported mass matrix file",
@@ -545,7 +548,7 @@ EXPORT_KEYS = {
     "units": "a text stating the units assumed (the files do not say)",
 }
 EXPORT_FILES = {"abaqus": ("inp", "stiffness", "mass"), "ansys": ("stiffness", "mass", "mapping", "nodes"),
-                "calculix": ("inp",)}
+                "calculix": ("inp",), "nastran": ("deck",)}
 SOLID_PORT_KEYS = {
     "select": "a node selection table: {set = NAME} | {plane = {point, normal, tol}} | {cylinder = {point, axis, "
               "radius, tol}} | {box = {min, max}} | {near = {point | set, radius}}",

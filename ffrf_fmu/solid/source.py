@@ -65,6 +65,10 @@ def _shell_fe(spec, files, material) -> SolidFE:
 def solid_fe(spec) -> SolidFE:
     """The FE model of a SolidSpec (cached: info, advise and the reduction ask for it several times)."""
     files = dict(spec.files)
+    if spec.source == "nastran":
+        from .nastran_body import nastran_body
+
+        return nastran_body(files["deck"])
     if spec.source == "calculix":
         from .calculix_engine import run_ccx
 
