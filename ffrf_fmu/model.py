@@ -137,7 +137,8 @@ class TimeFunction:
 
     kind: "constant" (value), "haug_spinup" (omega, T: angle profile of Wu-Haug, docs/background.md B1),
     "ramp" (rate, t_start), "window" (value, t_start, t_end: value inside [t_start, t_end), else 0),
-    "sine" (amplitude, frequency_hz, phase).
+    "sine" (amplitude, frequency_hz, phase), "bump" (value, t_start, duration: value sin^4(pi tau),
+    tau = (t - t_start) / duration in [0, 1), else 0: a road bump, smooth to the acceleration).
     """
 
     kind: str
@@ -749,6 +750,8 @@ def _parse_time_function(r: Reader, t: dict, path: str, key: str) -> TimeFunctio
     params = {n: r.real(v, p, n, what, defaults.get(n, REQUIRED)) for n in names}
     if kind == "haug_spinup" and params["T"] <= 0.0:
         r.expected(join(p, "T"), "a positive spin-up time [s]", params["T"])
+    if kind == "bump" and params["duration"] <= 0.0:
+        r.expected(join(p, "duration"), "a positive bump duration [s]", params["duration"])
     if kind == "window" and params["t_end"] <= params["t_start"]:
         r.expected(join(p, "t_end"), f"a time after t_start = {params['t_start']}", params["t_end"])
     return TimeFunction(kind, tuple(sorted(params.items())))

@@ -12,6 +12,7 @@ KINDS = {
     "ramp": ("rate", "t_start"),
     "window": ("value", "t_start", "t_end"),
     "sine": ("amplitude", "frequency_hz", "phase"),
+    "bump": ("value", "t_start", "duration"),
 }
 
 CODES = {kind: i for i, kind in enumerate(KINDS)}  # the kind's number in the C twin (runtime/native/advance.c time_function)
@@ -51,6 +52,13 @@ def evaluate(kind: str, params: dict, t: float) -> tuple[float, float, float]:
         a, f, ph = p["amplitude"], p["frequency_hz"], p.get("phase", 0.0)
         w = 2.0 * math.pi * f
         return a * math.sin(w * t + ph), a * w * math.cos(w * t + ph), -a * w * w * math.sin(w * t + ph)
+    if kind == "bump":  # value sin^4(pi tau), tau = (t - t_start) / duration in [0, 1): C2 at both ends
+        v, d = p["value"], p["duration"]
+        tau = (t - p["t_start"]) / d
+        if not 0.0 <= tau < 1.0:
+            return 0.0, 0.0, 0.0
+        sn, cs, k = math.sin(math.pi * tau), math.cos(math.pi * tau), math.pi / d
+        return v * sn**4, 4.0 * v * k * sn**3 * cs, 4.0 * v * k * k * (3.0 * sn * sn * cs * cs - sn**4)
     raise ValueError(f"unknown time function kind {kind!r}; known: {sorted(KINDS)}")
 
 

@@ -44,10 +44,20 @@ static void time_function(idx_t kind, const double *prm, double t, double out[2]
     } else if (kind == 3) { /* window (value, t_start, t_end) */
         out[0] = prm[1] <= t && t < prm[2] ? prm[0] : 0.0;
         out[1] = 0.0;
-    } else { /* sine (amplitude, frequency_hz, phase) */
+    } else if (kind == 4) { /* sine (amplitude, frequency_hz, phase) */
         double w = 2.0 * FFRF_PI * prm[1];
         out[0] = prm[0] * sin(w * t + prm[2]);
         out[1] = prm[0] * w * cos(w * t + prm[2]);
+    } else { /* bump (value, t_start, duration): value sin^4(pi tau) for tau in [0, 1) */
+        double tau = (t - prm[1]) / prm[2];
+        if (tau >= 0.0 && tau < 1.0) {
+            double sn = sin(FFRF_PI * tau), cs = cos(FFRF_PI * tau);
+            out[0] = prm[0] * sn * sn * sn * sn;
+            out[1] = 4.0 * prm[0] * (FFRF_PI / prm[2]) * sn * sn * sn * cs;
+        } else {
+            out[0] = 0.0;
+            out[1] = 0.0;
+        }
     }
 }
 
