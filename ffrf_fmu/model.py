@@ -23,6 +23,7 @@ else:  # pragma: no cover - Python 3.10
 
 from .checked_toml import REQUIRED, ModelError, Reader, apply_overrides, join, nearest, nonnegative, positive, toml_text
 from .runtime.damping import Damping, per_mode_ratios
+from .section import Section  # noqa: F401  (model.Section: the body's section, as it always was)
 from .runtime.drives import KINDS as TIME_FUNCTION_KINDS
 from .runtime.terms import FULL_TERMS, TERM_SETS
 
@@ -38,22 +39,6 @@ METRIC_KINDS = {
 }
 OLD_METRIC_NAMES = {"haug": "tip_deflection", "spherical": "hub_rates", "free": "momentum"}
 PART_INDEX = {"translation": 0, "rotation": 1}  # position of a part in (translation, rotation) pairs
-
-
-@dataclass(frozen=True)
-class Section:
-    """Beam section properties per unit length (SI). GA2/GA3 None -> Euler-Bernoulli."""
-
-    EA: float
-    GJ: float
-    EI2: float  # bending about local axis 2 (deflection along axis 3)
-    EI3: float  # bending about local axis 3 (deflection along axis 2)
-    m: float  # mass per unit length [kg/m]
-    m22: float  # rotary inertia per unit length about axis 2 [kg m]
-    m33: float  # rotary inertia per unit length about axis 3 [kg m]
-    m11: float | None = None  # torsional inertia; None -> m22 + m33
-    GA2: float | None = None
-    GA3: float | None = None
 
 
 @dataclass(frozen=True)

@@ -98,13 +98,14 @@ def test_no_import_circle():
 STAGES = {
     "ffrf_fmu": 0,  # the package's __init__: the version, and the public API imported on first use
     "ffrf_fmu.runtime": 0,
-    "ffrf_fmu.checked_toml": 1, "ffrf_fmu.model": 1, "ffrf_fmu.directions": 1, "ffrf_fmu.spin": 1,
+    "ffrf_fmu.checked_toml": 1, "ffrf_fmu.model": 1, "ffrf_fmu.section": 1, "ffrf_fmu.directions": 1, "ffrf_fmu.spin": 1,
     "ffrf_fmu.solid": 1,  # the solid's FE data (SolidFE) and its sources (mesh, exports), read with the model file
-    "ffrf_fmu.fe": 2, "ffrf_fmu.solid.frames": 2, "ffrf_fmu.solid.ordering": 2, "ffrf_fmu.solid.stiffening": 2,
+    "ffrf_fmu.fe": 1, "ffrf_fmu.solid.frames": 2, "ffrf_fmu.solid.ordering": 2, "ffrf_fmu.solid.stiffening": 2,
     "ffrf_fmu.solid.constraints": 2,  # frames as constraints of the FE model (uses frames)
-    "ffrf_fmu.solid.nastran": 2,  # Nastran decks to K and M with the beam element of fe/beam.py
-    "ffrf_fmu.solid.nastran_mass": 2, "ffrf_fmu.solid.nastran_body": 2,  # the deck's mass split, its body
-    "ffrf_fmu.solid.nastran_rigid": 2,  # RBE2/RBE3 eliminated
+    # the FE elements (fe/, the beam) and the Nastran reader that uses them are sources a model file names
+    "ffrf_fmu.solid.nastran": 1,  # Nastran decks to K and M with the beam element of fe/beam.py
+    "ffrf_fmu.solid.nastran_mass": 1, "ffrf_fmu.solid.nastran_body": 1,  # the deck's mass split, its body
+    "ffrf_fmu.solid.nastran_rigid": 1,  # RBE2/RBE3 eliminated
     "ffrf_fmu.port_data": 3, "ffrf_fmu.reduction": 3, "ffrf_fmu.reduction_sparse": 3, "ffrf_fmu.solid.body": 3,
     "ffrf_fmu.solid.quality": 3, "ffrf_fmu.linear": 3, "ffrf_fmu.invariants": 3, "ffrf_fmu.initial_state": 3,
     "ffrf_fmu.term_rule": 3, "ffrf_fmu.body_cache": 3,

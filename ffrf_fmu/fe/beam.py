@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Section
+from ..section import Section
 from ..runtime.rotation import skew
 from . import FEModel, lumped_kernels, node_dofs
 

@@ -34,7 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fe.beam import element_matrices
-from ..model import Section
+from ..section import Section
 from . import MassPoints
 from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shells, add_solids, solid_kind
 from .nastran_deck import locate_card
