@@ -136,32 +136,51 @@ def assemble_mitc4(nodes, quads, thickness, material: Material) -> ShellFE:
     return ShellFE(X, Q, t, material, K, M)
 
 
-def fibre_mass(shell: ShellFE):
-    """(M_s (n, n), N (3p, 6n), w (p,)): the mid-surface's node-block mass and the fibres' mass points of
-    shell_body.py's module doc, for all quads at once."""
-    X, Q, t, rho = shell.coords, shell.quads, shell.thickness, shell.material.rho
-    n, ne = len(X), len(Q)
-    T, xy = element_frames(X[Q])
-    nrm = T[:, 2]
+def _fibre_points(conn, t, normals, N, w, rho, n):
+    """(M_s, N (3p, 6n), w (p,)) of one element type (shell_body.py's module doc): conn (e, k) nodes,
+    t (e,), normals (e, 3), N (g, k) the shape functions at the mass rule's points, w (e, g) their
+    weights det J w_g (areas)."""
+    ne, k = conn.shape
+    g = N.shape[0]
     nx = np.zeros((ne, 3, 3))  # n~
-    nx[:, 0, 1], nx[:, 0, 2], nx[:, 1, 0] = -nrm[:, 2], nrm[:, 1], nrm[:, 2]
-    nx[:, 1, 2], nx[:, 2, 0], nx[:, 2, 1] = -nrm[:, 0], -nrm[:, 1], nrm[:, 0]
+    nx[:, 0, 1], nx[:, 0, 2], nx[:, 1, 0] = -normals[:, 2], normals[:, 1], normals[:, 2]
+    nx[:, 1, 2], nx[:, 2, 0], nx[:, 2, 1] = -normals[:, 0], -normals[:, 1], normals[:, 0]
+    NN = np.einsum("gi,gj->gij", N, N).reshape(g, k * k)
+    ms = rho * np.einsum("e,eg,gq->eq", t, w, NN)
+    Ms = sp.csr_matrix((ms.ravel(), (np.repeat(conn, k, axis=1).ravel(), np.tile(conn, (1, k)).ravel())), shape=(n, n))
     z = t / np.sqrt(12.0)
-    ms_vals, weights, p_vals = [], [], []
-    for xi, eta in _GAUSS:
-        N, dN = _shape(xi, eta)
-        detJ = np.linalg.det(np.einsum("rk,ekj->erj", dN, xy))
-        ms_vals.append(rho * (t * detJ)[:, None] * np.outer(N, N).ravel()[None])
-        weights.append(rho * t * detJ)
-        p_vals.append(-z[:, None, None, None] * N[None, None, :, None] * nx[:, :, None, :])  # (e, a, node, c)
-    Ms = sp.csr_matrix((np.stack(ms_vals, 1).ravel(),
-                        (np.broadcast_to(np.repeat(Q, 4, axis=1)[:, None], (ne, 4, 16)).ravel(),
-                         np.broadcast_to(np.tile(Q, (1, 4))[:, None], (ne, 4, 16)).ravel())), shape=(n, n))
-    P = np.stack(p_vals, 1)  # (e, g, a, node, c): point e * 4 + g
-    p = 4 * ne
-    rows = np.broadcast_to((3 * np.arange(p).reshape(ne, 4)[:, :, None, None, None]
-                            + np.arange(3)[None, None, :, None, None]), P.shape)
-    cols = np.broadcast_to((6 * Q[:, None, None, :, None] + 3 + np.arange(3)), P.shape)
+    P = -z[:, None, None, None, None] * N[None, :, None, :, None] * nx[:, None, :, None, :]  # (e, g, a, node, c)
+    p = g * ne
+    rows = np.broadcast_to(3 * np.arange(p).reshape(ne, g)[:, :, None, None, None]
+                           + np.arange(3)[None, None, :, None, None], P.shape)
+    cols = np.broadcast_to(6 * conn[:, None, None, :, None] + 3 + np.arange(3), P.shape)
     Np = sp.csr_matrix((P.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * p, 6 * n))
     Np.eliminate_zeros()
-    return Ms, Np, np.stack(weights, 1).ravel()
+    return Ms, Np, (rho * t[:, None] * w).ravel()
+
+
+def fibre_mass(shell: ShellFE):
+    """(M_s (n, n), N (3p, 6n), w (p,)): the mid-surface's node-block mass and the fibres' mass points of
+    shell_body.py's module doc, for all MITC4 quads and DKT triangles at once, each on its element's
+    mass rule (2 x 2 Gauss; shell_tri.MASS_RULE)."""
+    from .shell_tri import MASS_RULE
+
+    X, rho, n = shell.coords, shell.material.rho, len(shell.coords)
+    Q, T3 = np.asarray(shell.quads, dtype=int), np.asarray(getattr(shell, "trias", np.zeros((0, 3))), dtype=int)
+    t = np.asarray(shell.thickness, dtype=float)
+    parts = []
+    if len(Q):
+        T, xy = element_frames(X[Q])
+        shapes = [_shape(xi, eta) for xi, eta in _GAUSS]
+        N = np.array([Nq for Nq, _ in shapes])
+        w = np.stack([np.linalg.det(np.einsum("rk,ekj->erj", dN, xy)) for _, dN in shapes], axis=1)
+        parts.append(_fibre_points(Q, t[: len(Q)], T[:, 2], N, w, rho, n))
+    if len(T3):
+        c = np.cross(X[T3[:, 1]] - X[T3[:, 0]], X[T3[:, 2]] - X[T3[:, 0]])
+        area2 = np.linalg.norm(c, axis=1)
+        w = 0.5 * area2[:, None] * MASS_RULE.weights[None, :]
+        parts.append(_fibre_points(T3, t[len(Q) : len(Q) + len(T3)], c / area2[:, None], MASS_RULE.shape(), w, rho, n))
+    if not parts:
+        return sp.csr_matrix((n, n)), sp.csr_matrix((0, 6 * n)), np.zeros(0)
+    return (sum(m for m, _, _ in parts), sp.vstack([q for _, q, _ in parts], format="csr"),
+            np.concatenate([w for _, _, w in parts]))

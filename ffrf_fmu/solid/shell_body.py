@@ -27,11 +27,11 @@ from .shell_batch import fibre_mass
 def shell_body(shell: ShellFE, node_sets=None, source: str = "") -> SolidFE:
     """The SolidFE (6 dofs per node, node-block mass and fibre mass points: module doc) of a shell model;
     the points are built for all elements at once (shell_batch.fibre_mass)."""
-    others = {k: len(getattr(shell, k, ())) for k in ("trias", "quads9")}
-    if any(others.values()):
-        raise ValueError(f"a shell body is of MITC4 quads so far; this mesh has {others['trias']} triangles and "
-                         f"{others['quads9']} 9-node quads (their fibre mass points are not built yet)")
+    if len(shell.quads9):
+        raise ValueError(f"a shell body is of MITC4 quads and DKT triangles so far; this mesh has {len(shell.quads9)} "
+                         "9-node quads (their fibre mass points are not built yet)")
     Ms, Np, w = fibre_mass(shell)
-    cells = (("quad", np.asarray(shell.quads, dtype=int)),) if len(shell.quads) else ()
+    cells = tuple((kind, np.asarray(c, dtype=int)) for kind, c in (("quad", shell.quads), ("triangle", shell.trias))
+                  if len(c))
     return six_dof_fe(shell.coords, shell.K, shell.M, Ms, MassPoints(Np, w), node_sets,
-                      source or f"{len(shell.quads)} MITC4 shells", cells)
+                      source or f"{len(shell.quads)} MITC4 quads, {len(shell.trias)} DKT triangles", cells)

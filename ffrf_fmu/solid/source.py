@@ -23,7 +23,7 @@ def _generated_mesh(spec):
 def _shell_fe(spec, files, material) -> SolidFE:
     """A shell mesh (a generated plate, or the quads of a mesh file) assembled with MITC4 (shell.py) as a
     6-dof SolidFE (shell_body.py)."""
-    from .shell import plate_mesh
+    from .shell import ShellFE, assemble_shells, plate_mesh
     from .shell_batch import assemble_mitc4
     from .shell_body import shell_body
 
@@ -33,20 +33,24 @@ def _shell_fe(spec, files, material) -> SolidFE:
 
         mesh, sets = read_mesh(files["mesh"])
         blocks = [k for k, c in enumerate(mesh.cells) if c.type == "quad"]
-        other = sorted({c.type for c in mesh.cells} - {"quad", "line", "vertex"})
-        if other or not blocks:
-            raise ValueError(f"{files['mesh']}: element {spec.element} needs quad cells, the mesh has "
-                             f"{other or 'no quads'}")
+        blocks3 = [k for k, c in enumerate(mesh.cells) if c.type == "triangle"]
+        other = sorted({c.type for c in mesh.cells} - {"quad", "triangle", "line", "vertex"})
+        if other or not (blocks or blocks3):
+            raise ValueError(f"{files['mesh']}: element {spec.element} needs quad or triangle cells, the mesh has "
+                             f"{other or 'neither'}")
         nodes, source = np.asarray(mesh.points, dtype=float), files["mesh"]
-        quads = np.concatenate([mesh.cells[k].data for k in blocks])
+        cells = lambda ks, k: np.concatenate([mesh.cells[j].data for j in ks]) if ks else np.zeros((0, k), int)  # noqa: E731
+        quads, trias = cells(blocks, 4), cells(blocks3, 3)
         if isinstance(thickness, str):
             if thickness not in mesh.cell_data:
                 raise ValueError(f"{source}: no cell data {thickness!r} for the thickness (cell data: "
                                  f"{sorted(mesh.cell_data) or 'none'})")
-            thickness = np.concatenate([np.asarray(mesh.cell_data[thickness][k], dtype=float).ravel() for k in blocks])
+            thickness = np.concatenate([np.asarray(mesh.cell_data[thickness][k], dtype=float).ravel()
+                                        for k in blocks + blocks3])  # quads, then triangles (ShellFE's order)
             bad = np.flatnonzero(~(np.isfinite(thickness) & (thickness > 0)))
             if bad.size:
-                raise ValueError(f"{source}: cell data {spec.thickness!r}: quad {int(bad[0])} has thickness "
+                kind, i = ("quad", bad[0]) if bad[0] < len(quads) else ("triangle", bad[0] - len(quads))
+                raise ValueError(f"{source}: cell data {spec.thickness!r}: {kind} {int(i)} has thickness "
                                  f"{thickness[bad[0]]:g} (expected > 0 [m])")
         if nodes.shape[1] == 2:
             nodes = np.column_stack([nodes, np.zeros(len(nodes))])
@@ -54,8 +58,13 @@ def _shell_fe(spec, files, material) -> SolidFE:
         p = dict(spec.generated[1])
         nodes, quads = plate_mesh(*p["size"], *p["divisions"])
         nodes = nodes + np.asarray(p["origin"], dtype=float)
-        sets, source = {}, "generated plate"
-    shell = assemble_mitc4(nodes, quads, thickness, material)
+        sets, source, trias = {}, "generated plate", np.zeros((0, 3), dtype=int)
+    shell = assemble_mitc4(nodes, quads, np.broadcast_to(thickness, (len(quads) + len(trias),))[: len(quads)], material)
+    if len(trias):  # DKT triangles (shell_tri.py), element by element, added to the quads' blocks
+        tt = np.broadcast_to(thickness, (len(quads) + len(trias),))[len(quads):]
+        tri = assemble_shells(nodes, np.zeros((0, 4), dtype=int), tt, material, trias=trias)
+        shell = ShellFE(shell.coords, shell.quads, np.concatenate([shell.thickness, tri.thickness]), material,
+                        shell.K + tri.K, shell.M + tri.M, trias=tri.trias)
     t = np.asarray(thickness, dtype=float)
     what = f"t = {float(t):g} m" if t.ndim == 0 else f"t = {t.min():g} .. {t.max():g} m from {spec.thickness!r}"
     return shell_body(shell, sets, f"{source} ({spec.element}, {what})")
