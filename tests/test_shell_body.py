@@ -36,49 +36,42 @@ def folded_plate():
     return assemble_shells(nodes, quads, t, STEEL)
 
 
-def brute_force_kernel(shell, U1, U2, A):
-    """int rho u1^T A u2 over the shell's volume, u = u_0 + z theta x n, by 3 x 3 Gauss in the plane
-    and 3 through the thickness (exact for these polynomial integrands), from the node fields U (n, 6)."""
+def material_points(shell):
+    """(node indices q, normal n, N (4,), height z, weight [kg]) of every point of a 3 x 3 Gauss rule in
+    the plane of each element and 3 through its thickness (exact for the polynomial integrands here),
+    and the point's undeformed position X."""
     g, w = np.polynomial.legendre.leggauss(3)
-    out = 0.0
+    xi_n, eta_n = np.array([-1, 1, 1, -1]), np.array([-1, -1, 1, 1])
     for e, q in enumerate(shell.quads):
         T, xy = element_frame(shell.coords[q])
-        n = T[2]
-        t = shell.thickness[e]
+        t, c = shell.thickness[e], shell.coords[q].mean(0)  # the flat element's plane passes through its centre
         for xi, wx in zip(g, w):
             for eta, wy in zip(g, w):
-                N = 0.25 * (1 + np.array([-1, 1, 1, -1]) * xi) * (1 + np.array([-1, -1, 1, 1]) * eta)
-                dN = 0.25 * np.array([np.array([-1, 1, 1, -1]) * (1 + np.array([-1, -1, 1, 1]) * eta),
-                                      np.array([-1, -1, 1, 1]) * (1 + np.array([-1, 1, 1, -1]) * xi)])
+                N = 0.25 * (1 + xi_n * xi) * (1 + eta_n * eta)
+                dN = 0.25 * np.array([xi_n * (1 + eta_n * eta), eta_n * (1 + xi_n * xi)])
                 detJ = np.linalg.det(dN @ xy)
                 for zeta, wz in zip(g, w):
                     z = 0.5 * t * zeta
-                    u1 = N @ U1[q, :3] + z * np.cross(N @ U1[q, 3:], n)
-                    u2 = N @ U2[q, :3] + z * np.cross(N @ U2[q, 3:], n)
-                    out += STEEL.rho * (u1 @ A @ u2) * detJ * wx * wy * 0.5 * t * wz
-    return out
+                    yield q, T[2], N, z, STEEL.rho * detJ * wx * wy * 0.5 * t * wz, c + (N @ xy) @ T[:2] + z * T[2]
+
+
+def displacement(U, q, n, N, z):
+    """u = u_0 + z theta x n at a material point from the node fields U (n_nodes, 6)."""
+    return N @ U[q, :3] + z * np.cross(N @ U[q, 3:], n)
+
+
+def brute_force_kernel(shell, U1, U2, A):
+    """int rho u1^T A u2 over the shell's volume (material_points)."""
+    return sum(m * displacement(U1, q, n, N, z) @ A @ displacement(U2, q, n, N, z)
+               for q, n, N, z, m, _ in material_points(shell))
 
 
 def brute_force_inertia(shell, U, x_cm):
     """The inertia tensor about x_cm of the shell deformed by the node field U (n, 6), by quadrature."""
-    g, w = np.polynomial.legendre.leggauss(3)
     J = np.zeros((3, 3))
-    for e, q in enumerate(shell.quads):
-        T, xy = element_frame(shell.coords[q])
-        n = T[2]
-        t = shell.thickness[e]
-        for xi, wx in zip(g, w):
-            for eta, wy in zip(g, w):
-                N = 0.25 * (1 + np.array([-1, 1, 1, -1]) * xi) * (1 + np.array([-1, -1, 1, 1]) * eta)
-                dN = 0.25 * np.array([np.array([-1, 1, 1, -1]) * (1 + np.array([-1, -1, 1, 1]) * eta),
-                                      np.array([-1, -1, 1, 1]) * (1 + np.array([-1, 1, 1, -1]) * xi)])
-                detJ = np.linalg.det(dN @ xy)
-                c = shell.coords[q].mean(0)  # the flat element's plane passes through its centre
-                X0 = c + (N @ xy) @ T[:2]
-                for zeta, wz in zip(g, w):
-                    z = 0.5 * t * zeta
-                    r = X0 + z * n - x_cm + N @ U[q, :3] + z * np.cross(N @ U[q, 3:], n)
-                    J += STEEL.rho * (r @ r * np.eye(3) - np.outer(r, r)) * detJ * wx * wy * 0.5 * t * wz
+    for q, n, N, z, m, X in material_points(shell):
+        r = X - x_cm + displacement(U, q, n, N, z)
+        J += m * (r @ r * np.eye(3) - np.outer(r, r))
     return J
 
 

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
-from .shell_section import DRILL, SHEAR_FACTOR, plate_section  # noqa: F401 (shell.SHEAR_FACTOR kept)
+from .shell_section import DRILL, SHEAR_FACTOR, corner_frame, drilling_penalty, plate_section  # noqa: F401 (shell.DRILL, shell.SHEAR_FACTOR kept)
 from .shell_mitc9 import quad9_frame, quad9_matrices
 from .shell_tri import tria_frame, tria_matrices
 
@@ -71,17 +71,8 @@ def _shape(xi, eta):
 
 def element_frame(X: np.ndarray):
     """Rotation T (rows e1, e2, e3) and the in-plane coordinates (4, 2) of a quad's corners X (4, 3)."""
-    c = X.mean(axis=0)
-    g1 = (X[1] + X[2] - X[0] - X[3]) / 2
-    g2 = (X[2] + X[3] - X[0] - X[1]) / 2
-    e3 = np.cross(g1, g2)
-    if np.linalg.norm(e3) <= 1e-14 * np.linalg.norm(g1) * np.linalg.norm(g2) + 1e-300:
-        raise ValueError("degenerate quad: its mid-side vectors are parallel")
-    e3 /= np.linalg.norm(e3)
-    e1 = g1 / np.linalg.norm(g1)
-    e2 = np.cross(e3, e1)
-    T = np.array([e1, e2, e3])
-    return T, (X - c) @ T[:2].T
+    T = corner_frame(X)
+    return T, (X - X.mean(axis=0)) @ T[:2].T
 
 
 def element_matrices(xy: np.ndarray, t: float, mat: Material):
@@ -132,16 +123,8 @@ def element_matrices(xy: np.ndarray, t: float, mat: Material):
         NN = np.outer(N, N) * detJ
         for idx, m in ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12)):
             M[np.ix_(idx, idx)] += m * NN
-    kd = DRILL * np.min(np.diag(K)[np.concatenate([iu, iv])])
     N, dN = _shape(0, 0)
-    dNx = np.linalg.solve(dN @ xy, dN)
-    omega = np.zeros(24)
-    omega[iv] = 0.5 * dNx[0]
-    omega[iu] = -0.5 * dNx[1]
-    for i in range(4):
-        b = -omega.copy()
-        b[irz[i]] += 1.0
-        K += kd * np.outer(b, b)
+    drilling_penalty(K, np.linalg.solve(dN @ xy, dN), iu, iv, irz)
     return K, M
 
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mesh import Material
-from .shell_section import DRILL, plate_section
+from .shell_section import DRILL, corner_frame, plate_section
 
 _R = np.array([-1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, -1.0, 0.0])  # natural coordinates of the 9 nodes
 _S = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, 0.0])
@@ -76,14 +76,7 @@ def shape9(r: float, s: float):
 def quad9_frame(X: np.ndarray):
     """Rotation T (rows e1, e2, e3) and the in-plane coordinates (9, 2) about the centre of a 9-node
     quad's nodes X (9, 3): the plane of the corners' mid-side vectors (as shell.element_frame)."""
-    g1 = (X[1] + X[2] - X[0] - X[3]) / 2
-    g2 = (X[2] + X[3] - X[0] - X[1]) / 2
-    e3 = np.cross(g1, g2)
-    if np.linalg.norm(e3) <= 1e-14 * np.linalg.norm(g1) * np.linalg.norm(g2) + 1e-300:
-        raise ValueError("degenerate 9-node quad: its mid-side vectors are parallel")
-    e3 /= np.linalg.norm(e3)
-    e1 = g1 / np.linalg.norm(g1)
-    T = np.array([e1, np.cross(e3, e1), e3])
+    T = corner_frame(X, "9-node quad")
     return T, (X - X[:4].mean(axis=0)) @ T[:2].T
 
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mesh import Material
-from .shell_section import DRILL, plate_section
+from .shell_section import drilling_penalty, plate_section
 
 
 @dataclass(frozen=True)
@@ -162,14 +162,7 @@ def tria_matrices(xy: np.ndarray, t: float, mat: Material, bending: str = "dkt")
         for idx, m in ((iu, mat.rho * t), (iv, mat.rho * t), (iw, mat.rho * t),
                        (irx, mat.rho * t**3 / 12), (iry, mat.rho * t**3 / 12)):
             M[np.ix_(idx, idx)] += m * NN
-    kd = DRILL * np.min(np.diag(K)[np.concatenate([iu, iv])])
-    omega = np.zeros(18)
-    omega[iv] = 0.5 * dNx[0]
-    omega[iu] = -0.5 * dNx[1]
-    for i in range(3):
-        b = -omega.copy()
-        b[irz[i]] += 1.0
-        K += kd * np.outer(b, b)
+    drilling_penalty(K, dNx, iu, iv, irz)
     return K, M
 
 
