@@ -217,7 +217,7 @@ void ffrf_inv3(const double A[9], double out[9]);
 void ffrf_skew(const double a[3], double out[9]);
 void ffrf_cross(const double a[3], const double b[3], double out[3]);
 
-/* ---- step.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
+/* ---- factor.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
 int ffrf_lu_factor(double *aT, int *piv, int n);
 void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
 
