@@ -134,3 +134,22 @@ def test_reference_refuses_the_unbalance():
     m = load_model(MODELS / "jeffcott_runup.toml")
     with pytest.raises(ValueError, match="unbalances"):
         simulate_reference(m.body, m.scenes[0])
+
+
+def test_witteveen_jeffcott_row_in_his_units():
+    """His Table 2 Jeffcott row (t, mm): |I0| 118.2, max |W1| 18.6, "norm" of W1 10.5. Ours in SI converted to
+    t and mm: I0 [kg m^2] x 1e3; W1 = int rho x~ Phi with mass-normalized modes (Phi ~ 1 / sqrt(mass)) scales
+    as sqrt(mass) x length: x sqrt(1e-3) x 1e3. |I0| is the diametral inertia (shaft m L^2 / 12 plus the disc's),
+    set by his mass and extent and our shaft / disc split: 1 %. max |W1| is the shaft's stretch mode, set by its
+    mass and length: 2 %. His "norm" is below his max entry (docs/inertia-terms.md, ambiguity 3): ours / 2, 2 %.
+    His W2 (max 0.02) is not reproducible by mass-normalized modes (the trace of a mode's own block is 2)."""
+    from ffrf_fmu.invariants import body_inertia_report
+
+    m = load_model(MODELS / "jeffcott_rotor.toml")
+    (se,) = body_inertia_report(m.body)["superelements"]
+    t = se["table"]
+    assert t["I0_norm"] * 1e3 == pytest.approx(118.2, rel=1e-2)
+    w1 = np.sqrt(1e-3) * 1e3
+    assert t["W1_max"] * w1 == pytest.approx(18.6, rel=2e-2)
+    assert t["W1_norm"] * w1 / 2 == pytest.approx(10.5, rel=2e-2)
+    assert t["W2_max"] >= 2 / 3 - 1e-9
