@@ -165,6 +165,22 @@ class Load:
 
 
 @dataclass(frozen=True)
+class Unbalance:
+    """A rotating unbalance on a force-driven port translation ([[scenes.NAME.unbalances]]): a point mass m at
+    radius e from the spin axis, at the angle psi = phi(t) + phase of the rotation drive of port `drive`
+    (angle phi, axis a). Its inertia force on the body, world axes, is
+    f = m e (psi'^2 rho - psi'' tau) with rho = cos psi e1 + sin psi e2, tau = a x rho, where e1 is the
+    unit part of `reference` normal to a and e2 = a x e1 (the mass's acceleration is -e psi'^2 rho +
+    e psi'' tau). The mass itself is not added to the body (give it in [[body.masses]])."""
+
+    port: str
+    mass_eccentricity: float  # m e [kg m]
+    drive: str  # the port whose rotation drive gives phi(t) and the axis a
+    reference: tuple[float, float, float] = (0.0, 1.0, 0.0)  # direction of the mass at psi = 0 (world)
+    phase: float = 0.0  # [rad]
+
+
+@dataclass(frozen=True)
 class Initial:
     """Initial state: rigid velocity field v + w x (X - origin) of the whole body; port offsets."""
 
@@ -222,6 +238,7 @@ class Scene:
     stiffening: bool = False  # geometric stiffening inside each superelement (docs/equations.md)
     full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in the term set `full`
     reference: ReferenceOptions = ReferenceOptions()  # the reference that resolves the primary metric
+    unbalances: tuple[Unbalance, ...] = ()  # rotating unbalance forces ([[scenes.NAME.unbalances]])
 
 
 @dataclass(frozen=True)
@@ -306,6 +323,7 @@ SCENE_KEYS = {
     "outputs": "an array of probe names '<port>_from_<port>' (eq. 92; FMU outputs probe.NAME[i]) (default [])",
     "drives": "a table of drives [scenes.NAME.drives.PORT]",
     "loads": "an array of tables [[scenes.NAME.loads]]",
+    "unbalances": "an array of tables [[scenes.NAME.unbalances]] {port, mass_eccentricity, drive, reference, phase}",
     "initial": "a table [scenes.NAME.initial]",
     "causality": "a table of causality overrides [scenes.NAME.causality.PORT]",
     "reference": "a table [scenes.NAME.reference] {elements, step}: the full-order reference that resolves "
@@ -324,6 +342,13 @@ LOAD_KEYS = {
     "moment": "3 numbers [N m], world axes (default [0, 0, 0])",
     "t_start": "a time [s] (default 0)",
     "t_end": "a time [s] after t_start (default inf)",
+}
+UNBALANCE_KEYS = {
+    "port": "a port name (a force-driven translation: the node the unbalance mass sits on)",
+    "mass_eccentricity": "a positive number m e [kg m]: unbalance mass times its radius",
+    "drive": "a port name whose rotation drive gives the spin angle and axis",
+    "reference": "3 numbers, not along the spin axis: where the mass points at angle 0 (default [0, 1, 0])",
+    "phase": "an angle [rad] added to the drive's angle (default 0)",
 }
 METRICS_KEYS = {
     "kind": f"one of {', '.join(METRIC_KINDS)}",
@@ -805,6 +830,29 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         t1 = r.real(lt, lp, "t_end", LOAD_KEYS["t_end"], math.inf, ok=lambda x: x > t0)
         loads.append(Load(pname, force, moment, t0, t1))
 
+    unbalances = []
+    uv = t.get("unbalances", [])
+    if not isinstance(uv, list):
+        r.expected(join(sp, "unbalances"), SCENE_KEYS["unbalances"], uv)
+    drive_of = {d.port: d for d in drives}
+    for i, ut in enumerate(uv):
+        up = join(join(sp, "unbalances"), i)
+        r.table(ut, up, UNBALANCE_KEYS, required=("port", "mass_eccentricity", "drive"))
+        pname = r.port_name(ports, join(up, "port"), ut["port"])
+        require_part(join(up, "port"), pname, "translation", "force", "an unbalance is a load on the body")
+        me = r.real(ut, up, "mass_eccentricity", UNBALANCE_KEYS["mass_eccentricity"], ok=positive)
+        dname = r.port_name(ports, join(up, "drive"), ut["drive"])
+        if dname not in drive_of or drive_of[dname].rotation is None:
+            r.fail(join(up, "drive"), f"expected a port with a rotation drive in this scene, got {dname!r}")
+        ref = r.vec3(ut, up, "reference", UNBALANCE_KEYS["reference"], (0.0, 1.0, 0.0))
+        axis = drive_of[dname].rotation.axis
+        normal = [ref[k] - sum(a * b for a, b in zip(ref, axis)) * axis[k] for k in range(3)]
+        if math.sqrt(sum(x * x for x in normal)) < 1e-9 * max(1e-300, math.sqrt(sum(x * x for x in ref))):
+            r.fail(join(up, "reference"), f"expected {UNBALANCE_KEYS['reference']}, got {list(ref)} along the "
+                   f"spin axis {list(axis)}")
+        phase = r.real(ut, up, "phase", UNBALANCE_KEYS["phase"], 0.0)
+        unbalances.append(Unbalance(pname, me, dname, ref, phase))
+
     ip = join(sp, "initial")
     it = r.table(t.get("initial", {}), ip, INITIAL_KEYS)
     displacements = []
@@ -859,6 +907,7 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         stiffening=r.boolean(t, sp, "stiffening", SCENE_KEYS["stiffening"], False),
         full_terms=_full_terms(r, t, sp),
         reference=_reference(r, t, sp),
+        unbalances=tuple(unbalances),
     )
 
 

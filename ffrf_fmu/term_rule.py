@@ -84,7 +84,7 @@ def free_axial_rotation(body: Body, scene: Scene) -> dict | None:
     if body.solid is not None or any(p.rotation != "force" for p in body.ports):
         return None  # a solid has no beam axis whose polar inertia is small
     ini = scene.initial
-    moving = (scene.loads or scene.drives or any(scene.gravity) or any(ini.velocity) or any(ini.angular_velocity)
+    moving = (scene.loads or scene.unbalances or scene.drives or any(scene.gravity) or any(ini.velocity) or any(ini.angular_velocity)
               or ini.port_displacements)
     if not moving:
         return None

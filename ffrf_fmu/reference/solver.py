@@ -175,6 +175,9 @@ def simulate_reference(
         predictor = "velocity" if scene.initial.port_displacements else "linear"
     if predictor not in ("constant", "linear", "corotated", "velocity"):
         raise ValueError(f"reference: unknown predictor {predictor!r} (constant, linear, corotated, velocity)")
+    if getattr(scene, "unbalances", ()):
+        raise ValueError(f"reference: scene {scene.name!r} has scenes.{scene.name}.unbalances, which the full-order "
+                         "reference does not model (it has constant loads only); run it with the reduced body")
     mesh = Mesh(body, n_elements)
     sc = _Scene(mesh, body, scene)
     T_end = float(scene.duration if duration is None else duration)

@@ -18,6 +18,20 @@ def _tf(fn, t):
     return drives.evaluate(fn.kind, dict(fn.params), t)
 
 
+def unbalance_force(ub, drive, t: float) -> np.ndarray:
+    """The inertia force of a rotating unbalance on the body at t, world axes (model.Unbalance):
+    f = m e (psi'^2 rho - psi'' tau), psi = phi(t) + phase of the drive's rotation."""
+    phi, dphi, ddphi = _tf(drive.rotation.angle, t)
+    a = np.asarray(drive.rotation.axis, float)
+    e1 = np.asarray(ub.reference, float)
+    e1 = e1 - (e1 @ a) * a
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    psi = phi + ub.phase
+    rho = np.cos(psi) * e1 + np.sin(psi) * e2
+    return ub.mass_eccentricity * (dphi**2 * rho - ddphi * np.cross(a, rho))
+
+
 def scene_inputs(body: BodyData, scene: Scene, load_interval: tuple[float, float] | None = None
                  ) -> Callable[[float], dict[str, PortValues]]:
     """Port inputs of a scene as a function of time: drives on motion parts (their values at t), loads on
@@ -57,6 +71,9 @@ def scene_inputs(body: BodyData, scene: Scene, load_interval: tuple[float, float
                 if share:
                     f += share * np.asarray(ld.force, float)
                     m += share * np.asarray(ld.moment, float)
+            for ub in scene.unbalances:  # at t (the end of the step, where the equations are enforced)
+                if ub.port == p.name:
+                    f += unbalance_force(ub, drive_of[ub.drive], t)
             if p.translation == "force":
                 pv.f = f
             if p.rotation == "force":

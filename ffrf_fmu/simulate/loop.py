@@ -119,8 +119,9 @@ def run(body: BodyData, scene: Scene, *, origin=(0.0, 0.0, 0.0), progress: bool 
     failure = None
     # on the native backend, chunks of steps run in one call of the C runtime each, with the scene's
     # inputs and the recording inside (momenta, for a free body's
-    # metrics, are recorded in Python: such scenes step one by one)
-    schedule = None if free else scene_schedule(body, scene)
+    # metrics, are recorded in Python: such scenes step one by one, as do scenes with a rotating unbalance,
+    # whose force the compiled schedule does not carry)
+    schedule = None if free or scene.unbalances else scene_schedule(body, scene)
     k = 0
     while k < n_steps:
         compiled = system._compiled
