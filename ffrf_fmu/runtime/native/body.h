@@ -217,7 +217,7 @@ void ffrf_inv3(const double A[9], double out[9]);
 void ffrf_skew(const double a[3], double out[9]);
 void ffrf_cross(const double a[3], const double b[3], double out[3]);
 
-/* ---- step.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
+/* ---- factor.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
 int ffrf_lu_factor(double *aT, int *piv, int n);
 void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
 
@@ -244,7 +244,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load, co
 void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double *yd, const double *R,
                        int jac, double *F, double *Fz, double *Fy, ffrf_se_work *w);
 
-/* ---- step.c: Newton, the generalized-alpha step, compliant springs, LU ---- */
+/* ---- step.c: Newton, the generalized-alpha step, compliant springs ---- */
 void ffrf_springs_apply(ffrf_body *b, const double *p, const double *yd, const double *R,
                         const double *T, int jac, double beta, double *F, double *JT);
 /* One step t -> t + h (integrator.py `_step`); the state changes only if it succeeded. Returns the
