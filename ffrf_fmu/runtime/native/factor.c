@@ -25,7 +25,7 @@
  * The partition (which Newton positions are whose) is body.c `partition`. */
 #include <math.h>
 
-#include "body.h"
+#include "factor.h"
 
 /* No fused multiply-adds: the LU must match LAPACK's (scipy's) to round-off, as step.c's equations do. */
 #if defined(__clang__)
