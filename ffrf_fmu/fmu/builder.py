@@ -47,7 +47,7 @@ from ..runtime.data import BodyData
 from .core import CONFIG_FILE, DATA_FILE
 from .slave_template import TEMPLATE
 from ..runtime.terms import FULL_TERMS, TERM_SETS
-from .variables import (DERIVATIVE_CHANNEL, DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS,
+from .variables import (DERIVATIVE_CHANNEL, DESCRIPTION_BASE, DIRECTIONAL_DERIVATIVES, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS,
                         equations_text, identifier)
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
@@ -59,16 +59,7 @@ LIBPYTHON_FILE = "ffrf_libpython.txt"
 ALLOWED_IMPORTS = {"numpy", "scipy"}
 OPTIONAL_IMPORTS = {"threadpoolctl", "ziglang"}  # allowed inside `try: ... except ImportError:` only
 
-DESCRIPTION = (
-    "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
-    "All vectors in world axes, SI units. " + INPUTS_BETWEEN_COMMUNICATION_POINTS + " " + INTERNAL_STEPS + " "
-    "The run converges to the standalone run as H shrinks. Outputs are the values at "
-    "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
-    "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
-    "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "
-    "references and internal errors return fmi2Error with the cause logged. FMU state get/set/serialize "
-    "save the complete integrator state."
-)
+DESCRIPTION = DESCRIPTION_BASE + "."
 
 
 class BuildError(RuntimeError):

@@ -90,6 +90,18 @@ INTERNAL_STEPS = (
     "is a whole number up to 1e-6 relative): no step is shortened, so the body keeps its Newton "
     "iteration matrix."
 )
+# The modelDescription's description of a body FMU (the Python and the native FMU end it each with
+# what their state serialization adds): str.format with body, n_se, ports.
+DESCRIPTION_BASE = (
+    "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
+    "All vectors in world axes, SI units. " + INPUTS_BETWEEN_COMMUNICATION_POINTS + " " + INTERNAL_STEPS + " "
+    "The run converges to the standalone run as H shrinks. Outputs are the values at "
+    "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
+    "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
+    "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "
+    "references and internal errors return fmi2Error with the cause logged. FMU state get/set/serialize "
+    "save the complete integrator state"
+)
 DIRECTIONAL_DERIVATIVES = (
     "fmi2GetDirectionalDerivative (FMI 3.0: fmi3GetDirectionalDerivative, fmi3GetAdjointDerivative) gives what FMI "
     "defines, in step mode: the partial derivatives of the outputs with respect to the inputs at the current "

@@ -34,21 +34,12 @@ from ... import __version__
 from ...runtime.body import BodySystem
 from ...runtime.data import BodyData
 from ...runtime.terms import TERM_SETS
-from ..variables import (DIRECTIONAL_DERIVATIVES, modal_shape, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, UNITS,
+from ..variables import (DESCRIPTION_BASE, DIRECTIONAL_DERIVATIVES, modal_shape, INPUTS_BETWEEN_COMMUNICATION_POINTS, INTERNAL_STEPS, UNITS,
                          body_variables, equations_text, identifier)
 from . import build as native_build
 from .resource import ResourceContent, pack
 
-DESCRIPTION = (
-    "Flexible body {body!r} (two-field FFRF superelements, {n_se} superelement(s), ports: {ports}). "
-    "All vectors in world axes, SI units. " + INPUTS_BETWEEN_COMMUNICATION_POINTS + " " + INTERNAL_STEPS + " "
-    "The run converges to the standalone run as H shrinks. Outputs are the values at "
-    "the end of the last communication step (no direct feedthrough). A failed step (Newton, NaN input, "
-    "an R input that is not a rotation) returns fmi2Discard with a logged message and leaves the FMU "
-    "at t_c; invalid parameters, calls out of sequence, stepping on after a discard, unknown value "
-    "references and internal errors return fmi2Error with the cause logged. FMU state get/set/serialize "
-    "save the complete integrator state (serialized with a version and a checksum)."
-)
+DESCRIPTION = DESCRIPTION_BASE + " (serialized with a version and a checksum)."
 RESOURCE_FILE = "body.bin"
 PLATFORMS = ("linux64", "win64")
 

@@ -5,7 +5,9 @@
  * from the time derivative of the kinematic row (79). Not the integrator's acceleration-like variable a. */
 #include <string.h>
 
-#include "body.h"
+#include "accel.h"
+#include "so3.h"
+#include "factor.h"
 
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF

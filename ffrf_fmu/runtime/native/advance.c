@@ -7,7 +7,10 @@
 #include <math.h>
 #include <string.h>
 
-#include "body.h"
+#include "advance.h"
+#include "so3.h"
+#include "step.h"
+#include "accel.h"
 
 /* No fused multiply-adds: the results must match the numpy path (which never contracts) to round-off. Clang (and zig cc,
  * which targets the host CPU) contracts within expressions by default; GCC in ISO C mode does not. */

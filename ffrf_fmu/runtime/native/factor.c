@@ -25,10 +25,9 @@
  * The partition (which Newton positions are whose) is body.c `partition`. */
 #include <math.h>
 
-#include "body.h"
+#include "factor.h"
 
-/* No fused multiply-adds: the results must match the numpy path (which never contracts) to round-off. Clang (and zig cc,
- * which targets the host CPU) contracts within expressions by default; GCC in ISO C mode does not. */
+/* No fused multiply-adds: the LU must match LAPACK's (scipy's) to round-off, as step.c's equations do. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #endif

@@ -1,7 +1,7 @@
 /* Rotation helpers of the runtime (the C twins of runtime/rotation.py): 3x3 matrices row-major. */
 #include <math.h>
 
-#include "body.h"
+#include "so3.h"
 
 #define EPS_TANGENT 1e-5 /* rotation.py: below this angle the series of the tangent are exact to round-off */
 

@@ -14,7 +14,10 @@
 #include <math.h>
 #include <string.h>
 
-#include "body.h"
+#include "step.h"
+#include "so3.h"
+#include "factor.h"
+#include "superelement.h"
 
 /* No fused multiply-adds: the results must match the numpy path (which never contracts) to round-off. Clang (and zig cc,
  * which targets the host CPU) contracts within expressions by default; GCC in ISO C mode does not. */

@@ -19,7 +19,8 @@
  */
 #include <string.h>
 
-#include "body.h"
+#include "superelement.h"
+#include "so3.h"
 
 /* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
  * (r: rows of vk_a, n2: n_w2). Bound once to a block that body.c allocates at creation. */
