@@ -28,6 +28,9 @@ HEADERS = ("ffrf_runtime.h", "body.h")
 # -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
 # within expressions); -fvisibility=hidden with the public API marked by FFRF_API (ffrf_runtime.h)
 FLAGS = ("-std=c11", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra", "-Werror", "-pedantic")
+# $FFRF_FMU_EXTRA_CFLAGS (split on spaces) goes after FLAGS and into the cache key: the round-off check of
+# .ci/run compiles the runtime with -ffp-contract=fast, as another compiler or CPU would round
+EXTRA_CFLAGS_ENV = "FFRF_FMU_EXTRA_CFLAGS"
 SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=undefined", "-fno-omit-frame-pointer", "-g")
 
 
@@ -55,6 +58,11 @@ def source_digest(extra: tuple[str, ...] = ()) -> str:
     for word in extra:
         h.update(word.encode() + b"\0")
     return h.hexdigest()[:16]
+
+
+def extra_cflags() -> tuple[str, ...]:
+    """The words of $FFRF_FMU_EXTRA_CFLAGS (none when unset)."""
+    return tuple(os.environ.get(EXTRA_CFLAGS_ENV, "").split())
 
 
 def compiler() -> list[str]:
@@ -102,7 +110,7 @@ def library(sanitize: bool = False) -> Path:
     shipped = HERE / PREBUILT / _library_name()
     if not sanitize and shipped.exists():
         return shipped
-    extra = SANITIZE if sanitize else ()
+    extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
     cc = compiler()
     digest = source_digest((*cc[-1:], *FLAGS, *extra))
     for root in (cache_root(), Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"):
