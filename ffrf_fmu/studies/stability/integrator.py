@@ -58,8 +58,9 @@ def margin_verdict(model_path, scene: str, row: dict, settings: IntegratorSettin
     verdict could flip."""
     point = margin.Point(unstable=bool(row["unstable"]), t_end=float(row.get("t_end", 0.0)), duration=duration,
                          failure=row.get("failure", ""),
+                         # a run stopped at the deflection bound ends just past it: its time decides, not the ratio
                          bound_ratios=(row.get("energy_growth", 0.0) / ENERGY_GROWTH,
-                                       row.get("max_deflection", 0.0) / length))
+                                       *(() if row["unstable"] else (row.get("max_deflection", 0.0) / length,))))
     rerun = lambda h, eps: run_unstable(integrator_run(model_path, scene, h, row["rho_inf"], settings, eps)[0])
     return margin.classify(point, row["step"], settings.steps, rerun)
 
