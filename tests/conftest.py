@@ -7,6 +7,18 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+# no test reads what a previous run left in the user cache (~/.cache/ffrf-fmu: compiled runtime, FMU
+# binaries, reduced bodies): the session gets a fresh one, as a fresh machine or CI has, unless the caller
+# chose one ($FFRF_FMU_CACHE_DIR: .ci/run's round-off check builds its runtime in its own)
+if not os.environ.get("FFRF_FMU_CACHE_DIR"):
+    import atexit
+    import shutil
+    import tempfile
+
+    _cache = tempfile.mkdtemp(prefix="ffrf-fmu-test-cache-")
+    os.environ["FFRF_FMU_CACHE_DIR"] = _cache
+    atexit.register(shutil.rmtree, _cache, True)
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 

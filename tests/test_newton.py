@@ -74,7 +74,10 @@ def test_b1_50ms_runs_through():
     with 585668d's deflection to 1e-6 (measured +8.7e-8) and within 1 % of the 2 ms run (0.536620 m;
     measured +0.71 %: the step's own error)."""
     evals, _, d, n = _b1(0.05, 4, 6)
-    assert n == 400 and evals <= 2.0
+    # n: the step count of 20 s at 50 ms, fixed by the scene. evals measured 2.00: the bound 2.2 lets one
+    # step in ten take a third iteration where another CPU's round-off puts an increment just above the
+    # tolerance, and still fails the old solver's 5.52 by far
+    assert n == 400 and evals <= 2.2
     assert d == pytest.approx(BASELINE_50MS_4x6, rel=1e-6)
     assert d == pytest.approx(0.536620, rel=1e-2)
 
@@ -107,5 +110,7 @@ def test_extrapolated_inputs_keep_the_iteration_matrix():
         system.run_extrapolated(h, n, t_c, input_rule.point_values(body.ports, inputs(t_c)))
         system.t = t_c + n * h  # the master's clock (fmu/core.py)
         steps += n
-    assert counts["evaluations"] / steps <= 2.0
+    # measured 2.00 (docs/stability.md): a bound, not an exact count; held under .ci/run's round-off check
+    # (runtime with -ffp-contract=fast, numpy without AVX2), where a third iteration in some step would show
+    assert counts["evaluations"] / steps <= 2.2  # one step in ten may take a third iteration (as above)
     assert counts["factorizations"] / steps <= 0.05

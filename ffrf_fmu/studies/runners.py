@@ -185,17 +185,25 @@ class BeamRun:
                 "t_end": float(self.t[-1]) if len(self.t) else 0.0}
 
 
-def run_beam(model: Model, scene: Scene, *, stop_deflection: float | None = None, record_every: int = 1) -> BeamRun:
+def run_beam(model: Model, scene: Scene, *, stop_deflection: float | None = None, record_every: int = 1,
+             perturbation: float = 0.0) -> BeamRun:
     """Step the standalone body through `scene` (simulate.build_system), recording the transverse
     elastic tip deflection of eq. (92) between the first and the last boundary node and the energy
     gap. Stops at a StepFailure, a non-finite value or when the deflection exceeds
-    `stop_deflection` (default: the beam length): those runs are unstable."""
+    `stop_deflection` (default: the beam length): those runs are unstable. perturbation: the initial
+    node positions scaled by 1 +- perturbation, alternately per coordinate (the margin check of the
+    stability maps, stability/margin.py)."""
     from ..runtime.ports import StepFailure
     from ..simulate import build_system, end_ports
 
     start = time.perf_counter()
     body = body_data(model, scene)
     system, inputs = build_system(body, scene, model.body.origin)
+    if perturbation:
+        for name in ("xN", "x0"):
+            x = getattr(system, name)
+            sign = np.where(np.arange(x.size) % 2 == 0, 1.0, -1.0).reshape(x.shape)
+            x *= 1.0 + perturbation * sign
     hub, tip = end_ports(body)
     n_hub, n_tip = body.port(hub).node, body.port(tip).node
     X = body.node_positions[n_tip] - body.node_positions[n_hub]

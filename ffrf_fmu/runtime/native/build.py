@@ -28,6 +28,9 @@ HEADERS = ("ffrf_runtime.h", "layout.h", "so3.h", "factor.h", "superelement.h", 
 # -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
 # within expressions); -fvisibility=hidden with the public API marked by FFRF_API (ffrf_runtime.h)
 FLAGS = ("-std=c11", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra", "-Werror", "-pedantic")
+# $FFRF_FMU_EXTRA_CFLAGS (split on spaces) goes after FLAGS and into the cache key: the round-off check of
+# .ci/run compiles the runtime with -ffp-contract=fast, as another compiler or CPU would round
+EXTRA_CFLAGS_ENV = "FFRF_FMU_EXTRA_CFLAGS"
 SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=undefined", "-fno-omit-frame-pointer", "-g")
 
 
@@ -96,6 +99,11 @@ def remembered_digest(paths, extra: tuple[str, ...] = ()) -> str:
     return digest
 
 
+def extra_cflags() -> tuple[str, ...]:
+    """The words of $FFRF_FMU_EXTRA_CFLAGS (none when unset)."""
+    return tuple(os.environ.get(EXTRA_CFLAGS_ENV, "").split())
+
+
 def compiler() -> list[str]:
     """The command of the C compiler: $FFRF_FMU_CC (split on spaces), cc / gcc / clang on the PATH, else
     zig's from the ziglang package (`python -m ziglang cc`)."""
@@ -139,9 +147,9 @@ def library(sanitize: bool = False) -> Path:
     sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`). A copy of this
     package shipped in a pythonfmu FMU carries its library in prebuilt/ (`ship`): no compiler on the host."""
     shipped = HERE / PREBUILT / _library_name()
-    if not sanitize and shipped.exists():
+    if not sanitize and not extra_cflags() and shipped.exists():  # extra flags: built here, never the shipped one
         return shipped
-    extra = SANITIZE if sanitize else ()
+    extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
     cc = compiler()
     digest = source_digest((*cc[-1:], *FLAGS, *extra))
     for root in _cache_roots():

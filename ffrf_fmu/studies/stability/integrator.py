@@ -12,6 +12,7 @@ from ...model import Model, load_model
 from ..runners import BeamRun, beam_run_of, run_beam
 from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
+from . import margin
 from .common import write_map
 
 RHO_INFS = (0.0, 0.5, 0.8, 1.0)
@@ -28,6 +29,7 @@ class IntegratorSettings:
     converged_rho: float = 0.8
     duration: float | None = None  # None: the scene's
     overrides: tuple[str, ...] = ()
+    margin: bool = True  # re-run the points whose verdict could flip (margin.py)
 
 
 def integrator_overrides(scene: str, step: float, rho: float, settings: IntegratorSettings) -> list[str]:
@@ -37,10 +39,30 @@ def integrator_overrides(scene: str, step: float, rho: float, settings: Integrat
     return ov
 
 
-def integrator_run(model_path, scene: str, step: float, rho: float, settings: IntegratorSettings) -> tuple[BeamRun, Model]:
-    """One run of the map in this process (the map's runs are the same, through the sweep layer)."""
+def integrator_run(model_path, scene: str, step: float, rho: float, settings: IntegratorSettings,
+                   perturbation: float = 0.0) -> tuple[BeamRun, Model]:
+    """One run of the map in this process (the map's runs are the same, through the sweep layer);
+    perturbation: of the initial state (run_beam), for the margin check."""
     model = load_model(model_path, integrator_overrides(scene, step, rho, settings))
-    return run_beam(model, model.scene(scene)), model
+    return run_beam(model, model.scene(scene), perturbation=perturbation), model
+
+
+def run_unstable(run: BeamRun) -> bool:
+    """The map's instability criterion: a failed run or energy growth beyond ENERGY_GROWTH."""
+    return bool(run.unstable or run.energy_growth > ENERGY_GROWTH)
+
+
+def margin_verdict(model_path, scene: str, row: dict, settings: IntegratorSettings, length: float,
+                   duration: float) -> str:
+    """The row's verdict with a margin (margin.classify): re-runs, in this process, of a point whose
+    verdict could flip."""
+    point = margin.Point(unstable=bool(row["unstable"]), t_end=float(row.get("t_end", 0.0)), duration=duration,
+                         failure=row.get("failure", ""),
+                         # a run stopped at the deflection bound ends just past it: its time decides, not the ratio
+                         bound_ratios=(row.get("energy_growth", 0.0) / ENERGY_GROWTH,
+                                       *(() if row["unstable"] else (row.get("max_deflection", 0.0) / length,))))
+    rerun = lambda h, eps: run_unstable(integrator_run(model_path, scene, h, row["rho_inf"], settings, eps)[0])
+    return margin.classify(point, row["step"], settings.steps, rerun)
 
 
 def integrator_map(model_path, scene: str, settings: IntegratorSettings, out_dir,
@@ -81,8 +103,18 @@ def integrator_map(model_path, scene: str, settings: IntegratorSettings, out_dir
             failure = f"energy growth {growth:.3g} > {ENERGY_GROWTH:g} of the energy level"
         rows.append({"benchmark": name, "scene": scene, "step": float(h), "rho_inf": float(rho), "converged": False,
                      "peak_rel_error": float((run.max_deflection - peak) / peak), "rel_error": err,
-                     "energy_growth": growth, "unstable": bool(failure), "failure": failure,
+                     "energy_growth": growth, "max_deflection": run.max_deflection, "unstable": bool(failure), "failure": failure,
                      "t_end": float(run.t[-1]), "wall_time_s": run.wall_time_s})
         series[f"{name}_{scene}_h{h:g}_rho{rho:g}"] = np.column_stack([run.t, run.deflection])
+    model = load_model(model_path, integrator_overrides(scene, s.converged_step, s.converged_rho, s))
+    duration = model.scene(scene).duration
+    for r in rows:
+        if r["converged"]:
+            r["verdict"] = "reference"
+        elif "t_end" not in r:
+            r["verdict"] = margin.UNSTABLE
+        else:
+            r["verdict"] = margin_verdict(model_path, scene, r, s, model.body.length, duration) if s.margin \
+                else (margin.UNSTABLE if r["unstable"] else margin.STABLE)
     write_map(out_dir, rows, series)
     return rows

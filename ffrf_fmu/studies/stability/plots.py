@@ -80,7 +80,9 @@ def plot_integrator(rows: list[dict], path) -> None:
             ax.plot([r["step"] for r in ok], [max(r["rel_error"], 1e-7) for r in ok], ":", color=c, lw=1,
                     label=f"rho_inf = {rho:g}: history")
             for r in rr:
-                if is_true(r["unstable"]):
+                if r.get("verdict") == "marginal":  # the verdict changed under round-off (margin.py)
+                    ax.plot(r["step"], 2.0 * 1.6**irho, "o", mfc="none", color=c, ms=11, mew=2)
+                elif is_true(r["unstable"]):
                     ax.plot(r["step"], 2.0 * 1.6**irho, "x", color=c, ms=10, mew=3)
         ax.axhline(1.0, color="k", lw=0.5)
         ax.set_xscale("log")
@@ -92,7 +94,8 @@ def plot_integrator(rows: list[dict], path) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     fig.suptitle("Integrator: generalized-alpha step size against rho_inf "
-                 "(x = unstable: Newton failure or energy growth, one row of x per rho_inf)", fontsize=11)
+                 "(x = unstable: Newton failure or energy growth, o = marginal: the verdict changed under a 1e-9 "
+                 "perturbation or at the neighbour step; one row per rho_inf)", fontsize=11)
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     fig.savefig(path, dpi=110)
     plt.close(fig)
