@@ -1,0 +1,241 @@
+"""The conrod in a crank drive (models/conrod_crank.toml; docs/inertia-terms.md, "The conrod in a crank
+drive"): the conrod FMU between a rigid crank at an imposed speed (`crank_pin_slave.py`) and a piston
+with the gas force (`piston_slave.py`), as an SSP system for every engine, and its monolithic reference.
+
+The system (world axes; mechanism plane Y-Z, crank axis X through (0, -r, 0), cylinder axis Y):
+- crank pin -> big eye (translation motion-driven, rotation free): r, v, a of the pin;
+- piston <-> small eye: the small eye is `compliant` (pin spring k [N/m] in world axes: along Y the
+  gudgeon pin to the piston mass, across it the piston's guide; rotational k_rot about the nodal Y, Z
+  axes: the pin holds the conrod in its plane); its far end is the piston's pin frame (r, v, a, R, w,
+  dw), and the spring's force on the conrod goes to the piston (which feels minus it). The spring is
+  integrated implicitly inside the conrod FMU (docs/cosim.md, "Compliant coupling"); it lags only on
+  the piston, one communication step, so a Jacobi engine is stable while sqrt(k / m_p) H stays below
+  ~1 (the rule's omega_c H = 0.5; here 22361 rad/s x 1e-5 s = 0.22).
+
+Deformation at mid-shank (`deformation`): from the world positions of the big eye's frame P_b (the
+crank pin), the small eye's node frame P_s and the mid-shank averaging frame P_m (the least-squares rigid
+fit of the shank nodes between y = 85 and 95 mm), with the chord e = (P_s - P_b) / |P_s - P_b| and its
+in-plane normal n = X x e:
+    axial   = (P_m - P_b) . e - Y_MID          stretch of the conrod from the big eye to mid-shank
+    bending = (P_m - P_b) . n                  deflection of mid-shank from the chord through the eyes
+both zero in the reference configuration (Y_MID = 0.090 m).
+
+Monolithic reference (`monolithic`): the conrod's standalone system (the C runtime's BodySystem, the same
+reduced body and small-eye spring), the crank pin's motion evaluated exactly at every step, and the
+piston's equation m_p x'' = -f_y - F_gas(t) integrated together with the body by the body's
+first-order generalized-alpha (runtime/integrator.py: the same rho_inf, equations at t_{n+1}), as
+studies/stability/monolithic.py does for B5's hub: per step the piston's acceleration s at t_{n+1}
+fixes its position and velocity (affine in s), the far end of the spring for the body's step; the
+piston equation r(s) = m_p s + f_y(s) + F_gas(t_{n+1}) = 0 is solved by secant steps from the saved
+body state to 1e-10 of its force scale. Same system: the same body, spring, piston mass and gas force;
+only the coupling's sampling at H (the piston's held spring force, the body's extrapolated pin) is gone.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+MODEL = HERE.parents[1] / "models" / "conrod_crank.toml"
+CRANK_SOURCE = HERE / "crank_pin_slave.py"
+PISTON_SOURCE = HERE / "piston_slave.py"
+Y_MID = 0.090  # m: the mid-shank frame's reference position on the conrod axis (models/conrod_crank.toml)
+L_EYES = 0.155  # m: eye centre distance
+#: the piston equation's residual left by the secant iteration, relative to its force scale
+PISTON_TOLERANCE = 1e-10
+PISTON_ITERATIONS = 12
+
+
+@dataclass(frozen=True)
+class CrankDrive:
+    """Parameters of the crank drive (the partners' FMU parameters of the same names)."""
+
+    r: float = 0.01  # crank radius [m]
+    omega: float = 4400.0  # crank speed after the run-up [rad/s] (700 Hz)
+    T: float = 2.86e-3  # run-up time [s] (2 revolutions' worth at omega / 2)
+    m_p: float = 0.2  # piston mass [kg]
+    F_max: float = 2.0e4  # peak gas force [N]
+    width: float = math.pi / 3  # crank angle of the gas force pulse after top dead centre [rad]
+
+    def crank_parameters(self) -> dict[str, float]:
+        return {"crank.r": self.r, "crank.omega": self.omega, "crank.T": self.T}
+
+    def piston_parameters(self) -> dict[str, float]:
+        return {"piston.m": self.m_p, "crank.omega": self.omega, "crank.T": self.T, "gas.F_max": self.F_max,
+                "gas.width": self.width}
+
+
+@dataclass(frozen=True)
+class CrankRun:
+    """A run of the crank drive: per sample time t, crank angle [rad], the mid-shank deformation
+    (axial, bending [m], module doc), the piston's displacement [m] and the pin spring's force on the
+    conrod along the cylinder axis [N]; stopped: "" or why it ended early; wall: seconds."""
+
+    t: np.ndarray
+    angle: np.ndarray
+    axial: np.ndarray
+    bending: np.ndarray
+    piston: np.ndarray
+    pin_force: np.ndarray
+    stopped: str = ""
+    wall: float = 0.0
+
+
+def _slave(source: Path, cls: str) -> tuple[str, str, str]:
+    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:10]
+    text = source.read_text(encoding="utf-8").replace(f"class {cls}(Fmi2Slave):", f"class {cls}_{digest}(Fmi2Slave):")
+    return f"ffrf_{source.stem}_{digest}", f"{cls}_{digest}", text
+
+
+def _build(source: Path, cls: str, dest, default_name: str) -> Path:
+    """pythonfmu build of a slave script, module and class renamed with its digest (pythonfmu FMUs whose
+    scripts share a name collide in one process, docs/fmu.md)."""
+    from pythonfmu import FmuBuilder
+
+    module, _, text = _slave(source, cls)
+    dest = Path(dest)
+    if dest.suffix != ".fmu":
+        dest = dest / default_name
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="ffrf_crank_") as tmp:
+        script = Path(tmp) / f"{module}.py"
+        script.write_text(text, encoding="utf-8")
+        saved = list(sys.path)
+        try:
+            out = FmuBuilder.build_FMU(script, dest=dest, canHandleVariableCommunicationStepSize=True,
+                                       canGetAndSetFMUstate=True, canSerializeFMUstate=True,
+                                       canBeInstantiatedOnlyOncePerProcess=False)
+        finally:
+            sys.path[:] = saved
+            sys.modules.pop(module, None)
+    return Path(out)
+
+
+def build_crank(dest) -> Path:
+    """The crank FMU (crank_pin_slave.py) into `dest` (a .fmu file or a directory)."""
+    return _build(CRANK_SOURCE, "CrankPin", dest, "crank_pin.fmu")
+
+
+def build_piston(dest) -> Path:
+    """The piston FMU (piston_slave.py) into `dest` (a .fmu file or a directory)."""
+    return _build(PISTON_SOURCE, "Piston", dest, "piston.fmu")
+
+
+def _laws():
+    """The partners' own laws (the slave scripts' functions, imported from their files)."""
+    import importlib.util
+
+    mods = []
+    for src in (CRANK_SOURCE, PISTON_SOURCE):
+        spec = importlib.util.spec_from_file_location(f"_ffrf_law_{src.stem}", src)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        mods.append(mod)
+    return mods
+
+
+def deformation(P_b, P_s, P_m) -> tuple[np.ndarray, np.ndarray]:
+    """(axial, bending) at mid-shank from the frames' world positions (k, 3) (module doc)."""
+    P_b, P_s, P_m = (np.atleast_2d(np.asarray(p, float)) for p in (P_b, P_s, P_m))
+    e = P_s - P_b
+    e /= np.linalg.norm(e, axis=1)[:, None]
+    n = np.stack([np.zeros(len(e)), -e[:, 2], e[:, 1]], axis=1)  # X x e
+    d = P_m - P_b
+    return np.einsum("ij,ij->i", d, e) - Y_MID, np.einsum("ij,ij->i", d, n)
+
+
+# ------------------------------------------------------------------------------------------ monolithic
+def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, overrides=(),
+               backend: str = "native") -> CrankRun:
+    """The crank drive as one run at step h (module doc): the conrod, its small-eye spring and the
+    piston integrated together, the crank pin's motion exact."""
+    from ..model import load_model
+    from ..reduction import reduce_scene_body
+    from ..runtime.integrator import alpha_coefficients
+    from ..runtime.ports import PortValues, StepFailure
+    from ..simulate import build_system, whole_steps
+
+    crank_law, piston_law = _laws()
+    model = load_model(model_path, list(overrides))
+    scene = dataclasses.replace(model.scene(), step=h, duration=duration)
+    body = reduce_scene_body(model.body, scene).data
+    n_steps, h = whole_steps(duration, h)
+    am, af, gamma = alpha_coefficients(scene.rho_inf)
+    beta = h * gamma * af / am
+    y0 = L_EYES
+    far = {"x": 0.0, "v": 0.0, "a": 0.0}
+    I3, z3 = np.eye(3), np.zeros(3)
+
+    def inputs(t: float) -> dict[str, PortValues]:
+        r, v, a = (np.asarray(x) for x in crank_law.pin_motion(t, drive.r, drive.omega, drive.T))
+        return {"big_eye": PortValues(r=r, v=v, a=a, t=z3.copy()),
+                "small_eye": PortValues(r=np.array([0.0, y0 + far["x"], 0.0]), v=np.array([0.0, far["v"], 0.0]),
+                                        a=np.array([0.0, far["a"], 0.0]), R=I3.copy(), w=z3.copy(), dw=z3.copy()),
+                "mid_shank": PortValues(f=z3.copy(), t=z3.copy())}
+
+    def gas(t):
+        return piston_law.gas_force(t, drive.omega, drive.T, drive.F_max, drive.width)
+
+    t0 = time.perf_counter()
+    system, _ = build_system(body, scene, model.body.origin, backend)
+    y, yd, a = np.zeros(2), np.zeros(2), np.zeros(2)  # piston (x, v), rates, generalized-alpha's a
+    c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
+    rows, stopped = [], ""
+
+    def record(t):
+        out = system.outputs()
+        ax, be = deformation(out["big_eye"].r, out["small_eye"].r, out["mid_shank"].r)
+        rows.append((t, crank_law.crank_motion(t, drive.omega, drive.T)[0], ax[0], be[0], y[0],
+                     float(out["small_eye"].f[1])))
+
+    record(0.0)
+    s_prev = 0.0
+    for n in range(n_steps):
+        t1 = (n + 1) * h
+        A0 = c1 * yd + c2 * a
+        D0 = h * ((1.0 - gamma) * a + gamma * A0)
+        snap = system.snapshot()
+        F = gas(t1)
+
+        def state(s):
+            v1 = y[1] + D0[1] + beta * s
+            return y[0] + D0[0] + beta * v1, v1
+
+        def residual(s):
+            far["x"], far["v"] = state(s)
+            far["a"] = s
+            system.restore(snap)
+            system.step(h, inputs)
+            fy = float(system.outputs()["small_eye"].f[1])
+            return drive.m_p * s + fy + F, drive.m_p * abs(s) + abs(fy) + abs(F) + 1.0
+
+        try:
+            s0 = s_prev
+            r_a, _ = residual(s0)
+            s1 = s0 - r_a / drive.m_p
+            r_b, scale = residual(s1)
+            it = 2
+            while abs(r_b) > PISTON_TOLERANCE * scale:
+                if it >= PISTON_ITERATIONS or r_b == r_a:
+                    raise StepFailure(t1, f"piston equation not solved in {it} body steps (residual {r_b:.3g} N)")
+                s0, s1, r_a = s1, s1 - r_b * (s1 - s0) / (r_b - r_a), r_b
+                r_b, scale = residual(s1)
+                it += 1
+        except StepFailure as exc:
+            stopped = f"monolithic crank drive: {exc}"
+            break
+        x1, v1 = state(s1)
+        yd_new = np.array([v1, s1])
+        a = (af / am) * yd_new + A0
+        y, yd, s_prev = np.array([x1, v1]), yd_new, s1
+        record(t1)
+    cols = np.array(rows).T
+    return CrankRun(*cols, stopped=stopped, wall=time.perf_counter() - t0)

@@ -1,0 +1,104 @@
+"""pythonfmu script of the crank FMU (crank-drive partner of the conrod FMU, models/conrod_crank.toml): a
+rigid crank of radius r about the world X axis through (0, -r, 0), turned by the Wu-Haug run-up to the
+speed omega in T (docs/background.md B1's law) and at omega after it, so that its pin starts at top
+dead centre at the origin (the conrod's big eye in its reference position).
+
+Built by `ffrf_fmu.examples.crank_drive.build_crank` (module and class renamed with a digest of this
+file, docs/fmu.md). Only the standard library and pythonfmu are imported.
+
+A prescribed motion (the crank is rigid and its speed imposed: the conrod's loads do not change it), so
+the FMU has no inputs; outputs, exact at every communication point (world axes):
+    theta(t) = omega T (tau^2/2 + (cos 2 pi tau - 1)/(2 pi)^2), tau = t/T < 1;  omega (t - T/2) after
+    pin.r = (0, -r + r cos theta, r sin theta)
+    pin.v = r theta' (0, -sin theta, cos theta)
+    pin.a = r theta'' (0, -sin theta, cos theta) - r theta'^2 (0, cos theta, sin theta)
+and crank.angle, crank.speed. Joined to the conrod's big eye (translation motion-driven) as r, v, a:
+the body extrapolates them to second order over the step (docs/cosim.md, acceleration inputs).
+"""
+import json
+import math
+
+from pythonfmu import Fmi2Slave, Real
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+
+PARAMETERS = {
+    "crank.r": (0.01, "m", "crank radius (half the stroke)"),
+    "crank.omega": (4400.0, "rad/s", "crank speed after the run-up"),
+    "crank.T": (2.86e-3, "s", "run-up time (Wu-Haug law)"),
+}
+
+
+def crank_motion(t, omega, T):
+    """(theta, theta', theta'') of the Wu-Haug run-up (runtime/drives.py `haug_spinup`)."""
+    if t >= T:
+        return omega * (t - 0.5 * T), omega, 0.0
+    tau = max(t, 0.0) / T
+    c, s = math.cos(2.0 * math.pi * tau), math.sin(2.0 * math.pi * tau)
+    return (omega * T * (0.5 * tau * tau + (c - 1.0) / (2.0 * math.pi) ** 2),
+            omega * (tau - s / (2.0 * math.pi)), omega / T * (1.0 - c))
+
+
+def pin_motion(t, r, omega, T):
+    """Crank pin position, velocity, acceleration (3-lists, world axes) at t (module doc)."""
+    th, dth, ddth = crank_motion(t, omega, T)
+    c, s = math.cos(th), math.sin(th)
+    return ([0.0, -r + r * c, r * s], [0.0, -r * dth * s, r * dth * c],
+            [0.0, -r * ddth * s - r * dth * dth * c, r * ddth * c - r * dth * dth * s])
+
+
+class CrankPin(Fmi2Slave):
+
+    author = "ffrf-fmu"
+    DESCRIPTION = ("Rigid crank at an imposed speed (Wu-Haug run-up to crank.omega in crank.T): outputs the "
+                   "crank pin's motion pin.r, pin.v, pin.a (world axes), exact at the communication points; no inputs.")
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.description = self.DESCRIPTION
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=0.01, step_size=1e-5)
+        self.p = {k: v[0] for k, v in PARAMETERS.items()}
+        self.t = 0.0
+        reg = self.register_variable
+        for name, (default, unit, desc) in PARAMETERS.items():
+            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
+                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
+                nested=False)
+
+        def out(name, desc, getter):
+            reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                     initial=Fmi2Initial.exact, start=getter(), description=desc, getter=getter), nested=False)
+
+        for k, (fld, desc) in enumerate((("r", "position [m]"), ("v", "velocity [m/s]"), ("a", "acceleration [m/s2]"))):
+            for i in range(3):
+                out(f"pin.{fld}[{i + 1}]", f"crank pin {desc}, world axes", lambda k=k, i=i: self._pin()[k][i])
+        out("crank.angle", "crank angle from top dead centre [rad]", lambda: self._motion()[0])
+        out("crank.speed", "crank speed [rad/s]", lambda: self._motion()[1])
+
+    def _motion(self):
+        return crank_motion(self.t, self.p["crank.omega"], self.p["crank.T"])
+
+    def _pin(self):
+        return pin_motion(self.t, self.p["crank.r"], self.p["crank.omega"], self.p["crank.T"])
+
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self.t = float(start_time)
+
+    def do_step(self, current_time, step_size):
+        self.t = current_time + step_size
+        return True
+
+    def _get_fmu_state(self):
+        return {"p": dict(self.p), "t": self.t}
+
+    def _set_fmu_state(self, state):
+        self.p, self.t = dict(state["p"]), float(state["t"])
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        return json.dumps(state).encode("utf-8")
+
+    @staticmethod
+    def _fmu_state_from_bytes(state):
+        return json.loads(state.decode("utf-8"))
