@@ -27,7 +27,8 @@ first-order generalized-alpha (runtime/integrator.py: the same rho_inf, equation
 studies/stability/monolithic.py does for B5's hub: per step the piston's acceleration s at t_{n+1}
 fixes its position and velocity (affine in s), the far end of the spring for the body's step; the
 piston equation r(s) = m_p s + f_y(s) + F_gas(t_{n+1}) = 0 is solved by secant steps from the saved
-body state to 1e-10 of its force scale. Same system: the same body, spring, piston mass and gas force;
+body state to 1e-10 of its force scale (at least m_p r omega^2 + F_max: the body's Newton leaves
+~1e-10 of its loads). Same system: the same body, spring, piston mass and gas force;
 only the coupling's sampling at H (the piston's held spring force, the body's extrapolated pin) is gone.
 """
 from __future__ import annotations
@@ -59,8 +60,8 @@ class CrankDrive:
     """Parameters of the crank drive (the partners' FMU parameters of the same names)."""
 
     r: float = 0.01  # crank radius [m]
-    omega: float = 4400.0  # crank speed after the run-up [rad/s] (700 Hz)
-    T: float = 2.86e-3  # run-up time [s] (2 revolutions' worth at omega / 2)
+    omega: float = 5000.0  # crank speed after the run-up [rad/s] (795.8 Hz)
+    T: float = 2.5e-3  # run-up time [s] (omega T / 2 = 6.25 rad: one revolution)
     m_p: float = 0.2  # piston mass [kg]
     F_max: float = 2.0e4  # peak gas force [N]
     width: float = math.pi / 3  # crank angle of the gas force pulse after top dead centre [rad]
@@ -189,6 +190,7 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
     y, yd, a = np.zeros(2), np.zeros(2), np.zeros(2)  # piston (x, v), rates, generalized-alpha's a
     c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
     rows, stopped = [], ""
+    load = drive.m_p * drive.r * drive.omega**2 + drive.F_max  # the piston's force scale [N]
 
     def record(t):
         out = system.outputs()
@@ -215,7 +217,7 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
             system.restore(snap)
             system.step(h, inputs)
             fy = float(system.outputs()["small_eye"].f[1])
-            return drive.m_p * s + fy + F, drive.m_p * abs(s) + abs(fy) + abs(F) + 1.0
+            return drive.m_p * s + fy + F, max(drive.m_p * abs(s) + abs(fy) + abs(F), load)
 
         try:
             s0 = s_prev
@@ -239,3 +241,101 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
         record(t1)
     cols = np.array(rows).T
     return CrankRun(*cols, stopped=stopped, wall=time.perf_counter() - t0)
+
+
+# ------------------------------------------------------------------------------------ the FMU system
+@dataclass(frozen=True)
+class CrankFmus:
+    """The three FMU files of the system: the conrod (ffrf-fmu build of models/conrod_crank.toml),
+    the crank and the piston."""
+
+    conrod: Path
+    crank: Path
+    piston: Path
+
+    def components(self) -> dict[str, str]:
+        return {"conrod": str(self.conrod), "crank": str(self.crank), "piston": str(self.piston)}
+
+
+def build(fmu_dir, model_path=MODEL, overrides=()) -> CrankFmus:
+    """Build the conrod (native), crank and piston (pythonfmu) FMUs into fmu_dir."""
+    from ..fmu.builder import build_fmu
+
+    fmu_dir = Path(fmu_dir)
+    fmu_dir.mkdir(parents=True, exist_ok=True)
+    return CrankFmus(Path(build_fmu(model_path, fmu_dir / "conrod.fmu", scene="crank", overrides=list(overrides))),
+                     build_crank(fmu_dir / "crank_pin.fmu"), build_piston(fmu_dir / "piston.fmu"))
+
+
+def _vec(name: str) -> list[str]:
+    return [f"{name}[{i}]" for i in (1, 2, 3)]
+
+
+def _mat(name: str) -> list[str]:
+    return [f"{name}[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
+
+
+#: probes of the conrod FMU (eq. 92: positions in the big eye's frame) from which `deformation` is taken
+PROBES = ("conrod.probe.small_eye_from_big_eye", "conrod.probe.mid_shank_from_big_eye")
+RECORD = [*_vec(PROBES[0]), *_vec(PROBES[1]), "crank.crank.angle", "piston.piston.x", "conrod.small_eye.f[2]"]
+
+
+def connections() -> list[tuple[str, str, float]]:
+    """(source, sink, gain): crank pin -> big eye (r, v, a); piston pin frame -> the small eye spring's
+    far end (r, v, a, R, w, dw); the spring's force on the conrod -> the piston."""
+    c = [(a, b, 1.0) for f in ("r", "v", "a") for a, b in zip(_vec(f"crank.pin.{f}"), _vec(f"conrod.big_eye.{f}"))]
+    c += [(a, b, 1.0) for f in ("r", "v", "a", "w", "dw") for a, b in zip(_vec(f"piston.pin.{f}"), _vec(f"conrod.small_eye.{f}"))]
+    c += [(a, b, 1.0) for a, b in zip(_mat("piston.pin.R"), _mat("conrod.small_eye.R"))]
+    c += [(a, b, 1.0) for a, b in zip(_vec("conrod.small_eye.f"), _vec("piston.pin.f"))]
+    return c
+
+
+def parameters(drive: CrankDrive, H: float) -> dict[str, float]:
+    """Start values: the partners' parameters and the conrod's internal step = H (docs/cosim.md: the
+    body's internal step equal to the communication step)."""
+    return {**{f"crank.{k}": v for k, v in drive.crank_parameters().items()},
+            **{f"piston.{k}": v for k, v in drive.piston_parameters().items()}, "conrod.solver.step": H}
+
+
+def system(fmus: CrankFmus, drive: CrankDrive, H: float, duration: float):
+    """The crank drive as an SSP system (master/ssp.py)."""
+    from ..master.ssp import Connection, System
+
+    return System("crank_drive", fmus.components(), tuple(Connection(*c) for c in connections()),
+                  parameters(drive, H), H, 0.0, duration)
+
+
+def from_columns(t, cols, stopped: str = "", wall: float = 0.0) -> CrankRun:
+    """A CrankRun from recorded RECORD columns (any engine)."""
+    # a probe is R_B^T (r_A - r_B) - (X_A - X_B) (docs/fmu.md): add the frames' reference offsets
+    P_s = np.stack([cols[n] for n in _vec(PROBES[0])], axis=1) + [0.0, L_EYES, 0.0]
+    P_m = np.stack([cols[n] for n in _vec(PROBES[1])], axis=1) + [0.0, Y_MID, 0.0]
+    ax, be = deformation(np.zeros_like(P_s), P_s, P_m)
+    return CrankRun(np.asarray(t, float), np.asarray(cols["crank.crank.angle"]), ax, be,
+                    np.asarray(cols["piston.piston.x"]), np.asarray(cols["conrod.small_eye.f[2]"]), stopped, wall)
+
+
+def run_package(path, engine: str) -> CrankRun:
+    """Run an SSP package of the crank drive under `engine` ("master", "libcosim", "ecos")."""
+    from ..master.ssp import run_ssp
+
+    r = run_ssp(path, engine, RECORD)
+    return from_columns(r.t, r.columns, r.stopped, r.wall)
+
+
+@dataclass(frozen=True)
+class Deviation:
+    """max |run - reference| over the run, over the reference's peak, of the axial and bending
+    deformation, on the run's sample times (the reference sampled at the same times)."""
+
+    axial: float
+    bending: float
+
+
+def deviation(run: CrankRun, ref: CrankRun) -> Deviation:
+    """The run against the reference (Deviation); the reference is interpolated to the run's times."""
+    out = []
+    for name in ("axial", "bending"):
+        x, xr = getattr(run, name), np.interp(run.t, ref.t, getattr(ref, name))
+        out.append(float(np.max(np.abs(x - xr)) / np.max(np.abs(getattr(ref, name)))))
+    return Deviation(*out)

@@ -24,8 +24,8 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
 
 PARAMETERS = {
     "crank.r": (0.01, "m", "crank radius (half the stroke)"),
-    "crank.omega": (4400.0, "rad/s", "crank speed after the run-up"),
-    "crank.T": (2.86e-3, "s", "run-up time (Wu-Haug law)"),
+    "crank.omega": (5000.0, "rad/s", "crank speed after the run-up"),
+    "crank.T": (2.5e-3, "s", "run-up time (Wu-Haug law)"),
 }
 
 

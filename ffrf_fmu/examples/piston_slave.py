@@ -31,8 +31,8 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variabil
 PARAMETERS = {
     "piston.m": (0.2, "kg", "piston mass (with its gudgeon pin)"),
     "piston.y0": (0.155, "m", "reference position of the gudgeon pin on the cylinder axis (world Y)"),
-    "crank.omega": (4400.0, "rad/s", "crank speed after the run-up"),
-    "crank.T": (2.86e-3, "s", "run-up time of the crank (Wu-Haug law)"),
+    "crank.omega": (5000.0, "rad/s", "crank speed after the run-up"),
+    "crank.T": (2.5e-3, "s", "run-up time of the crank (Wu-Haug law)"),
     "gas.F_max": (2.0e4, "N", "peak gas force on the piston"),
     "gas.width": (1.0471975511965976, "rad", "crank angle over which the gas force acts after top dead centre"),
     "solver.substep": (2.5e-6, "s", "largest Runge-Kutta substep"),
