@@ -155,9 +155,10 @@ def deformation(P_b, P_s, P_m) -> tuple[np.ndarray, np.ndarray]:
 
 # ------------------------------------------------------------------------------------------ monolithic
 def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, overrides=(),
-               backend: str = "native") -> CrankRun:
+               backend: str = "native", body=None) -> CrankRun:
     """The crank drive as one run at step h (module doc): the conrod, its small-eye spring and the
-    piston integrated together, the crank pin's motion exact."""
+    piston integrated together, the crank pin's motion exact. body: the reduced BodyData of the model's
+    scene when the caller has it (`reduced_body`), else reduced here."""
     from ..model import load_model
     from ..reduction import reduce_scene_body
     from ..runtime.integrator import alpha_coefficients
@@ -167,7 +168,8 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
     crank_law, piston_law = _laws()
     model = load_model(model_path, list(overrides))
     scene = dataclasses.replace(model.scene(), step=h, duration=duration)
-    body = reduce_scene_body(model.body, scene).data
+    body = reduce_scene_body(model.body, scene).data if body is None else body
+    node = {q.name: q.node for q in body.ports}
     n_steps, h = whole_steps(duration, h)
     am, af, gamma = alpha_coefficients(scene.rho_inf)
     beta = h * gamma * af / am
@@ -193,10 +195,10 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
     load = drive.m_p * drive.r * drive.omega**2 + drive.F_max  # the piston's force scale [N]
 
     def record(t):
-        out = system.outputs()
-        ax, be = deformation(out["big_eye"].r, out["small_eye"].r, out["mid_shank"].r)
+        xN = system.xN  # the port frames' origins (BodySystem.port_array's r)
+        ax, be = deformation(xN[node["big_eye"]], xN[node["small_eye"]], xN[node["mid_shank"]])
         rows.append((t, crank_law.crank_motion(t, drive.omega, drive.T)[0], ax[0], be[0], y[0],
-                     float(out["small_eye"].f[1])))
+                     float(system.fN[node["small_eye"], 1])))
 
     record(0.0)
     s_prev = 0.0
@@ -216,7 +218,7 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
             far["a"] = s
             system.restore(snap)
             system.step(h, inputs)
-            fy = float(system.outputs()["small_eye"].f[1])
+            fy = float(system.fN[node["small_eye"], 1])  # the spring's force on the conrod (port_array's f)
             return drive.m_p * s + fy + F, max(drive.m_p * abs(s) + abs(fy) + abs(F), load)
 
         try:
@@ -257,14 +259,34 @@ class CrankFmus:
         return {"conrod": str(self.conrod), "crank": str(self.crank), "piston": str(self.piston)}
 
 
-def build(fmu_dir, model_path=MODEL, overrides=()) -> CrankFmus:
-    """Build the conrod (native), crank and piston (pythonfmu) FMUs into fmu_dir."""
+def build(fmu_dir, model_path=MODEL, overrides=(), body=None) -> CrankFmus:
+    """Build the conrod (native; from `body`, its reduced BodyData, when given: what fmu.build_fmu does
+    after its reduction), crank and piston (pythonfmu) FMUs into fmu_dir."""
     from ..fmu.builder import build_fmu
 
     fmu_dir = Path(fmu_dir)
     fmu_dir.mkdir(parents=True, exist_ok=True)
-    return CrankFmus(Path(build_fmu(model_path, fmu_dir / "conrod.fmu", scene="crank", overrides=list(overrides))),
-                     build_crank(fmu_dir / "crank_pin.fmu"), build_piston(fmu_dir / "piston.fmu"))
+    if body is None:
+        conrod = build_fmu(model_path, fmu_dir / "conrod.fmu", scene="crank", overrides=list(overrides))
+    else:
+        from ..fmu.builder import SceneParameters, start_states
+        from ..fmu.native import build_native_fmu
+        from ..model import load_model
+
+        model = load_model(model_path, list(overrides))
+        sc = model.scene("crank")
+        conrod = build_native_fmu(body, fmu_dir / "conrod.fmu", SceneParameters.of_scene(sc), origin=model.body.origin,
+                                  start=start_states(body, sc, model.body.origin))
+    return CrankFmus(Path(conrod), build_crank(fmu_dir / "crank_pin.fmu"), build_piston(fmu_dir / "piston.fmu"))
+
+
+def reduced_body(model_path=MODEL, overrides=()):
+    """The reduced BodyData of the model's first scene (what `build` and `monolithic` use)."""
+    from ..model import load_model
+    from ..reduction import reduce_scene_body
+
+    model = load_model(model_path, list(overrides))
+    return reduce_scene_body(model.body, model.scene()).data
 
 
 def _vec(name: str) -> list[str]:
