@@ -361,3 +361,55 @@ def deviation(run: CrankRun, ref: CrankRun) -> Deviation:
         x, xr = getattr(run, name), np.interp(run.t, ref.t, getattr(ref, name))
         out.append(float(np.max(np.abs(x - xr)) / np.max(np.abs(getattr(ref, name)))))
     return Deviation(*out)
+
+
+# ------------------------------------------------------------------------------ frequencies in the drive
+@dataclass(frozen=True)
+class DriveMode:
+    """A natural mode of the conrod in the drive at rest: frequency [Hz] and the largest displacement
+    of the mid-shank frame along X, Y, Z and of the piston, each over the mode's largest coordinate."""
+
+    frequency_hz: float
+    mid_shank: tuple[float, float, float]
+    piston: float
+
+
+def drive_modes(body, drive: CrankDrive, model_path=MODEL, overrides=(), count: int = 6) -> list[DriveMode]:
+    """Natural modes of the linearized drive at rest (linear.chain_matrices: the reduced body in
+    physical coordinates): the big eye's translation held (the crank pin), the small-eye spring of the
+    model file to the piston mass m_p along Y and to the guide across it, the pin's rotational
+    stiffness; rigid modes (< 0.01 Hz) left out."""
+    import scipy.linalg as sla
+
+    from ..linear import _free, chain_matrices, motion_fixed_dofs
+    from ..model import load_model
+
+    K, M, nd = chain_matrices(body)
+    port = {p.name: p for p in load_model(model_path, list(overrides)).body.ports}
+    coupling = dict(port["small_eye"].coupling)
+    k, k_rot = np.asarray(coupling["stiffness"], float), np.asarray(coupling["rotational_stiffness"], float)
+    n = K.shape[0]
+    Kd, Md = np.zeros((n + 1, n + 1)), np.zeros((n + 1, n + 1))
+    Kd[:n, :n], Md[:n, :n], Md[n, n] = K, M, drive.m_p
+    node = {q.name: q.node for q in body.ports}
+    s = nd[node["small_eye"]]
+    for i in range(3):
+        Kd[s[i], s[i]] += k[i]
+        Kd[s[3 + i], s[3 + i]] += k_rot[i]
+    Kd[n, n] += k[1]
+    Kd[s[1], n] -= k[1]
+    Kd[n, s[1]] -= k[1]
+    free = _free(n + 1, motion_fixed_dofs(body))
+    w2, V = sla.eigh(Kd[np.ix_(free, free)], Md[np.ix_(free, free)])
+    out, mid = [], nd[node["mid_shank"]]
+    for j in np.argsort(w2):
+        f = float(np.sqrt(abs(w2[j])) / (2 * np.pi))
+        if f < 0.01:
+            continue
+        v = np.zeros(n + 1)
+        v[free] = V[:, j]
+        v /= np.abs(v).max()
+        out.append(DriveMode(f, tuple(float(x) for x in v[mid[:3]]), float(v[n])))
+        if len(out) == count:
+            break
+    return out
