@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from ffrf_fmu.examples import crank_drive as cd
+from ffrf_fmu.examples.crank_monolithic import monolithic
 from ffrf_fmu.master.ssp import write_ssp
 
 DRIVE = cd.CrankDrive()
@@ -29,8 +30,8 @@ def fmus(body, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def monolithic(body):
-    return {h: cd.monolithic(DRIVE, h, DURATION, body=body) for h in (H, 2 * H)}
+def mono(body):
+    return {h: monolithic(DRIVE, h, DURATION, body=body) for h in (H, 2 * H)}
 
 
 @pytest.fixture(scope="module")
@@ -61,12 +62,12 @@ def test_first_frequency_within_a_factor_3_of_the_crank(body):
     assert abs(axial.mid_shank[1]) > 10 * max(abs(axial.mid_shank[0]), abs(axial.mid_shank[2]))
 
 
-def test_monolithic_follows_the_slider_crank(monolithic):
+def test_monolithic_follows_the_slider_crank(mono):
     """The piston of the monolithic run against the rigid slider-crank x(theta) = r cos theta +
     sqrt(L^2 - r^2 sin^2 theta) - r - L: they differ by the elastic shortening of the drive, the pin spring's
     f / k plus the conrod's own between the eyes (about twice the big-eye-to-mid-shank stretch `axial`, the
     shank being uniform and the eyes stiff) and nothing else: bounded by 1.5 times the sum of their peaks."""
-    r = monolithic[H]
+    r = mono[H]
     assert not r.stopped
     th = r.angle
     rigid = DRIVE.r * np.cos(th) + np.sqrt(cd.L_EYES**2 - (DRIVE.r * np.sin(th)) ** 2) - DRIVE.r - cd.L_EYES
@@ -89,7 +90,7 @@ def test_engines_agree_to_round_off(runs):
             assert np.abs(x - y).max() < 1e-9 * np.abs(y).max(), (e, name)
 
 
-def test_cosimulation_against_the_monolithic_run(runs, monolithic, body):
+def test_cosimulation_against_the_monolithic_run(runs, mono, body):
     """Every engine against the monolithic run at the same step. The coupling's error is the piston's spring
     force held over H, a delay of H/2 on average: on a response of angular frequency w a phase error w H / 2,
     first order in H (docs/cosim.md). The fastest response the coupling carries is the drive's axial (piston)
@@ -97,9 +98,9 @@ def test_cosimulation_against_the_monolithic_run(runs, monolithic, body):
     reduce the error at least as first order does, with a margin (factor 0.6 instead of 0.5)."""
     w_ax = 2 * math.pi * next(m for m in cd.drive_modes(body, DRIVE) if abs(m.piston) > 0.5).frequency_hz
     bound = w_ax * H / 2
-    e1 = cd.deviation(runs["master"], monolithic[H])
+    e1 = cd.deviation(runs["master"], mono[H])
     for e in ("master", "libcosim", "ecos"):
-        d = cd.deviation(runs[e], monolithic[H])
+        d = cd.deviation(runs[e], mono[H])
         assert d.axial < bound and d.bending < bound, (e, d)
-    e2 = cd.deviation(runs["master@2H"], monolithic[2 * H])
+    e2 = cd.deviation(runs["master@2H"], mono[2 * H])
     assert e1.axial < 0.6 * e2.axial and e1.bending < 0.6 * e2.bending, (e1, e2)
