@@ -66,14 +66,16 @@ def test_monolithic_follows_the_slider_crank(mono):
     """The piston of the monolithic run against the rigid slider-crank x(theta) = r cos theta +
     sqrt(L^2 - r^2 sin^2 theta) - r - L: they differ by the elastic shortening of the drive, the pin spring's
     f / k plus the conrod's own between the eyes (about twice the big-eye-to-mid-shank stretch `axial`, the
-    shank being uniform and the eyes stiff) and nothing else: bounded by 1.5 times the sum of their peaks."""
+    shank being uniform and the eyes stiff) and nothing else: between 0.5 and 1.5 times the sum of their peaks
+    (measured 0.75 mm against 0.80 mm, 0.94). The crank's inertia loads bend the rod most (bending peak 9.6
+    times the axial one)."""
     r = mono[H]
     assert not r.stopped
     th = r.angle
     rigid = DRIVE.r * np.cos(th) + np.sqrt(cd.L_EYES**2 - (DRIVE.r * np.sin(th)) ** 2) - DRIVE.r - cd.L_EYES
     elastic = np.abs(r.pin_force).max() / 1e8 + 2 * np.abs(r.axial).max()  # k of models/conrod_crank.toml
     assert np.abs(rigid).max() > 0.9 * 2 * DRIVE.r  # the stroke is run (cos theta passes -1)
-    assert np.abs(r.piston - rigid).max() < 1.5 * elastic
+    assert 0.5 * elastic < np.abs(r.piston - rigid).max() < 1.5 * elastic
     assert np.abs(r.bending).max() > 3 * np.abs(r.axial).max() > 0  # the crank's inertia loads bend it most
 
 
@@ -95,7 +97,8 @@ def test_cosimulation_against_the_monolithic_run(runs, mono, body):
     force held over H, a delay of H/2 on average: on a response of angular frequency w a phase error w H / 2,
     first order in H (docs/cosim.md). The fastest response the coupling carries is the drive's axial (piston)
     mode, so the bound is w_ax H / 2 (0.104 at 3311 Hz and H = 1e-5), on both outputs; and halving H must
-    reduce the error at least as first order does, with a margin (factor 0.6 instead of 0.5)."""
+    reduce the error at least as first order does, with a margin (factor 0.6 instead of 0.5). Measured over
+    these 5 ms: 3.3e-2 axial, 5.1e-3 bending at 1e-5 s; 8.6e-2, 1.4e-2 at 2e-5 s (ratios 0.38, 0.36)."""
     w_ax = 2 * math.pi * next(m for m in cd.drive_modes(body, DRIVE) if abs(m.piston) > 0.5).frequency_hz
     bound = w_ax * H / 2
     e1 = cd.deviation(runs["master"], mono[H])
