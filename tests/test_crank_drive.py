@@ -107,3 +107,28 @@ def test_cosimulation_against_the_monolithic_run(runs, mono, body):
         assert d.axial < bound and d.bending < bound, (e, d)
     e2 = cd.deviation(runs["master@2H"], mono[2 * H])
     assert e1.axial < 0.6 * e2.axial and e1.bending < 0.6 * e2.bending, (e1, e2)
+
+
+def test_partner_laws_are_the_runtime_run_up():
+    """The crank's and the piston's copies of the crank angle (each slave script imports only the standard
+    library) are the runtime's Wu-Haug law (runtime/drives.py `haug_spinup`) to round-off, with its rate and
+    acceleration, so the gas force fires at the crank's top dead centres; the pin's acceleration is the
+    second derivative of its position (central differences, step 1e-8 s: truncation r w^4 h^2 / 12 ~ 1e-4 m/s^2
+    and round-off ~ 1e-18 m / h^2 ~ 1e-2 m/s^2, against the bound 1e-3 r w^2 = 250 m/s^2)."""
+    from ffrf_fmu.runtime.drives import evaluate
+
+    crank, piston = cd._laws()
+    for t in np.linspace(0.0, 6e-3, 61):
+        ref = evaluate("haug_spinup", {"omega": DRIVE.omega, "T": DRIVE.T}, t)
+        assert np.allclose(crank.crank_motion(t, DRIVE.omega, DRIVE.T), ref, rtol=1e-12, atol=1e-12 * DRIVE.omega / DRIVE.T)
+        assert piston.crank_angle(t, DRIVE.omega, DRIVE.T) == pytest.approx(ref[0], rel=1e-12, abs=1e-12)
+        h = 1e-8
+        r_m, r_0, r_p = (np.array(crank.pin_motion(s, DRIVE.r, DRIVE.omega, DRIVE.T)[0]) for s in (t - h, t, t + h))
+        a = np.array(crank.pin_motion(t, DRIVE.r, DRIVE.omega, DRIVE.T)[2])
+        if t > h:
+            assert np.allclose((r_p - 2 * r_0 + r_m) / h**2, a, rtol=0, atol=1e-3 * DRIVE.r * DRIVE.omega**2)
+    # the gas force: zero through the run-up, then a pulse after each TDC (peak F_max at 30 deg)
+    t_fire = (2 * math.pi + DRIVE.omega * DRIVE.T / 2) / DRIVE.omega  # theta = 2 pi after the run-up
+    assert piston.gas_force(0.5 * DRIVE.T, DRIVE.omega, DRIVE.T, DRIVE.F_max, DRIVE.width) == 0.0
+    peak = piston.gas_force(t_fire + DRIVE.width / 2 / DRIVE.omega, DRIVE.omega, DRIVE.T, DRIVE.F_max, DRIVE.width)
+    assert peak == pytest.approx(DRIVE.F_max, rel=1e-9)
