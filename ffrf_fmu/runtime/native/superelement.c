@@ -52,6 +52,7 @@ struct ffrf_se_work {
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
+    int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
 };
 
 #define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
@@ -96,6 +97,8 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     off += se_round(n * nc * sizeof(int));
     if (w) w->nz_count = (int *)(void *)(mem + off);
     off += se_round(nc * sizeof(int));
+    if (w) w->cols = (int *)(void *)(mem + off);
+    off += se_round(2 * ncv * sizeof(int));
     if (w) {
         w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
     }
@@ -843,15 +846,22 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
                 for (int j = 0; j < 3; j++)
                     Fy[i][col + j] = tmp[j];
             }
+        /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0;
+        for (int j = 0; j < ncv; j++) {
+            const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
+            if (gc < nf) {
+                cols[nk] = (int)gc;
+                locs[nk++] = j;
+            }
+        }
         for (int i = 0; i < nv + nc; i++) {
             const idx_t gr = i < nv ? newton_pos[vel[e][i]] : newton_pos[cfg[e][i - nv]];
             if (gr >= nf)
                 continue;
-            for (int j = 0; j < nc + nv; j++) {
-                const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
-                if (gc < nf)
-                    JT[gc][gr] += beta * Fy[i][j] + Fz[i][j];
-            }
+            const double *fy = Fy[i], *fz = Fz[i];
+            for (int t = 0; t < nk; t++)
+                JT[cols[t]][gr] += beta * fy[locs[t]] + fz[locs[t]];
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
