@@ -153,6 +153,53 @@ static int free_boundary(const ffrf_body *b, int e, idx_t *fb)
     return m;
 }
 
+/* The entries of the factorization store that ffrf_factor fills: the superelements' blocks and S. */
+size_t ffrf_factor_entries(const ffrf_body *b)
+{
+    const ffrf_dims *d = &b->dims;
+    const size_t ni = (size_t)d->n_int, nB = (size_t)d->n_bnd;
+    idx_t fb[6 * 64];
+    size_t blocks = 0;
+    for (int e = 0; e < d->E; e++)
+        blocks += ni * ni + 2 * ni * (size_t)free_boundary(b, e, fb);
+    return blocks + nB * nB;
+}
+
+/* Zero the entries of JT that the structure allows (those ffrf_factor reads: J[I_e, I_e], J[I_e, B_e],
+ * J[B_e, I_e], J[B, B]); every other entry is zero by the structure and never written, so this is the
+ * memset of the whole nf x nf matrix at the cost of its blocks. */
+void ffrf_factor_clear(const ffrf_body *b, double *JT)
+{
+    const ffrf_dims *d = &b->dims;
+    const int nf = d->nf, ni = d->n_int, nB = d->n_bnd;
+    const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
+    idx_t fb[6 * 64];
+    for (int j = 0; j < nB; j++)
+        for (int i = 0; i < nB; i++)
+            J(B[i], B[j]) = 0.0;
+    for (int e = 0; e < d->E; e++) {
+        const idx_t *Ie = I + (size_t)e * ni;
+        const int m = free_boundary(b, e, fb);
+        for (int j = 0; j < ni; j++)
+            for (int i = 0; i < ni; i++)
+                J(Ie[i], Ie[j]) = 0.0;
+        for (int k = 0; k < m; k++)
+            for (int i = 0; i < ni; i++) {
+                J(Ie[i], B[fb[k]]) = 0.0;
+                J(B[fb[k]], Ie[i]) = 0.0;
+            }
+    }
+}
+
+/* 1 when every value is finite: x - x is 0 for a finite x, NaN for an infinite or NaN one. */
+static int all_finite(const double *x, size_t n)
+{
+    double s = 0.0;
+    for (size_t i = 0; i < n; i++)
+        s += x[i] - x[i];
+    return s == 0.0;
+}
+
 int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv)
 {
     const ffrf_dims *d = &b->dims;
@@ -167,6 +214,8 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv)
     for (int j = 0; j < nB; j++) /* S = D, transposed */
         for (int i = 0; i < nB; i++)
             S[(size_t)j * nB + i] = J(B[i], B[j]);
+    if (!all_finite(S, (size_t)nB * nB))
+        return -1;
     for (int e = 0; e < d->E; e++) {
         const idx_t *Ie = I + (size_t)e * ni;
         const int m = free_boundary(b, e, fb);
@@ -174,16 +223,17 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv)
         for (int j = 0; j < ni; j++)
             for (int i = 0; i < ni; i++)
                 A[(size_t)j * ni + i] = J(Ie[i], Ie[j]);
-        if (ffrf_lu_factor(A, piv + (size_t)e * ni, ni) != 0)
-            return -1;
         for (int k = 0; k < m; k++) {
             double *w = W + (size_t)k * ni, *r = R + (size_t)k * ni;
             for (int i = 0; i < ni; i++) {
                 w[i] = J(Ie[i], B[fb[k]]);
                 r[i] = J(B[fb[k]], Ie[i]);
             }
-            ffrf_lu_solve(A, piv + (size_t)e * ni, w, ni);
         }
+        if (!all_finite(A, (size_t)ni * ni + 2 * (size_t)m * ni) || ffrf_lu_factor(A, piv + (size_t)e * ni, ni) != 0)
+            return -1;
+        for (int k = 0; k < m; k++)
+            ffrf_lu_solve(A, piv + (size_t)e * ni, W + (size_t)k * ni, ni);
         for (int k = 0; k < m; k++) /* S[fb_k, fb_l] -= R_e[k] . W_e[l] */
             for (int l = 0; l < m; l++) {
                 double s = 0.0;

@@ -9,9 +9,13 @@ int ffrf_lu_factor(double *aT, int *piv, int n);
 void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
 
 /* ---- factor.c: the iteration matrix factored by its structure (superelements, then nodes) ---- */
-/* The factors of JT [nf][nf] (transposed) into store [nf * nf] and piv [nf]: 0, or -1 when a pivot is
- * exactly zero (not factorable). */
+/* The factors of JT [nf][nf] (transposed) into store [nf * nf] and piv [nf]: 0, or -1 when an entry it reads is
+ * not finite or a pivot is exactly zero (not factorable). */
 int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv);
+/* The entries of store that ffrf_factor fills (its leading part; the rest is never read). */
+size_t ffrf_factor_entries(const ffrf_body *b);
+/* JT's structural entries (all that ffrf_factor reads) set to zero: a refresh's start. */
+void ffrf_factor_clear(const ffrf_body *b, double *JT);
 /* x <- J^-1 x in the Newton order, from ffrf_factor's store and piv. */
 void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, double *x);
 

@@ -217,23 +217,17 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
             kept = 0;
             use_stale = stale && it == 1 && fabs(lu_meta[1] - beta) <= 1e-6 * beta;
             if (use_stale) { /* the dropped matrix, compared with the new one after the solve */
-                memcpy(L->luT_stale, L->luT, (size_t)nf * nf * sizeof(double));
+                memcpy(L->luT_stale, L->luT, ffrf_factor_entries(b) * sizeof(double)); /* the store's filled part */
                 memcpy(L->piv_stale, L->piv, (size_t)nf * sizeof(int));
                 for (int i = 0; i < 9; i++)
                     ref_stale[i] = lu_meta[2 + i];
             }
             /* the new matrix replaces the factorization: the version tells a caller holding a copy of
              * the old one (a rollback snapshot) that it is not this one any more */
-            int ok = 1;
-            for (size_t i = 0; i < (size_t)nf * nf; i++) {
-                double v = L->JT[i];
-                if (!(v - v == 0.0))
-                    ok = 0;
-            }
             L->version++;
             if (it + offset <= 64)
                 L->refreshed |= (uint64_t)1 << (it + offset - 1);
-            int status = ok ? ffrf_factor(b, L->JT, L->luT, L->piv) : -1;
+            int status = ffrf_factor(b, L->JT, L->luT, L->piv); /* -1 also when an entry is not finite */
             if (status != 0) {
                 lu_meta[0] = 0.0;
                 info[0] = FFRF_NOT_FACTORED;

@@ -21,6 +21,7 @@
 
 #include "superelement.h"
 #include "so3.h"
+#include "factor.h"
 
 /* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
  * (r: rows of vk_a, n2: n_w2). Bound once to a block that body.c allocates at creation. */
@@ -51,6 +52,7 @@ struct ffrf_se_work {
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
+    int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
 };
 
 #define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
@@ -95,6 +97,8 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     off += se_round(n * nc * sizeof(int));
     if (w) w->nz_count = (int *)(void *)(mem + off);
     off += se_round(nc * sizeof(int));
+    if (w) w->cols = (int *)(void *)(mem + off);
+    off += se_round(2 * ncv * sizeof(int));
     if (w) {
         w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
     }
@@ -815,7 +819,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     const double (*Fz)[ncv] = (const double (*)[ncv])Fz_;
     memset(F, 0, sizeof(double) * (size_t)ny);
     if (jac) {
-        memset(JT_, 0, sizeof(double) * (size_t)nf * (size_t)nf);
+        ffrf_factor_clear(b, JT_); /* the structural entries: the others are zero and never written */
         for (int r = 0; r < N + E; r++)
             ffrf_tangent(theta[r], &T[r][0][0]);
     }
@@ -842,15 +846,22 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
                 for (int j = 0; j < 3; j++)
                     Fy[i][col + j] = tmp[j];
             }
+        /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0;
+        for (int j = 0; j < ncv; j++) {
+            const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
+            if (gc < nf) {
+                cols[nk] = (int)gc;
+                locs[nk++] = j;
+            }
+        }
         for (int i = 0; i < nv + nc; i++) {
             const idx_t gr = i < nv ? newton_pos[vel[e][i]] : newton_pos[cfg[e][i - nv]];
             if (gr >= nf)
                 continue;
-            for (int j = 0; j < nc + nv; j++) {
-                const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
-                if (gc < nf)
-                    JT[gc][gr] += beta * Fy[i][j] + Fz[i][j];
-            }
+            const double *fy = Fy[i], *fz = Fz[i];
+            for (int t = 0; t < nk; t++)
+                JT[cols[t]][gr] += beta * fy[locs[t]] + fz[locs[t]];
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
