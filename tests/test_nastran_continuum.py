@@ -169,8 +169,7 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
                        [], "inverted or not convex|degenerate"),
     "CTRIA3-repeated": ([(TRIA, "CTRIA3   8       4       4       3       4")], [], r"repeated|nodes=\[4, 3, 4\]"),
     "PSHELL": ([("PSHELL   4       1      .25      1               1", "PSHELL,4,1,.25")], [], "MID1 = MID2"),
-    "PCOMP": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,2,0.4\n")], [("MAT1     1", "MAT1,2,1.0+7,,.3,.1\nMAT1     1")],
-              "only laminates of one MAT1"),
+    "PCOMP": ([("PCOMP,6,,,,,,,", "PCOMP,6,,,,,,,BEND")], [], "LAM = BEND not supported"),
     "CHEXA": ([("CHEXA    1       2       2       3       4", "CHEXA    1       2       3       2       4")], [],
               "folded or degenerate"),
     "CPENTA": ([("10      11      9\nCPENTA   3", "10      11      10\nCPENTA   3")], [], "repeated"),
@@ -180,8 +179,8 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
     "SET1": ([], [("SPCADD", "SET1,3,1,2,99\nSPCADD")], r"GRID \[99\] not in the deck"),
     "RBE2": ([], [("SPCADD", "RBE2,99,13,123,22\nSPCADD")], "also fixed by an SPC"),
     "RBE3": ([], [("SPCADD", "RBE3,98,,13,123,1.0,123456,9,10,\n,11,12\nSPCADD")], "only 123"),
-    "MAT8": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,8,0.4\n")], [("MAT1     1", "MAT8,8,1.0+7,1.0+6,.3,1.0+6,,,.1\nMAT1     1")],
-             r"cards not supported .*MAT8"),
+    "MAT8": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,8,0.4\n")], [("MAT1     1", "MAT8,8,1.0+7,1.0+6,.3,,,,.1\nMAT1     1")],
+             "not positive definite"),
 }
 
 

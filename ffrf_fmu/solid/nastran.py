@@ -9,7 +9,7 @@ Supported: GRID (positions through CORD2R/C/S by pyNastran's get_position; displ
 CD must be 0), CBAR and CBEAM (orientation vector X or G0; pin flags, offsets WA/WB and warping
 points refused), CROD (axial + torsion), PBAR, PBARL, PBEAM (constant section), PBEAML (section
 properties A, I1, I2, J as pyNastran computes them; I12 must be 0), PROD, MAT1, CONM2 (mass,
-offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP (one MAT1), CHEXA,
+offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP + MAT8 (laminates), CHEXA,
 CPENTA, CTETRA, PSOLID, SET1 (node sets), SPC/SPC1/SPCADD (zero values only), PARAM WTMASS (scales
 M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC, RBE2 and RBE3
 (eliminated: solid/nastran_rigid.py). Any other card is refused, named by file and line.
@@ -345,7 +345,8 @@ def read_nastran(path: str) -> NastranFE:
         else:  # pragma: no cover - _check_cards refuses other elements first
             _refuse(path, elem.type, eid, "element not supported")
     for kind, elems in solids.items():
-        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes)
+        extra = {"coords": model.coords} if kind == "shell" else {}  # MCID frames of the shells
+        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes, **extra)
 
     for mid, mass in sorted(model.masses.items()):
         if mass.type != "CONM2":  # pragma: no cover - refused by _check_cards
