@@ -59,8 +59,9 @@ def test_unsymmetric_mixed_laminate_against_calculix_s8r():
     MITC4 on 16 x 12 and 32 x 24 against ccx's composite S8R (C3D20R bricks through the thickness)
     on the 16 x 12 cells. Measured: within -0.03 .. +0.29 % (benchmarks/laminate_plate.py ccx); the
     parts of it: MITC4's extrapolation remainder (16/32 against 32/64: up to 0.13 %), ccx's E3, nu13,
-    nu23, which the plate theory does not have (E3 = 2 E2 moves ccx by 0.03-0.07 %), and ccx's own
-    discretization (8 x 6 -> 16 x 12 moves S8R by 0.1-1.3 %, 16 x 12 -> 24 x 18 by < 0.1 %). Bound
+    nu23, which the plate theory does not have (E3 = 2 E2 moves ccx by 0.01-0.06 %), and ccx's own
+    discretization (8 x 6 -> 16 x 12 moves S8R by 0.01-1.3 %; 16 x 13 -> 24 x 19 on a 1 x 0.8 plate by
+    < 0.05 %). Bound
     0.5 %. Raw 16 x 12 MITC4 is 0.5-3.7 % above S8R (its O(h^2) error, larger for the laminate's
     short waves across the stiff fibre). Fails if `ccx` is not on PATH (as tests/test_shells.py)."""
     a, b, h = 1.0, 0.75, 0.01
@@ -97,7 +98,7 @@ def test_theta_and_mcid_turn_the_material_axis(tmp_path):
     h = 0.002
     mats = [MAT8]
     plies = lambda t1, t2: ["PCOMP,1,,,,,,,", f",8,{h / 2!r},{t1}", f",8,{h / 2!r},{t2}"]
-    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    c, s = float(np.cos(np.radians(30))), float(np.sin(np.radians(30)))
     cord = [f"CORD2R,5,,0.,0.,0.,0.,0.,1.", f",{c!r},{s!r},0."]
     decks = {"ply": plate_deck(1, 1, 4, 4, plies(30.0, -60.0), mats),
              "theta": plate_deck(1, 1, 4, 4, plies(0.0, -90.0), mats, theta=30.0),
@@ -137,7 +138,7 @@ def test_laminate_body_mass_centre_and_inertia(tmp_path, coupmass):
     t = np.array([0.6 * h, 0.4 * h])
     rho = np.array([PLY.rho, 2700.0])
     z = -0.3 * h + np.concatenate([[0.0], np.cumsum(t)])
-    pcomp = [f"PCOMP,1,{z[0]!r},{nsm},,,,,", f",8,{t[0]!r},0.", f",1,{t[1]!r},0."]
+    pcomp = [f"PCOMP,1,{float(z[0])!r},{nsm},,,,,", f",8,{float(t[0])!r},0.", f",1,{float(t[1])!r},0."]
     deck = _write(tmp_path, plate_deck(a, b, 3, 2, pcomp, [MAT8, MAT1], coupmass=coupmass))
     body = nastran_body(deck)
     m0 = rho @ t + nsm

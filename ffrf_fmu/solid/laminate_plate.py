@@ -60,7 +60,7 @@ def plate_deck(a: float, b: float, nx: int, ny: int, pcomp: list[str], materials
                                                                            f"PARAM,COUPMASS,{coupmass}"]
     lines += list(pcomp) + list(materials) + list(extra)
     lines += [f"GRID,{k + 1},,{float(xx)!r},{float(yy)!r},0.0" for k, (xx, yy) in enumerate(zip(x.ravel(), y.ravel()))]
-    th = "" if theta is None else f",{theta!r}"
+    th = "" if theta is None else f",{float(theta)!r}"
     for j in range(ny):
         for i in range(nx):
             g = j * (nx + 1) + i + 1
