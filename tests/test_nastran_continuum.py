@@ -169,8 +169,7 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
                        [], "inverted or not convex|degenerate"),
     "CTRIA3-repeated": ([(TRIA, "CTRIA3   8       4       4       3       4")], [], r"repeated|nodes=\[4, 3, 4\]"),
     "PSHELL": ([("PSHELL   4       1      .25      1               1", "PSHELL,4,1,.25")], [], "MID1 = MID2"),
-    "PCOMP": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,2,0.4\n")], [("MAT1     1", "MAT1,2,1.0+7,,.3,.1\nMAT1     1")],
-              "only laminates of one MAT1"),
+    "PCOMP": ([("PCOMP,6,,,,,,,", "PCOMP,6,,,,,,,BEND")], [], "LAM = BEND not supported"),
     "CHEXA": ([("CHEXA    1       2       2       3       4", "CHEXA    1       2       3       2       4")], [],
               "folded or degenerate"),
     "CPENTA": ([("10      11      9\nCPENTA   3", "10      11      10\nCPENTA   3")], [], "repeated"),
@@ -180,8 +179,8 @@ MALFORMED = {  # card -> (geom.inc edits, main deck edits, what the message says
     "SET1": ([], [("SPCADD", "SET1,3,1,2,99\nSPCADD")], r"GRID \[99\] not in the deck"),
     "RBE2": ([], [("SPCADD", "RBE2,99,13,123,22\nSPCADD")], "also fixed by an SPC"),
     "RBE3": ([], [("SPCADD", "RBE3,98,,13,123,1.0,123456,9,10,\n,11,12\nSPCADD")], "only 123"),
-    "MAT8": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,8,0.4\n")], [("MAT1     1", "MAT8,8,1.0+7,1.0+6,.3,1.0+6,,,.1\nMAT1     1")],
-             r"cards not supported .*MAT8"),
+    "MAT8": ([(",1,0.3\n,1,0.4\n", ",1,0.3\n,8,0.4\n")], [("MAT1     1", "MAT8,8,1.0+7,1.0+6,.3,,,,.1\nMAT1     1")],
+             "not positive definite"),
 }
 
 
@@ -333,3 +332,36 @@ def sp_diag(A):
     import scipy.sparse as sp
 
     return sp.diags(A.diagonal())
+
+
+def _with_cd(tmp_path, extra=()):
+    """The mixed deck with the displacement frame CD = 7 (a CORD2C about a tilted axis) on every GRID
+    but 18-21, the GA ends of the bars (an orientation vector X in a CD frame is refused)."""
+    deck = DECK.read_text().splitlines()
+    out = []
+    for ln in deck:
+        if ln.startswith("GRID") and int(ln[8:16]) not in (18, 19, 20, 21):
+            ln = ln.ljust(48)[:48] + "       7"
+        out.append(ln)
+        if ln.startswith("SPCADD"):
+            out += ["CORD2C,7,,0.3,-0.2,0.1,1.3,0.5,2.1", ",2.0,-1.0,0.4", *extra]
+    return _mixed(tmp_path, bulk_edit=[(DECK.read_text(), "\n".join(out) + "\n")])
+
+
+def test_grid_displacement_frames_keep_the_basic_dofs(tmp_path):
+    """The GRIDs of the mixed deck in a cylindrical displacement frame CD (a CORD2C about a tilted
+    axis; all but the bars' GA ends): the dofs stay in the basic frame (solid/nastran_frames.py), so K, M and the frequencies are
+    the CD = 0 deck's (K, M exactly; the deck's SPC1 123456 and 456 lists are frame-invariant); an SPC1
+    of component 3 alone on a CD GRID (a radial constraint) is refused, naming the SPC1 set's first
+    line and the GRID (which shows the CD was read)."""
+    base, fe = read_nastran(DECK), read_nastran(_with_cd(tmp_path))
+    assert abs(fe.K - base.K).max() == 0.0 and abs(fe.M - base.M).max() == 0.0
+    np.testing.assert_allclose(fe.frequencies(3), base.frequencies(3), rtol=1e-12)
+    (tmp_path / "bad").mkdir()
+    bad = _with_cd(tmp_path / "bad")
+    text = bad.read_text().replace("SPC1     123456     456", "SPC1     123456       3", 1)
+    bad.write_text(text)
+    with pytest.raises(NastranError) as err:
+        read_nastran(bad)
+    msg = str(err.value)
+    assert re.search(r"deck\.bdf:\d+: SPC1 .*SPC1 123456: components 3 on GRID 5, whose displacement frame is CD = 7", msg, re.S), msg

@@ -5,11 +5,11 @@ scipy.sparse K and M on dofs node_index * 6 + i (i = T1 T2 T3 R1 R2 R3, global a
 assembled as node-block mass and mass points (solid/nastran_mass.py), kept in NastranFE for the body
 (solid/nastran_body.py); shells and solids are solid/nastran_continuum.py's.
 
-Supported: GRID (positions through CORD2R/C/S by pyNastran's get_position; displacement frame
-CD must be 0), CBAR and CBEAM (orientation vector X or G0; pin flags, offsets WA/WB and warping
+Supported: GRID (positions through CORD2R/C/S by pyNastran's get_position; displacement frames
+CD: the dofs stay in the basic frame, nastran_frames.py), CBAR and CBEAM (orientation vector X or G0; pin flags, offsets WA/WB and warping
 points refused), CROD (axial + torsion), PBAR, PBARL, PBEAM (constant section), PBEAML (section
 properties A, I1, I2, J as pyNastran computes them; I12 must be 0), PROD, MAT1, CONM2 (mass,
-offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP (one MAT1), CHEXA,
+offset, rotary inertia about the centre of mass), CQUAD4, CTRIA3, PSHELL, PCOMP + MAT8 (laminates), CHEXA,
 CPENTA, CTETRA, PSOLID, SET1 (node sets), SPC/SPC1/SPCADD (zero values only), PARAM WTMASS (scales
 M), COUPMASS (> 0 coupled mass, else Nastran's default lumped mass), AUTOSPC, RBE2 and RBE3
 (eliminated: solid/nastran_rigid.py). Any other card is refused, named by file and line.
@@ -38,6 +38,7 @@ from ..section import Section
 from . import MassPoints
 from .nastran_continuum import SHELL_CARDS, SOLID_CARDS, add_shells, add_solids, solid_kind
 from .nastran_deck import locate_card
+from .nastran_frames import check_displacement_frames
 from .nastran_mass import Assembly
 from .nastran_rigid import RIGID_CARDS, rigid_elements
 
@@ -276,9 +277,8 @@ def read_nastran(path: str) -> NastranFE:
     path = os.fspath(path)
     model = _read(path)
     _check_cards(path, model)
+    check_displacement_frames(lambda card, i, why: _refuse(path, card, i, why), model)  # dofs in basic
     for nid, node in model.nodes.items():
-        if node.cd not in (0, None):
-            _refuse(path, "GRID", nid, f"displacement frame CD = {node.cd} not supported (CD 0 only)")
         if node.ps:
             _refuse(path, "GRID", nid, "GRID PS (permanent SPC) not supported")
     node_ids = np.array(sorted(model.nodes), dtype=int)
@@ -345,7 +345,8 @@ def read_nastran(path: str) -> NastranFE:
         else:  # pragma: no cover - _check_cards refuses other elements first
             _refuse(path, elem.type, eid, "element not supported")
     for kind, elems in solids.items():
-        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes)
+        extra = {"coords": model.coords} if kind == "shell" else {}  # MCID frames of the shells
+        (add_shells if kind == "shell" else add_solids)(asm, refuse, X, index, elems, kind, lumped, notes, **extra)
 
     for mid, mass in sorted(model.masses.items()):
         if mass.type != "CONM2":  # pragma: no cover - refused by _check_cards

@@ -2,13 +2,21 @@
 split of solid/nastran_mass.py on the deck's 6-dof nodes.
 
 Shells: CQUAD4 by solid/shell.py's MITC4 element (in blocks: solid/shell_batch.py) with the
-thickness of its PSHELL, or of a PCOMP whose plies are all of one MAT1 (laid from Z0 = -T/2: the
-laminate is then the homogeneous plate of thickness T = sum t_i, A = E T/(1 - nu^2) [..],
-B = 0, D = T^2/12 A, the same as a PSHELL). CTRIA3 by the same element with its third corner
+thickness of its PSHELL, or the laminate of its PCOMP by classical laminate theory
+(solid/shell_section.py: plies of MAT1 and MAT8 at their angles THETA_i from the element's material
+axis, from Z0; LAM blank or SYM; A, B, D, the transverse shear H and the inertia m0, m1, m2). The
+element's material axis (MSC QRG CQUAD4/CTRIA3): the side G1 -> G2 turned by the element's THETA
+about the normal, or the x axis of the rectangular frame MCID projected on the element's plane;
+each element's section is turned from that axis to the MITC4 frame (shell_section.rotate_sections).
+CTRIA3 by the same element with its third corner
 repeated (the collapsed MITC4: one rho t N_i N_j and stiffness of a quad whose 4th corner sits on
 the 3rd). Mass: coupled (COUPMASS > 0) rho t int N_i N_j on the translations and the fibres' rotary
 inertia as mass points (solid/shell_body.py: w = rho t det J_g, N = (t / sqrt 12) N(xi_g) (-n~));
-lumped (Nastran's default) rho t A / k at each of the k corners, no rotary inertia.
+lumped (Nastran's default) rho t A / k at each of the k corners, no rotary inertia. A laminate's
+coupled mass: m0 N_i N_j, the rotary inertia about its centre of mass m2 - m1^2 / m0 as the fibre
+points at z = sqrt((m2 - m1^2 / m0) / m0) (weight m0), and for m1 != 0 the offset of that centre,
+z_c = m1 / m0, as a point on all dofs (N (I, -z_c n~), weight m0) less its translations (weight -m0):
+the three give m0 |u0|^2 - 2 m1 u0 . (n~ theta) + m2 |n~ theta|^2 = int rho |u0 - z n~ theta|^2 dz.
 
 Solids: CHEXA (8, 20 nodes), CPENTA (6), CTETRA (4, 10) with PSOLID: scikit-fem's reference elements
 (ElementHex1, ElementHexS2, ElementWedge1, ElementTetP1, ElementTetP2; their shape functions at the
@@ -28,9 +36,11 @@ import numpy as np
 
 from .mesh import Material, lame
 from .shell import _GAUSS, _shape, element_frame, element_matrices
-from .shell_batch import BLOCK, element_frames, local_matrices, to_global
+from .shell_batch import BLOCK, SectionBlock, element_frames, local_matrices, to_global
+from .shell_section import Laminate, Orthotropic, Ply, isotropic_ply, rotate_sections
 
-SHELL_CARDS = ("CQUAD4", "CTRIA3", "PSHELL", "PCOMP")
+SHELL_CARDS = ("CQUAD4", "CTRIA3", "PSHELL", "PCOMP", "MAT8")
+PYNASTRAN_BLANK_G = 1e8  # pyNastran's value for a blank MAT8 G1Z/G2Z (Nastran: infinite)
 SOLID_CARDS = ("CHEXA", "CPENTA", "CTETRA", "PSOLID")
 TS_T = 0.833333  # Nastran's default TS/T (pyNastran's too); shell.py's k = 5/6
 
@@ -82,27 +92,89 @@ def shell_property(refuse, prop, notes=None):
             refuse("PSHELL", prop.pid, f"thickness T = {prop.t} must be > 0")
         return _material(refuse, prop.mid1_ref, "PSHELL", prop.pid, notes), float(prop.t)
     if prop.type == "PCOMP":
-        mids, t = list(prop.mids), np.asarray(prop.thicknesses, dtype=float)
-        if len(set(mids)) != 1 or prop.mids_ref[0].type != "MAT1":
-            refuse("PCOMP", prop.pid, f"plies of materials {mids} ({', '.join(m.type for m in prop.mids_ref)}): "
-                   "only laminates of one MAT1 are supported (classical laminate theory of MAT8 or mixed "
-                   "plies is not implemented)")
-        T = float(t.sum())
-        if prop.lam not in (None, "", "BLANK") or abs(prop.z0 + T / 2) > 1e-9 * T or prop.nsm:
-            refuse("PCOMP", prop.pid, f"LAM = {prop.lam}, Z0 = {prop.z0}, NSM = {prop.nsm}: only LAM blank, "
-                   f"Z0 = -T/2 = {-T / 2:g} and NSM = 0 are supported")
-        if np.any(t <= 0):
-            refuse("PCOMP", prop.pid, f"ply thicknesses {t.tolist()} must be > 0")
-        return _material(refuse, prop.mids_ref[0], "PCOMP", prop.pid, notes), T
+        return laminate(refuse, prop, notes), None
     refuse(prop.type, prop.pid, "not a shell property (PSHELL, PCOMP)")
 
 
-def _shell_element(asm, refuse, index, elem, notes):
-    """(corners q (4,), thickness, Material) of one CQUAD4 or CTRIA3 (third corner repeated), checked."""
+def _ply_material(refuse, mat, pid, notes):
+    """The Orthotropic ply of a PCOMP's MAT1 or MAT8 (shell_section.py)."""
+    if mat.type == "MAT1":
+        return isotropic_ply(_material(refuse, mat, "PCOMP", pid, notes))
+    if mat.type != "MAT8":
+        refuse("PCOMP", pid, f"ply material {mat.type} {mat.mid} not supported (MAT1, MAT8)")
+    g = []
+    for name, value in (("G1Z", mat.g1z), ("G2Z", mat.g2z)):
+        if value in (None, PYNASTRAN_BLANK_G):
+            if notes is not None:
+                notes.add(f"MAT8 {mat.mid}: {name} blank (Nastran: shear rigid; pyNastran gives 1e8); here "
+                          f"G12 = {mat.g12:g} (MITC4 needs a finite transverse shear; thin plates do not feel it)")
+            value = mat.g12
+        g.append(float(value))
+    ply = Orthotropic(float(mat.e11), float(mat.e22), float(mat.nu12 or 0.0), float(mat.g12 or 0.0), g[0], g[1],
+                      float(mat.rho or 0.0))
+    try:
+        ply.Q()
+    except ValueError as err:
+        refuse("MAT8", mat.mid, str(err))
+    if min(g) <= 0:
+        refuse("MAT8", mat.mid, f"G1Z = {g[0]:g}, G2Z = {g[1]:g} must be > 0")
+    return ply
+
+
+def laminate(refuse, prop, notes=None) -> Laminate:
+    """The Laminate of a PCOMP (module doc): plies from the bottom, LAM blank (as listed) or SYM (the
+    listed plies are the lower half, bottom to centre, mirrored above), Z0 (pyNastran: -T/2 when blank)."""
+    lam = (prop.lam or "").strip().upper()
+    if lam not in ("", "BLANK", "SYM"):
+        refuse("PCOMP", prop.pid, f"LAM = {prop.lam} not supported (blank or SYM; MEM, BEND, SMEAR, SMCORE "
+               "change which stiffness the plies give)")
+    mats = {}
+    plies = []
+    for mat, t, theta in zip(prop.mids_ref, prop.thicknesses, prop.thetas):
+        if t is None or t <= 0:
+            refuse("PCOMP", prop.pid, f"ply thicknesses {list(prop.thicknesses)} must be > 0")
+        if mat.mid not in mats:
+            mats[mat.mid] = _ply_material(refuse, mat, prop.pid, notes)
+        plies.append(Ply(mats[mat.mid], float(t), float(theta or 0.0)))
+    if lam == "SYM":
+        plies = plies + plies[::-1]
+    T = float(sum(p.thickness for p in plies))
+    z0 = float(prop.z0) if prop.z0 is not None else -T / 2
+    return Laminate(tuple(plies), z0, float(prop.nsm or 0.0))
+
+
+def material_angle(refuse, elem, model_coords, T, X):
+    """Angle [rad] from the element frame's e1 (rows of T: e1, e2, e3) to the element's material x axis
+    (module doc) for corners X (k, 3) in the deck's order."""
+    tm = elem.theta_mcid
+    if isinstance(tm, (int, np.integer)) and not isinstance(tm, bool):
+        coord = model_coords.get(int(tm)) if model_coords is not None else None
+        if coord is None or coord.type not in ("CORD2R", "CORD1R"):
+            refuse(elem.type, elem.eid, f"MCID = {tm}: a rectangular frame (CORD2R) is needed for the material "
+                   f"axis, got {getattr(coord, 'type', 'none')}")
+        x = np.asarray(coord.beta(), dtype=float)[0]  # its x axis in the basic frame
+        theta = 0.0
+    else:
+        x = X[1] - X[0]
+        theta = np.radians(float(tm or 0.0))
+    a, b = x @ T[0], x @ T[1]
+    if np.hypot(a, b) <= 1e-9 * np.linalg.norm(x):
+        refuse(elem.type, elem.eid, f"MCID = {tm}: its x axis is normal to the element")
+    return float(np.arctan2(b, a) + theta)
+
+
+def _shell_element(asm, refuse, index, elem, notes, cache):
+    """(corners q (4,), thickness, Material or Laminate) of one CQUAD4 or CTRIA3 (third corner
+    repeated), checked."""
     nodes = _nodes(refuse, index, elem)
     if elem.zoffset:
         refuse(elem.type, elem.eid, f"ZOFFS = {elem.zoffset} not supported")
-    mat, t = shell_property(refuse, elem.pid_ref, notes)
+    prop = elem.pid_ref
+    if (prop.type, prop.pid) not in cache:
+        cache[prop.type, prop.pid] = shell_property(refuse, prop, notes)
+    mat, t = cache[prop.type, prop.pid]
+    if t is None:  # a laminate
+        t = mat.thickness
     corner_t = [getattr(elem, f"T{k}") for k in range(1, len(nodes) + 1)]
     if any(c is not None and abs(c - (t if elem.tflag == 0 else 1.0)) > 1e-9 * t for c in corner_t):
         refuse(elem.type, elem.eid, f"corner thicknesses T1.. = {corner_t} (TFLAG {elem.tflag}) differ "
@@ -111,10 +183,12 @@ def _shell_element(asm, refuse, index, elem, notes):
     return (nodes if len(nodes) == 4 else nodes[[0, 1, 2, 2]]), t, mat
 
 
-def add_shells(asm, refuse, X, index, elems, kind, lumped: bool, notes=None):
+def add_shells(asm, refuse, X, index, elems, kind, lumped: bool, notes=None, coords=None):
     """CQUAD4 and CTRIA3 into the Assembly asm (module doc), by shell_batch.py's MITC4 in blocks of one
-    material (an element it refuses is found and named with shell.py's one-element version)."""
-    rows = [_shell_element(asm, refuse, index, elem, notes) for elem in elems]
+    material or laminate (an element it refuses is found and named with shell.py's one-element
+    version); coords: the deck's coordinate frames (pyNastran model.coords) for MCID."""
+    cache = {}
+    rows = [_shell_element(asm, refuse, index, elem, notes, cache) for elem in elems]
     groups = {}
     for k, (q, t, mat) in enumerate(rows):
         groups.setdefault(mat, []).append(k)
@@ -124,28 +198,45 @@ def add_shells(asm, refuse, X, index, elems, kind, lumped: bool, notes=None):
         for s in range(0, len(members), BLOCK):
             ks = members[s : s + BLOCK]
             Q, t = np.array([rows[k][0] for k in ks]), np.array([rows[k][1] for k in ks])
+            sections = None
             try:
                 T, xy = element_frames(X[Q])
-                Ke, _ = local_matrices(xy, t, mat)
+                if isinstance(mat, Laminate):
+                    sec = mat.section()
+                    angle = np.array([material_angle(refuse, elems[k], coords, T[i], X[Q[i]])
+                                      for i, k in enumerate(ks)])
+                    sections = SectionBlock(*rotate_sections(sec, angle), np.tile(sec.inertia, (len(ks), 1)))
+                Ke, _ = local_matrices(xy, t, mat if sections is None else Material(1.0, 0.0, 0.0), sections=sections)
             except ValueError:
                 for k in ks:  # name the element
                     try:
-                        element_matrices(element_frame(X[rows[k][0]])[1], rows[k][1], mat)
+                        element_matrices(element_frame(X[rows[k][0]])[1], rows[k][1], Material(1.0, 0.3, 0.0))
                     except ValueError as exc:
                         refuse(elems[k].type, elems[k].eid, str(exc))
                 raise
             asm.stiffness((6 * Q[:, :, None] + np.arange(6)).reshape(len(ks), 24), to_global(Ke, T))
-            w = mat.rho * t[:, None] * np.linalg.det(np.einsum("grk,ekj->egrj", dN, xy))  # (e, g)
+            m0, m1, m2 = (mat.rho * t, 0.0, None) if sections is None else sec.inertia
+            w = np.broadcast_to(np.asarray(m0, dtype=float), (len(ks),))[:, None] * np.linalg.det(np.einsum("grk,ekj->egrj", dN, xy))  # (e, g)
             if lumped:  # w_e / k on each of the k distinct corners (a triangle's 4th is its 3rd)
                 share = np.where(Q[:, 3] == Q[:, 2], 1 / 3, 1 / 4)[:, None] * np.array([1, 1, 1, 0]) \
                     + np.where(Q[:, 3] == Q[:, 2], 0, 1 / 4)[:, None] * np.array([0, 0, 0, 1])
                 asm.node_mass(Q, w.sum(axis=1)[:, None, None] * np.eye(4) * share[:, None, :])
                 continue
             asm.node_mass(Q, np.einsum("eg,gi,gj->eij", w, N, N))
+            if not np.any(w):
+                continue
             nx = -np.stack([skew_of(n) for n in T[:, 2]])  # (e, 3, 3): -n~
-            Np = (t / np.sqrt(12.0))[:, None, None, None, None] * np.einsum("gi,eac->egaic", N, nx)
+            z = t / np.sqrt(12.0) if sections is None else np.full(len(ks), np.sqrt(max(m2 - m1**2 / m0, 0.0) / m0))
+            Np = z[:, None, None, None, None] * np.einsum("gi,eac->egaic", N, nx)
             dofs = np.repeat((6 * Q[:, :, None] + 3 + np.arange(3)).reshape(len(ks), 1, 12), 4, axis=1)
             asm.points(dofs.reshape(-1, 12), Np.reshape(-1, 3, 12), w.ravel())
+            if m1:  # the centre of mass at z_c = m1 / m0 off the reference plane (module doc)
+                Nu = np.broadcast_to(np.einsum("gi,ac->gaic", N, np.eye(3))[None], (len(ks), 4, 3, 4, 3))
+                Nfull = np.concatenate([Nu, (m1 / m0) * np.einsum("gi,eac->egaic", N, nx)], axis=4)
+                full = np.repeat((6 * Q[:, :, None] + np.arange(6)).reshape(len(ks), 1, 24), 4, axis=1)
+                asm.points(full.reshape(-1, 24), Nfull.reshape(-1, 3, 24), w.ravel())
+                trans = np.repeat((6 * Q[:, :, None] + np.arange(3)).reshape(len(ks), 1, 12), 4, axis=1)
+                asm.points(trans.reshape(-1, 12), Nu.reshape(-1, 3, 12), -w.ravel())
 
 
 def _nodes(refuse, index, elem):

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .mesh import Material  # E, nu, rho: the one isotropic material of the solid family
-from .shell_section import DRILL, SHEAR_FACTOR, corner_frame, drilling_penalty, plate_section  # noqa: F401 (shell.DRILL, shell.SHEAR_FACTOR kept)
+from .shell_section import DRILL, SHEAR_FACTOR, add_section_mass, corner_frame, drilling_penalty, plate_section  # noqa: F401 (shell.DRILL, shell.SHEAR_FACTOR kept)
 from .shell_mitc9 import quad9_frame, quad9_matrices
 from .shell_tri import tria_frame, tria_matrices
 
@@ -75,12 +75,12 @@ def element_frame(X: np.ndarray):
     return T, (X - X.mean(axis=0)) @ T[:2].T
 
 
-def element_matrices(xy: np.ndarray, t: float, mat: Material):
+def element_matrices(xy: np.ndarray, t: float, mat: Material, section=None):
     """Local 24 x 24 K, M of a flat quad with in-plane corners xy (4, 2), local dofs per node
-    (u v w rx ry rz)."""
-    rho = mat.rho
-    sec = plate_section(t, mat)
-    Cm, Cb, Cs = sec.Cm, sec.Cb, sec.Cs
+    (u v w rx ry rz); `section` a shell_section.PlateSection in the element axes (a laminate's, with
+    its coupling B and inertia (m0, m1, m2)), else the isotropic plate of t and mat."""
+    sec = plate_section(t, mat) if section is None else section
+    Cm, Cb, Cs, Cmb = sec.Cm, sec.Cb, sec.Cs, sec.Cmb
     K = np.zeros((24, 24))
     M = np.zeros((24, 24))
     iu, iv, iw, irx, iry, irz = (np.arange(4) * 6 + k for k in range(6))
@@ -120,9 +120,9 @@ def element_matrices(xy: np.ndarray, t: float, mat: Material):
                           0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB])
         Bs = np.linalg.solve(J, g_nat)
         K += (Bm.T @ Cm @ Bm + Bb.T @ Cb @ Bb + Bs.T @ Cs @ Bs) * detJ
-        NN = np.outer(N, N) * detJ
-        for idx, m in ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12)):
-            M[np.ix_(idx, idx)] += m * NN
+        if sec.coupled:
+            K += (Bm.T @ Cmb @ Bb + Bb.T @ Cmb @ Bm) * detJ
+        add_section_mass(M, np.outer(N, N) * detJ, sec.inertia, iu, iv, iw, irx, iry)
     N, dN = _shape(0, 0)
     drilling_penalty(K, np.linalg.solve(dN @ xy, dN), iu, iv, irz)
     return K, M

@@ -11,6 +11,8 @@ Also the fibres' mass points of shell_body.py (one point per Gauss point at z = 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -43,9 +45,22 @@ def _inv2(J):
     return inv / det[:, None, None], det
 
 
-def local_matrices(xy: np.ndarray, t: np.ndarray, mat: Material, first: int = 0):
+@dataclass(frozen=True)
+class SectionBlock:
+    """Per-element section matrices in the element frames (shell_section.PlateSection's, stacked):
+    A, B, D (e, 3, 3), H (e, 2, 2) and the inertia per area (m0, m1, m2) (e, 3)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    D: np.ndarray
+    H: np.ndarray
+    inertia: np.ndarray
+
+
+def local_matrices(xy: np.ndarray, t: np.ndarray, mat: Material, first: int = 0, sections: SectionBlock | None = None):
     """(K, M) (e, 24, 24) in the element frames, as shell.element_matrices for each element; `first`
-    numbers the elements in messages."""
+    numbers the elements in messages; `sections` (a laminate's, turned to each element's frame) in
+    place of the isotropic plate of t and mat."""
     E, nu, rho = mat.E, mat.nu, mat.rho
     ne = len(xy)
     C0 = E / (1 - nu**2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
@@ -82,10 +97,21 @@ def local_matrices(xy: np.ndarray, t: np.ndarray, mat: Material, first: int = 0)
         Bs = np.einsum("eij,ejk->eik", Jinv, g_nat)
         w = detJ[:, None, None]
         BmT, BbT = Bm.transpose(0, 2, 1), Bb.transpose(0, 2, 1)
-        K += (t[:, None, None] * (BmT @ (C0 @ Bm)) + (t**3 / 12)[:, None, None] * (BbT @ (C0 @ Bb))
-              + (kG * t)[:, None, None] * (Bs.transpose(0, 2, 1) @ Bs)) * w
         NN = np.outer(N, N)[None] * w
-        for idx, m in ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12)):
+        if sections is None:
+            K += (t[:, None, None] * (BmT @ (C0 @ Bm)) + (t**3 / 12)[:, None, None] * (BbT @ (C0 @ Bb))
+                  + (kG * t)[:, None, None] * (Bs.transpose(0, 2, 1) @ Bs)) * w
+            inertia = ((iu, rho * t), (iv, rho * t), (iw, rho * t), (irx, rho * t**3 / 12), (iry, rho * t**3 / 12))
+        else:
+            S = sections
+            K += (BmT @ (S.A @ Bm) + BbT @ (S.D @ Bb) + BmT @ (S.B @ Bb) + BbT @ (S.B @ Bm)
+                  + Bs.transpose(0, 2, 1) @ (S.H @ Bs)) * w
+            m0, m1, m2 = S.inertia.T
+            inertia = ((iu, m0), (iv, m0), (iw, m0), (irx, m2), (iry, m2))
+            for a, b, sign in ((iu, iry, 1.0), (iv, irx, -1.0)):  # shell_section.add_section_mass
+                M[:, a[:, None], b[None, :]] += sign * m1[:, None, None] * NN
+                M[:, b[:, None], a[None, :]] += sign * m1[:, None, None] * NN
+        for idx, m in inertia:
             M[:, idx[:, None], idx[None, :]] += m[:, None, None] * NN
     diag = np.einsum("eii->ei", K)
     kd = DRILL * np.min(diag[:, np.concatenate([iu, iv])], axis=1)

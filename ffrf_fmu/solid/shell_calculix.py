@@ -18,10 +18,13 @@ EIGEN_TABLE = "E I G E N V A L U E   O U T P U T"
 CORNERS = {"S4": 4, "S4R": 4, "S8": 8, "S8R": 8, "S3": 3, "S6": 6}  # nodes per cell of each CalculiX shell element
 
 
-def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4") -> str:
+def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4",
+                  laminate=None) -> str:
     """The text of a free-free *FREQUENCY deck of the cells `quads` (quads for S4/S4R, 8-node quads for
     S8/S8R (serendipity; 4-node quads are made quadratic by quadratic_quads), triangles for S3, 6-node
-    triangles for S6 (with_midsides); 1-based node and element numbers)."""
+    triangles for S6 (with_midsides); 1-based node and element numbers). With `laminate` (a
+    shell_section.Laminate; ccx takes composites on S8R and S6 only) its plies as the layers of a
+    `*SHELL SECTION, COMPOSITE` (composite_section; `thickness` and `mat` unused)."""
     if element not in CORNERS:
         raise ValueError(f"element {element!r}: expected one of {', '.join(CORNERS)}")
     if CORNERS[element] == 8 and np.shape(quads)[1:] == (4,):
@@ -31,10 +34,52 @@ def calculix_deck(nodes, quads, thickness: float, mat: Material, n_modes: int, e
     lines = ["*NODE"] + [f"{i + 1},{x:.15g},{y:.15g},{z:.15g}" for i, (x, y, z) in enumerate(np.asarray(nodes, float))]
     lines += [f"*ELEMENT,TYPE={element},ELSET=EALL"]
     lines += [f"{e + 1}," + ",".join(str(int(k) + 1) for k in q) for e, q in enumerate(quads)]
-    lines += ["*MATERIAL,NAME=SHELLMAT", "*ELASTIC", f"{mat.E:.15g},{mat.nu:.15g}", "*DENSITY", f"{mat.rho:.15g}",
-              "*SHELL SECTION,ELSET=EALL,MATERIAL=SHELLMAT", f"{thickness:.15g}",
-              "*STEP", "*FREQUENCY", f"{int(n_modes)}", "*END STEP"]
+    if laminate is not None:
+        if element not in ("S8R", "S6"):
+            raise ValueError(f"element {element}: CalculiX's composite shells are S8R and S6")
+        lines += composite_section(laminate)
+    else:
+        lines += ["*MATERIAL,NAME=SHELLMAT", "*ELASTIC", f"{mat.E:.15g},{mat.nu:.15g}", "*DENSITY", f"{mat.rho:.15g}",
+                  "*SHELL SECTION,ELSET=EALL,MATERIAL=SHELLMAT", f"{thickness:.15g}"]
+    lines += ["*STEP", "*FREQUENCY", f"{int(n_modes)}", "*END STEP"]
     return "\n".join(lines) + "\n"
+
+
+def composite_section(laminate, E3_over_E2: float = 1.0, nu23: float = 0.3) -> list:
+    """ccx lines of a laminate (shell_section.Laminate) on the element set EALL of a plate in the x-y
+    plane: per ply material `*ELASTIC, TYPE=ENGINEERING CONSTANTS` (E1, E2, E3, nu12, nu13, nu23, G12,
+    G13, G23; an isotropic ply (E1 = E2, G12 = E1 / (2 (1 + nu12))) as `*ELASTIC` E, nu), one
+    `*ORIENTATION` per ply angle (fibre at theta from x, about z), and `*SHELL SECTION, COMPOSITE` with
+    one line "thickness, , material, orientation" per ply from the bottom (the side opposite the
+    normal) and OFFSET = -(Z0 + T/2) / T (the nodes on the reference plane). The plate theory does not
+    see E3, nu13, nu23 (sigma_33 = 0: the plane-stress Q is the inverse of the in-plane compliance,
+    E1, E2, nu12, G12 only); ccx's bricks need them: E3 = E3_over_E2 E2, nu13 = nu12, nu23."""
+    names, lines = {}, []
+    for p in laminate.plies:
+        m = p.material
+        if m in names:
+            continue
+        name = names[m] = f"PLY{len(names) + 1}"
+        lines += [f"*MATERIAL,NAME={name}"]
+        iso = m.E1 == m.E2 and abs(m.G12 - m.E1 / (2 * (1 + m.nu12))) <= 1e-12 * m.G12 and m.G1z == m.G2z == m.G12
+        if iso:
+            lines += ["*ELASTIC", f"{m.E1:.12e},{m.nu12:.12e}"]
+        else:
+            lines += ["*ELASTIC,TYPE=ENGINEERING CONSTANTS",
+                      f"{m.E1:.12e},{m.E2:.12e},{E3_over_E2 * m.E2:.12e},{m.nu12:.12e},{m.nu12:.12e},{nu23:.12e},"
+                      f"{m.G12:.12e},{m.G1z:.12e},", f"{m.G2z:.12e},0."]
+        lines += ["*DENSITY", f"{m.rho:.12e}"]
+    angles = {}
+    for p in laminate.plies:
+        if p.theta not in angles:
+            angles[p.theta] = f"OR{len(angles) + 1}"
+            c, s_ = np.cos(np.radians(p.theta)), np.sin(np.radians(p.theta))
+            lines += [f"*ORIENTATION,NAME={angles[p.theta]},SYSTEM=RECTANGULAR",
+                      f"{c:.15g},{s_:.15g},0.,{-s_:.15g},{c:.15g},0."]
+    T = laminate.thickness
+    lines += [f"*SHELL SECTION,COMPOSITE,ELSET=EALL,OFFSET={-(laminate.z0 + T / 2) / T:.15g}"]
+    lines += [f"{p.thickness:.15g},,{names[p.material]},{angles[p.theta]}" for p in laminate.plies]
+    return lines
 
 
 def quadratic_quads(nodes, quads):
@@ -86,13 +131,13 @@ def calculix_frequencies(dat: str, where: str = "ccx .dat") -> np.ndarray:
 
 
 def run_calculix(nodes, quads, thickness: float, mat: Material, n_modes: int, element: str = "S4",
-                 timeout: float = 600.0) -> np.ndarray:
+                 timeout: float = 600.0, laminate=None) -> np.ndarray:
     """Run `ccx` on the deck in a temporary directory; the frequencies [Hz], rigid modes included."""
     ccx = shutil.which("ccx")
     if ccx is None:
         raise RuntimeError("CalculiX: `ccx` is not on PATH")
     with tempfile.TemporaryDirectory() as tmp:
-        Path(tmp, "shell.inp").write_text(calculix_deck(nodes, quads, thickness, mat, n_modes, element))
+        Path(tmp, "shell.inp").write_text(calculix_deck(nodes, quads, thickness, mat, n_modes, element, laminate))
         run = subprocess.run([ccx, "shell"], cwd=tmp, capture_output=True, text=True, timeout=timeout)
         dat = Path(tmp, "shell.dat")
         if run.returncode != 0 or not dat.exists():

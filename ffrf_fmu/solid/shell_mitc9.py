@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mesh import Material
-from .shell_section import DRILL, corner_frame, plate_section
+from .shell_section import DRILL, add_section_mass, corner_frame, plate_section
 
 _R = np.array([-1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, -1.0, 0.0])  # natural coordinates of the 9 nodes
 _S = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, 0.0, 1.0, 0.0, 0.0])
@@ -80,10 +80,11 @@ def quad9_frame(X: np.ndarray):
     return T, (X - X[:4].mean(axis=0)) @ T[:2].T
 
 
-def quad9_matrices(xy: np.ndarray, t: float, mat: Material):
+def quad9_matrices(xy: np.ndarray, t: float, mat: Material, section=None):
     """Local 54 x 54 K, M of a flat MITC9 quad with nodes xy (9, 2), local dofs per node
-    (u v w rx ry rz)."""
-    sec = plate_section(t, mat)
+    (u v w rx ry rz); `section` a shell_section.PlateSection in the element axes, else the isotropic
+    plate of t and mat."""
+    sec = plate_section(t, mat) if section is None else section
     iu, iv, iw, irx, iry, irz = (np.arange(9) * 6 + k for k in range(6))
 
     def jacobian(r, s):
@@ -122,10 +123,9 @@ def quad9_matrices(xy: np.ndarray, t: float, mat: Material):
         Bs = np.linalg.solve(J, np.array([e_r, e_s]))
         dA = w * detJ
         K += (Bm.T @ sec.Cm @ Bm + Bb.T @ sec.Cb @ Bb + Bs.T @ sec.Cs @ Bs) * dA
-        NN = np.outer(N, N) * dA
-        for idx, m in ((iu, mat.rho * t), (iv, mat.rho * t), (iw, mat.rho * t),
-                       (irx, mat.rho * t**3 / 12), (iry, mat.rho * t**3 / 12)):
-            M[np.ix_(idx, idx)] += m * NN
+        if sec.coupled:
+            K += (Bm.T @ sec.Cmb @ Bb + Bb.T @ sec.Cmb @ Bm) * dA
+        add_section_mass(M, np.outer(N, N) * dA, sec.inertia, iu, iv, iw, irx, iry)
     kd = DRILL * np.min(np.diag(K)[np.concatenate([iu, iv])])
     for i in range(9):
         _, dN, J, _ = jacobian(_R[i], _S[i])
@@ -146,3 +146,31 @@ def plate_mesh9(a: float, b: float, nx: int, ny: int):
     n0 = (2 * j * row + 2 * i).ravel()
     offsets = [0, 2, 2 * row + 2, 2 * row, 1, row + 2, 2 * row + 1, row, row + 1]
     return nodes, n0[:, None] + np.array(offsets)
+
+
+# the serendipity centre: u_8 = -1/4 sum corners + 1/2 sum midsides (the 9-node quad whose centre
+# follows the 8-node serendipity interpolation)
+SERENDIPITY_CENTRE = np.array([-0.25] * 4 + [0.5] * 4)
+
+
+def quad8_nodes(xy8: np.ndarray) -> np.ndarray:
+    """(9, 2) the 8 nodes of a CQUAD8/S8 (corners, midsides 01 12 23 30) and the serendipity centre."""
+    return np.vstack([xy8, SERENDIPITY_CENTRE @ xy8])
+
+
+def quad8_matrices(xy8: np.ndarray, t: float, mat: Material, section=None, centre: str = "condensed"):
+    """Local 48 x 48 K, M of the 8-node quad: the MITC9 of quad9_matrices on quad8_nodes with the
+    centre's six dofs tied to the serendipity interpolation, K8 = C^T K9 C, u9 = C u8 (C: the identity
+    on the 8 nodes, SERENDIPITY_CENTRE (x) I_6 for the centre). The element's displacements are then
+    the 8-node serendipity field (its centre value is the serendipity one), with MITC9's assumed
+    shear of that field (docs/shells.md, "CQUAD8")."""
+    K9, M9 = quad9_matrices(quad8_nodes(xy8), t, mat, section)
+    C = np.zeros((54, 48))
+    C[:48] = np.eye(48)
+    if centre == "serendipity":
+        C[48:] = np.kron(SERENDIPITY_CENTRE[None, :], np.eye(6))
+    elif centre == "condensed":  # Guyan: the centre at rest under no load of its own
+        C[48:] = -np.linalg.solve(K9[48:, 48:], K9[48:, :48])
+    else:
+        raise ValueError(f"centre {centre!r}: expected 'serendipity' or 'condensed'")
+    return C.T @ K9 @ C, C.T @ M9 @ C

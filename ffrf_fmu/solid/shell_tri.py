@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mesh import Material
-from .shell_section import drilling_penalty, plate_section
+from .shell_section import add_section_mass, drilling_penalty, plate_section
 
 
 @dataclass(frozen=True)
@@ -115,14 +115,15 @@ def _dkt_curvature(beta: np.ndarray, Jinv: np.ndarray, r: float, s: float) -> np
     return np.array([dNx[0] @ bx, dNx[1] @ by, dNx[1] @ bx + dNx[0] @ by])
 
 
-def tria_matrices(xy: np.ndarray, t: float, mat: Material, bending: str = "dkt"):
+def tria_matrices(xy: np.ndarray, t: float, mat: Material, bending: str = "dkt", section=None):
     """Local 18 x 18 K, M of a flat triangle with counter-clockwise corners xy (3, 2), local dofs per
     node (u v w rx ry rz): CST membrane, drilling penalty, and the bending of the DKT (Kirchhoff, no
     transverse shear; default) or of the MITC3 (Reissner-Mindlin, `bending="mitc3"`, locks on thin
-    plates: docs/shells.md)."""
+    plates: docs/shells.md); `section` a shell_section.PlateSection in the element axes (a laminate's:
+    its coupling B between the CST membrane and the bending), else the isotropic plate of t and mat."""
     if bending not in ("dkt", "mitc3"):
         raise ValueError(f"bending {bending!r}: expected 'dkt' or 'mitc3'")
-    sec = plate_section(t, mat)
+    sec = plate_section(t, mat) if section is None else section
     iu, iv, iw, irx, iry, irz = (np.arange(3) * 6 + k for k in range(6))
     J = _DN @ xy  # rows g_r, g_s
     detJ = np.linalg.det(J)
@@ -158,10 +159,10 @@ def tria_matrices(xy: np.ndarray, t: float, mat: Material, bending: str = "dkt")
         else:
             Bs = Jinv @ np.array([e1 + c * s, e2 - c * r])
             K += Bs.T @ sec.Cs @ Bs * (w * area)
-        NN = np.outer(N, N) * (w * area)
-        for idx, m in ((iu, mat.rho * t), (iv, mat.rho * t), (iw, mat.rho * t),
-                       (irx, mat.rho * t**3 / 12), (iry, mat.rho * t**3 / 12)):
-            M[np.ix_(idx, idx)] += m * NN
+        if sec.coupled:  # B between the constant membrane strain and the (linear) curvature: exact
+            Bk = _dkt_curvature(beta, Jinv, r, s) if bending == "dkt" else Bb
+            K += (Bm.T @ sec.Cmb @ Bk + Bk.T @ sec.Cmb @ Bm) * (w * area)
+        add_section_mass(M, np.outer(N, N) * (w * area), sec.inertia, iu, iv, iw, irx, iry)
     drilling_penalty(K, dNx, iu, iv, irz)
     return K, M
 
