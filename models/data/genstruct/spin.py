@@ -3,7 +3,7 @@ docs/inertia-terms.md, "GenStruct1 and GenStruct2"): the corner's displacement s
 hub, averaged over the 0.1 s at speed, with the advised terms against a converged reference of the same scene
 (terms full, more free modes, half the step), and what each term set gives.
 
-Run: PYTHONPATH=$PWD python models/data/genstruct/spin.py [docs]   (writes docs/genstruct{1,2}_spin.png)
+Run: PYTHONPATH=$PWD python models/data/genstruct/spin.py [docs [1] [2]]   (writes docs/genstruct{1,2}_spin.png)
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from ffrf_fmu.simulate.loop import run_scene
 
 MODELS = Path(__file__).resolve().parents[2]
 REFERENCE_MODES = (20, 40, 80)  # the reference's convergence in the number of free modes (terms full, h / 2)
+REFERENCE = f"full, {REFERENCE_MODES[-1]} modes, h/2"
 
 
 HOLD = 0.2  # the spin-up ends here; the metric is the mean over the 0.1 s at speed (the ringing averages out)
@@ -42,11 +43,16 @@ def run(n: int, overrides=()) -> tuple[np.ndarray, np.ndarray]:
 
 def study(n: int) -> dict:
     """The metric of each configuration, and the curves."""
-    h = 1e-3
+    from ffrf_fmu.model import load_model
+
+    h = load_model(MODELS / f"genstruct{n}.toml").scene("spin").step  # the scene's step
     runs = {"advised": run(n)}
     for k in REFERENCE_MODES:
         runs[f"full, {k} modes, h/2"] = run(n, ["terms=full", f"modes={k}", f"step={h / 2:g}"])
+    runs[f"full, {REFERENCE_MODES[-1]} modes, h/4"] = run(n, ["terms=full", f"modes={REFERENCE_MODES[-1]}", f"step={h / 4:g}"])
     runs["full, 20 modes"] = run(n, ["terms=full"])
+    runs["W1 only"] = run(n, ["terms=full", "full_terms=[\"inertia_W1\"]"])
+    runs["W1 and W2"] = run(n, ["terms=full", "full_terms=[\"inertia_W1\", \"inertia_W2\"]"])
     runs["full without W2"] = run(n, ["terms=full", "full_terms=[\"inertia_W1\", \"inertia_coupling\", \"coriolis\"]"])
     runs["linear"] = run(n, ["terms=linear"])
     return {k: (t, u, metric(t, u)) for k, (t, u) in runs.items()}
@@ -58,9 +64,9 @@ def plot(n: int, res: dict, out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ref = res[f"full, {REFERENCE_MODES[-1]} modes, h/2"]
+    ref = res[REFERENCE]
     fig, ax = plt.subplots(figsize=(7, 3.6))
-    for k, style in (("advised", "-"), (f"full, {REFERENCE_MODES[-1]} modes, h/2", "--"), ("full without W2", ":"),
+    for k, style in (("advised", "-"), (REFERENCE, "--"), ("W1 only" if n == 1 else "W1 and W2", ":"),
                      ("linear", "-.")):
         t, u, _ = res[k]
         ax.plot(t, u * 1e3, style, label=f"{k}: mean {res[k][2] * 1e3:.4g} mm over t >= {HOLD:g} s")
@@ -76,9 +82,9 @@ def plot(n: int, res: dict, out: Path) -> None:
 
 if __name__ == "__main__":
     docs = Path(sys.argv[1]) if len(sys.argv) > 1 else None
-    for n in (1, 2):
+    for n in [int(a) for a in sys.argv[2:]] or (1, 2):
         res = study(n)
-        ref = res[f"full, {REFERENCE_MODES[-1]} modes, h/2"][2]
+        ref = res[REFERENCE][2]
         print(f"GenStruct{n}: mean corner displacement at speed [m] and error against the reference (full, "
               f"{REFERENCE_MODES[-1]} modes, h/2)")
         for k, (_, _, u) in res.items():
