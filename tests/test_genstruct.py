@@ -118,3 +118,27 @@ def test_genstruct1_fmu_equals_its_standalone_run(tmp_path):
     assert all(g["passed"] for k, g in groups.items() if k != "hub.f"), {k: g["max_rel_diff"] for k, g in groups.items()}
     half_load = 0.36 / 2 * 200.0**2 * 0.2 / 4
     assert groups["hub.f"]["max_abs_diff"] < 1e-3 * half_load
+
+
+def test_bundled_beam_is_his_beam_row():
+    """models/witteveen_beam.toml (his Beam: 750 x 20 x 20 mm, 1.8 kg, 38 modes, 2 frames) in his units through
+    witteveen_tables: |I0| = m (L^2 + h^2) / 12 = 84.4 against his 85.7 (his mass printed rounded: 2 %), |W1| / 2
+    against his "norm" 9.2 and max |W2|, |W2|, |W3| against his 1.0, 2.0, 1.4 to his printed digits; every key of
+    HIS_ROWS is a bundled model's body name."""
+    from ffrf_fmu.witteveen_tables import HIS_ROWS, ours_in_his_units
+
+    model = load_model(MODELS / "witteveen_beam.toml")
+    assert model.body.modes == 38 and len(model.body.ports) == 2
+    from ffrf_fmu.invariants import body_inertia_report
+
+    o = ours_in_his_units(body_inertia_report(model.body)["superelements"][0])
+    h = HIS_ROWS["witteveen_beam"]
+    assert o["I0_norm"] == pytest.approx(1.8e-3 * (750.0**2 + 20.0**2) / 12, rel=1e-6)
+    assert o["I0_norm"] == pytest.approx(h.I0_norm, rel=0.02)
+    assert o["W1_norm_half"] == pytest.approx(h.W1_norm, abs=0.05)
+    assert o["W2_max"] == pytest.approx(h.W2_max, abs=0.05) and o["W2_norm"] == pytest.approx(h.W2_norm, abs=0.05)
+    assert o["W3_norm"] == pytest.approx(h.W3_norm, abs=0.05)
+    import tomllib
+
+    names = {tomllib.loads(f.read_text())["body"]["name"] for f in MODELS.glob("*.toml")}
+    assert set(HIS_ROWS) <= names
