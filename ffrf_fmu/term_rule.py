@@ -21,6 +21,9 @@ TERM_SHARE = 0.5  # a term set may leave at most this share of the tolerance to 
 # docs/inertia-terms.md): the cheapest set within TERM_SHARE x tolerance of `full` wins
 TERM_SETS_BY_COST = ("linear", "gyroscopic", "full")
 SWITCH_ALONE = ("inertia_W1", "inertia_W2", "inertia_coupling", "coriolis")
+# linear's steady displacements below this fraction of full's: linear leaves the body (all but) undeformed (a solid held on
+# the spin axis by one frame has no load inside its superelement without W1), and the changes are relative to full's
+LINEAR_AT_REST = 1e-3
 
 
 def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -> dict:
@@ -53,6 +56,7 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     u = {}
     runs = [(name, name if name != "full" else "full", FULL_TERMS) for name in TERM_SETS_BY_COST]
     runs += [(f"full[{s}]", "full", (s,)) for s in SWITCH_ALONE]
+    runs += [(f"full-{s}", "full", tuple(x for x in FULL_TERMS if x != s)) for s in SWITCH_ALONE]  # choose_full_terms
     for label, terms, ft in runs:
         try:
             s = steady_spin(BodySystem(data, terms=terms, full_terms=ft, gravity=g_axis), rate, axis)
@@ -60,12 +64,16 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
             return {"status": f"no steady state at {rate:.3g} rad/s with {label} ({e})"}
         u[label] = s.xN - data.node_positions
     scale = np.linalg.norm(u["linear"], axis=1).max()
+    scale_of = "linear"
+    full_scale = np.linalg.norm(u["full"], axis=1).max()
+    if scale <= LINEAR_AT_REST * full_scale:  # one superelement held on the axis: linear has no load inside it
+        scale, scale_of = full_scale, "full"  # (GenStruct: only W1's constant centrifugal load widens it)
     if scale == 0.0:
         return {"status": "the steady spin does not deform the body"}
     rel = lambda a, b: float(np.linalg.norm(a - b, axis=1).max() / scale)  # noqa: E731
     return {
         "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
-        "superelements": len(data.superelements), "displacement_m": float(scale),
+        "superelements": len(data.superelements), "displacement_m": float(scale), "scale_of": scale_of,
         "change": {k: rel(v, u["linear"]) for k, v in u.items()},
         "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
     }
@@ -125,3 +133,21 @@ def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
     pick = next(s for s in TERM_SETS_BY_COST if tf[s] <= budget)
     return pick, (f"{what} > {TERM_SHARE:g} x tolerance = {budget:.2%}; {pick} is the cheapest set within "
                   f"{budget:.2%} of full ({', '.join(f'{s} {tf[s]:.2%}' for s in TERM_SETS_BY_COST)} from full)")
+
+
+def choose_full_terms(effects: dict, tolerance: float) -> tuple[tuple[str, ...], str]:
+    """Which switches of `full` (FULL_TERMS) a body needs, from `steady_term_effects`: a switch is kept when
+    leaving it out alone moves the steady displacements by more than TERM_SHARE x tolerance / len(SWITCH_ALONE)
+    (`to_full["full-<switch>"]`); the switches left out share the budget, and their effects add to first order
+    (each is small against the response). Witteveen's 7.3.3: W1's constant centrifugal load widens the body;
+    W2's deformation-dependent part matters only for a structure soft against that widening (his GenStruct1).
+    All switches when nothing was measured (no steady spin)."""
+    if effects.get("status") != "ok" or "full-inertia_W1" not in effects.get("to_full", {}):
+        return tuple(SWITCH_ALONE), "no steady spin measured: all switches of full"
+    share = TERM_SHARE * tolerance / len(SWITCH_ALONE)
+    tf = effects["to_full"]
+    keep = tuple(s for s in SWITCH_ALONE if tf[f"full-{s}"] > share)
+    parts = ", ".join(f"without {s} {tf[f'full-{s}']:.3%}" for s in SWITCH_ALONE)
+    return keep, (f"steady spin at {effects['spin_rate']:.3g} rad/s, each switch of full left out alone ({parts} of "
+                  f"{effects['scale_of']}'s displacements): kept where > TERM_SHARE x tolerance / {len(SWITCH_ALONE)} = "
+                  f"{share:.3%}: {', '.join(keep) or 'none'}")

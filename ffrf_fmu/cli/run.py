@@ -10,6 +10,13 @@ from ..validate import DEFAULT_ATOL, DEFAULT_RTOL  # validate.py imports numpy o
 from .common import BACKEND_ARG, MODEL_ARGS, PROG, _body_for_scene, _damping_report, _hz, _load, arg, command
 
 
+def _his_row(name: str, inertia: dict):
+    from ..witteveen_tables import his_row_for
+
+    row = his_row_for(name, inertia)
+    return None if row is None else row.as_dict()
+
+
 @command(*MODEL_ARGS, arg("--json", action="store_true", help="print a JSON object instead of text"))
 def info(args) -> int:
     """Summarize a model: superelements, dofs before/after reduction, modes and frequencies."""
@@ -52,6 +59,11 @@ def info(args) -> int:
         terms, reason = choose_term_set(inertia["term_effects"], INFO_TOLERANCE)
         inertia["recommended"] = {"tolerance": INFO_TOLERANCE, "terms": terms, "superelements": 1,
                                   "stiffening": False, "reason": reason}
+        if terms == "full":  # which of full's switches (term_rule.choose_full_terms)
+            from ..term_rule import choose_full_terms
+
+            ft, why_ft = choose_full_terms(inertia["term_effects"], INFO_TOLERANCE)
+            inertia["recommended"] |= {"full_terms": list(ft), "full_terms_reason": why_ft}
     else:
         from ..studies.advise import advise
 
@@ -88,6 +100,7 @@ def info(args) -> int:
             "fixed": fixed,
             "frequencies_hz": freqs,
             "inertia": inertia,
+            **({"witteveen": _his_row(body.name, inertia)} if _his_row(body.name, inertia) is not None else {}),
             **({"reduction_quality": quality} if quality is not None else {}),
             **({"damping": damping} if damping is not None else {}),
         }
@@ -156,13 +169,20 @@ def info(args) -> int:
         print(f"  steady spin at {eff['spin_rate']:.3g} rad/s on this chain (stiffening {'on' if eff['stiffening'] else 'off'}): "
               f"each term changes the boundary displacements by (of linear's) "
               + ", ".join(f"{k.removeprefix('full[').removesuffix(']')} {v:.2%}" for k, v in eff["change"].items()
-                          if k != "linear"))
+                          if k != "linear" and not k.startswith("full-")))
     else:
         print(f"  term effects not evaluated: {eff['status']}")
     rec = inertia["recommended"]
     how = "term_rule.choose_term_set" if body.solid is not None else "ffrf-fmu advise"
     print(f"  recommended at tolerance {rec['tolerance']:.0%} ({how}): {rec['superelements']} SE, term set "
           f"{rec['terms']}, stiffening {'on' if rec['stiffening'] else 'off'}: {rec['reason']}")
+    if "full_terms" in rec:
+        print(f"  full_terms = {rec['full_terms']}: {rec['full_terms_reason']}")
+    from ..witteveen_tables import format_rows, his_row_for
+
+    row = his_row_for(body.name, inertia)
+    if row is not None:
+        print(format_rows(row))
     return 0
 
 
