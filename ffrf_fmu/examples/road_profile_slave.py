@@ -23,7 +23,7 @@ values at the end of the step (no inputs: an exact signal).
 import json
 import math
 
-from pythonfmu import Fmi2Slave, Integer, Real
+from pythonfmu import Fmi2Slave, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
 
@@ -69,9 +69,10 @@ class RoadProfile(Fmi2Slave):
                      initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
                      getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
                 nested=False)
-        reg(Integer("road.bump.wheel", start=1, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+        reg(Real("road.bump.wheel", start=1.0, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
                     initial=Fmi2Initial.exact, description="the bumped wheel: 1 front_left, 2 front_right, 3 rear_left, "
-                    "4 rear_right", getter=lambda: self.wheel, setter=lambda v: setattr(self, "wheel", int(v))),
+                    "4 rear_right (a Real: SSP parameter sets carry reals)", getter=lambda: float(self.wheel),
+                 setter=lambda v: setattr(self, "wheel", int(round(float(v))))),
             nested=False)
         for w, wheel in enumerate(WHEELS):
             for k, (fld, unit) in enumerate((("r", "m"), ("v", "m/s"), ("a", "m/s2"))):
