@@ -251,6 +251,9 @@ def _fraction(text: str) -> float:
         "(a chart's directory: its reference run is not repeated)"),
     BACKEND_ARG,
     arg("--json", action="store_true", help="print a JSON object instead of text"),
+    arg("--cutoffs", metavar="N1,N2,...", help="with --check, where the reference is the scene's own converged modes (a "
+        "solid or shell body, a rotating unbalance: studies/modal_advice.py): the mode counts to converge over "
+        "(default: the advised count x 1, 1.5, 2, 3, 4)"),
     *SWEEP_ARGS,
 )
 def advise(args) -> int:
@@ -263,6 +266,10 @@ def advise(args) -> int:
     if not 0.0 < args.tolerance < 1.0:
         print(f"{PROG}: error: --tolerance must be between 0 and 100 %, got {args.tolerance:g}", file=sys.stderr)
         return 2
+    from ..studies import modal_advice as ma
+
+    if ma.needs_modal_reference(model, scene):
+        return ma.advise_command(args, model, scene)
     advice = ad.advise(model, scene.name, args.tolerance, fmu=args.fmu, backend=args.backend)
     out = advice.as_dict()
     if not args.json:

@@ -7,6 +7,12 @@ Wu-Haug spin-up profile, torsional shaft to the beam root), a pythonfmu FMU whos
 rotation is force-driven (models/haug_beam.toml, scene hub_free). Parameters (`drive.J`, `drive.k`,
 `drive.c`, `drive.Kp`, `drive.Ki`, `profile.omega`, `profile.T`, `solver.substep`) are FMU
 parameters: change them with start values, no rebuild.
+
+`build_road_profile(dest)`: the road heights under the four wheels of a vehicle body (a sin^4 bump
+under one wheel), the far ends of the car body's compliant mounts (`road_profile_slave.py`,
+`car_body_system.py`). `build_spin_drive(dest)`: a prescribed Wu-Haug spin-up about X with a
+rotating unbalance force, the partner of the Jeffcott rotor run-up (`spin_drive_slave.py`,
+`rotor_system.py`). Both have no inputs (exact signals) and only standard library code.
 """
 from __future__ import annotations
 
@@ -28,15 +34,38 @@ def hub_drive_names() -> tuple[str, str]:
 
 def build_hub_drive(dest) -> Path:
     """Build the hub drive FMU into `dest` (a .fmu file name or a directory); returns its path."""
+    return build_script_fmu(HUB_DRIVE_SOURCE, "HubDrive", "hub_drive", dest)
+
+
+def build_road_profile(dest) -> Path:
+    """Build the road profile FMU (road_profile_slave.py) into `dest` (.fmu name or directory)."""
+    return build_script_fmu(HERE / "road_profile_slave.py", "RoadProfile", "road_profile", dest)
+
+
+def build_spin_drive(dest) -> Path:
+    """Build the spin drive FMU (spin_drive_slave.py) into `dest` (.fmu name or directory)."""
+    return build_script_fmu(HERE / "spin_drive_slave.py", "SpinDrive", "spin_drive", dest)
+
+
+def script_names(source: Path, stem: str) -> tuple[str, str]:
+    """(module, class) names of a pythonfmu script's FMU, unique per version of its source."""
+    digest = hashlib.sha256(Path(source).read_bytes()).hexdigest()[:10]
+    camel = "".join(w.capitalize() for w in stem.split("_"))
+    return f"ffrf_{stem}_{digest}", f"Ffrf{camel}_{digest}"
+
+
+def build_script_fmu(source: Path, class_name: str, stem: str, dest) -> Path:
+    """Build the pythonfmu FMU of script `source` (its slave class `class_name`) into `dest` (a .fmu
+    file name or a directory, then STEM.fmu), module and class renamed with the script's digest."""
     from pythonfmu import FmuBuilder
 
-    module, cls = hub_drive_names()
-    text = HUB_DRIVE_SOURCE.read_text(encoding="utf-8").replace("class HubDrive(Fmi2Slave):", f"class {cls}(Fmi2Slave):")
+    module, cls = hub_drive_names() if stem == "hub_drive" else script_names(source, stem)
+    text = Path(source).read_text(encoding="utf-8").replace(f"class {class_name}(Fmi2Slave):", f"class {cls}(Fmi2Slave):")
     dest = Path(dest)
     if dest.suffix != ".fmu":
-        dest = dest / "hub_drive.fmu"
+        dest = dest / f"{stem}.fmu"
     dest.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="ffrf_hub_drive_") as tmp:
+    with tempfile.TemporaryDirectory(prefix=f"ffrf_{stem}_") as tmp:
         script = Path(tmp) / f"{module}.py"
         script.write_text(text, encoding="utf-8")
         saved = list(sys.path)

@@ -1,0 +1,221 @@
+"""`advise` and `advise --check` where no full-order reference runs the scene: a solid or shell body (one
+superelement, its FE model the whole truth), or a scene whose loads the full-order beam refuses (a rotating
+unbalance). The reference is then the same scene with all modes up to a cutoff that converges the metric
+(Craig-Bampton-like: the reduced model tends to the FE model as its free-free modes are added, eq. 76), at a
+step that converges it too; both convergences are shown.
+
+Advice (the budget of advise.py: the step gets RESERVE x tolerance, the rest is kept for modal truncation):
+- term set: term_rule.choose_term_set on term_rule.steady_term_effects (the rule `info` and `advise` share);
+- modes: every free-free mode below MODE_BAND x the highest excitation frequency (indicators.excitation:
+  the drives' acceleration bands, the spin rate, load windows), at least MIN_MODES per superelement;
+- step: the integrator's period error (indicators.period_error) times STEP_ERROR_FACTOR within RESERVE x
+  tolerance at the highest relevant frequency, the larger of the excitation's and the first kept mode's (the
+  body rings in it after a transient), and at most MAX_SPIN_PER_STEP rad of spin per step (Newton
+  robustness: the Jeffcott run-up fails Newton at 0.29 rad per step, completes at 0.17;
+  docs/inertia-terms.md), rounded down to a step that divides the duration (indicators.nice_step).
+
+Metric (the scene's peak response): the largest |eq. 92 probe| of the scene's first `outputs` entry, else the
+largest displacement |r_P - X_P| of the loaded force-driven port (an unbalance's or a load's).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .calibration import MIN_MODES, MODE_BAND, RESERVE, STEP_ERROR_FACTOR
+from .indicators import excitation, largest_step, nice_step
+
+MAX_SPIN_PER_STEP = 0.2  # rad: between the run-up's 0.17 (completes) and 0.29 (fails Newton)
+CONVERGED_SHARE = 0.1  # the reference is converged when the last refinement moves the metric by < 0.1 x tolerance
+
+
+def needs_modal_reference(model, scene) -> bool:
+    """A solid/shell body, or a scene with unbalances (the full-order reference refuses them)."""
+    return model.body.solid is not None or bool(scene.unbalances)
+
+
+@dataclass
+class ModalAdvice:
+    terms: str
+    modes: int  # per superelement
+    step: float
+    tolerance: float
+    superelements: int = 1
+    reasons: dict = field(default_factory=dict)
+
+    @property
+    def overrides(self) -> list[str]:
+        return [f"modes={self.modes}", f"terms={self.terms!r}".replace("'", '"'), f"step={self.step!r}"]
+
+    @property
+    def label(self) -> str:
+        return f"{self.superelements}SE/{self.modes}m/{self.terms}/{self.step * 1e3:g}ms"
+
+
+def _frequencies(model, scene, modes: int) -> np.ndarray:
+    """Free-free frequencies [Hz] of the first superelement reduced with `modes` modes."""
+    from ..body_cache import scene_body_data
+    from ..model import load_model
+
+    m = load_model(model.path, [f"modes={modes}"])
+    data = scene_body_data(m.body, m.scene(scene.name))
+    return np.asarray(data.superelements[0].frequencies_hz if hasattr(data.superelements[0], "frequencies_hz")
+                      else _se_frequencies(data.superelements[0]))
+
+
+def _se_frequencies(se) -> np.ndarray:
+    import scipy.linalg as sla
+
+    n_b = se.K.shape[0] - se.n_modes if hasattr(se, "n_modes") else None
+    lam = sla.eigh(se.K, se.M, eigvals_only=True) if n_b is None else sla.eigh(se.K, se.M, eigvals_only=True)
+    return np.sqrt(np.clip(lam[lam > 1e-6 * lam.max()], 0, None)) / (2 * math.pi)
+
+
+def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -> ModalAdvice:
+    from ..spin import scene_spin
+    from ..term_rule import choose_term_set, steady_term_effects
+
+    reasons = {}
+    from ..model import scene_body
+
+    effects = steady_term_effects(scene_body(model.body, scene), scene)  # as `info` does
+    terms, reasons["terms"] = choose_term_set(effects, tolerance)
+    f_exc, parts = excitation(scene, tolerance)
+    n_avail = max_modes or model.body.modes  # reduce with this many to see the modes below the band
+    freqs = np.sort(_frequencies(model, scene, n_avail))
+    n = max(MIN_MODES, int(np.sum(freqs < MODE_BAND * f_exc)))
+    n = min(n, n_avail)
+    reasons["modes"] = (f"highest excitation {f_exc:.3g} Hz ({parts[0]}); free-free modes {freqs[0]:.3g} .. "
+                        f"{freqs[min(len(freqs), n_avail) - 1]:.3g} Hz; {n} below {MODE_BAND:g} x {f_exc:.3g} = "
+                        f"{MODE_BAND * f_exc:.3g} Hz (at least {MIN_MODES})")
+    f_rel = max(f_exc, float(freqs[0]))
+    h = largest_step(2 * math.pi * f_rel, scene.rho_inf, RESERVE * tolerance / STEP_ERROR_FACTOR)
+    why = (f"{STEP_ERROR_FACTOR:g} x the period error at {f_rel:.3g} Hz (the larger of the excitation and the first "
+           f"mode) within {RESERVE:g} x tolerance: h <= {h:.3g} s")
+    spin = scene_spin(scene)
+    if spin is not None and spin.peak > 0:
+        h_spin = MAX_SPIN_PER_STEP / spin.peak
+        why += f"; {MAX_SPIN_PER_STEP:g} rad of spin per step at {spin.peak:.3g} rad/s: h <= {h_spin:.3g} s"
+        h = min(h, h_spin)
+    step = nice_step(h, scene.duration)
+    reasons["step"] = why + f" -> h = {step:g} s"
+    supers = len(scene_body_superelements(model))
+    return ModalAdvice(terms, n, step, tolerance, supers, reasons)
+
+
+def scene_body_superelements(model) -> list:
+    return [None] * (model.body.superelements if model.body.solid is None else 1)
+
+
+def scene_metric(model, scene, result) -> float:
+    """The metric of the module doc from a standalone result."""
+    from ..runtime.outputs import tip_from_hub
+
+    if scene.outputs:
+        a, b = scene.outputs[0].split("_from_")
+        rA, rB = result.port(a, "r"), result.port(b, "r")
+        d = tip_from_hub(result.port(b, "R"), rB, rA, rA[0] - rB[0])
+        return float(np.linalg.norm(d, axis=1).max())
+    ports = [u.port for u in scene.unbalances] + [ld.port for ld in scene.loads]
+    if not ports:
+        raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe and no loaded port to measure")
+    r = result.port(ports[0], "r")
+    return float(np.linalg.norm(r - r[0], axis=1).max())
+
+
+@dataclass
+class MetricRun:
+    label: str
+    modes: int
+    terms: str
+    step: float
+    metric: float
+    wall: float
+    completed: bool
+
+
+def run_metric(model_path, scene_name: str, modes: int, terms: str, step: float, overrides=()) -> MetricRun:
+    from ..model import load_model
+    from ..simulate import run_scene
+
+    o = [*overrides, f"modes={modes}", f'terms="{terms}"', f"step={step!r}"]
+    m = load_model(model_path, o)
+    t0 = time.perf_counter()
+    res = run_scene(m, scene_name)
+    return MetricRun(f"{modes}m/{terms}/{step * 1e3:g}ms", modes, terms, step, scene_metric(m, m.scene(scene_name), res),
+                     time.perf_counter() - t0, bool(res.summary["completed"]))
+
+
+def check_modal(model_path, scene_name: str, advice: ModalAdvice, cutoffs, reference_terms: str = "full",
+                overrides=()) -> dict:
+    """The advised run against the converged reference: the scene at `reference_terms` and the advised step
+    over the mode cutoffs (ascending) until the metric moves by < CONVERGED_SHARE x tolerance, then the
+    converged cutoff at half that step (the step's convergence: the reference is that last run)."""
+    h_ref = advice.step
+    table, converged = [], None
+    for n in cutoffs:
+        table.append(run_metric(model_path, scene_name, n, reference_terms, h_ref, overrides))
+        if len(table) > 1 and abs(table[-1].metric - table[-2].metric) < CONVERGED_SHARE * advice.tolerance * abs(table[-1].metric):
+            converged = table[-1]
+            break
+    step_check = run_metric(model_path, scene_name, table[-1].modes, reference_terms, h_ref / 2, overrides)
+    step_moves = abs(step_check.metric - table[-1].metric) / abs(step_check.metric)
+    ref = step_check
+    run = run_metric(model_path, scene_name, advice.modes, advice.terms, advice.step, overrides)
+    err = abs(run.metric - ref.metric) / abs(ref.metric)
+    resolved = converged is not None and step_moves < CONVERGED_SHARE * advice.tolerance
+    return {"run": run, "reference": ref, "modes_table": table, "step_check": step_check, "step_moves": step_moves,
+            "resolved": resolved, "error": err, "within_tolerance": (err <= advice.tolerance) if resolved else None}
+
+
+def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -> str:
+    lines = [f"advice for {name} at tolerance {advice.tolerance:g} ({advice.tolerance:.1%}): {advice.label}",
+             "  " + " ".join(f"--set {o}" for o in advice.overrides)]
+    lines += [f"  {k} : {v}" for k, v in advice.reasons.items()]
+    if res:
+        lines.append("  reference: the same scene, all modes up to a cutoff, "
+                     f"{res['reference'].terms} terms, h = {res['modes_table'][0].step:g} s:")
+        prev = None
+        for r in res["modes_table"]:
+            move = "" if prev is None else f"  (moves {abs(r.metric - prev) / abs(r.metric):.2e})"
+            lines.append(f"    {r.modes:4d} modes: metric {r.metric:.6g}{move}  [{r.wall:.1f} s]")
+            prev = r.metric
+        sc = res["step_check"]
+        lines.append(f"    {sc.modes:4d} modes at h = {sc.step:g} s: metric {sc.metric:.6g} (step moves it {res['step_moves']:.2e})")
+        r = res["run"]
+        verdict = {True: "within", False: "NOT within", None: "no verdict (reference not converged), against"}[res["within_tolerance"]]
+        lines.append(f"  check: {r.label} metric {r.metric:.6g} vs {res['reference'].metric:.6g}: error {res['error']:.3%} "
+                     f"({verdict} {advice.tolerance:.1%}), wall {r.wall:.1f} s against the reference's {res['reference'].wall:.1f} s")
+    return "\n".join(lines)
+
+
+def advise_command(args, model, scene) -> int:
+    """`ffrf-fmu advise` on a scene of this module: the advice, and with --check its check (exit 0 within the
+    tolerance, 1 not within, 3 no verdict: the reference did not converge)."""
+    import json
+    import sys
+
+    advice = advise_modal(model, scene, args.tolerance, max_modes=2 * model.body.modes)
+    name = f"{model.body.name}/{scene.name}"
+    res = None
+    if args.check:
+        if args.cutoffs:
+            cutoffs = [int(x) for x in args.cutoffs.split(",")]
+        else:
+            cutoffs = sorted({max(advice.modes, round(advice.modes * f)) for f in (1, 1.5, 2, 3, 4)})
+        res = check_modal(args.model, scene.name, advice, cutoffs, overrides=args.overrides)
+    if args.json:
+        out = {"advice": {**advice.__dict__, "label": advice.label}}
+        if res:
+            out["check"] = {k: (v.__dict__ if isinstance(v, MetricRun) else [r.__dict__ for r in v] if k == "modes_table"
+                                else v) for k, v in res.items()}
+        json.dump(out, sys.stdout, indent=2, default=float)
+        print()
+    else:
+        print(format_modal(advice, res, name))
+    if res is None:
+        return 0
+    return 3 if res["within_tolerance"] is None else 0 if res["within_tolerance"] else 1
