@@ -156,6 +156,10 @@ def plot_cosim(rows: list[dict], path) -> None:
                     ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color="tab:red"))
                     ax.text(j, i, label.get((i, j), "unstable"), ha="center", va="center", color="white", fontsize=8,
                             weight="bold")
+                elif v == "marginal":  # the verdict changed under round-off (margin.py)
+                    ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="white", edgecolor="tab:red",
+                                               lw=2))
+                    ax.text(j, i, "marginal", ha="center", va="center", color="tab:red", fontsize=8, weight="bold")
                 elif v == "inaccurate":
                     ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="moccasin", edgecolor="tab:orange",
                                                hatch="//", lw=0))
