@@ -45,8 +45,8 @@ def plot_spin(rows: list[dict], path) -> None:
     if f1:
         ax1.axvline(f1, color="gray", ls=":", lw=1)
         ax1.text(f1 * 1.03, 0.05, f"first cantilever\nfrequency {f1:.3g} rad/s", fontsize=7, color="gray")
-    ax1.text(1.0, 3000.0, "unstable (deflection > L or Newton failure): x linear, + gyroscopic; "
-             "o marginal (the verdict changed under a 1e-9 perturbation or at the neighbour spin)", fontsize=7)
+    ax1.text(1.0, 3000.0, "unstable (deflection > L or Newton failure): x linear, + gyroscopic\n"
+             "o marginal (verdict changed under a 1e-9 perturbation or at the neighbour spin)", fontsize=7)
     ax1.set_yscale("log")
     ax1.set_ylim(0.03, 6000.0)
     ax1.set_xlabel("final spin rate [rad/s]")
