@@ -21,7 +21,8 @@ except ModuleNotFoundError:  # Python 3.10: tomli is a dependency there
 MODULE = {"libcosimpy": "libcosimpy.CosimExecution",  # the package imports lazily: load its library
           "dask[distributed]": "distributed",  # the extra is what the project uses
           "scikit-fem": "skfem",
-          "pynastran": "pyNastran"}  # its module keeps the capitals
+          "pynastran": "pyNastran",  # its module keeps the capitals
+          "pytest-xdist": "xdist"}
 
 
 def _import(name: str) -> None:

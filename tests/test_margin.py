@@ -83,3 +83,49 @@ def test_neighbour_steps_of_the_grid():
     assert margin.neighbour_steps(0.05, GRID) == [0.1]
     assert margin.neighbour_steps(0.3, GRID) == []
     assert np.isclose(margin.PERTURBATION, 1e-9)
+
+
+def test_spin_map_reruns_a_completed_point_near_L_and_keeps_its_verdict(monkeypatch):
+    """The spin map's candidate rule (spin.spin_verdict): a completed run whose peak deflection is 0.95 L
+    (the shipped map's 1 SE linear at 8 rad/s: 7.567 m of 8 m) is re-run perturbed and at the slower
+    neighbour spin; an early failure (at 40 % of the run) and a run far below L are not re-run."""
+    from ffrf_fmu.studies.stability import spin
+
+    calls = []
+
+    class Run:
+        unstable = False
+
+    monkeypatch.setattr(spin, "spin_model_run", lambda path, scene, w, n, terms, s, eps: calls.append((w, eps)) or Run())
+    s = spin.SpinSettings(omegas=(4.0, 6.0, 8.0, 10.0), duration=10.0)
+    row = {"omega": 8.0, "superelements": 1, "terms": "linear", "unstable": False, "t_end": 10.0, "max_deflection": 7.567}
+    assert spin.spin_verdict("m.toml", "s", row, s, 8.0) == margin.STABLE
+    assert calls == [(8.0, margin.PERTURBATION), (6.0, 0.0)]
+    Run.unstable = True  # the re-runs fail: the point is marginal
+    assert spin.spin_verdict("m.toml", "s", row, s, 8.0) == margin.MARGINAL
+    calls.clear()
+    early = {**row, "unstable": True, "t_end": 4.0, "max_deflection": 8.0004}
+    far = {**row, "max_deflection": 1.0}
+    assert spin.spin_verdict("m.toml", "s", early, s, 8.0) == margin.UNSTABLE
+    assert spin.spin_verdict("m.toml", "s", far, s, 8.0) == margin.STABLE and calls == []
+
+
+def test_cosim_compare_gives_the_bound_ratio_of_a_completed_run():
+    """cosim.compare's `bound_ratio` (the margin check's input): a completed run's largest value over
+    bound of the instability tests; a run that follows its reference is far below 1, one whose torque
+    reaches 8x the monolithic peak (bound 10x) is within the factor 2 of margin.py, and a stopped run has
+    none (its time decides)."""
+    from ffrf_fmu.studies.stability.case import CosimRun
+    from ffrf_fmu.studies.stability.cosim import TORQUE_BLOWUP, compare
+
+    t = np.linspace(0.0, 10.0, 1001)
+    ref = CosimRun(t, 0.1 * np.sin(t), np.ones_like(t), np.sin(t), "", 1.0)
+    same = compare(ref, ref, 8.0, 1.0)
+    # the largest ratio is the torque's, 1 / TORQUE_BLOWUP (deflection 0.1 m of L = 8 m: 0.0125; no growth: 0)
+    assert same["verdict"] == "stable" and abs(same["bound_ratio"] - 1.0 / TORQUE_BLOWUP) < 1e-6
+    assert not margin.could_flip(margin.Point(False, 10.0, 10.0, bound_ratios=(same["bound_ratio"],)))
+    big = CosimRun(t, ref.deflection, ref.speed, 0.8 * TORQUE_BLOWUP * np.sin(t), "", 1.0)
+    r = compare(big, ref, 8.0, 1.0)
+    assert not r["unstable"] and margin.could_flip(margin.Point(False, 10.0, 10.0, bound_ratios=(r["bound_ratio"],)))
+    stopped = CosimRun(t[:500], ref.deflection[:500], ref.speed[:500], ref.torque[:500], "beam: doStep failed", 1.0)
+    assert np.isnan(compare(stopped, ref, 8.0, 1.0)["bound_ratio"])

@@ -51,10 +51,12 @@ def test_b1_20ms_takes_at_most_two_iterations_per_step(n_se, modes):
     solver of 585668d took 3.94 and 3.95 evaluations: 2.94 and 2.95 solves and one evaluation of the
     accepted iterate).
     The co-rotated predictor misses by 1e-7..1e-6 of each field's scale, the iteration matrix built at
-    the predictor takes it to the tolerance in one increment, the second increment confirms it."""
+    the predictor takes it to the tolerance in one increment, the second increment confirms it.
+    Two is also the floor (an increment and its confirmation), so the measured 2.00 can only move up on
+    another CPU: the bound 2.2 lets one step in five take a third iteration, as at 50 ms below."""
     evals, reported, _, _ = _b1(0.02, n_se, modes)
     assert evals == pytest.approx(reported, abs=1e-12)  # the reported count is the evaluations
-    assert evals <= 2.0
+    assert evals <= 2.2
 
 
 def test_b1_20ms_deflection_is_the_tightly_converged_one():

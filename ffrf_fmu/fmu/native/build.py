@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...runtime.native.build import FLAGS as RUNTIME_FLAGS
+from ...runtime.native.build import FLAGS as RUNTIME_FLAGS, build_lock
 
 HERE = Path(__file__).resolve().parent  # ffrf_fmu/fmu/native
 RUNTIME = HERE.parent.parent / "runtime" / "native"
@@ -137,6 +137,14 @@ def binary(platform: str = "linux64", compiler: str = "zig", log=None, extra_fla
         return out
     cmd = _compiler(target, compiler)
     out.parent.mkdir(parents=True, exist_ok=True)
+    with build_lock(out.parent):  # one build per key among processes sharing the cache
+        if not out.exists():
+            _build(cmd, target, flags, fmi, layer, out, log, compiler)
+    return out
+
+
+def _build(cmd, target: Target, flags, fmi: int, layer: str, out: Path, log, compiler: str) -> None:
+    """Compile the binary of `target` into `out` (through a temporary file: atomic)."""
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         tmp_out = Path(tmp) / out.name
         link = ["-shared", "-s", "-o", str(tmp_out)]  # stripped: no symbol but the exported fmi2 (or fmi3) functions
@@ -144,11 +152,10 @@ def binary(platform: str = "linux64", compiler: str = "zig", log=None, extra_fla
             link = ["-fPIC", *link, "-lm", "-Wl,--no-undefined"]
         full = [*cmd, *flags, f"-I{RUNTIME}", f"-I{HERE}", *map(str, sources(fmi)), *link]
         t0 = time.monotonic()
-        done = _run_with_progress(full, f"native FMU binary {platform}{layer}", log, compiler == "zig")
+        done = _run_with_progress(full, f"native FMU binary {target.platform}{layer}", log, compiler == "zig")
         if done.returncode != 0:
             raise NativeBuildError(f"{' '.join(full)} failed:\n{done.stderr.strip()[:4000]}")
         os.replace(tmp_out, out)  # atomic: a concurrent build of the same key writes the same bytes
         elapsed = time.monotonic() - t0
         if elapsed > 3.0:
-            log(f"native FMU binary {platform}{layer}: built in {elapsed:.1f} s (cached in {out.parent})")
-    return out
+            log(f"native FMU binary {target.platform}{layer}: built in {elapsed:.1f} s (cached in {out.parent})")

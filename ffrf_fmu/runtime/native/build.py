@@ -20,6 +20,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -138,6 +139,25 @@ def compile_library(out: Path, cc: list[str] | None = None, extra: tuple[str, ..
         raise BuildError(f"{' '.join(cmd)} failed:\n{done.stderr.strip()[:4000]}")
 
 
+@contextmanager
+def build_lock(folder: Path):
+    """Hold an exclusive lock on `folder`/.lock (fcntl.flock) while a build into `folder` runs: concurrent
+    processes sharing a cache (pytest-xdist's workers, a sweep's pool) build each key once, the others wait
+    and find the file. Where flock is missing (Windows) or the lock file cannot be made: no lock (the builds
+    still land atomically, os.replace, so a race only costs a second build)."""
+    try:
+        import fcntl
+        fh = open(folder / ".lock", "a")
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
+    finally:
+        fh.close()  # releases the lock
+
+
 PREBUILT = "prebuilt"  # a compiled runtime shipped beside these modules (a pythonfmu FMU's private copy: `ship`)
 
 
@@ -161,9 +181,11 @@ def library(sanitize: bool = False) -> Path:
             d.mkdir(parents=True, exist_ok=True)
         except OSError:
             continue
-        tmp = d / f".{lib.name}.{os.getpid()}.tmp"
-        compile_library(tmp, cc, extra)
-        os.replace(tmp, lib)
+        with build_lock(d):
+            if not lib.exists():  # another process may have built it while this one waited
+                tmp = d / f".{lib.name}.{os.getpid()}.tmp"
+                compile_library(tmp, cc, extra)
+                os.replace(tmp, lib)
         return lib
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
 

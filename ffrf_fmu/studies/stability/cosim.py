@@ -18,9 +18,10 @@ import numpy as np
 
 from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
+from . import margin
 from .case import CosimRun, CosimSettings
 from .common import write_map
-from .tasks import COMPLIANT, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE, run_settings
+from .tasks import COMPLIANT, IMPLICIT, INTERFACE_JACOBIAN, REFERENCE, perturbed_run, run_settings
 
 TORQUE_BLOWUP = 10.0  # unstable: shaft torque beyond this many times the monolithic run's peak
 GROWTH_DEVIATION = 0.5  # ... or off the monolithic run by half its peak and growing (see compare)
@@ -31,7 +32,7 @@ GROWTH_DEVIATION = 0.5  # ... or off the monolithic run by half its peak and gro
 #: beyond it changes the answer more than the model choice does; a completed run above it is
 #: "inaccurate", not stable (B5 plain Gauss-Seidel at 10 ms: 9 % deflection, 86 % hub speed).
 ACCURACY_BOUND = 1e-2
-VERDICTS = ("stable", "inaccurate", "unstable")
+VERDICTS = ("stable", "inaccurate", "unstable", "marginal")  # marginal: cosim_margin_verdict
 
 
 def compare(run: CosimRun, ref: CosimRun, length: float, ref_torque_peak: float) -> dict:
@@ -45,22 +46,26 @@ def compare(run: CosimRun, ref: CosimRun, length: float, ref_torque_peak: float)
     if np.any(np.isfinite(run.speed)) and finite:
         s_ref = np.interp(run.t, ref.t, ref.speed)
         speed_err = float(np.max(np.abs(run.speed - s_ref)) / max(np.max(np.abs(ref.speed)), 1e-300))
-    reasons = []
+    reasons, ratios = [], []  # ratios: value over bound of each instability bound (> 1 crossed), margin.py
     if run.stopped_early:
         reasons.append(run.stopped_early.split(": Newton")[0] + (": Newton failure" if "Newton" in run.stopped_early else ""))
     if not finite:
         reasons.append("non-finite values")
-    elif np.max(run.deflection) > length:
+    elif (ratios := [float(np.max(run.deflection)) / length]) and np.max(run.deflection) > length:
         reasons.append(f"tip deflection {np.max(run.deflection):.3g} m > L")
     elif not np.isfinite(ref_torque_peak) or not np.all(np.isfinite(ref.torque)):
         pass  # the reference has no interface moment (split beam: the cut is inside the one body)
-    elif np.max(np.abs(run.torque)) > TORQUE_BLOWUP * ref_torque_peak:
+    elif (ratios := [*ratios, float(np.max(np.abs(run.torque))) / (TORQUE_BLOWUP * ref_torque_peak)]) \
+            and np.max(np.abs(run.torque)) > TORQUE_BLOWUP * ref_torque_peak:
         reasons.append(f"interface torque {np.max(np.abs(run.torque)):.3g} N m > {TORQUE_BLOWUP:g} x monolithic peak")
     elif n > 10:
         # a growing oscillation that has not failed yet: the interface torque has left the monolithic
         # run by more than half its peak over the last second, and by 10x more than in the first half
         dev = np.abs(run.torque - np.interp(run.t, ref.t, ref.torque))
         last, first = dev[run.t >= run.t[-1] - 1.0], dev[run.t <= run.t[-1] / 2]
+        # both must hold: the conjunction's ratio is the smaller one
+        ratios.append(min(float(np.max(last)) / (GROWTH_DEVIATION * ref_torque_peak),
+                          float(np.max(last)) / (10.0 * max(float(np.max(first)), 1e-12))))
         if np.max(last) > GROWTH_DEVIATION * ref_torque_peak and np.max(last) > 10.0 * max(np.max(first), 1e-12):
             reasons.append(f"growing interface oscillation: torque off the monolithic run by {np.max(last):.3g} N m "
                            f"in the last second, {np.max(first):.2g} N m in the first half")
@@ -68,13 +73,38 @@ def compare(run: CosimRun, ref: CosimRun, length: float, ref_torque_peak: float)
     verdict = "unstable" if reasons else ("inaccurate" if not worst <= ACCURACY_BOUND else "stable")
     return {"rel_error": err, "speed_rel_error": speed_err, "verdict": verdict, "unstable": bool(reasons),
             "failure": "; ".join(reasons),
-            "t_end": float(run.t[-1]) if n else 0.0, "sweeps": run.sweeps, "wall_time_s": run.wall_time_s}
+            "t_end": float(run.t[-1]) if n else 0.0, "sweeps": run.sweeps, "wall_time_s": run.wall_time_s,
+            # a run stopped by a failed step ends there: its time decides (margin.py), not a ratio
+            "bound_ratio": float(max(ratios)) if ratios and not run.stopped_early else float("nan")}
+
+
+def cosim_margin_verdict(model_path, settings: CosimSettings, kind: str, row: dict, ref: CosimRun,
+                         ref_torque_peak: float, grid: Sequence[float]) -> str:
+    """The row's verdict with a margin (margin.classify; docs/stability.md, "Marginal points"): a run that
+    failed in the last 10 % of its duration, or whose instability bounds (tip deflection over L, torque
+    over TORQUE_BLOWUP x the monolithic peak, the growing-oscillation test) were met within
+    margin.BOUND_FACTOR, is re-run with the hub profile perturbed at margin.PERTURBATION
+    (tasks.perturbed_run) and at the neighbour communication step of the map's grid; `marginal` when a
+    re-run's stable / unstable verdict differs. A stable row keeps its stable / inaccurate class."""
+    duration = settings.duration if kind == "motor" else settings.split_duration
+    ratio = row.get("bound_ratio", float("nan"))
+    point = margin.Point(unstable=bool(row["unstable"]), t_end=float(row.get("t_end", 0.0)), duration=duration,
+                         failure=row.get("failure", ""), bound_ratios=(ratio,) if ratio == ratio else ())
+
+    def rerun(H, eps):
+        run = perturbed_run(model_path, settings, kind, H, row["scheme"], eps)
+        return bool(compare(run, ref, row["length"], ref_torque_peak)["unstable"])
+
+    v = margin.classify(point, float(row["H"]), tuple(grid), rerun)
+    return row["verdict"] if v != margin.MARGINAL else v
 
 
 def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "split"),
-              implicit_steps: Sequence[float] = (0.002, 0.01, 0.04), sweep: SweepOptions = SweepOptions()) -> list[dict]:
+              implicit_steps: Sequence[float] = (0.002, 0.01, 0.04), sweep: SweepOptions = SweepOptions(),
+              margin_check: bool = True) -> list[dict]:
     """Communication step against coupling scheme for the motor and the split systems; one CSV row
-    per run, its verdict stable / inaccurate / unstable (compare). Monolithic references
+    per run, its verdict stable / inaccurate / unstable (compare), or marginal (cosim_margin_verdict; not
+    checked when margin_check is False). Monolithic references
     (monolithic.py, docs/stability.md): motor -> beam, shaft, hub and drive in one standalone run at
     settings.reference_step; split -> the one-body scene standalone at the same H."""
     opts = {"settings": run_settings(settings)}
@@ -113,8 +143,14 @@ def cosim_map(model_path, settings: CosimSettings, out_dir, *, cases=("motor", "
                          "failure": r["failure"]})
             continue
         run = CosimRun.of(r)
-        rows.append({"case": kind, "scheme": label, "H": float(H),
-                     **compare(run, ref, r["length"], float(np.max(np.abs(ref.torque))))})
+        peak = float(np.max(np.abs(ref.torque)))
+        row = {"case": kind, "scheme": label, "H": float(H), **compare(run, ref, r["length"], peak)}
+        if margin_check:
+            grid = settings.steps if kind == "motor" else settings.split_steps
+            if label == IMPLICIT[0] and kind == "motor":
+                grid = [h for h in grid if any(abs(h - g) < 1e-12 for g in implicit_steps)]
+            row["verdict"] = cosim_margin_verdict(model_path, settings, kind, {**row, "length": r["length"]}, ref, peak, grid)
+        rows.append(row)
         series[f"{kind}_{label}_H{H:g}"] = np.column_stack([run.t, run.deflection, run.speed, run.torque])
     write_map(out_dir, rows, series)
     return rows

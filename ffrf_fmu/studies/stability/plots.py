@@ -29,8 +29,9 @@ def plot_spin(rows: list[dict], path) -> None:
         rs = sorted((r for r in rows if r["model"] == name), key=lambda r: r["omega"])
         n, terms = int(name.split("SE")[0]), name.split("-")[1]
         style = "-" if terms == "linear" else "--"
-        ok = [r for r in rs if not is_true(r["unstable"])]
-        bad = [r for r in rs if is_true(r["unstable"])]
+        marginal = [r for r in rs if r.get("verdict") == "marginal"]  # the verdict changed under round-off (margin.py)
+        ok = [r for r in rs if not is_true(r["unstable"]) and r not in marginal]
+        bad = [r for r in rs if is_true(r["unstable"]) and r not in marginal]
         kw = dict(color=colors.get(n, "tab:blue"), ls=style, marker="o" if terms == "linear" else "s", ms=4)
         ax1.plot([r["omega"] for r in ok], [max(abs(100 * r["rel_error"]), 1e-3) for r in ok],
                  label=f"{n} SE, {terms}", **kw)
@@ -38,11 +39,14 @@ def plot_spin(rows: list[dict], path) -> None:
         y_bad = 1000.0 if terms == "linear" else 2000.0
         for r in bad:
             ax1.plot(r["omega"], y_bad, "x" if terms == "linear" else "+", color=kw["color"], ms=11, mew=3)
+        for r in marginal:
+            ax1.plot(r["omega"], y_bad, "o", mfc="none", color=kw["color"], ms=11, mew=2)
     f1 = ref[0].get("first_frequency_rad_s") if ref else None  # of the model at rest (spin_map)
     if f1:
         ax1.axvline(f1, color="gray", ls=":", lw=1)
         ax1.text(f1 * 1.03, 0.05, f"first cantilever\nfrequency {f1:.3g} rad/s", fontsize=7, color="gray")
-    ax1.text(1.0, 3000.0, "unstable (deflection > L or Newton failure): x linear, + gyroscopic", fontsize=7)
+    ax1.text(1.0, 3000.0, "unstable (deflection > L or Newton failure): x linear, + gyroscopic\n"
+             "o marginal (verdict changed under a 1e-9 perturbation or at the neighbour spin)", fontsize=7)
     ax1.set_yscale("log")
     ax1.set_ylim(0.03, 6000.0)
     ax1.set_xlabel("final spin rate [rad/s]")
@@ -152,6 +156,10 @@ def plot_cosim(rows: list[dict], path) -> None:
                     ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color="tab:red"))
                     ax.text(j, i, label.get((i, j), "unstable"), ha="center", va="center", color="white", fontsize=8,
                             weight="bold")
+                elif v == "marginal":  # the verdict changed under round-off (margin.py)
+                    ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="white", edgecolor="tab:red",
+                                               lw=2))
+                    ax.text(j, i, "marginal", ha="center", va="center", color="tab:red", fontsize=8, weight="bold")
                 elif v == "inaccurate":
                     ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="moccasin", edgecolor="tab:orange",
                                                hatch="//", lw=0))

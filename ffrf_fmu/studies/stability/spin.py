@@ -20,6 +20,7 @@ from ...reference.solver import ENERGY_ERROR_SUSPECT
 from ..runners import beam_run_of, run_beam, transverse
 from ..sweep import SweepOptions, sweep_into
 from ..task import make_task
+from . import margin
 from .common import write_map
 
 SPIN_RATES = (1.0, 2.0, 2.5, 3.0, 3.5, 4.0, 6.0, 8.0, 10.0, 12.0)
@@ -66,6 +67,33 @@ class SpinSettings:
     duration: float = 10.0
     reference_elements: int = 16
     overrides: tuple[str, ...] = ()  # --set values for every run
+    margin: bool = True  # re-run the model points whose verdict could flip (margin.py, `spin_verdict`)
+
+
+def spin_model_run(model_path, scene: str, omega: float, n_se: int, terms: str, settings: SpinSettings,
+                   perturbation: float = 0.0):
+    """One model run of the map in this process (the map's runs are the same, through the sweep layer);
+    perturbation: of the initial state (run_beam), for the margin check."""
+    model, sc = spin_scene(model_path, scene, omega, T=settings.T, duration=settings.duration, n_se=n_se,
+                           terms=terms, extra=settings.overrides)
+    return run_beam(model, sc, record_every=RECORD_EVERY, perturbation=perturbation)
+
+
+def spin_verdict(model_path, scene: str, row: dict, settings: SpinSettings, length: float) -> str:
+    """The model row's verdict with a margin (margin.classify; docs/stability.md, "Marginal points"): a
+    point that failed in the last 10 % of its run, or whose peak deflection of a completed run is within
+    margin.BOUND_FACTOR of L, is re-run in this process with its initial state perturbed at
+    margin.PERTURBATION and at the neighbour spin rate of the sweep on the side a map monotone in the
+    spin must agree with (the faster spin for an unstable point, the slower for a stable one). The grid
+    is the sweep's final spin rates: omega plays the step's part of the integrator map."""
+    unstable = bool(row["unstable"])
+    point = margin.Point(unstable=unstable, t_end=float(row.get("t_end", 0.0)), duration=settings.duration,
+                         failure=row.get("failure", ""),
+                         # a run stopped at L ends just past it: its time decides, not the ratio
+                         bound_ratios=() if unstable else (float(row.get("max_deflection", 0.0)) / length,))
+    n_se, terms = int(row["superelements"]), row["terms"]
+    rerun = lambda w, eps: bool(spin_model_run(model_path, scene, w, n_se, terms, settings, eps).unstable)
+    return margin.classify(point, float(row["omega"]), tuple(settings.omegas), rerun)
 
 
 def spin_map(model_path, scene: str, settings: SpinSettings, out_dir, sweep: SweepOptions = SweepOptions()) -> list[dict]:
@@ -123,6 +151,14 @@ def spin_map(model_path, scene: str, settings: SpinSettings, out_dir, sweep: Swe
                          "wall_time_s": run.wall_time_s, "ref_energy_error": energy_error,
                          "reference_suspect": ref["reference_suspect"]})
             series[f"{name}_w{omega:g}"] = np.column_stack([run.t, run.deflection])
+    for r in rows:
+        if r["model"] == "reference":
+            r["verdict"] = "reference"
+        elif "t_end" not in r:
+            r["verdict"] = margin.UNSTABLE
+        else:
+            r["verdict"] = spin_verdict(model_path, scene, r, s, model.body.length) if s.margin \
+                else (margin.UNSTABLE if r["unstable"] else margin.STABLE)
     write_map(out_dir, rows, series)
     return rows
 

@@ -12,7 +12,7 @@ from typing import Sequence
 
 from . import compliant_b5, monolithic
 from .benchmarks import CoupledBeam
-from .case import COSIM_SCHEMES, RUN_SETTINGS, CosimCase, CosimSettings
+from .case import COSIM_SCHEMES, RUN_SETTINGS, CosimCase, CosimRun, CosimSettings
 
 IMPLICIT = ("gauss-seidel implicit", "gauss-seidel", False, "fwd")
 #: motor case with the shaft in the beam's compliant hub (compliant_b5.py, docs/cosim.md)
@@ -42,6 +42,36 @@ def _case(kind: str, model_path, settings: CosimSettings) -> tuple[CosimCase, di
         fmu_dir = Path(tempfile.mkdtemp(prefix=f"ffrf_cosim_{kind}_"))
         _CASES[key] = (CosimCase(kind, model_path, fmu_dir, settings), {"fmu_dir": fmu_dir})
     return _CASES[key]
+
+
+def perturbed_run(model_path, settings: CosimSettings, kind: str, H: float, label: str,
+                  perturbation: float) -> CosimRun:
+    """A map run (not the reference) again in this process with the spin-up time of the hub's Wu-Haug
+    profile scaled by 1 + perturbation (motor: the drive's speed reference, `drive.profile.T`; split: the
+    hub motion of A), the margin check's re-run (margin.py). The coupled systems start at rest, where a
+    relative perturbation of the state is zero: the profile carries it into the state from the first
+    step on. The case's FMUs are the unperturbed run's (`_case`): the profile is a start value, or
+    (split) computed by the master."""
+    case, extra = _case(kind, model_path, settings)
+    f = 1.0 + perturbation
+    if label == COMPLIANT[0]:
+        if "compliant" not in extra:
+            extra["compliant"] = compliant_b5.build(model_path, extra["fmu_dir"], settings)
+        return compliant_b5.run_master(extra["compliant"], dataclasses.replace(settings, T=settings.T * f), H,
+                                       case.duration)
+    _, scheme, extrap, order = SCHEMES[label]
+    saved = dict(case.start_values), dict(getattr(case, "profile", {}))
+    try:
+        if kind == "motor":
+            case.start_values["drive.profile.T"] = case.start_values["drive.profile.T"] * f
+        else:
+            case.profile["T"] = case.profile["T"] * f
+        return case.run(H, scheme, extrap, order, iterations=settings.implicit_iterations if label == IMPLICIT[0] else 1,
+                        interface_jacobian=label == INTERFACE_JACOBIAN[0])
+    finally:
+        case.start_values = saved[0]
+        if kind != "motor":
+            case.profile = saved[1]
 
 
 def run_task(model_path: str, overrides: Sequence[str], opts: dict) -> dict:
