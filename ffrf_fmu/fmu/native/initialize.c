@@ -105,10 +105,12 @@ static void static_jacobian(ffrf_body *b, double *p, const double *yd, const dou
     ffrf_work *w = &b->work;
     const size_t nf = (size_t)b->dims.nf;
     double *JT = b->lu.JT;
+    ffrf_factor_clear(b, JT);
     ffrf_evaluate(b, w->se, zero_loads, zero_loads, p, yd, R, theta, 1, 0.0, F, JT, w->Fl, w->Fz, w->Fy, w->T);
     for (size_t r = 0; r < nf; r++) /* JT is transposed: J[r][c] = JT[c][r] */
         for (size_t c = 0; c < nf; c++)
             Fy[r * nf + c] = -JT[c * nf + r];
+    ffrf_factor_clear(b, JT);
     ffrf_evaluate(b, w->se, zero_loads, zero_loads, p, yd, R, theta, 1, 1.0, F, JT, w->Fl, w->Fz, w->Fy, w->T);
     for (size_t r = 0; r < nf; r++)
         for (size_t c = 0; c < nf; c++)

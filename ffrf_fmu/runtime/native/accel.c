@@ -7,7 +7,7 @@
 
 #include "accel.h"
 #include "so3.h"
-#include "factor.h"
+#include "lu.h"
 
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF

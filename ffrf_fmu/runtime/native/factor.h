@@ -1,12 +1,8 @@
-/* What factor.c offers the layers above it: dense LU and the iteration matrix factored by its structure. */
+/* What factor.c offers the layers above it: the iteration matrix factored by its structure. */
 #ifndef FFRF_FACTOR_H
 #define FFRF_FACTOR_H
 
 #include "layout.h"
-
-/* ---- factor.c: dense LU with partial pivoting (LAPACK dgetf2), A stored transposed ---- */
-int ffrf_lu_factor(double *aT, int *piv, int n);
-void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
 
 /* ---- factor.c: the iteration matrix factored by its structure (superelements, then nodes) ---- */
 /* The factors of JT [nf][nf] (transposed) into store [nf * nf] and piv [nf]: 0, or -1 when an entry it reads is
@@ -14,7 +10,8 @@ void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n);
 int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv);
 /* The entries of store that ffrf_factor fills (its leading part; the rest is never read). */
 size_t ffrf_factor_entries(const ffrf_body *b);
-/* JT's structural entries (all that ffrf_factor reads) set to zero: a refresh's start. */
+/* JT's structural entries (all that ffrf_factor reads) set to zero: a refresh's start, before ffrf_evaluate
+ * (superelement.c) adds the blocks into them. */
 void ffrf_factor_clear(const ffrf_body *b, double *JT);
 /* x <- J^-1 x in the Newton order, from ffrf_factor's store and piv. */
 void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, double *x);

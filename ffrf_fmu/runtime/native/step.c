@@ -202,6 +202,8 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
     for (it = 1; it <= max_iter; it++) {
         int refresh = lu_meta[0] == 0.0 || fabs(lu_meta[1] - beta) > 1e-6 * beta;
         stage_at(b, c, P0, Rn, yd, p, theta, R);
+        if (refresh)
+            ffrf_factor_clear(b, L->JT); /* factor.c: the structural entries ffrf_evaluate adds into */
         ffrf_evaluate(b, w->se, f_load, t_load, p, yd, R, theta, refresh, beta, F, L->JT, w->Fl, w->Fz, w->Fy, T);
         ffrf_springs_apply(b, p, yd, R, T, refresh, beta, F, L->JT);
         double s = 0.0;

@@ -21,7 +21,6 @@
 
 #include "superelement.h"
 #include "so3.h"
-#include "factor.h"
 
 /* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
  * (r: rows of vk_a, n2: n_w2). Bound once to a block that body.c allocates at creation. */
@@ -819,7 +818,6 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     const double (*Fz)[ncv] = (const double (*)[ncv])Fz_;
     memset(F, 0, sizeof(double) * (size_t)ny);
     if (jac) {
-        ffrf_factor_clear(b, JT_); /* the structural entries: the others are zero and never written */
         for (int r = 0; r < N + E; r++)
             ffrf_tangent(theta[r], &T[r][0][0]);
     }
