@@ -1,6 +1,7 @@
 """The C files call one another in one direction (a DAG, as the Python stages import): a file that
 calls a function of another is never called back by it, for the runtime (ffrf_fmu/runtime/native) and
-the FMU's own C (ffrf_fmu/fmu/native). The check reads the files as text: external definitions
+the FMU's own C (ffrf_fmu/fmu/native), and every call and every include of the folder's own headers
+runs down the layers of docs/architecture.md. The check reads the files as text: external definitions
 `type name(args) {` at the start of a line, and calls `name(` in the other files."""
 import re
 from pathlib import Path
@@ -8,6 +9,13 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "ffrf_fmu"
+# the layers bottom up (docs/architecture.md, "The C runtime in layers"); files of one layer call each other not
+LAYERS = {
+    "runtime/native": [["so3.c"], ["lu.c"], ["superelement.c"], ["factor.c"], ["step.c"], ["accel.c"], ["advance.c"],
+                       ["body.c"]],
+    "fmu/native": [["resource.c"], ["initialize.c"], ["model.c"], ["fmi2Functions.c", "fmi3Functions.c"]],
+}
+INCLUDE = re.compile(r'^#include "(\w+)\.h"', re.M)
 DEFINITION = re.compile(r"^(?!static\b)[A-Za-z_][\w \*]*?\b(\w+)\s*\([^;{]*\)\s*\{", re.M)
 
 
@@ -44,6 +52,19 @@ def test_c_files_call_in_one_direction(folder):
     edges = call_graph(ROOT / folder)
     assert edges, f"{folder}: no calls between its files found (the check would pass vacuously)"
     assert circles(edges) == []
+
+
+@pytest.mark.parametrize("folder", sorted(LAYERS))
+def test_c_files_call_and_include_down_the_layers(folder):
+    rank = {name: k for k, layer in enumerate(LAYERS[folder]) for name in layer}
+    files = sorted(f.name for f in (ROOT / folder).glob("*.c"))
+    assert sorted(rank) == files, f"{folder}: every C file has its layer"
+    up = [(a, b) for a, b in call_graph(ROOT / folder) if rank[a] <= rank[b]]
+    assert up == [], f"{folder}: calls that do not run down the layers"
+    for name in files:
+        for inc in INCLUDE.findall((ROOT / folder / name).read_text()):
+            if f"{inc}.c" in rank:
+                assert rank[f"{inc}.c"] <= rank[name], f"{folder}/{name} includes {inc}.h, a layer above it"
 
 
 def test_the_check_finds_a_circle(tmp_path):

@@ -13,31 +13,12 @@
 #include <string.h>
 
 #include "body.h"
-#include "model.h"
+#include "initialize.h"
+#include "resource.h" /* PART_MOTION, PART_FORCE: the port modes */
 
 #define MICRO_STEP 1e-6 /* BodySystem.initialize's backward-Euler micro-step */
 #define RELAX_TOL 1e-12
 #define RELAX_MAX_ITER 30
-
-/* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py); here, below
- * model.c, which reports the steps of doStep with them, so that no file of the FMU calls one above it */
-const char *fmu_failure_text(int status)
-{
-    switch (status) {
-    case FFRF_NOT_FINITE:
-        return "the residual is not finite (NaN or overflow)";
-    case FFRF_NOT_CONVERGED:
-        return "Newton did not converge";
-    case FFRF_NOT_FACTORED:
-        return "iteration matrix cannot be factored (not finite or singular)";
-    case FFRF_ROTATION_ALIAS:
-        return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
-    case FFRF_BAD_STEP:
-        return "step size must be positive and finite";
-    default:
-        return "step failed";
-    }
-}
 
 /* p (global ydot layout) of the current configuration: positions, eta and velocities in their stage slots,
  * rotation increments 0; R the node then CM frames. */
@@ -454,7 +435,7 @@ int fmu_initialize_body(ffrf_body *b, double t0, const double velocity[3], const
     memcpy(yd0, st->yd, sizeof(double) * (size_t)ny);
     ffrf_body_set_state(b, saved, state_size);
     if (step != FFRF_OK) {
-        snprintf(err, err_len, "%s (the consistent initial rates: a backward-Euler step of %g s)", fmu_failure_text(step),
+        snprintf(err, err_len, "%s (the consistent initial rates: a backward-Euler step of %g s)", ffrf_status_text(step),
                  MICRO_STEP);
         goto done;
     }

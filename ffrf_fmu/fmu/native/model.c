@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "body.h"
+#include "initialize.h"
 #include "model.h"
 
 static const char *const TERM_NAMES[FMU_TERM_SETS] = {"linear", "gyroscopic", "full"};
@@ -699,7 +700,7 @@ static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, ch
         if (status == FFRF_NOT_CONVERGED)
             snprintf(why, len, "t = %.6g s: Newton did not converge in %d iterations", t0 + (done + 1) * hh, b->max_iter);
         else
-            snprintf(why, len, "t = %.6g s: %s", t0 + (done + 1) * hh, fmu_failure_text(status));
+            snprintf(why, len, "t = %.6g s: %s", t0 + (done + 1) * hh, ffrf_status_text(status));
         return 1;
     }
     return 0;

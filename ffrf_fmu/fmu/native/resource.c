@@ -14,7 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "model.h"
+#include "resource.h"
 
 #define HEADER_BYTES 40
 

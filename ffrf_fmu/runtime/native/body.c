@@ -599,6 +599,27 @@ void ffrf_body_free(ffrf_body *b)
     free(b);
 }
 
+/* ------------------------------------------------------------------ statuses */
+
+/* the numpy path's messages of a failed step (runtime/native/binding.py `failure`, integrator.py) */
+const char *ffrf_status_text(int status)
+{
+    switch (status) {
+    case FFRF_NOT_FINITE:
+        return "the residual is not finite (NaN or overflow)";
+    case FFRF_NOT_CONVERGED:
+        return "Newton did not converge";
+    case FFRF_NOT_FACTORED:
+        return "iteration matrix cannot be factored (not finite or singular)";
+    case FFRF_ROTATION_ALIAS:
+        return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
+    case FFRF_BAD_STEP:
+        return "step size must be positive and finite";
+    default:
+        return "step failed";
+    }
+}
+
 /* ------------------------------------------------------------------ structural damping */
 
 int ffrf_damping_update(ffrf_body *b)
