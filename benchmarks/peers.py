@@ -2,7 +2,7 @@
 """Benchmark: our superelement chains against Exudyn's full-order 3D beam on B1, in ONE run.
 
     python benchmarks/peers.py [--quick] [--repeat N] [--backend native|numpy] [-o DIR] [--set KEY=V ...]
-                               [--sweep KEY=V1,V2 ...] [--peer-sweep ...]
+                               [--sweep KEY=V1,V2 ...] [--peer-sweep ...] [--fresh-process | --cli]
 
 B1 (models/haug_beam.toml, scene spinup: Haug's rotating beam, 20 s, rho_inf 0.8). Runs, one
 after another in this process (one core; BLAS and Exudyn pinned to one thread):
@@ -22,7 +22,10 @@ Two passes over the configurations:
 - the timing rounds (--repeat N, default 3): every configuration that completed runs N more times,
   each a fresh run in this process (task.execute, never the store: a stored result's time is a time
   of another run, perhaps another day's load), or with --fresh-process in a new Python process each, as a
-  CLI run pays its first calls. Round r visits ours and Exudyn's configurations
+  CLI run pays its first calls, or with --cli as a user runs them (`cli_timing`): ours a subprocess
+  `ffrf-fmu simulate MODEL --set ... --summary FILE` whose summary gives the time (wall_time_s: set-up,
+  steps and recording) and the metric, Exudyn's a new Python process whose solver's wall time counts
+  (SolveDynamic, no model set-up). Round r visits ours and Exudyn's configurations
   interleaved (spread evenly over the round, `interleaved`) and every other round in reverse order,
   so that a burst of load from the other jobs on the machine falls on both codes' runs, not on one
   side. Each configuration keeps the minimum wall and the minimum CPU time of its N runs
@@ -47,7 +50,13 @@ and Pareto fronts are the best-of-N ones):
   (Exudyn's best-of-N front over our front of each configuration's slowest run). Without the
   interpolation ("runs only"): the ratio of the cheapest runs of each code that reach the error.
   On the fronts, errors within SAME_ERROR_REL count as equal (the dearer point is dominated);
-- the verdict on the target: Exudyn / ours >= TARGET (10) on wall time over 0.2-5 %.
+- the verdict on the target: Exudyn / ours >= TARGET (10) on wall time over 0.2-5 %;
+- the level table (`level_table`): per error level, our cheapest configuration (best-of-N wall time)
+  whose error is at or below the level and Exudyn's cheapest at or below it, their errors, times and
+  ratio, and beside it Exudyn's cheapest at or below our configuration's own error; with --cli, the
+  whole processes of each level's two configurations (`whole_processes`: `ffrf-fmu simulate` against a
+  Python script that loads the model and runs Exudyn, benchmarks/cli_process.py's), best of N,
+  interleaved.
 
 Without exudyn (the optional extra `peers`: pip install -e ".[peers]") it says so and exits 0.
 """
@@ -61,7 +70,9 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one
 import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -201,6 +212,41 @@ def fresh_process(execute):
     return run
 
 
+USER_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}  # bytecode cached, as installed
+
+
+def cli_command(model_path, task, summary=None) -> list[str]:
+    """`ffrf-fmu simulate` of our run `task` (its scene, overrides and backend) as `python -m ffrf_fmu`,
+    with --summary FILE when given."""
+    sets = [w for o in task.overrides for w in ("--set", o)]
+    tail = ["--summary", str(summary)] if summary else []
+    return [sys.executable, "-m", "ffrf_fmu", "simulate", str(model_path), "--scene", task.scene, *sets,
+            "--backend", task.backend, *tail]
+
+
+def cli_run(model_path):
+    """execute(task) of our runs as a user makes them: `cli_command` in a subprocess (this checkout's
+    package, bytecode cached), the summary's wall_time_s, cpu_time_s, completion and metrics."""
+    def run(task) -> dict:
+        with tempfile.TemporaryDirectory(prefix="ffrf_peers_") as tmp:
+            out = Path(tmp, "summary.json")
+            p = subprocess.run(cli_command(model_path, task, out), capture_output=True, text=True, cwd=ROOT,
+                               env=dict(USER_ENV, PYTHONPATH=str(ROOT)))
+            if not out.is_file():
+                return {"completed": False, "failure": f"exit {p.returncode}: {p.stderr.strip()[-400:]}"}
+            s = json.loads(out.read_text())
+        return {"wall_time_s": s["wall_time_s"], "cpu_time_s": s["cpu_time_s"], "completed": bool(s["completed"]),
+                "failure": s["failure"], "metrics": s["metrics"]}
+
+    return run
+
+
+def cli_timing(model_path, execute):
+    """The timing runs of --cli: ours through `cli_run`, the peer's through `fresh_process(execute)`."""
+    ours, peer = cli_run(model_path), fresh_process(execute)
+    return lambda task: ours(task) if task.runner == "standalone" else peer(task)
+
+
 def _completed(runs: list[dict]) -> list[dict]:
     """The timing runs that completed with both times."""
     return [r for r in runs if r["completed"] and r["wall_time_s"] and r["cpu_time_s"]]
@@ -300,6 +346,60 @@ def verdict(best, rounds, worst, peer, target=TARGET, span=SPAN) -> dict:
             "met_pessimistic": ok(w["pessimistic"]), "met_runs_only": ok(w["runs_only"]), "lowest": low}
 
 
+def _cheapest(rows, runner, level):
+    """The row of `runner` with the least wall time among those whose error is at most `level`, or None."""
+    ok = [r for r in rows if r["runner"] == runner and r["completed"] and r["metric_error_rel"] is not None
+          and r["wall_time_s"] and r["metric_error_rel"] <= level]
+    return min(ok, key=lambda r: r["wall_time_s"]) if ok else None
+
+
+def level_table(rows, peer, levels=LEVELS) -> list[dict]:
+    """Per error level: "ours", our cheapest row at or below the level; "peer", the peer's cheapest at or
+    below it, and "ratio" its wall time over ours; "peer_at_ours", the peer's cheapest at or below our
+    row's own error, and "ratio_at_ours" (None where a code reaches no such error)."""
+    out = []
+    for level in levels:
+        ours = _cheapest(rows, "standalone", level)
+        theirs = _cheapest(rows, peer, level)
+        strict = _cheapest(rows, peer, ours["metric_error_rel"]) if ours else None
+        out.append({"error": level, "ours": ours, "peer": theirs, "peer_at_ours": strict,
+                    "ratio": theirs["wall_time_s"] / ours["wall_time_s"] if ours and theirs else None,
+                    "ratio_at_ours": strict["wall_time_s"] / ours["wall_time_s"] if ours and strict else None})
+    return out
+
+
+def whole_processes(model_path, levels, tasks, rows, repeat: int) -> list[dict]:
+    """Per distinct pair (ours, the peer's) of `levels` (level_table): the whole process of ours
+    (`cli_command` without a summary) and of a Python script that loads the model and runs the peer's
+    configuration (benchmarks/cli_process.py PEER), each timed from start to exit, `repeat` times after
+    one untimed run, the two alternating; the minimum of each and the ratio peer / ours."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from cli_process import PEER, timed as timed_process
+
+    env = dict(USER_ENV, PYTHONPATH=str(ROOT))
+    pairs = {}
+    for q in levels:
+        if q["ours"] and q["peer"]:
+            pairs.setdefault((q["ours"]["label"], q["peer"]["label"]), (q["ours"], q["peer"]))
+    index = {r["label"]: j for j, r in enumerate(rows)}
+    out = []
+    for (a, b), (ours, theirs) in pairs.items():
+        cmds = {"ours": cli_command(model_path, tasks[index[a]]),
+                "peer": [sys.executable, "-c", PEER.format(model=str(model_path), n=int(theirs["elements"]),
+                                                           h=float(theirs["step"]))]}
+        walls = {"ours": [], "peer": []}
+        for k in range(repeat + 1):
+            for who in ("ours", "peer") if k % 2 == 0 else ("peer", "ours"):
+                wall, _, code = timed_process(cmds[who], env)
+                if code != 0:
+                    raise RuntimeError(f"whole process failed (exit {code}): {' '.join(cmds[who])}")
+                if k:
+                    walls[who].append(wall)
+        out.append({"ours": a, "peer": b, "ours_s": min(walls["ours"]), "peer_s": min(walls["peer"]),
+                    "ratio": min(walls["peer"]) / min(walls["ours"]), "command": " ".join(cmds["ours"][1:])})
+    return out
+
+
 def _load() -> str:
     return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
@@ -385,6 +485,30 @@ def markdown(rows, ratios, check, meta, judged=None) -> str:
     return "\n".join(lines)
 
 
+def level_markdown(levels, whole, meta) -> str:
+    """The level table (level_table) and the whole processes (whole_processes) as markdown."""
+    n = meta.get("repeat")
+
+    def cell(r):
+        return f"{r['label']}, {r['metric_error_rel']:.3%}, {1e3 * r['wall_time_s']:.1f} ms" if r else "not reached"
+
+    ours_time = "summary wall_time_s of `ffrf-fmu simulate`" if meta.get("cli") else "wall time of the run"
+    lines = [f"Per level, the cheapest configuration of each code at or below it (best of {n}; ours: {ours_time}, "
+             "Exudyn: its solver's wall time):", "",
+             "| level | ours: configuration, error, time | Exudyn: configuration, error, time | Exudyn / ours "
+             "| Exudyn at or below our error | Exudyn / ours there |", "|---|---|---|---|---|---|"]
+    for q in levels:
+        lines.append(f"| {q['error']:.1%} | {cell(q['ours'])} | {cell(q['peer'])} | {_f(q['ratio'], '.2f', '–')} | "
+                     f"{cell(q['peer_at_ours'])} | {_f(q['ratio_at_ours'], '.2f', '–')} |")
+    if whole:
+        lines += ["", f"Whole processes (start to exit, best of {n}, alternating): ours `ffrf-fmu simulate` with the "
+                  "configuration, Exudyn a Python script that loads the model file and runs its configuration:", "",
+                  "| ours | Exudyn | ours [s] | Exudyn [s] | Exudyn / ours |", "|---|---|---|---|---|"]
+        for w in whole:
+            lines.append(f"| {w['ours']} | {w['peer']} | {w['ours_s']:.3f} | {w['peer_s']:.3f} | {w['ratio']:.2f} |")
+    return "\n".join(lines)
+
+
 def verdict_text(v: dict, n) -> str:
     def low(x):
         return f"{x['ratio']:.2f} at {x['error']:.3%}" if x["ratio"] is not None else f"not reached at {x['error']:.3%}"
@@ -418,8 +542,12 @@ def main(argv=None) -> int:
                     help="our runtime backend (native falls back to numpy, with a note, where the C runtime cannot be compiled)")
     ap.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                     help=f"timing runs per configuration, interleaved; each keeps the minimum (default {REPEAT})")
-    ap.add_argument("--fresh-process", action="store_true",
-                    help="each timing run in a new Python process (as a CLI run pays its first calls), not in this one")
+    how = ap.add_mutually_exclusive_group()
+    how.add_argument("--fresh-process", action="store_true",
+                     help="each timing run in a new Python process (as a CLI run pays its first calls), not in this one")
+    how.add_argument("--cli", action="store_true",
+                     help="ours as `ffrf-fmu simulate --summary` subprocesses (the summary's wall_time_s), Exudyn's "
+                          "in a new process each (its solver's wall time), and the whole processes of each level")
     ap.add_argument("--quick", action="store_true", help="a small subset (smoke test): 2 of ours, 2 of Exudyn's, "
                     "16-element reference, no convergence check")
     ap.add_argument("-o", "--output", default="bench_peers", metavar="DIR")
@@ -452,8 +580,8 @@ def main(argv=None) -> int:
     timed_rows = [j for j, r in enumerate(rows) if r["completed"] and r["metric_error_rel"] is not None]
     order = interleaved([j for j in timed_rows if rows[j]["runner"] != "exudyn"],
                         [j for j in timed_rows if rows[j]["runner"] == "exudyn"])
-    runs = timing_rounds(order, tasks, args.repeat, fresh_process(execute) if args.fresh_process else execute,
-                         log=lambda m: print(m, flush=True))
+    how = cli_timing(args.model, execute) if args.cli else fresh_process(execute) if args.fresh_process else execute
+    runs = timing_rounds(order, tasks, args.repeat, how, log=lambda m: print(m, flush=True))
     best = timed(rows, runs)
     rounds = [timed(rows, runs, round_of(r)) for r in range(args.repeat)]
     worst = timed(rows, runs, pessimistic("exudyn"))
@@ -464,13 +592,17 @@ def main(argv=None) -> int:
         args.model, args.scene, args.overrides, [int(n) for n in args.check_elements.split(",")], best, ref)
     ratios = ratio_table(best, rounds, worst, "exudyn")
     judged = verdict(best, rounds, worst, "exudyn")
-    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "fresh_process": args.fresh_process, "load_average_start": load_start,
-            "load_average_end": _load(), "accuracy_pass_s": t_accuracy, "total_wall_time_s": time.perf_counter() - t0,
-            "timing_disagreements": wrong}
-    text = markdown(best, ratios, check, meta, judged)
+    levels = level_table(best, "exudyn")
+    load_timing = _load()
+    whole = whole_processes(args.model, levels, tasks, best, args.repeat) if args.cli else []
+    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "fresh_process": args.fresh_process, "cli": args.cli,
+            "load_average_start": load_start, "load_average_after_timing": load_timing, "load_average_end": _load(),
+            "accuracy_pass_s": t_accuracy, "total_wall_time_s": time.perf_counter() - t0, "timing_disagreements": wrong}
+    text = markdown(best, ratios, check, meta, judged) + "\n\n" + level_markdown(levels, whole, meta)
     Path(args.output, "peers.md").write_text(text + "\n", encoding="utf-8")
     Path(args.output, "peers.json").write_text(json.dumps(
         {"meta": meta, "rows": best, "front_ratio": ratios, "verdict": judged, "convergence_check": check,
+         "levels": levels, "whole_processes": whole,
          "timing_runs": {rows[j]["label"]: rs for j, rs in runs.items()}}, indent=2, default=float) + "\n",
         encoding="utf-8")
     print(f"B1 peers: exudyn {why}; reference {ref['n_elements']} elements, h = {ref['step']:g} s: "

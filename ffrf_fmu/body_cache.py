@@ -19,7 +19,6 @@ import json
 import math
 import os
 import struct
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +57,11 @@ def _scipy_version() -> bytes:
     if origin is None:
         return b"no scipy"
     version_py = Path(origin).with_name("version.py")
-    return version_py.read_bytes() if version_py.is_file() else metadata.version("scipy").encode()
+    if version_py.is_file():
+        return version_py.read_bytes()
+    from importlib import metadata  # (here: its import pulls in the email package, 3-5 ms of every run)
+
+    return metadata.version("scipy").encode()
 
 
 def key(body: Body, options: dict) -> str:

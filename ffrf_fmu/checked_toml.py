@@ -4,7 +4,6 @@ they are checked with the rest); and writing raw tables back as TOML text. model
 writes model files with it."""
 from __future__ import annotations
 
-import difflib
 import json
 import math
 import re
@@ -50,6 +49,8 @@ def join(path: str, key: str | int) -> str:
 
 
 def nearest(key: str, known) -> str | None:
+    import difflib  # (here: only a misspelt key needs it, not every run that loads a model)
+
     lower = {k.lower(): k for k in known}
     hit = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.5)
     return lower[hit[0]] if hit else None

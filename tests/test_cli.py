@@ -89,3 +89,25 @@ def test_convergence_command_prints_the_study():
     assert out.returncode == 0, out.stderr
     row = next(line.split() for line in out.stdout.splitlines() if line.split()[:2] == ["4", "0.05"])
     assert float(row[2]) == pytest.approx(0.5333, rel=0.02)
+
+
+# imported by no `ffrf-fmu simulate` of a beam whose reduced body is cached and whose C runtime is compiled:
+# scipy (the reduction's), numpy.ma (np.unique and np.setdiff1d import it), the email package (importlib.metadata
+# parses distributions' METADATA with it), difflib (a misspelt key's suggestion), subprocess and tempfile (a
+# compile of the runtime, a cache that cannot be written)
+NOT_ON_THE_SIMULATE_PATH = ("scipy", "numpy.ma", "email", "importlib.metadata", "difflib", "subprocess", "tempfile")
+
+
+def test_simulate_of_a_cached_beam_imports_only_what_it_runs(tmp_path):
+    """The second of two `ffrf-fmu simulate` runs of B1 (the first compiles the C runtime and caches the
+    body where they are missing) imports none of NOT_ON_THE_SIMULATE_PATH; the first one's list shows the
+    check sees an import (it compiles or reduces in a fresh cache: subprocess, scipy)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "FFRF_FMU_CACHE_DIR": str(tmp_path)}
+    code = ("import runpy, sys\nsys.argv = ['ffrf-fmu', 'simulate', 'models/haug_beam.toml', '--set', 'duration=0.2']\n"
+            "try:\n    runpy.run_module('ffrf_fmu', run_name='__main__')\nexcept SystemExit as e:\n    assert not e.code\n"
+            f"print(sorted(m for m in {NOT_ON_THE_SIMULATE_PATH!r} if m in sys.modules), file=sys.stderr)\n")
+    runs = [subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
+                           timeout=300) for _ in range(2)]
+    assert all(r.returncode == 0 for r in runs), runs[0].stderr + runs[1].stderr
+    assert "'scipy'" in runs[0].stderr.splitlines()[-1]
+    assert runs[1].stderr.splitlines()[-1] == "[]", runs[1].stderr

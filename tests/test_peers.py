@@ -170,3 +170,21 @@ def test_equal_errors_make_no_front_vertex_and_runs_only_ratio_does_not_interpol
     assert q["ours_wall_s"] == pytest.approx(ours) and q["ratio_wall"] == pytest.approx(0.1 / ours)
     assert q["ratio_wall_runs"] == pytest.approx(0.1 / 0.035)  # the cheapest run reaching 5 %
     assert bench.timed(rows, {})[1]["pareto"] is False
+
+
+def test_level_table_takes_each_codes_cheapest_run_at_or_below_the_level():
+    """Per level, the cheapest run of each code whose error is at or below it (a cheaper run above the
+    level does not count), and the peer's cheapest at or below our run's own error beside it."""
+    bench = _bench()
+    rows = [_row("o1", "standalone", 0.004, 0.03), _row("o2", "standalone", 0.0015, 0.07),
+            _row("o3", "standalone", 0.03, 0.01), _row("x1", "exudyn", 0.011, 0.1),
+            _row("x2", "exudyn", 0.0024, 0.17), _row("x3", "exudyn", 0.0006, 0.35)]
+    by = {q["error"]: q for q in bench.level_table(rows, "exudyn", (0.002, 0.005, 0.01, 0.05))}
+    assert by[0.002]["ours"]["label"] == "o2" and by[0.002]["peer"]["label"] == "x3"
+    assert by[0.005]["ours"]["label"] == "o1" and by[0.005]["peer"]["label"] == "x2"
+    assert by[0.005]["ratio"] == pytest.approx(0.17 / 0.03)
+    assert by[0.005]["peer_at_ours"]["label"] == "x2"  # 0.24 % <= our 0.4 %
+    assert by[0.01]["peer"]["label"] == "x2"  # x1's 1.1 % is above the level
+    assert by[0.01]["peer_at_ours"]["label"] == "x2" and by[0.01]["ratio_at_ours"] == pytest.approx(0.17 / 0.03)
+    assert by[0.05]["ours"]["label"] == "o3" and by[0.05]["peer"]["label"] == "x1"
+    assert by[0.05]["peer_at_ours"]["label"] == "x1"  # at or below our 3 %: x1 (1.1 %), the cheapest

@@ -204,11 +204,8 @@ def simulate(args) -> int:
     if args.solver == "reference":
         result = sim.run_reference(model, scene)
     else:
-        from ..body_cache import scene_body_data  # a body reduced before loads from the cache
-
-        body_data = scene_body_data(model.body, scene)
-        try:
-            result = sim.run(body_data, scene, origin=model.body.origin, progress=True, backend=args.backend)
+        try:  # (a body reduced before loads from the cache, body_cache.py)
+            result = sim.run_scene(model, scene.name, progress=True, backend=args.backend)
         except sim.InitializationFailure as e:
             print(f"{PROG}: error: {e}", file=sys.stderr)
             return 2

@@ -110,7 +110,9 @@ class GeneralizedAlpha:
         self._world_idx = np.flatnonzero(world).reshape(-1, 3)  # every world triplet of ydot (predictor)
         # Newton unknowns ordered world triplets first, so that the frame rotation of `_solve` acts on
         # one contiguous block; the stored factorization uses this order
-        rest = np.setdiff1d(np.arange(self._free_idx.size), trip.ravel())
+        in_trip = np.zeros(self._free_idx.size, dtype=bool)  # (a mask, not np.setdiff1d: np.unique imports numpy.ma,
+        in_trip[trip.ravel()] = True  # 20 ms of a CLI run's set-up)
+        rest = np.flatnonzero(~in_trip)
         self._newton_order = np.concatenate([trip.ravel(), rest])
         self._newton_idx = self._free_idx[self._newton_order]
         # every local Jacobian entry -> flat position in the Newton-ordered matrix (nf * nf: not an unknown)
@@ -130,7 +132,8 @@ class GeneralizedAlpha:
         field[L.vel_map[:, 3:6].ravel()] = 4
         field[L.vel_map[:, 6:].ravel()] = 5
         f_newton = field[self._newton_idx]
-        present = np.unique(f_newton)  # (a field may have no unknowns, e.g. no modes)
+        present = np.flatnonzero(np.bincount(f_newton, minlength=6))  # the fields that have unknowns (a field may have
+        # none, e.g. no modes), sorted; as np.unique, without its import of numpy.ma
         self._field_of = np.searchsorted(present, f_newton)
         self._field_perm = self._newton_idx[np.argsort(self._field_of, kind="stable")]
         self._field_starts = np.searchsorted(np.sort(self._field_of), np.arange(len(present)))

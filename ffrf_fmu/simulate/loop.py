@@ -189,7 +189,8 @@ def run_scene(model: Model | str, scene: str | None = None, overrides: Sequence[
               backend: str = "native"):
     """Load (if a path), build and reduce the body for the scene (or load it from the cache of reduced
     bodies, body_cache.py), run it standalone. overrides apply to a path as it is loaded; a Model is
-    already loaded, so overrides with it are refused (load_model(path, overrides) takes them)."""
+    already loaded, so overrides with it are refused (load_model(path, overrides) takes them). The
+    summary's load_time_s is the body's (from the cache, or reduced), before wall_time_s and not part of it."""
     from ..body_cache import scene_body_data
 
     if not isinstance(model, Model):
@@ -198,5 +199,9 @@ def run_scene(model: Model | str, scene: str | None = None, overrides: Sequence[
         raise ValueError(f"run_scene: overrides {list(overrides)} with a loaded Model would be ignored: give them to "
                          "load_model(path, overrides), or pass the model file's path")
     scene = model.scene(scene)
+    start = time.perf_counter()
     body = scene_body_data(model.body, scene)
-    return run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
+    load = time.perf_counter() - start
+    result = run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
+    result.summary["load_time_s"] = load
+    return result

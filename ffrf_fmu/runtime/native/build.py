@@ -17,9 +17,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-import subprocess
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -129,6 +127,8 @@ def _library_name() -> str:
 
 def compile_library(out: Path, cc: list[str] | None = None, extra: tuple[str, ...] = ()) -> None:
     """Compile the runtime into the shared library `out`; raises BuildError with the compiler's words."""
+    import subprocess  # (here: a run that finds its library compiled does not import it)
+
     cc = cc or compiler()
     cmd = [*cc, *FLAGS, *extra, "-shared", "-fPIC", "-o", str(out), *map(str, sources()), "-lm"]
     try:
@@ -194,6 +194,8 @@ def _cache_roots():
     """The cache, then a temporary directory (asked for only when the cache cannot be written:
     tempfile.gettempdir's first call writes a probe file)."""
     yield cache_root()
+    import tempfile  # (after the first: a run with a writable cache does not import it)
+
     yield Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"
 
 
@@ -208,6 +210,8 @@ def ship(dest: Path) -> None:
 
 def sanitizer_preload() -> str:
     """The path of the compiler's libasan, for LD_PRELOAD of a process that loads the sanitizer build."""
+    import subprocess
+
     cc = compiler()
     out = subprocess.run([*cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
     return out
