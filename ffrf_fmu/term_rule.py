@@ -39,6 +39,10 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     from .runtime.body import BodySystem
     from .runtime.terms import FULL_TERMS
 
+    from .spin_supports import supported_spin, supported_term_effects
+
+    if supported_spin(body, scene) is None:  # spun through a drive spring on compliant supports: the whirl
+        return supported_term_effects(body, scene, term_runs(), stiffening=stiffening)
     spin = scene_spin(scene)
     if spin is None or spin.port is None:
         return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on",
@@ -54,10 +58,7 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     g = np.asarray(scene.gravity, dtype=float)
     g_axis = float(g @ axis) * axis  # the steady part of gravity in the spinning frame (module doc)
     u = {}
-    runs = [(name, name if name != "full" else "full", FULL_TERMS) for name in TERM_SETS_BY_COST]
-    runs += [(f"full[{s}]", "full", (s,)) for s in SWITCH_ALONE]
-    runs += [(f"full-{s}", "full", tuple(x for x in FULL_TERMS if x != s)) for s in SWITCH_ALONE]  # choose_full_terms
-    for label, terms, ft in runs:
+    for label, terms, ft in term_runs():
         try:
             s = steady_spin(BodySystem(data, terms=terms, full_terms=ft, gravity=g_axis), rate, axis)
         except (RuntimeError, np.linalg.LinAlgError) as e:
@@ -77,6 +78,16 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
         "change": {k: rel(v, u["linear"]) for k, v in u.items()},
         "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
     }
+
+
+def term_runs() -> list[tuple[str, str, tuple[str, ...]]]:
+    """(label, term set, full_terms) of each measurement: every set, each switch of `full` alone, and `full`
+    without each switch (choose_full_terms)."""
+    from .runtime.terms import FULL_TERMS
+
+    runs = [(name, name, FULL_TERMS) for name in TERM_SETS_BY_COST]
+    runs += [(f"full[{s}]", "full", (s,)) for s in SWITCH_ALONE]
+    return runs + [(f"full-{s}", "full", tuple(x for x in FULL_TERMS if x != s)) for s in SWITCH_ALONE]
 
 
 def free_axial_rotation(body: Body, scene: Scene) -> dict | None:
@@ -125,7 +136,8 @@ def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
                           "(docs/inertia-terms.md)")
     ch, tf = effects["change"], effects["to_full"]
     parts = ", ".join(f"{s} {ch[f'full[{s}]']:.2%}" for s in SWITCH_ALONE)
-    what = (f"steady spin at {effects['spin_rate']:.3g} rad/s ({effects['superelements']} SE, stiffening "
+    what = (f"{effects.get('measure', 'steady spin at ' + format(effects['spin_rate'], '.3g') + ' rad/s')} "
+            f"({effects['superelements']} SE, stiffening "
             f"{'on' if effects['stiffening'] else 'off'}): full changes the boundary displacements by {ch['full']:.2%} "
             f"of linear's (each switch alone: {parts}; gyroscopic {ch['gyroscopic']:.2%})")
     if ch["full"] <= budget:
@@ -148,6 +160,6 @@ def choose_full_terms(effects: dict, tolerance: float) -> tuple[tuple[str, ...],
     tf = effects["to_full"]
     keep = tuple(s for s in SWITCH_ALONE if tf[f"full-{s}"] > share)
     parts = ", ".join(f"without {s} {tf[f'full-{s}']:.3%}" for s in SWITCH_ALONE)
-    return keep, (f"steady spin at {effects['spin_rate']:.3g} rad/s, each switch of full left out alone ({parts} of "
+    return keep, (f"{effects.get('measure', 'steady spin at ' + format(effects['spin_rate'], '.3g') + ' rad/s')}, each switch of full left out alone ({parts} of "
                   f"{effects['scale_of']}'s displacements): kept where > TERM_SHARE x tolerance / {len(SWITCH_ALONE)} = "
                   f"{share:.3%}: {', '.join(keep) or 'none'}")

@@ -108,7 +108,7 @@ STAGES = {
     "ffrf_fmu.solid.nastran_rigid": 1,  # RBE2/RBE3 eliminated
     "ffrf_fmu.port_data": 3, "ffrf_fmu.reduction": 3, "ffrf_fmu.reduction_sparse": 3, "ffrf_fmu.solid.body": 3,
     "ffrf_fmu.solid.quality": 3, "ffrf_fmu.linear": 3, "ffrf_fmu.invariants": 3, "ffrf_fmu.initial_state": 3,
-    "ffrf_fmu.term_rule": 3, "ffrf_fmu.body_cache": 3,
+    "ffrf_fmu.term_rule": 3, "ffrf_fmu.spin_supports": 3, "ffrf_fmu.body_cache": 3,
     "ffrf_fmu.reference": 4,
     "ffrf_fmu.simulate": 5, "ffrf_fmu.solid.recovery": 5,
     "ffrf_fmu.fmu": 6, "ffrf_fmu.peers": 6,

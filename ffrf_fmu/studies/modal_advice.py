@@ -15,7 +15,9 @@ Advice (the budget of advise.py: the step gets RESERVE x tolerance, the rest is 
   docs/inertia-terms.md), rounded down to a step that divides the duration (indicators.nice_step).
 
 Metric (the scene's peak response): the largest |eq. 92 probe| of the scene's first `outputs` entry, else the
-largest displacement |r_P - X_P| of the loaded force-driven port (an unbalance's or a load's).
+largest displacement of the loaded force-driven port (an unbalance's or a load's): seen from the port whose
+motion-driven rotation spins the scene (eq. 92: its elastic part), else |r_P - X_P| (the Jeffcott rotor's whirl
+on its compliant bearings, in world axes).
 """
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ from .indicators import excitation, largest_step, nice_step
 
 MAX_SPIN_PER_STEP = 0.2  # rad: between the run-up's 0.17 (completes) and 0.29 (fails Newton)
 CONVERGED_SHARE = 0.1  # the reference is converged when the last refinement moves the metric by < 0.1 x tolerance
+MAX_HALVINGS = 3  # of the reference's step: a metric still moving after three halvings gives no verdict
 
 
 def needs_modal_reference(model, scene) -> bool:
@@ -123,7 +126,21 @@ def scene_metric(model, scene, result) -> float:
     if not ports:
         raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe and no loaded port to measure")
     r = result.port(ports[0], "r")
+    hub = _motion_spin_port(model, scene)
+    if hub is not None:  # seen from the driven port: the elastic part, not the swing of the rigid rotation
+        rB = result.port(hub, "r")
+        return float(np.linalg.norm(tip_from_hub(result.port(hub, "R"), rB, r, r[0] - rB[0]), axis=1).max())
     return float(np.linalg.norm(r - r[0], axis=1).max())
+
+
+def _motion_spin_port(model, scene) -> str | None:
+    """The port whose motion-driven rotation spins the scene (spin.scene_spin), else None."""
+    from ..spin import scene_spin
+
+    spin = scene_spin(scene)
+    if spin is None or spin.port is None or model.body.port(spin.port).rotation != "motion":
+        return None
+    return spin.port
 
 
 @dataclass
@@ -153,22 +170,30 @@ def check_modal(model_path, scene_name: str, advice: ModalAdvice, cutoffs, refer
                 overrides=()) -> dict:
     """The advised run against the converged reference: the scene at `reference_terms` and the advised step
     over the mode cutoffs (ascending) until the metric moves by < CONVERGED_SHARE x tolerance, then the
-    converged cutoff at half that step (the step's convergence: the reference is that last run)."""
+    converged cutoff at the step halved until a halving moves the metric by < CONVERGED_SHARE x tolerance (at
+    most MAX_HALVINGS times; the reference is the last run)."""
     h_ref = advice.step
+    share = CONVERGED_SHARE * advice.tolerance
     table, converged = [], None
     for n in cutoffs:
         table.append(run_metric(model_path, scene_name, n, reference_terms, h_ref, overrides))
-        if len(table) > 1 and abs(table[-1].metric - table[-2].metric) < CONVERGED_SHARE * advice.tolerance * abs(table[-1].metric):
+        if len(table) > 1 and abs(table[-1].metric - table[-2].metric) < share * abs(table[-1].metric):
             converged = table[-1]
             break
-    step_check = run_metric(model_path, scene_name, table[-1].modes, reference_terms, h_ref / 2, overrides)
-    step_moves = abs(step_check.metric - table[-1].metric) / abs(step_check.metric)
-    ref = step_check
+    steps, prev = [], table[-1]
+    for _ in range(MAX_HALVINGS):
+        steps.append(run_metric(model_path, scene_name, prev.modes, reference_terms, prev.step / 2, overrides))
+        step_moves = abs(steps[-1].metric - prev.metric) / abs(steps[-1].metric)
+        prev = steps[-1]
+        if step_moves < share:
+            break
+    ref = steps[-1]
     run = run_metric(model_path, scene_name, advice.modes, advice.terms, advice.step, overrides)
     err = abs(run.metric - ref.metric) / abs(ref.metric)
-    resolved = converged is not None and step_moves < CONVERGED_SHARE * advice.tolerance
-    return {"run": run, "reference": ref, "modes_table": table, "step_check": step_check, "step_moves": step_moves,
-            "resolved": resolved, "error": err, "within_tolerance": (err <= advice.tolerance) if resolved else None}
+    resolved = converged is not None and step_moves < share
+    return {"run": run, "reference": ref, "modes_table": table, "step_table": steps, "step_check": ref,
+            "step_moves": step_moves, "resolved": resolved, "error": err,
+            "within_tolerance": (err <= advice.tolerance) if resolved else None}
 
 
 def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -> str:
@@ -183,8 +208,11 @@ def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -
             move = "" if prev is None else f"  (moves {abs(r.metric - prev) / abs(r.metric):.2e})"
             lines.append(f"    {r.modes:4d} modes: metric {r.metric:.6g}{move}  [{r.wall:.1f} s]")
             prev = r.metric
-        sc = res["step_check"]
-        lines.append(f"    {sc.modes:4d} modes at h = {sc.step:g} s: metric {sc.metric:.6g} (step moves it {res['step_moves']:.2e})")
+        prev = res["modes_table"][-1].metric
+        for sc in res["step_table"]:
+            lines.append(f"    {sc.modes:4d} modes at h = {sc.step:g} s: metric {sc.metric:.6g} (the halving moves it "
+                         f"{abs(sc.metric - prev) / abs(sc.metric):.2e})  [{sc.wall:.1f} s]")
+            prev = sc.metric
         r = res["run"]
         verdict = {True: "within", False: "NOT within", None: "no verdict (reference not converged), against"}[res["within_tolerance"]]
         lines.append(f"  check: {r.label} metric {r.metric:.6g} vs {res['reference'].metric:.6g}: error {res['error']:.3%} "
@@ -210,7 +238,7 @@ def advise_command(args, model, scene) -> int:
     if args.json:
         out = {"advice": {**advice.__dict__, "label": advice.label}}
         if res:
-            out["check"] = {k: (v.__dict__ if isinstance(v, MetricRun) else [r.__dict__ for r in v] if k == "modes_table"
+            out["check"] = {k: (v.__dict__ if isinstance(v, MetricRun) else [r.__dict__ for r in v] if k in ("modes_table", "step_table")
                                 else v) for k, v in res.items()}
         json.dump(out, sys.stdout, indent=2, default=float)
         print()

@@ -1,0 +1,195 @@
+"""The term rule's measurement for a spin held by compliant supports and loaded by a rotating unbalance
+(the Jeffcott run-up, models/jeffcott_runup.toml; docs/inertia-terms.md, "The Jeffcott rotor").
+
+term_rule.steady_term_effects measures the terms on the relative equilibrium of a body whose spin a
+motion-driven rotation prescribes and whose other ports are free: a balanced rotor on compliant bearings,
+spun through a compliant drive spring, spins there undeformed and shows nothing. What the terms change on
+it is the whirl. A rotating unbalance m e is a load fixed in the spinning frame (m e Omega^2 along its
+direction rho at psi = 0, simulate/inputs.unbalance_force at a constant rate), so the synchronous whirl of
+the body on its bearings is, in the spinning frame, a relative equilibrium: the body's residual (runtime
+equations, linear.py's block comment: J = F_y + F_ydot P) plus the supports' spring-dampers
+(runtime/coupling.py) with their far ends fixed in space on the spin axis (a spring isotropic across the
+axis gives the same force in every rotated frame, its damper C (0 - Omega x u) the stationary damping), the
+drive spring's far end turning with the spin, and the unbalance forces.
+
+Why the response at the scene's top rate measures a run-up's peak: one whirl mode passed at the angular
+acceleration alpha peaks at A ~ e_eff omega_c / sqrt(alpha) (the Jeffcott equation z'' + omega_c^2 z = e
+(psi'^2 - i psi'') exp(i psi) in tau = omega_c t has the one parameter alpha / omega_c^2, and for a slow
+passage the Fresnel asymptote is ~ (omega_c^2 / alpha)^(1/2)), e_eff the modal unbalance over the modal mass.
+Above the crossing the synchronous whirl is e_eff Omega^2 / (Omega^2 - omega_c^2): it carries e_eff and
+omega_c alike (d ln / d ln omega_c = 2 omega_c^2 / (Omega^2 - omega_c^2), 2/3 at Omega = 2 omega_c, against 1
+for the peak). Measured on the Jeffcott run-up (docs/inertia-terms.md): each term set's and switch's change of
+this response against full lies within 0.7-1.5 x its change of the run-up's peak. The critical speed of
+each set (the undamped synchronous response's pole, by secant on Omega^2 / a(Omega^2), linear in Omega^2
+for one mode) is reported beside it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .model import Body, Scene
+from .spin import scene_spin
+
+NEWTON_TOL = 1e-10  # m (and m/s, rad): the largest Newton correction at convergence
+NEWTON_MAX = 40
+# critical_speed's points: 3 % below the secant's estimate, in Newton's reach (the plain secant's points close in on
+# the pole, where Newton lost the whirl); the estimate from two points 3 % below the pole is off by g's curvature:
+# 7.5e-4 high on the Jeffcott rotor (linear 172.22 against 172.09 rad/s of a plain secant that converged)
+APPROACH = 0.97
+
+
+def supported_spin(body: Body, scene: Scene) -> str | None:
+    """None when the scene's spin is driven through a compliant rotation (a drive spring) of `body`, so that
+    this module measures the terms, else why not (the caller's rule then applies). A body whose
+    supports have no steady whirl in the spinning frame is refused, naming the support."""
+    spin = scene_spin(scene)
+    if spin is None or spin.port is None:
+        return "no driven spin"
+    drive = body.port(spin.port)
+    if drive.rotation != "compliant":
+        return f"drive {spin.port}.rotation is {drive.rotation}, not a compliant drive spring"
+    return None
+
+
+def _support_check(data, axis: np.ndarray, drive: str, length: float) -> str | None:
+    """Why the compliant supports of `data` have no relative equilibrium spinning about `axis`, or None."""
+    if np.count_nonzero(np.abs(axis) > 1e-12) != 1:
+        return "spin axis not along a world axis: the supports' diagonal springs are not isotropic across it"
+    a = int(np.argmax(np.abs(axis)))
+    across = [i for i in range(3) if i != a]
+    for p in data.ports:
+        if p.translation == "motion" or (p.rotation == "motion"):
+            return f"port {p.name}: a motion-driven part beside a compliant drive spring"
+        if not p.compliance:
+            continue
+        Kt, Ct, Kr, Cr = np.asarray(p.compliance, dtype=float).reshape(4, 3)
+        if p.translation == "compliant":
+            x = np.asarray(data.node_positions[p.node], dtype=float)
+            if np.linalg.norm(np.cross(axis, x)) > 1e-9 * length:
+                return f"support {p.name}: its housing is off the spin axis"
+            if Kt[across[0]] != Kt[across[1]] or Ct[across[0]] != Ct[across[1]]:
+                return f"support {p.name}: its spring is not isotropic across the spin axis"
+        if p.rotation == "compliant" and p.name != drive and (Kr[a] != 0.0 or Cr[a] != 0.0):
+            return f"support {p.name}: a rotational spring about the spin axis that is not the drive's brakes the spin"
+    return None
+
+
+def _forces(system, w: np.ndarray, unbalances, damping: bool, drive: str):
+    """(F, J) on the unknowns: the spinning frame's residual and matrix (linear._spin_system) with the
+    compliant supports' spring-dampers and the unbalance forces (module doc)."""
+    from .linear import _spin_system
+    from .runtime.coupling import spring_force, spring_moment
+    from .runtime.rotation import skew
+
+    F, J, _ = _spin_system(system, w)
+    F, J = F.copy(), J.copy()
+    pos = np.full(system.layout.ny, -1)
+    pos[system.unknowns] = np.arange(len(system.unknowns))
+    data = system.data
+    for name, (k, trans, rot) in system.compliant.items():
+        Kt, Ct, Kr, Cr = (c if damping or i % 2 == 0 else 0.0 * c for i, c in enumerate(system.compliance[name]))
+        i = 6 * k
+        if trans:  # far end: the housing at the node's reference position, at rest
+            f = spring_force(Kt, Ct, data.node_positions[k], np.zeros(3), system.xN[k], system.yd[i:i + 3])
+            r = pos[i:i + 3]
+            F[r] -= f
+            J[np.ix_(r, r)] += np.diag(Kt) + np.diag(Ct) @ skew(w)  # d(xdot) = xi' + w x xi
+        if rot:  # the drive spring's far end turns with the spin; another's is fixed (no stiffness about the axis)
+            w_in = w if name == drive else np.zeros(3)
+            m, dm = spring_moment(Kr, Cr, np.eye(3), w_in, system.RN[k], system.yd[i + 3:i + 6])
+            r = pos[i + 3:i + 6]
+            F[r] -= m
+            J[np.ix_(r, r)] += -dm + np.diag(Cr) @ skew(system.RN[k].T @ w)  # d(W) = dTheta' + W x dTheta
+    for node, f in unbalances:
+        F[pos[6 * node:6 * node + 3]] -= f * float(w @ w)
+    return F, J
+
+
+def synchronous_whirl(system, rate: float, axis, unbalances, drive: str, damping: bool = True) -> np.ndarray:
+    """The boundary nodes' displacements (N, 3; world = spinning frame at psi = 0) of the synchronous whirl
+    at the constant rate about `axis` through the origin: Newton from the reference state spinning.
+    unbalances: [(node, m e rho)] (the force per Omega^2)."""
+    w = rate * np.asarray(axis, dtype=float)
+    system.reset_reference()
+    system.v[:, 0:3] = np.cross(w, system.x0)
+    system.v[:, 3:6] = w @ system.R0
+    for _ in range(NEWTON_MAX):
+        F, J = _forces(system, w, unbalances, damping, drive)
+        d = np.zeros(system.layout.ny)
+        d[system.unknowns] = np.linalg.solve(J, -F)
+        system.move(d)
+        if np.abs(d).max() < NEWTON_TOL:
+            return system.xN - system.data.node_positions
+    raise RuntimeError(f"synchronous whirl at {rate:.4g} rad/s: Newton did not converge "
+                       f"(last correction {np.abs(d).max():.3g})")
+
+
+def critical_speed(system, axis, unbalances, drive: str, top: float) -> float | None:
+    """The lowest undamped critical speed [rad/s]: the pole of the synchronous whirl a (the first unbalance's
+    node along its force), the zero of g(Omega^2) = Omega^2 / a, which is (omega_c^2 - Omega^2) / e_eff for one
+    mode. Secant from 0.2 and 0.3 x `top`, each next point APPROACH below the secant's zero; None when the zero is not below 2 x `top` (the
+    critical speed is reported, not used by the rule)."""
+    node, f = unbalances[0]
+    d = f / np.linalg.norm(f)
+    g = lambda o2: o2 / float(synchronous_whirl(system, np.sqrt(o2), axis, unbalances, drive, False)[node] @ d)  # noqa: E731
+    a, b = (0.2 * top) ** 2, (0.3 * top) ** 2
+    zero = None
+    try:
+        ga, gb = g(a), g(b)
+        for i in range(30):
+            c = b - gb * (b - a) / (gb - ga)
+            if not 0.0 < c < (2 * top) ** 2:
+                return None
+            done = i > 0 and abs(c - zero) < 1e-9 * c
+            zero = c
+            if done:
+                break
+            a, ga, b = b, gb, APPROACH**2 * c
+            gb = g(b)
+    except (RuntimeError, np.linalg.LinAlgError):
+        pass  # Newton lost the whirl: the last estimate stands
+    return None if zero is None else float(np.sqrt(zero))
+
+
+def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool = False) -> dict:
+    """term_rule.steady_term_effects for a spin through a compliant drive spring (supported_spin is None), over
+    its `runs` (term_rule.term_runs: label, term set, full_terms): the same keys, measured on the synchronous whirl at the scene's top rate (module doc), plus
+    `critical_speed` per set and switch [rad/s] and `measure`. A status other than "ok" says why nothing
+    was measured."""
+    from .reduction import reduce_body
+    from .runtime.body import BodySystem
+    spin = scene_spin(scene)
+    rate, axis = spin.peak, spin.axis
+    if not scene.unbalances:
+        return {"status": f"spin through the compliant drive spring {spin.port}.rotation without an unbalance: the "
+                          "balanced body spins undeformed, nothing steady to evaluate the terms on"}
+    data = reduce_body(body, stiffening=stiffening, inertia=True).data
+    why = _support_check(data, axis, spin.port, float(np.ptp(data.node_positions, axis=0).max()) or 1.0)
+    if why:
+        return {"status": f"no synchronous whirl to evaluate the terms on: {why}"}
+    unbalances = []
+    for ub in scene.unbalances:
+        e1 = np.asarray(ub.reference, dtype=float)
+        e1 = e1 - (e1 @ axis) * axis
+        e1 /= np.linalg.norm(e1)
+        rho = np.cos(ub.phase) * e1 + np.sin(ub.phase) * np.cross(axis, e1)
+        unbalances.append((data.port(ub.port).node, ub.mass_eccentricity * rho))
+    u, crit = {}, {}
+    for label, terms, ft in runs:
+        system = BodySystem(data, terms=terms, full_terms=ft, backend="numpy")
+        try:
+            u[label] = synchronous_whirl(system, rate, axis, unbalances, spin.port)
+            crit[label] = critical_speed(system, axis, unbalances, spin.port, rate)
+        except (RuntimeError, np.linalg.LinAlgError) as e:
+            return {"status": f"no synchronous whirl at {rate:.3g} rad/s with {label} ({e})"}
+    scale = float(np.linalg.norm(u["linear"], axis=1).max())
+    rel = lambda a, b: float(np.linalg.norm(a - b, axis=1).max() / scale)  # noqa: E731
+    return {
+        "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
+        "superelements": len(data.superelements), "displacement_m": scale, "scale_of": "linear",
+        "measure": (f"the synchronous whirl of the unbalance at {rate:.3g} rad/s on the compliant supports "
+                    f"(drive spring {spin.port}.rotation; spin_supports.py)"),
+        "change": {k: rel(v, u["linear"]) for k, v in u.items()},
+        "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
+        "critical_speed": crit,
+    }
