@@ -21,6 +21,7 @@ on its compliant bearings, in world axes).
 """
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -48,14 +49,21 @@ class ModalAdvice:
     tolerance: float
     superelements: int = 1
     reasons: dict = field(default_factory=dict)
+    full_terms: tuple = ()  # the switches of `full` it needs (term_rule.choose_full_terms); () with another set
 
     @property
     def overrides(self) -> list[str]:
-        return [f"modes={self.modes}", f"terms={self.terms!r}".replace("'", '"'), f"step={self.step!r}"]
+        return [f"modes={self.modes}", f"terms={self.terms!r}".replace("'", '"'), f"step={self.step!r}"] + self.switches
+
+    @property
+    def switches(self) -> list[str]:
+        """The full_terms override of a `full` advice ([] otherwise)."""
+        return [f"full_terms={json.dumps(list(self.full_terms))}"] if self.terms == "full" else []
 
     @property
     def label(self) -> str:
-        return f"{self.superelements}SE/{self.modes}m/{self.terms}/{self.step * 1e3:g}ms"
+        sw = f"[{'+'.join(s.replace('inertia_', '') for s in self.full_terms)}]" if self.terms == "full" else ""
+        return f"{self.superelements}SE/{self.modes}m/{self.terms}{sw}/{self.step * 1e3:g}ms"
 
 
 def _frequencies(model, scene, modes: int) -> np.ndarray:
@@ -79,13 +87,16 @@ def _se_frequencies(se) -> np.ndarray:
 
 def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -> ModalAdvice:
     from ..spin import scene_spin
-    from ..term_rule import choose_term_set, steady_term_effects
+    from ..term_rule import choose_full_terms, choose_term_set, steady_term_effects
 
     reasons = {}
     from ..model import scene_body
 
     effects = steady_term_effects(scene_body(model.body, scene), scene)  # as `info` does
     terms, reasons["terms"] = choose_term_set(effects, tolerance)
+    full_terms = ()
+    if terms == "full":  # which of full's switches (Witteveen's 7.3.3: W2 for a structure soft against widening)
+        full_terms, reasons["full_terms"] = choose_full_terms(effects, tolerance)
     f_exc, parts = excitation(scene, tolerance)
     n_avail = max_modes or model.body.modes  # reduce with this many to see the modes below the band
     freqs = np.sort(_frequencies(model, scene, n_avail))
@@ -106,7 +117,7 @@ def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -
     step = nice_step(h, scene.duration)
     reasons["step"] = why + f" -> h = {step:g} s"
     supers = len(scene_body_superelements(model))
-    return ModalAdvice(terms, n, step, tolerance, supers, reasons)
+    return ModalAdvice(terms, n, step, tolerance, supers, reasons, tuple(full_terms))
 
 
 def scene_body_superelements(model) -> list:
@@ -172,23 +183,27 @@ def check_modal(model_path, scene_name: str, advice: ModalAdvice, cutoffs, refer
     over the mode cutoffs (ascending) until the metric moves by < CONVERGED_SHARE x tolerance, then the
     converged cutoff at the step halved until a halving moves the metric by < CONVERGED_SHARE x tolerance (at
     most MAX_HALVINGS times; the reference is the last run)."""
+    from ..runtime.terms import FULL_TERMS
+
     h_ref = advice.step
     share = CONVERGED_SHARE * advice.tolerance
+    ref_overrides = [*overrides, f"full_terms={json.dumps(list(FULL_TERMS))}"] if reference_terms == "full" else overrides
+    advised = [*overrides, *advice.switches]
     table, converged = [], None
     for n in cutoffs:
-        table.append(run_metric(model_path, scene_name, n, reference_terms, h_ref, overrides))
+        table.append(run_metric(model_path, scene_name, n, reference_terms, h_ref, ref_overrides))
         if len(table) > 1 and abs(table[-1].metric - table[-2].metric) < share * abs(table[-1].metric):
             converged = table[-1]
             break
     steps, prev = [], table[-1]
     for _ in range(MAX_HALVINGS):
-        steps.append(run_metric(model_path, scene_name, prev.modes, reference_terms, prev.step / 2, overrides))
+        steps.append(run_metric(model_path, scene_name, prev.modes, reference_terms, prev.step / 2, ref_overrides))
         step_moves = abs(steps[-1].metric - prev.metric) / abs(steps[-1].metric)
         prev = steps[-1]
         if step_moves < share:
             break
     ref = steps[-1]
-    run = run_metric(model_path, scene_name, advice.modes, advice.terms, advice.step, overrides)
+    run = run_metric(model_path, scene_name, advice.modes, advice.terms, advice.step, advised)
     err = abs(run.metric - ref.metric) / abs(ref.metric)
     resolved = converged is not None and step_moves < share
     return {"run": run, "reference": ref, "modes_table": table, "step_table": steps, "step_check": ref,
@@ -223,7 +238,6 @@ def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -
 def advise_command(args, model, scene) -> int:
     """`ffrf-fmu advise` on a scene of this module: the advice, and with --check its check (exit 0 within the
     tolerance, 1 not within, 3 no verdict: the reference did not converge)."""
-    import json
     import sys
 
     advice = advise_modal(model, scene, args.tolerance, max_modes=2 * model.body.modes)
