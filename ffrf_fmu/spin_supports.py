@@ -154,7 +154,7 @@ def critical_speed(system, axis, unbalances, drive: str, top: float) -> float | 
 def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool = False) -> dict:
     """term_rule.steady_term_effects for a spin through a compliant drive spring (supported_spin is None), over
     its `runs` (term_rule.term_runs: label, term set, full_terms): the same keys, measured on the synchronous whirl at the scene's top rate (module doc), plus
-    `critical_speed` per set and switch [rad/s] and `measure`. A status other than "ok" says why nothing
+    `critical_speed` per term set [rad/s] and `measure`. A status other than "ok" says why nothing
     was measured."""
     from .reduction import reduce_body
     from .runtime.body import BodySystem
@@ -179,7 +179,8 @@ def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool =
         system = BodySystem(data, terms=terms, full_terms=ft, backend="numpy")
         try:
             u[label] = synchronous_whirl(system, rate, axis, unbalances, spin.port)
-            crit[label] = critical_speed(system, axis, unbalances, spin.port, rate)
+            if label == terms:  # the sets (the switches' crossings lie between theirs): reported, not ruled on
+                crit[label] = critical_speed(system, axis, unbalances, spin.port, rate)
         except (RuntimeError, np.linalg.LinAlgError) as e:
             return {"status": f"no synchronous whirl at {rate:.3g} rad/s with {label} ({e})"}
     scale = float(np.linalg.norm(u["linear"], axis=1).max())

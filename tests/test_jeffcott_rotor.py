@@ -153,3 +153,26 @@ def test_witteveen_jeffcott_row_in_his_units():
     assert t["W1_max"] * w1 == pytest.approx(18.6, rel=2e-2)
     assert t["W1_norm"] * w1 / 2 == pytest.approx(10.5, rel=2e-2)
     assert t["W2_max"] >= 2 / 3 - 1e-9
+
+
+def test_term_rule_on_the_run_up_measures_the_whirl_and_picks_w1_w2():
+    """The run-up spins the rotor through a compliant drive spring on compliant bearings: the term rule measures
+    the terms on the unbalance's synchronous whirl at the top rate (ffrf_fmu/spin_supports.py) and picks full
+    with W1 and W2 at 1 % (the whirl moves by 3.6 % without W1, 0.41 % without W2, against 0.125 %). The
+    physics behind it: the central disc does not tilt in the first whirl, so the synchronous crossing is the
+    bearing-supported bending frequency at rest, 169.57 rad/s (test_first_bending_frequency_against_jeffcott).
+    With W1 and W2 the crossing stays there (169.10 rad/s, -0.28 %; 7.5e-4 of it the secant's bias high, and
+    shear and the disc's own inertia the rest); without them the half-shafts' frames tilt the disc with their
+    chords and its polar inertia stiffens the whirl (linear: 172.22 rad/s, +1.6 %)."""
+    from ffrf_fmu.model import load_model, scene_body
+    from ffrf_fmu.term_rule import choose_full_terms, choose_term_set, steady_term_effects
+
+    m = load_model(MODELS / "jeffcott_runup.toml")
+    sc = m.scene("runup")
+    eff = steady_term_effects(scene_body(m.body, sc), sc)
+    assert eff["status"] == "ok" and "synchronous whirl" in eff["measure"]
+    assert choose_term_set(eff, 0.01)[0] == "full"
+    assert choose_full_terms(eff, 0.01)[0] == ("inertia_W1", "inertia_W2")
+    crit = eff["critical_speed"]
+    assert crit["full"] == pytest.approx(169.57, rel=5e-3)
+    assert crit["linear"] > 1.01 * 169.57
