@@ -1,8 +1,9 @@
-"""The car body on its mounts and the Jeffcott run-up as SSP systems under our master, libcosim and ecos,
-against their monolithic runs (ffrf_fmu/examples/car_body_system.py, rotor_system.py; docs/cosim.md):
-errors, peaks, walls printed, and the plots docs/car_body_system.png, docs/jeffcott_system.png.
+"""The car body on its mounts, the Jeffcott run-up and GenStruct1/2 spun up as SSP systems under our master,
+libcosim and ecos, against their monolithic runs (ffrf_fmu/examples/car_body_system.py, rotor_system.py,
+genstruct_system.py; docs/cosim.md, docs/inertia-terms.md): errors, peaks, walls printed, and the plots
+docs/car_body_system.png, docs/jeffcott_system.png, docs/genstruct_system.png.
 
-    PYTHONPATH=$PWD python benchmarks/witteveen_systems.py [car|rotor ...] [--out docs]
+    PYTHONPATH=$PWD python benchmarks/witteveen_systems.py [car|rotor|genstruct ...] [--out docs]
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ffrf_fmu.examples import car_body_system as cs  # noqa: E402
+from ffrf_fmu.examples import genstruct_system as gs  # noqa: E402
 from ffrf_fmu.examples import rotor_system as rs  # noqa: E402
 from ffrf_fmu.master.ssp import ENGINES, write_ssp  # noqa: E402
 
@@ -76,16 +78,47 @@ def rotor(work: Path, out: Path, H: float = 5e-4, duration: float = 10.0) -> Non
               f"late {np.abs(r.whirl - late).max() / ref.whirl.max():.3g}" + (f"; stopped: {r.stopped}" if r.stopped else ""))
 
 
+def genstruct(work: Path, out: Path, steps=((1, 5e-4), (2, 2.5e-4)), duration: float = 0.3, T: float = 0.2) -> None:
+    """Each GenStruct at its scene's step (GenStruct2's 0.25 ms: docs/inertia-terms.md), H = that step."""
+    fig, axs = plt.subplots(len(steps), 1, figsize=(8, 3.6 * len(steps)), sharex=True)
+    for ax, (n, H) in zip(np.atleast_1d(axs), steps):
+        fmus = gs.build(work / f"genstruct{n}", n, step=H)
+        pkg = write_ssp(work / f"genstruct{n}" / f"genstruct{n}.ssp", gs.system(fmus, H, duration))
+        ref = gs.run_monolithic(n, H)
+        runs = {e: gs.run_engine(pkg, e) for e in ENGINES}
+        scale = 1e3 if n == 1 else 1e6
+        ax.plot(ref.t, ref.magnitude * scale, color="k", lw=4, alpha=0.3,
+                label=f"monolithic (scene spin): mean at speed {ref.mean_at_speed(T) * scale:.5g}")
+        for e, r in runs.items():
+            c, ls, lw = STYLE[e]
+            ax.plot(r.t, r.magnitude * scale, color=c, ls=ls, lw=lw,
+                    label=f"{e}: mean at speed {r.mean_at_speed(T) * scale:.5g} (history {gs.error(r, ref):.2e})")
+        ax.axvline(T, color="r", lw=1, label=f"spin-up ends: {ref.speed.max():.4g} rad/s")
+        ax.set_ylabel(f"GenStruct{n}: |corner from hub| [{'mm' if n == 1 else 'um'}]")
+        ax.legend(fontsize=7, loc="upper left")
+        ax.set_title(f"GenStruct{n} FMU + spin drive FMU, H = {H * 1e3:g} ms", fontsize=9)
+        print(f"genstruct{n}: monolithic {ref.wall:.1f} s wall; peak {ref.magnitude.max():.5g} m, mean at speed "
+              f"{ref.mean_at_speed(T):.6g} m")
+        for e, r in runs.items():
+            print(f"  {e}: {r.wall:.1f} s wall, history {gs.error(r, ref):.3g} of the peak, mean at speed "
+                  f"{r.mean_at_speed(T) / ref.mean_at_speed(T) - 1:+.2e}, against master "
+                  f"{np.abs(r.u - runs['master'].u).max() / ref.magnitude.max():.2g}"
+                  + (f"; stopped: {r.stopped}" if r.stopped else ""))
+    np.atleast_1d(axs)[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(out / "genstruct_system.png", dpi=110)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("scenes", nargs="*", default=["car", "rotor"], choices=["car", "rotor"])
+    ap.add_argument("scenes", nargs="*", default=["car", "rotor", "genstruct"], choices=["car", "rotor", "genstruct"])
     ap.add_argument("--out", default="docs")
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="witteveen_systems_") as tmp:
         for s in a.scenes:
-            {"car": car, "rotor": rotor}[s](Path(tmp), out)
+            {"car": car, "rotor": rotor, "genstruct": genstruct}[s](Path(tmp), out)
 
 
 if __name__ == "__main__":
