@@ -15,7 +15,8 @@ Advice (the budget of advise.py: the step gets RESERVE x tolerance, the rest is 
   docs/inertia-terms.md), rounded down to a step that divides the duration (indicators.nice_step).
 
 Metric (the scene's peak response): the largest |eq. 92 probe| of the scene's first `outputs` entry, else the
-largest displacement of the loaded force-driven port (an unbalance's or a load's): seen from the port whose
+largest displacement of the loaded force-driven port (an unbalance's or a load's; with no load the first
+force-driven port: GenStruct's corner frame): seen from the port whose
 motion-driven rotation spins the scene (eq. 92: its elastic part), else |r_P - X_P| (the Jeffcott rotor's whirl
 on its compliant bearings, in world axes).
 """
@@ -133,9 +134,10 @@ def scene_metric(model, scene, result) -> float:
         rA, rB = result.port(a, "r"), result.port(b, "r")
         d = tip_from_hub(result.port(b, "R"), rB, rA, rA[0] - rB[0])
         return float(np.linalg.norm(d, axis=1).max())
-    ports = [u.port for u in scene.unbalances] + [ld.port for ld in scene.loads]
+    ports = ([u.port for u in scene.unbalances] + [ld.port for ld in scene.loads]
+             or [p.name for p in model.body.ports if p.translation == "force"])  # unloaded: the free frame (GenStruct)
     if not ports:
-        raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe and no loaded port to measure")
+        raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe, no loaded and no free port to measure")
     r = result.port(ports[0], "r")
     hub = _motion_spin_port(model, scene)
     if hub is not None:  # seen from the driven port: the elastic part, not the swing of the rigid rotation
