@@ -58,3 +58,26 @@ def test_modal_advice_of_the_runup():
     assert abs(period_error(2 * math.pi * max(f[0], 340 / (2 * math.pi)) * a.step, sc.rho_inf)) * STEP_ERROR_FACTOR \
         <= RESERVE * 0.01
     assert abs(10.0 / a.step - round(10.0 / a.step)) < 1e-9
+
+
+def test_modal_check_halves_the_reference_step_until_it_converges(monkeypatch):
+    """check_modal's reference (a metric 1 + c h^2 + 0.1 / n^4 of the step h and the mode count n, no runs): the
+    modes are refined until a cutoff moves it by < 0.1 x tolerance, then the step halved until a halving does (a
+    halving moves it by 3 c h^2 / 4); the reference is the last run, the verdict none when MAX_HALVINGS halvings do
+    not converge it."""
+    from ffrf_fmu.studies import modal_advice as ma
+
+    def fake(c):
+        def run(model_path, scene_name, modes, terms, step, overrides=()):
+            return ma.MetricRun(f"{modes}/{step}", modes, terms, step, 1.0 + c * step**2 + 0.1 / modes**4, 0.0, True)
+        return run
+
+    advice = ma.ModalAdvice("linear", 4, 0.1, 0.01)  # its run: 1.0054 against the reference 1.00034, 0.5 %
+    monkeypatch.setattr(ma, "run_metric", fake(0.5))  # halvings move it by 3.75e-3, 9.4e-4 (< 1e-3): two halvings
+    res = ma.check_modal("m.toml", "s", advice, [2, 4, 8, 16])
+    assert [r.modes for r in res["modes_table"]] == [2, 4, 8]  # 2 -> 4 moves it by 5.9e-3, 4 -> 8 by 3.7e-4
+    assert [r.step for r in res["step_table"]] == [0.05, 0.025]
+    assert res["reference"].step == 0.025 and res["resolved"] and res["within_tolerance"]
+    monkeypatch.setattr(ma, "run_metric", fake(50.0))  # each halving moves it by > 1e-3 up to h = 0.0125
+    res = ma.check_modal("m.toml", "s", advice, [2, 4, 8])
+    assert len(res["step_table"]) == ma.MAX_HALVINGS and not res["resolved"] and res["within_tolerance"] is None
