@@ -81,3 +81,16 @@ def test_modal_check_halves_the_reference_step_until_it_converges(monkeypatch):
     monkeypatch.setattr(ma, "run_metric", fake(50.0))  # each halving moves it by > 1e-3 up to h = 0.0125
     res = ma.check_modal("m.toml", "s", advice, [2, 4, 8])
     assert len(res["step_table"]) == ma.MAX_HALVINGS and not res["resolved"] and res["within_tolerance"] is None
+
+
+def test_advise_refuses_a_scene_that_its_partners_move():
+    """The crank drive's scene (models/conrod_crank.toml) is the conrod with its ports open to the partner FMUs:
+    nothing in the model file moves it, so `advise` (which runs the model's scene) says so instead of advising
+    `linear` for a body at rest (the drive needs W1: docs/inertia-terms.md, 2.3 % without it)."""
+    from ffrf_fmu.checked_toml import ModelError
+    from ffrf_fmu.model import load_model
+    from ffrf_fmu.studies import modal_advice as ma
+
+    m = load_model("models/conrod_crank.toml")
+    with pytest.raises(ModelError, match="partners outside the model file"):
+        ma.advise_modal(m, m.scene("crank"), 0.01)

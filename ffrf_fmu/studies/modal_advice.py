@@ -93,6 +93,16 @@ def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -
     reasons = {}
     from ..model import scene_body
 
+    ini = scene.initial
+    if not (scene.drives or scene.loads or scene.unbalances or any(scene.gravity) or any(ini.velocity)
+            or any(ini.angular_velocity) or ini.port_displacements):
+        from ..checked_toml import ModelError
+
+        raise ModelError(f"{model.path}: scene {scene.name}: nothing in it moves the body (no drives, loads, unbalances, "
+                         "gravity or initial motion): its motion comes from partners outside the model file, a system "
+                         "that advise, which runs a model's scene, cannot advise as a whole (docs/cosim.md, \"Advice at "
+                         "1 % on the scenes\")")
+
     effects = steady_term_effects(scene_body(model.body, scene), scene)  # as `info` does
     terms, reasons["terms"] = choose_term_set(effects, tolerance)
     full_terms = ()
