@@ -42,8 +42,8 @@ APPROACH = 0.97
 
 def supported_spin(body: Body, scene: Scene) -> str | None:
     """None when the scene's spin is driven through a compliant rotation (a drive spring) of `body`, so that
-    this module measures the terms, else why not (the caller's rule then applies). A body whose
-    supports have no steady whirl in the spinning frame is refused, naming the support."""
+    this module measures the terms, else why not (the caller's rule then applies). Supports without a steady
+    whirl in the spinning frame are named by supported_term_effects (its status)."""
     spin = scene_spin(scene)
     if spin is None or spin.port is None:
         return "no driven spin"
@@ -60,7 +60,7 @@ def _support_check(data, axis: np.ndarray, drive: str, length: float) -> str | N
     a = int(np.argmax(np.abs(axis)))
     across = [i for i in range(3) if i != a]
     for p in data.ports:
-        if p.translation == "motion" or (p.rotation == "motion"):
+        if "motion" in (p.translation, p.rotation):
             return f"port {p.name}: a motion-driven part beside a compliant drive spring"
         if not p.compliance:
             continue
