@@ -176,3 +176,20 @@ def test_term_rule_on_the_run_up_measures_the_whirl_and_picks_w1_w2():
     crit = eff["critical_speed"]
     assert crit["full"] == pytest.approx(169.57, rel=5e-3)
     assert crit["linear"] > 1.01 * 169.57
+
+
+@pytest.mark.parametrize("override, why", [
+    ("body.ports.bearing_b.coupling.stiffness=[1e7, 1e7, 2e7]", "bearing_b: its spring is not isotropic across the spin axis"),
+    ("scenes.runup.unbalances=[]", "without an unbalance"),
+])
+def test_term_rule_names_why_a_supported_spin_has_no_whirl(override, why):
+    """An anisotropic bearing has no steady whirl in the spinning frame (its force turns with the frame), a balanced
+    rotor no load there: the rule says which and falls back to its no-spin choice."""
+    from ffrf_fmu.model import load_model, scene_body
+    from ffrf_fmu.term_rule import choose_term_set, steady_term_effects
+
+    m = load_model(MODELS / "jeffcott_runup.toml", [override])
+    sc = m.scene("runup")
+    eff = steady_term_effects(scene_body(m.body, sc), sc)
+    assert eff["status"] != "ok" and why in eff["status"]
+    assert choose_term_set(eff, 0.01)[0] == "linear"
