@@ -75,6 +75,7 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     return {
         "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
         "superelements": len(data.superelements), "displacement_m": float(scale), "scale_of": scale_of,
+        "measure": f"steady spin at {rate:.3g} rad/s",
         "change": {k: rel(v, u["linear"]) for k, v in u.items()},
         "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
     }
@@ -136,7 +137,7 @@ def choose_term_set(effects: dict, tolerance: float) -> tuple[str, str]:
                           "(docs/inertia-terms.md)")
     ch, tf = effects["change"], effects["to_full"]
     parts = ", ".join(f"{s} {ch[f'full[{s}]']:.2%}" for s in SWITCH_ALONE)
-    what = (f"{effects.get('measure', 'steady spin at ' + format(effects['spin_rate'], '.3g') + ' rad/s')} "
+    what = (f"{effects['measure']} "
             f"({effects['superelements']} SE, stiffening "
             f"{'on' if effects['stiffening'] else 'off'}): full changes the boundary displacements by {ch['full']:.2%} "
             f"of linear's (each switch alone: {parts}; gyroscopic {ch['gyroscopic']:.2%})")
@@ -160,6 +161,6 @@ def choose_full_terms(effects: dict, tolerance: float) -> tuple[tuple[str, ...],
     tf = effects["to_full"]
     keep = tuple(s for s in SWITCH_ALONE if tf[f"full-{s}"] > share)
     parts = ", ".join(f"without {s} {tf[f'full-{s}']:.3%}" for s in SWITCH_ALONE)
-    return keep, (f"{effects.get('measure', 'steady spin at ' + format(effects['spin_rate'], '.3g') + ' rad/s')}, each switch of full left out alone ({parts} of "
+    return keep, (f"{effects['measure']}, each switch of full left out alone ({parts} of "
                   f"{effects['scale_of']}'s displacements): kept where > TERM_SHARE x tolerance / {len(SWITCH_ALONE)} = "
                   f"{share:.3%}: {', '.join(keep) or 'none'}")

@@ -166,7 +166,8 @@ def info(args) -> int:
     print(f"  Witteveen's flags (his section 8): {', '.join(needed) or 'nothing beyond the linear terms'}")
     eff = inertia["term_effects"]
     if eff["status"] == "ok":
-        print(f"  steady spin at {eff['spin_rate']:.3g} rad/s on this chain (stiffening {'on' if eff['stiffening'] else 'off'}): "
+        print(f"  {eff['measure']} on this chain "
+              f"(stiffening {'on' if eff['stiffening'] else 'off'}): "
               f"each term changes the boundary displacements by (of linear's) "
               + ", ".join(f"{k.removeprefix('full[').removesuffix(']')} {v:.2%}" for k, v in eff["change"].items()
                           if k != "linear" and not k.startswith("full-")))
