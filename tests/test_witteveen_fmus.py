@@ -25,6 +25,7 @@ CASES = {  # model: (duration [s] of the validated run, the output group held to
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_fmu_validates_under_fmpy(tmp_path, name):
     from ffrf_fmu.fmu.builder import build_fmu
+    from ffrf_fmu.model import load_model
     from ffrf_fmu.validate import validate
 
     duration, group, load = CASES[name]
@@ -33,6 +34,7 @@ def test_fmu_validates_under_fmpy(tmp_path, name):
     rep = validate(fmu, model=model, overrides=o, plots=False)
     assert rep["fmu_reached_stop_time"] and rep["fmu_matches_model"]
     groups = rep["groups"]
+    assert len(groups) >= 2 * len(load_model(model, o).body.ports), sorted(groups)  # r, f, ... of every port compared
     assert all(g["passed"] for k, g in groups.items() if k != group), {k: g["max_rel_diff"] for k, g in groups.items()}
     if group:
         assert groups[group]["max_abs_diff"] < 1e-3 * load
