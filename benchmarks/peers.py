@@ -490,16 +490,20 @@ def level_markdown(levels, whole, meta) -> str:
     n = meta.get("repeat")
 
     def cell(r):
-        return f"{r['label']}, {r['metric_error_rel']:.3%}, {1e3 * r['wall_time_s']:.1f} ms" if r else "not reached"
+        return (f"{r['label']}, {r['metric_error_rel']:.3%}, {1e3 * r['wall_time_s']:.1f} ms (CPU "
+                f"{1e3 * r['cpu_time_s']:.1f})") if r else "not reached"
+
+    def ratio(a, b):
+        return f"{b['wall_time_s'] / a['wall_time_s']:.2f} (CPU {b['cpu_time_s'] / a['cpu_time_s']:.2f})" if a and b else "–"
 
     ours_time = "summary wall_time_s of `ffrf-fmu simulate`" if meta.get("cli") else "wall time of the run"
     lines = [f"Per level, the cheapest configuration of each code at or below it (best of {n}; ours: {ours_time}, "
              "Exudyn: its solver's wall time):", "",
-             "| level | ours: configuration, error, time | Exudyn: configuration, error, time | Exudyn / ours "
+             "| level | ours: configuration, error, wall (CPU) | Exudyn: configuration, error, wall (CPU) | Exudyn / ours "
              "| Exudyn at or below our error | Exudyn / ours there |", "|---|---|---|---|---|---|"]
     for q in levels:
-        lines.append(f"| {q['error']:.1%} | {cell(q['ours'])} | {cell(q['peer'])} | {_f(q['ratio'], '.2f', '–')} | "
-                     f"{cell(q['peer_at_ours'])} | {_f(q['ratio_at_ours'], '.2f', '–')} |")
+        lines.append(f"| {q['error']:.1%} | {cell(q['ours'])} | {cell(q['peer'])} | {ratio(q['ours'], q['peer'])} | "
+                     f"{cell(q['peer_at_ours'])} | {ratio(q['ours'], q['peer_at_ours'])} |")
     if whole:
         lines += ["", f"Whole processes (start to exit, best of {n}, alternating): ours `ffrf-fmu simulate` with the "
                   "configuration, Exudyn a Python script that loads the model file and runs its configuration:", "",
