@@ -2,7 +2,7 @@
 """Benchmark: our superelement chains against Exudyn's full-order 3D beam on B1, in ONE run.
 
     python benchmarks/peers.py [--quick] [--repeat N] [--backend native|numpy] [-o DIR] [--set KEY=V ...]
-                               [--sweep KEY=V1,V2 ...] [--peer-sweep ...] [--fresh-process | --cli]
+                               [--sweep KEY=V1,V2 ...] [--peer-sweep ...] [--fresh-process | --in-process]
 
 B1 (models/haug_beam.toml, scene spinup: Haug's rotating beam, 20 s, rho_inf 0.8). Runs, one
 after another in this process (one core; BLAS and Exudyn pinned to one thread):
@@ -20,12 +20,12 @@ Two passes over the configurations:
 - the accuracy pass: `ffrf-fmu chart`'s sweep (studies/chart.py) with DIR's result store; it gives
   each run's error, which is deterministic (a rerun takes it from the store);
 - the timing rounds (--repeat N, default 3): every configuration that completed runs N more times,
-  each a fresh run in this process (task.execute, never the store: a stored result's time is a time
-  of another run, perhaps another day's load), or with --fresh-process in a new Python process each, as a
-  CLI run pays its first calls, or with --cli as a user runs them (`cli_timing`): ours a subprocess
-  `ffrf-fmu simulate MODEL --set ... --summary FILE` whose summary gives the time (wall_time_s: set-up,
-  steps and recording) and the metric, Exudyn's a new Python process whose solver's wall time counts
-  (SolveDynamic, no model set-up). Round r visits ours and Exudyn's configurations
+  each a fresh run (never the store: a stored result's time is a time of another run, perhaps another
+  day's load) as a user runs it (`cli_timing`): ours a subprocess `ffrf-fmu simulate MODEL --set ...
+  --summary FILE` whose summary gives the time (wall_time_s: set-up, steps and recording) and the
+  metric, Exudyn's a new Python process whose solver's wall time counts (SolveDynamic, no model
+  set-up); with --fresh-process both codes' runs in a new Python process each (task.execute: ours the
+  time stepping of simulate.run), with --in-process in this one. Round r visits ours and Exudyn's configurations
   interleaved (spread evenly over the round, `interleaved`) and every other round in reverse order,
   so that a burst of load from the other jobs on the machine falls on both codes' runs, not on one
   side. Each configuration keeps the minimum wall and the minimum CPU time of its N runs
@@ -53,7 +53,7 @@ and Pareto fronts are the best-of-N ones):
 - the verdict on the target: Exudyn / ours >= TARGET (10) on wall time over 0.2-5 %;
 - the level table (`level_table`): per error level, our cheapest configuration (best-of-N wall time)
   whose error is at or below the level and Exudyn's cheapest at or below it, their errors, times and
-  ratio, and beside it Exudyn's cheapest at or below our configuration's own error; with --cli, the
+  ratio, and beside it Exudyn's cheapest at or below our configuration's own error; by default, the
   whole processes of each level's two configurations (`whole_processes`: `ffrf-fmu simulate` against a
   Python script that loads the model and runs Exudyn, benchmarks/cli_process.py's), best of N,
   interleaved.
@@ -242,7 +242,7 @@ def cli_run(model_path):
 
 
 def cli_timing(model_path, execute):
-    """The timing runs of --cli: ours through `cli_run`, the peer's through `fresh_process(execute)`."""
+    """The timing runs by default: ours through `cli_run`, the peer's through `fresh_process(execute)`."""
     ours, peer = cli_run(model_path), fresh_process(execute)
     return lambda task: ours(task) if task.runner == "standalone" else peer(task)
 
@@ -549,9 +549,10 @@ def main(argv=None) -> int:
     how = ap.add_mutually_exclusive_group()
     how.add_argument("--fresh-process", action="store_true",
                      help="each timing run in a new Python process (as a CLI run pays its first calls), not in this one")
-    how.add_argument("--cli", action="store_true",
-                     help="ours as `ffrf-fmu simulate --summary` subprocesses (the summary's wall_time_s), Exudyn's "
-                          "in a new process each (its solver's wall time), and the whole processes of each level")
+    how.add_argument("--in-process", action="store_true",
+                     help="each timing run in this process (task.execute); default: ours as `ffrf-fmu simulate "
+                          "--summary` subprocesses (the summary's wall_time_s), Exudyn's in a new process each (its "
+                          "solver's wall time), then the whole processes of each level's pair")
     ap.add_argument("--quick", action="store_true", help="a small subset (smoke test): 2 of ours, 2 of Exudyn's, "
                     "16-element reference, no convergence check")
     ap.add_argument("-o", "--output", default="bench_peers", metavar="DIR")
@@ -584,7 +585,8 @@ def main(argv=None) -> int:
     timed_rows = [j for j, r in enumerate(rows) if r["completed"] and r["metric_error_rel"] is not None]
     order = interleaved([j for j in timed_rows if rows[j]["runner"] != "exudyn"],
                         [j for j in timed_rows if rows[j]["runner"] == "exudyn"])
-    how = cli_timing(args.model, execute) if args.cli else fresh_process(execute) if args.fresh_process else execute
+    cli = not (args.fresh_process or args.in_process)
+    how = execute if args.in_process else fresh_process(execute) if args.fresh_process else cli_timing(args.model, execute)
     runs = timing_rounds(order, tasks, args.repeat, how, log=lambda m: print(m, flush=True))
     best = timed(rows, runs)
     rounds = [timed(rows, runs, round_of(r)) for r in range(args.repeat)]
@@ -598,8 +600,8 @@ def main(argv=None) -> int:
     judged = verdict(best, rounds, worst, "exudyn")
     levels = level_table(best, "exudyn")
     load_timing = _load()
-    whole = whole_processes(args.model, levels, tasks, best, args.repeat) if args.cli else []
-    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "fresh_process": args.fresh_process, "cli": args.cli,
+    whole = whole_processes(args.model, levels, tasks, best, args.repeat) if cli else []
+    meta = {**out["meta"], "exudyn": why, "repeat": args.repeat, "fresh_process": args.fresh_process, "cli": cli,
             "load_average_start": load_start, "load_average_after_timing": load_timing, "load_average_end": _load(),
             "accuracy_pass_s": t_accuracy, "total_wall_time_s": time.perf_counter() - t0, "timing_disagreements": wrong}
     text = markdown(best, ratios, check, meta, judged) + "\n\n" + level_markdown(levels, whole, meta)
