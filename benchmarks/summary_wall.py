@@ -3,14 +3,14 @@ wall_time_s (set-up, steps and recording), setup_time_s, load_time_s (the reduce
 before wall_time_s) and metrics_time_s (after it), best of N.
 
     python benchmarks/summary_wall.py [--repeat 5] [--config "superelements=1 modes=2 stiffening=true step=0.04" ...]
-                                      [--checkout DIR ...]
+                                      [--checkout DIR ...] [--phases]
 
 Each configuration (default: issue 32's, below) runs once untimed (the C runtime compiled and the body
 reduced into the cache when missing, the bytecode written), then `--repeat` times, the configurations
 interleaved round by round so that a burst of the machine's load falls on all of them. Python's bytecode
 cache is on (PYTHONDONTWRITEBYTECODE dropped, as on a user's machine). Per configuration: steps, the best
-(minimum) and median of wall_time_s, setup_time_s, load_time_s and metrics_time_s, and wall_time_s / steps, the per-step
-figure as the summary reports it (recording included). Best of N: on a shared machine the noise only adds.
+(minimum) and median of wall_time_s, setup_time_s, load_time_s and metrics_time_s, and wall_time_s /
+steps, the per-step figure as the summary reports it (recording included). Best of N: on a shared machine the noise only adds.
 --checkout (repeatable) runs the package of each checkout given (A/B against another commit, interleaved
 with this one's runs; its bytecode cached under a temporary prefix, not written into that checkout) and
 prints the ratio of its best times over this checkout's, per configuration.
