@@ -1,9 +1,11 @@
-"""The fused residual and Jacobian (runtime/fused.py) against their plain twin written straight from
-the equations, one superelement at a time (runtime/equations.py), at states reached by B1, B2 and B4.
+"""The body's assembled residual and Jacobian, as BodySystem evaluates them on both backends (`_local`:
+the C runtime's `ffrf_body_residual`, and the numpy path's assembly over the oracle, runtime/assembly.py),
+against the oracle's own assembly from the reduced data (runtime/equations.py body_residual_and_jacobian),
+at states reached by B1, B2 and B4.
 
-Both evaluate the same floating-point operations in different orders, so they agree to round-off:
-we allow 1e-12 of each row's largest entry (measured: ~1e-15). A missing or wrong term shows up
-as an O(1) relative difference in its rows.
+The C runtime evaluates the same equations in another order, so it agrees to round-off: we allow 1e-12 of
+each row's largest entry (measured: ~1e-15). A missing or wrong term, or a row assembled into the wrong
+place, shows up as an O(1) relative difference in its rows.
 """
 from __future__ import annotations
 
@@ -18,7 +20,6 @@ from ffrf_fmu.model import scene_body
 from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.runtime import equations
 from ffrf_fmu.runtime.body import BodySystem
-from ffrf_fmu.runtime.fused import FusedResidual
 
 SCENES = {  # (model, scene, overrides): a few steps into each benchmark, where everything moves
     "B1": ("models/haug_beam.toml", "spinup", ["superelements=2", "step=0.01"], 2.0),
@@ -43,20 +44,23 @@ def _row_relative(a: np.ndarray, b: np.ndarray) -> float:
     return float((np.abs(a - b) / np.where(scale > 0, scale, 1.0)).max())
 
 
-def _both(s: BodySystem):
-    """(F, F_ydot, F_y) of both paths at the state's configuration and rates moved off the solution
-    (at the solution F is round-off of the cancelling terms, not a measure of them)."""
+def _both(s: BodySystem, backend: str):
+    """(F, F_ydot, F_y) of the body on `backend` and of the oracle at the state's configuration and rates
+    moved off the solution (at the solution F is round-off of the cancelling terms, not a measure of them)."""
     yd = s.yd + np.random.default_rng(0).normal(size=s.yd.shape) * (0.1 + np.abs(s.yd))
-    fused = s._local(s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd, True)
+    b = BodySystem(s.data, terms=s.terms, rho_inf=s.rho_inf, gravity=s.gravity, backend=backend)
+    assert b.backend == backend
+    ours = b._local(s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd, True)
     plain = equations.body_residual_and_jacobian(s.data, s.layout, s.terms, s.gravity, s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd)
-    return fused, plain
+    return ours, plain
 
 
+@pytest.mark.parametrize("backend", ["native", "numpy"])
 @pytest.mark.parametrize("terms", ["linear", "gyroscopic"])
 @pytest.mark.parametrize("name", ["B1", "B2", "B4"])
-def test_fused_equations_match_the_plain_oracle(name, terms):
+def test_body_equations_match_the_plain_oracle(name, terms, backend):
     s = _state(name, terms)
-    (F, Fz, Fy), (F0, Fz0, Fy0) = _both(s)
+    (F, Fz, Fy), (F0, Fz0, Fy0) = _both(s, backend)
     # the residual sums terms far larger than itself (K_bar q_bar against inertia): round-off is relative to them
     terms = max(np.abs(F0).max(), np.abs(s.K).max() * np.abs(s.elastic_coordinates()).max())
     assert np.abs(F - F0).max() <= 1e-12 * terms
@@ -65,32 +69,12 @@ def test_fused_equations_match_the_plain_oracle(name, terms):
     assert np.abs(Fy0).max() > 0 and np.abs(F0).max() > 0  # a real state, not the rest state
 
 
-def test_term_hooks_add_an_elastic_force_in_both_paths():
-    """A term added through the hooks (an extra stiffness g = K_x q_bar, with dg_y = K_x Dq) gives the
-    same residual and Jacobian as a body whose K_bar already contains K_x: the hooks' projection on
-    the CM and node rows (91) and their Jacobian columns are right, in the fused path and in the
-    oracle. K_x = 0.1 K_bar keeps the state meaningful."""
+def test_term_hooks_add_an_elastic_force():
+    """A term added through the oracle's hooks (an extra stiffness g = K_x q_bar, with dg_y = K_x Dq) gives
+    the same residual and Jacobian as a superelement whose K_bar already contains K_x: the hooks' projection
+    on the CM and node rows (91) and their Jacobian columns are right. K_x = 0.1 K_bar keeps the state
+    meaningful."""
     s = _state("B1", "gyroscopic")
-    ses = tuple(dataclasses.replace(se, K=1.1 * se.K) for se in s.data.superelements)
-    stiffer = BodySystem(dataclasses.replace(s.data, superelements=ses), terms="gyroscopic", rho_inf=s.rho_inf)
-    K_x = 0.1 * s.K
-
-    def fused_term(st, D):
-        g = np.einsum("eij,ej->ei", K_x, st["q"])
-        if D is None:
-            return g, None, None
-        L = s.layout
-        dg_y = np.zeros(g.shape + (L.nc + L.nv,))
-        dg_y[:, :, : L.nc] = K_x @ D["Dq"]
-        return g, np.zeros_like(dg_y), dg_y
-
-    s.fused = FusedResidual(s.layout, s.stack, s.inertia_coupling, s.coriolis, g_terms=(fused_term,))
-    args = (s.xN, s.RN, s.x0, s.R0, s.eta, s.v, s.yd)
-    F1, Fz1, Fy1 = s._local(*args, True)
-    F2, Fz2, Fy2 = stiffer._local(*args, True)
-    assert np.abs(F1 - F2).max() <= 1e-12 * np.abs(F2).max()
-    assert _row_relative(Fz1, Fz2) <= 1e-12 and _row_relative(Fy1, Fy2) <= 1e-12
-
     e, sd = 0, s.data.superelements[0]
     cfg, vel = s.layout.cfg_map[e], s.layout.vel_map[e]
     local = (s.x0[e], s.R0[e], s.eta[e], s.xN[sd.nodes], s.RN[sd.nodes], s.v[e], s.yd[cfg], s.yd[vel])

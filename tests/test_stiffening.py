@@ -72,12 +72,16 @@ def test_newton_jacobian_with_stiffening_matches_finite_differences(scale, far_f
     assert iteration_matrix_error(s, values) <= 1e-6
 
 
+@pytest.mark.parametrize("backend", ["native", "numpy"])
 @pytest.mark.parametrize("terms", ["linear", "gyroscopic"])
-def test_fused_stiffening_matches_the_plain_oracle(terms, far_from_reference):
-    """The fused hooks against the one-superelement oracle (runtime/equations.py with
-    stiffening.plain_hooks), same state: round-off (1e-12 of each row's largest entry)."""
+def test_stiffened_body_matches_the_plain_oracle(terms, backend, far_from_reference):
+    """A stiffened body's equations on each backend (BodySystem._local: the C runtime, the numpy path's
+    assembly with the body's hooks) against the oracle's own assembly from the reduced data
+    (runtime/equations.py with stiffening.plain_hooks), same state: round-off (1e-12 of each row's
+    largest entry)."""
     r, _ = _random_state(1e3, far_from_reference)
-    s = BodySystem(r.data, terms=terms, rho_inf=0.7)
+    s = BodySystem(r.data, terms=terms, rho_inf=0.7, backend=backend)
+    assert s.backend == backend
     s.xN, s.RN, s.x0, s.R0, s.eta, s.v = r.xN, r.RN, r.x0, r.R0, r.eta, r.v
     yd = np.random.default_rng(2).normal(size=s.yd.shape)
     F, Fz, Fy = s._local(s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd, True)
@@ -244,15 +248,15 @@ def _full_state(full_terms, stiff: bool, far_from_reference):
                                                (("inertia_W1", "inertia_W2", "inertia_coupling"), True)])
 def test_full_term_set_jacobian_and_oracle(full_terms, stiff, far_from_reference, iteration_matrix_error):
     """`full` and its switches: the iteration matrix against central differences (1e-6 of its largest
-    entry, W1 and W2 scaled by 1e4 so their blocks are visible) and the fused residual against the
-    one-superelement oracle (1e-12 per row)."""
+    entry, W1 and W2 scaled by 1e4 so their blocks are visible) and the body's residual (the C runtime's)
+    against the one-superelement oracle (1e-12 per row)."""
     s, values = _full_state(full_terms, stiff, far_from_reference)
     if s.eta.shape != (2, s.layout.nm):
         s.eta = np.zeros((2, s.layout.nm))
     assert iteration_matrix_error(s, values) <= 1e-6
     yd = s.yd + 0.3
     F1, Fz, Fy = s._local(s.xN, s.RN, s.x0, s.R0, s.eta, s.v, yd, True)
-    # the oracle sees the body's W2 as given, the fused path subtracts G^T M^-1 G when coriolis
+    # the oracle sees the body's W2 as given, the body subtracts G^T M^-1 G when coriolis
     # is on: hand the oracle the same effective W2
     ses = tuple(dataclasses.replace(se, W2=s.W2[e]) if s.W2 is not None else se for e, se in enumerate(s.data.superelements))
     data = dataclasses.replace(s.data, superelements=ses)

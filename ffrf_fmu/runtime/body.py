@@ -1,9 +1,9 @@
 """A flexible body: a chain of two-field superelements joined by spatial coordinates
 (geradin eqs. 69, 77-80, 89-91), its state, initial conditions and
-outputs. The equations are in runtime/equations.py (plain, one superelement at a time) and
-runtime/fused.py (all superelements at once, the fast path); the time step in runtime/integrator.py;
-where each unknown lives in runtime/layout.py; its initial state (rigid placement, relaxed port
-displacements, consistent rates) in runtime/initial_conditions.py.
+outputs. The equations run in the C runtime (runtime/native, backend native) or in the plain oracle
+runtime/equations.py, one superelement at a time (runtime/assembly.py, backend numpy); the time step in
+runtime/integrator.py; where each unknown lives in runtime/layout.py; its initial state (rigid
+placement, relaxed port displacements, consistent rates) in runtime/initial_conditions.py.
 
 Over 400 lines: one class, the body's state and everything read from or written into it (state and
 snapshots, inputs, initial conditions, outputs, energies, mass properties), which share its arrays; its
@@ -20,7 +20,6 @@ from .accelerations import port_accelerations
 from .damping import Damping, body_basis, damping_matrices
 from .data import BodyData
 from . import outputs, stiffening
-from .fused import FusedResidual
 from .initial_conditions import InitialConditions
 from .input_rule import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
@@ -28,7 +27,7 @@ from .layout import Layout, Segments, SuperelementStack
 from .factorization import STATE_FLAG, NativeFactor, is_native
 from .coupling import add_springs
 from .ports import PortValues, StepFailure
-from .rotation import ROTATION_TOL, cross, is_rotation, vect
+from .rotation import ROTATION_TOL, cross, is_rotation, vect, vect_tangent
 from .terms import FULL_TERMS, TERM_SETS
 
 BACKENDS = ("native", "numpy")
@@ -130,13 +129,8 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         if self.stiffening:
             self.vk_a = np.stack([se.vk_a for se in ses])
             self.vk_B = np.stack([se.vk_B for se in ses])
-        hooks = {}
-        if self.W1 is not None:
-            g_term, row_term = stiffening.fused_hooks(self.W1, L.nc, self.vk_a, self.vk_B, self.W2)
-            hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
         self.damping_basis = body_basis(self.damping, S.K, S.M)  # the elastic modes D is built on
         self.D = damping_matrices(self.damping, self.damping_basis)  # (E, n, n) or None
-        self.fused = FusedResidual(L, S, self.inertia_coupling, self.coriolis, D=self.D, **hooks)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
@@ -149,7 +143,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         self._build_newton()
         N, E, n, nv, ny = L.n_nodes, L.n_se, L.n, L.nv, L.ny
         self._zeros_ny = np.zeros(ny)
-        self._minus_mass = -self.mass[:, None]
+        self._assembly = None  # (`_oracle`)
         self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
         self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
         self._port_codes = port_codes(data.ports)  # (node, mode, spring) of `run_extrapolated`
@@ -267,27 +261,43 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         q = np.concatenate([np.concatenate([rho - self.X_B, alpha], axis=2).reshape(E, -1), eta], axis=1)
         return q, rho, Q, alpha
 
-    def _load_source(self, xN, RN, x0, R0, eta, v, yd):
-        """Write an explicit configuration and rates into the source vector; returns the rotation stack."""
-        self.fused.buf.p[self.fused.lin_slots] = np.concatenate([np.ravel(xN), np.ravel(x0), np.ravel(eta), np.ravel(v)])
-        self.fused.buf.yd[:] = yd
-        return np.concatenate([RN, R0])
+    def _elastic_rates(self, yd):
+        """q_bar_dot of eq. (91) at the current configuration and the rates yd (global ydot layout):
+        d_Pdot = R0^T (x_Pdot - x0dot) + rho_P x W0, alpha_Pdot = H(Q_P) (W_P - Q_P^T W0), then etadot."""
+        nodes = self.se_nodes
+        _, rho, Q, _ = self._elastic(self.xN[nodes], self.RN[nodes], self.x0, np.swapaxes(self.R0, -1, -2), self.eta)
+        zN, zS, _ = self.split_rates(yd)
+        W0 = zS[:, None, 3:6]
+        d_dot = (zN[nodes, 0:3] - zS[:, None, 0:3]) @ self.R0 + cross(rho, W0)
+        c = zN[nodes, 3:6] - (W0[..., None, :] @ Q)[..., 0, :]  # W_P - Q^T W0
+        a_dot = (vect_tangent(Q) @ c[..., None])[..., 0]
+        return np.concatenate([np.concatenate([d_dot, a_dot], axis=2).reshape(len(self.x0), -1), zS[:, 6:]], axis=1)
 
-    def _local(self, xN, RN, x0, R0, eta, v, yd, jacobian: bool):
-        """Assembled residual WITHOUT loads at an explicit configuration and, on request, its derivatives.
+    def _local(self, xN, RN, x0, R0, eta, v, yd, jacobian: bool, gravity: bool = True):
+        """Assembled residual WITHOUT loads F (ny,) at an explicit configuration and rates yd and, with
+        jacobian, (F, F_ydot, F_y): F_ydot (E, nrow, nc + nv) w.r.t. local (zdot, vdot); F_y w.r.t. local
+        configuration variations (dx world, dTheta body, deta) and velocities, rows and columns in the
+        local layout of `_rows`, `_cols`. On the C runtime (`ffrf_body_residual`) when the body runs
+        there, else through the oracle (runtime/assembly.py). gravity=False: without the weight -m g
+        (its rows are the CM translations')."""
+        p, R = self.layout.stage(xN, x0, eta, v), np.concatenate([RN, R0])
+        yd = np.ascontiguousarray(yd, dtype=float)
+        if self._compiled is not None:
+            F, Fz, Fy = self._compiled.local(p, yd, R, jacobian)
+        else:
+            F, Fz, Fy = self._oracle().evaluate(p, yd, R, self.gravity, jacobian)
+        if not gravity:
+            F[self.layout.cfg_map[:, 0:3]] += self.mass[:, None] * self.gravity
+        return (F, Fz, Fy) if jacobian else F
 
-        Returns (F, q, qd) or, with jacobian, (F, F_ydot, F_y): F_ydot (E, nrow, nc + nv) w.r.t. local
-        (zdot, vdot); F_y w.r.t. local configuration variations (dx world, dTheta body, deta) and
-        velocities, rows and columns in the local layout of `_rows`, `_cols`.
-        """
-        R = self._load_source(xN, RN, x0, R0, eta, v, yd)
-        self.fused.buf.load[...] = 0.0
-        self.fused.torque = None
-        np.multiply(self._minus_mass, self.gravity, out=self.fused.buf.weight)
-        F, s = self.fused.evaluate(R, jacobian=True)
-        if not jacobian:
-            return F, s["q"].copy(), s["qd"].copy()
-        return F, *self.fused.local_jacobian(s)
+    def _oracle(self):
+        """The numpy path's equations (runtime/assembly.py), built on first use: a body on the C runtime
+        needs them only for the numpy path's tools (`newton_system`)."""
+        if self._assembly is None:
+            from .assembly import Assembly
+
+            self._assembly = Assembly(self)
+        return self._assembly
 
     def _loads(self, RN, inputs_f, inputs_t):
         """Node residual rows get -f and -R^T t from force-driven port parts."""
@@ -370,7 +380,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
     def residual(self, yd: np.ndarray) -> np.ndarray:
         """The body equations without port loads at the current configuration and velocities with the
         rates yd (global ydot layout), on the unknowns: zero on a motion of the unloaded body."""
-        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, yd, False)[0][self._free_idx]
+        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, yd, False)[self._free_idx]
 
     def move(self, d: np.ndarray) -> None:
         """Change the configuration and velocities by d (global ydot layout: positions and eta added,
@@ -447,7 +457,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
 
     def elastic_rates(self) -> np.ndarray:
         """q_bar_dot of every superelement (E, n) at the current state and rates, eq. (91)."""
-        return self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[2]
+        return self._elastic_rates(self.yd)
 
     def mass_properties(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(mass, CM position (3,), inertia tensor about the CM (3, 3)) of the body as its equations

@@ -1,8 +1,9 @@
-"""The equations of one two-field superelement, written straight from the paper: the plain twin and
-test oracle of the fused evaluation (runtime/fused.py) and of the C runtime (runtime/native).
+"""The equations of one two-field superelement, written straight from the paper: the test oracle of
+the C runtime (runtime/native) and the numpy path's equations (runtime/assembly.py assembles a body
+from it).
 
 Equation numbers are those of Geradin's two-field paper; docs/equations.md has the algebra.
-Nothing here is on the hot path: clarity first, one superelement and one boundary node at a time.
+Clarity first, one superelement and one boundary node at a time: the fast path is the C runtime's.
 
 One superelement e with boundary nodes P (local layout, runtime/layout.py):
     configuration   x0, R0 (CM frame), eta, and the frames (x_P, R_P) of its boundary nodes
@@ -36,7 +37,6 @@ integrator (runtime/integrator.py) is built from both.
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,7 +221,7 @@ def body_residual_and_jacobian(data, layout, terms: str, gravity, xN, RN, x0, R0
     """Every superelement of a body through `residual_and_jacobian`, one at a time: the assembled
     residual without loads F (ny,) (rows summed Boolean-wise at the shared nodes) and the local blocks
     F_ydot, F_y (E, nv + nc, nc + nv). `data` is a BodyData, `layout` its runtime.layout.Layout,
-    yd the global rates; the same quantities as the fused path's `BodySystem._local`."""
+    yd the global rates; the same quantities as `BodySystem._local`."""
     F = np.zeros(layout.ny)
     Fz, Fy = [], []
     for e in range(len(data.superelements)):
@@ -251,8 +251,8 @@ def superelement_residual_and_jacobian(data, layout, terms: str, gravity, e: int
     use_W1 = sd.stiffening or (full and "inertia_W1" in full_terms)
     use_W2 = full and "inertia_W2" in full_terms
     if use_W1 or use_W2:  # geometric stiffening, deformation-dependent inertia (runtime/stiffening.py)
-        sd_h = sd if use_W1 else dataclasses.replace(sd, W1=0.0 * sd.W1)
-        g_term, row_term = plain_hooks(sd_h, membrane=sd.stiffening, W2=use_W2)
+        membrane = (sd.vk_a, sd.vk_B) if sd.stiffening else (None, None)
+        g_term, row_term = plain_hooks(sd.W1 * (1.0 if use_W1 else 0.0), *membrane, sd.W2 if use_W2 else None)
         hooks = {"g_terms": (g_term,), "row_terms": (row_term,)}
     parts = tuple(p for p in ("inertia_coupling", "coriolis") if terms == "gyroscopic" or (full and p in full_terms))
     return residual_and_jacobian(se, "linear", gravity, x0[e], R0[e], eta[e], xN[sd.nodes], RN[sd.nodes],

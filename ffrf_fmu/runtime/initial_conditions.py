@@ -67,8 +67,7 @@ class InitialConditions:
         self.v[:, 0:3] = zS[:, 0:3]
         self.v[:, 3:6] = zS[:, 3:6]
         # r_bar = q_dot_bar of the rigid field (zero unless ports were displaced)
-        _, q, qd = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)
-        self.v[:, 6:] = qd
+        self.v[:, 6:] = self._elastic_rates(self.yd)
         if self.layout.nm:  # modal rates: the last nm entries of r_bar (kinematic rows k_q)
             zS[:, 6:] = self.v[:, -self.layout.nm :]
         n_cfg = zN.size + zS.size
@@ -90,7 +89,7 @@ class InitialConditions:
         self.yd_prev = yd0.copy()
         self.yd_prev2 = yd0.copy()
         self.a = yd0.copy()
-        F = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)[0]
+        F = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, self.v, self.yd, False)
         F[: 6 * self.layout.n_nodes] += self._loads(self.RN, f_in, t_in).ravel()
         if self._springs:
             self._read_inputs(t0, values)
@@ -129,25 +128,21 @@ class InitialConditions:
         idx = np.flatnonzero(relax)
         C = np.array(rows).reshape(len(rows), L.ny)[:, idx]
         zero_v, zero_yd = np.zeros_like(self.v), np.zeros(L.ny)
-        gravity, self.gravity = self.gravity, np.zeros(3)
         delta = np.zeros(L.ny)
-        try:
-            for _ in range(max_iter):
-                F, _, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, zero_v, zero_yd, True)
-                J = np.bincount(self._flat_idx, Fy.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
-                A = np.block([[J[np.ix_(idx, idx)], C.T], [C, np.zeros((len(C), len(C)))]])
-                delta = np.zeros(L.ny)
-                try:
-                    delta[idx] = np.linalg.solve(A, np.concatenate([-F[idx], np.zeros(len(C))]))[: len(idx)]
-                except np.linalg.LinAlgError:  # the fixed parts leave the body a mechanism: no unique shape
-                    delta[:] = np.inf
-                if not np.all(np.isfinite(delta)):
-                    break
-                self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
-                if np.max(np.abs(delta)) < tol:
-                    return
-        finally:
-            self.gravity = gravity
+        for _ in range(max_iter):
+            F, _, Fy = self._local(self.xN, self.RN, self.x0, self.R0, self.eta, zero_v, zero_yd, True, gravity=False)
+            J = np.bincount(self._flat_idx, Fy.ravel(), minlength=L.ny * L.ny).reshape(L.ny, L.ny)
+            A = np.block([[J[np.ix_(idx, idx)], C.T], [C, np.zeros((len(C), len(C)))]])
+            delta = np.zeros(L.ny)
+            try:
+                delta[idx] = np.linalg.solve(A, np.concatenate([-F[idx], np.zeros(len(C))]))[: len(idx)]
+            except np.linalg.LinAlgError:  # the fixed parts leave the body a mechanism: no unique shape
+                delta[:] = np.inf
+            if not np.all(np.isfinite(delta)):
+                break
+            self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
+            if np.max(np.abs(delta)) < tol:
+                return
         raise StepFailure(self.t, f"initial port displacements {sorted(displaced)}: no static equilibrium of the "
                                   f"deformed body found ({max_iter} Newton iterations, last correction "
                                   f"{np.max(np.abs(delta)):.3g}); smaller displacements, or ports whose displacements "

@@ -18,7 +18,8 @@ positions, eta and v, R = R_n exp(beta W + ...) for rotations (`_prepare_step` c
 once), so a Newton iteration is one stage (a multiply-add and the exponentials) and one residual.
 
 `GeneralizedAlpha` is the stepping half of `body.BodySystem` (a mixin: it works on the body's
-state, its `FusedResidual` and its inputs).
+state and its inputs). This is the numpy path; its equations are the oracle's (runtime/assembly.py);
+runtime/native/step.c is the C runtime's twin.
 
 Over 400 lines: one class, the step and its modified Newton, whose decisions (keep, refresh, replay the
 factorization; the predictor; the rotation checks) read and write the same iteration state; split, the
@@ -35,6 +36,7 @@ from .coupling import add_springs
 from .input_rule import extrapolate
 from .ports import PortValues, StepFailure
 from .factorization import is_native
+from .layout import Segments
 from .rotation import expm, skew, tangent
 
 
@@ -145,6 +147,11 @@ class GeneralizedAlpha:
         self._stage_mask[self._motion_x_slots] = 0.0
         self._stage_mask[self._motion_T_slots] = 0.0
         self._stage_beta = None
+        # the stage of a Newton iteration (`_stage_at`): the configuration p in the ydot layout (rotation
+        # slots: the increments h Delta), and the rates the Newton iteration updates in place (`_step`)
+        self._stage_p, self._newton_yd = np.zeros(L.ny), np.zeros(L.ny)
+        lin = Segments(xN=(L.n_nodes, 3), x0=(L.n_se, 3), eta=(L.n_se, L.nm), v=(L.n_se, L.nv))  # p[L.lin_slots]
+        self._lin_views = [(lin[k], lin.shapes[k]) for k in ("xN", "x0", "eta", "v")]
         self._lu = None
         self._torque_rows = [(k, newton_pos[6 * k + 3 : 6 * k + 6]) for k in range(L.n_nodes) if L.free[6 * k + 3]]
 
@@ -205,9 +212,8 @@ class GeneralizedAlpha:
         # predictor: rates extrapolated quadratically from the last three steps, world triplets carried
         # along with the body (`_commit` keeps the history co-rotated; `_predicted_rotation`): in world
         # axes a vector turning with the body is missed by (omega h)^3 |v|, on B1 at 20 ms 1000x the
-        # rest of the miss (docs/equations.md, "Integrator"). Newton iterates on the rates slot of the
-        # source vector, which the evaluation reads
-        yd = self.fused.buf.yd
+        # rest of the miss (docs/equations.md, "Integrator"). Newton iterates on yd in place
+        yd = self._newton_yd
         beta = h * gamma * af / am
         if commit_config:
             np.subtract(self.yd, self.yd_prev, out=yd)
@@ -382,7 +388,7 @@ class GeneralizedAlpha:
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's
         injectivity: such a Newton root (e.g. after an absurd input) is an alias, not the motion."""
-        theta = self.fused.buf.p[self.fused.rot_slots]
+        theta = self._stage_p[self.layout.rot_cols]
         if float(np.max(np.einsum("ij,ij->i", theta, theta))) > np.pi**2:
             self._lu = None
             raise StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
@@ -397,7 +403,7 @@ class GeneralizedAlpha:
         """World rotation of the first CM frame over the step, from the predicted rates yd:
         R_n exp(h Delta) R_n^T with h Delta = beta ydot + D0 (the stage of `_prepare_step`)."""
         _, P0, _, _, _ = self._stage
-        slot = self.fused.rot_slots[self.layout.n_nodes]
+        slot = self.layout.rot_cols[self.layout.n_nodes]
         R = self.R0[0]
         return R @ expm((beta * yd[slot] + P0[slot])[None])[0] @ R.T
 
@@ -410,8 +416,8 @@ class GeneralizedAlpha:
         """The configuration of the last residual evaluation and the rates yd become the state."""
         L, R = self.layout, self._R
         _, _, _, af_am, A0 = self._stage
-        lin = self.fused.buf.p[self.fused.lin_slots]
-        self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self.fused.lin_views)
+        lin = self._stage_p[L.lin_slots]
+        self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self._lin_views)
         Q = R[L.n_nodes] @ self.R0[0].T  # rotation of the first CM frame over the step
         self.RN, self.R0 = R[: L.n_nodes], R[L.n_nodes :]
         # the history of the rates, world triplets carried along with the body (predictor, `_step`)
@@ -475,49 +481,48 @@ class GeneralizedAlpha:
         are R = R_n exp(h Delta); configuration slots set by motion inputs get c = 0 and the input.
         Returns the prescribed node rates and the loads (zN, f, t)."""
         xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t1, values)
-        b = self.fused.buf
+        L = self.layout
         beta = h * gamma * af / am
         # a_{n+1} = (af/am) ydot + A0, A0 = ((1 - af) ydot_n - (1 - am) a_n)/am; h Delta = beta ydot + D0,
         # D0 = h ((1 - gamma) a_n + gamma A0): both linear in (ydot_n, a_n), one 2 x 2 matmul
         c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
         C = np.array([[c1, c2], [h * gamma * c1, h * (1.0 - gamma) + h * gamma * c2]])
         A0, P0 = C @ np.stack([self.yd, self.a])
-        P0[self.fused.lin_slots] += np.concatenate([self.xN.ravel(), self.x0.ravel(), self.eta.ravel(), self.v.ravel()])
+        P0[L.lin_slots] += np.concatenate([self.xN.ravel(), self.x0.ravel(), self.eta.ravel(), self.v.ravel()])
         P0[self._motion_x_slots] = xN_p[self._motion_x].ravel()
         P0[self._motion_T_slots] = 0.0
         Rn = np.concatenate([RN_p, self.R0])  # RN_p: the inputs on motion nodes, the current frames elsewhere
         if self._stage_beta != beta:
             self._stage_beta, self._stage_c = beta, beta * self._stage_mask
         self._stage = (self._stage_c, P0, Rn, af / am, A0)
-        np.negative(f_in, out=b.load[:, 0])  # -f on the node translation rows
-        b.load[:, 1] = 0.0  # -R^T t on the rotation rows: per evaluation, when there is a torque
-        self.fused.torque = -t_in[:, None, :] if t_in.any() else None
-        np.multiply(self._minus_mass, self.gravity, out=b.weight)
+        self._step_loads = (f_in, t_in if t_in.any() else None)  # -f, -R^T t on the node rows (`_residual_at`)
         return zN_p, f_in, t_in
 
     def _stage_at(self, yd):
-        """The configuration at the rates ydot_{n+1} = yd of the prepared step, into the source vector
-        (p, and the rates) and `self._R`: p = c yd + P0, R = R_n exp(h Delta)."""
+        """The configuration at the rates ydot_{n+1} = yd of the prepared step, into the stage vector
+        `_stage_p` and `self._R`: p = c yd + P0, R = R_n exp(h Delta)."""
         c, P0, Rn, _, _ = self._stage
-        b = self.fused.buf
-        if yd is not b.yd:
-            b.yd[:] = yd
-        p = np.multiply(yd, c, out=b.p)
+        p = np.multiply(yd, c, out=self._stage_p)
         p += P0
-        theta = p[self.fused.rot_slots]  # h Delta on every rotation (nodes then SEs)
+        theta = p[self.layout.rot_cols]  # h Delta on every rotation (nodes then SEs)
         self._R = R = Rn @ expm(theta)
         return p, theta, R
 
     def _residual_at(self, yd, jacobian: bool = False, beta: float | None = None):
         """F (ny,) at the rates ydot_{n+1} = yd of the prepared step [and J = F_ydot + beta [F_y T, F_v]].
-        Leaves the configuration in the source vector and `self._R` (for `_commit`)."""
+        Leaves the configuration in the stage vector and `self._R` (for `_commit`)."""
         p, theta, R = self._stage_at(yd)
-        F, s = self.fused.evaluate(R, jacobian)
+        F, Fz, Fy = self._oracle().evaluate(p, yd, R, self.gravity, jacobian)
+        N = self.layout.n_nodes
+        f_in, t_in = self._step_loads
+        Fn = F[: 6 * N].reshape(N, 2, 3)
+        Fn[:, 0] -= f_in
+        if t_in is not None:
+            Fn[:, 1] -= (t_in[:, None, :] @ R[:N])[:, 0]  # R^T t
         if not jacobian:
             if self._springs:
                 add_springs(self._springs, p, yd, R, F, None, 0.0, None, self._spring_loads)
             return F
-        Fz, Fy = self.fused.local_jacobian(s)
         J = self._iteration_matrix(Fz, Fy, beta, theta, R)
         if self._springs:  # compliant ports: spring-damper loads on free nodes (runtime/coupling.py)
             add_springs(self._springs, p, yd, R, F, J, beta, self._newton_pos, self._spring_loads)
@@ -539,8 +544,9 @@ class GeneralizedAlpha:
         Fy += Fz
         J = np.bincount(self._newton_flat, Fy.ravel(), minlength=nf * nf + 1)[:-1].reshape(nf, nf)
         # load term -R^T t on free node rotations: d = -skew(R^T t) dTheta
-        if self.fused.torque is not None:
-            RtT = -(self.fused.torque @ R[:N])[:, 0]
+        t_in = self._step_loads[1]
+        if t_in is not None:
+            RtT = (t_in[:, None, :] @ R[:N])[:, 0]
             for k, pos in self._torque_rows:
                 J[np.ix_(pos, pos)] += -beta * skew(RtT[k]) @ TN[k]
         return J

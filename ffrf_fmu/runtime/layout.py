@@ -41,7 +41,8 @@ class Layout:
     cfg_map: np.ndarray  # (E, nc) local [x0, Theta0, eta, node p (x, Theta)...] -> global
     vel_map: np.ndarray  # (E, nv)
     free: np.ndarray  # (ny,) bool: unknown (not prescribed by a motion input)
-    rot_cols: np.ndarray  # (n_rot, 3) global columns of every rotation rate (nodes then SEs)
+    rot_cols: np.ndarray  # (N + E, 3) global columns of every rotation rate (nodes then SEs)
+    lin_slots: np.ndarray  # (3N + 3E + E nm + E nv,) the slots of the linear configuration xN, x0, eta, v, in that order
 
     @classmethod
     def of(cls, data: BodyData) -> "Layout":
@@ -67,7 +68,16 @@ class Layout:
             if p.rotation == "motion":
                 free[6 * p.node + 3 : 6 * p.node + 6] = False
         rot_cols = np.concatenate([6 * np.arange(N)[:, None] + 3 + np.arange(3), se_cfg0[:, None] + 3 + np.arange(3)])
-        return cls(N, E, nb, nm, n, nc, nv, ny, cfg_map, vel_map, free, rot_cols)
+        lin_slots = np.concatenate([(6 * np.arange(N)[:, None] + np.arange(3)).ravel(), cfg_map[:, 0:3].ravel(),
+                                    cfg_map[:, 6 : 6 + nm].ravel(), vel_map.ravel()])
+        return cls(N, E, nb, nm, n, nc, nv, ny, cfg_map, vel_map, free, rot_cols, lin_slots)
+
+    def stage(self, xN, x0, eta, v) -> np.ndarray:
+        """The stage vector p (ny,) of a configuration: xN, x0, eta, v in their rate slots (lin_slots),
+        zero in the rotation slots (the rotations travel as matrices beside it)."""
+        p = np.zeros(self.ny)
+        p[self.lin_slots] = np.concatenate([np.ravel(xN), np.ravel(x0), np.ravel(eta), np.ravel(v)])
+        return p
 
 
 @dataclass(frozen=True, eq=False)

@@ -69,7 +69,7 @@ def finish(system, f_in, t_in) -> None:
     start, from the state as it is; no work done yet, no factorization kept."""
     n_node = 6 * system.layout.n_nodes
     system.fN, system.tN = np.array(f_in, dtype=float), np.array(t_in, dtype=float)
-    F = system._local(system.xN, system.RN, system.x0, system.R0, system.eta, system.v, system.yd, False)[0]
+    F = system._local(system.xN, system.RN, system.x0, system.R0, system.eta, system.v, system.yd, False)
     F[:n_node] += system._loads(system.RN, f_in, t_in).ravel()
     system._update_port_loads(F, f_in, t_in)
     system.power = system._external_power()

@@ -173,27 +173,13 @@ def rotation_rows(q, qd, Om, Omd, W0, W1, nc: int, Dq=None, Dqdot=None, W2=None)
     return F, Fz, Fy
 
 
-def fused_hooks(W1, nc: int, a=None, B=None, W2=None):
-    """(g_term, row_term) for runtime.fused.FusedResidual over all superelements, from the stacked
-    reduced data W1 (E, n, 3, 3), [a (E, r, n), B (E, r, n, n): membrane], [W2 (E, n, n, 3, 3)]."""
-
-    def g_term(s, D):
-        return elastic_force(s["q"], s["Om0"], W1, a, B, None if D is None else D["Dq"], W2)
-
-    def row_term(s, D):
-        if D is None:
-            return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, W2=W2)
-        return rotation_rows(s["q"], s["qd"], s["Om0"], s["Om0d"], s["W0"], W1, nc, D["Dq"], D["Dqdot"], W2)
-
-    return g_term, row_term
-
-
-def plain_hooks(sd, membrane: bool = True, W2: bool = False):
-    """(g_term, row_term) for runtime.equations.residual_and_jacobian: the same terms for ONE
-    superelement (SuperelementData sd), written on its Kinematics (the oracle's hook signature)."""
-    W1 = sd.W1[None]
-    a, B = (sd.vk_a[None], sd.vk_B[None]) if membrane else (None, None)
-    W2 = sd.W2[None] if W2 else None
+def plain_hooks(W1, a=None, B=None, W2=None):
+    """(g_term, row_term) for runtime.equations.residual_and_jacobian: the terms above for ONE
+    superelement, written on its Kinematics (the oracle's hook signature), from its W1 (n, 3, 3),
+    [a (r, n), B (r, n, n): the membrane strain], [W2 (n, n, 3, 3)]."""
+    W1 = W1[None]
+    a, B = (None, None) if a is None else (a[None], B[None])
+    W2 = None if W2 is None else W2[None]
 
     def g_term(se, kin, v, zdot, vdot):
         g, dz, dy = elastic_force(kin.q[None], v[None, 3:6], W1, a, B, kin.Dq[None], W2)

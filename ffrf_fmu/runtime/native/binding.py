@@ -36,6 +36,7 @@ _SIGNATURES = {
     "ffrf_body_state_size": (_sz, [_p]),
     "ffrf_body_get_state": (None, [_p, _p]),
     "ffrf_body_set_state": (_i, [_p, _p, _sz]),
+    "ffrf_body_residual": (_i, [_p, _p, _p, _p, _i, _p, _p, _p]),
 }
 
 
@@ -103,6 +104,15 @@ class NativeBody:
     def record(self, row: np.ndarray) -> None:
         self.lib.ffrf_body_record(self.ptr, row.ctypes.data)
 
+    def residual(self, p: np.ndarray, yd: np.ndarray, R: np.ndarray, F: np.ndarray, Fz=None, Fy=None) -> None:
+        """ffrf_body_residual: the residual without loads into F [ny] at the stage p, yd [ny], R [N + E, 3, 3]
+        (C-contiguous float64) and, when Fz, Fy [E, nv + nc, nc + nv] are given, the local blocks into them."""
+        jac = Fz is not None
+        address = lambda a: None if a is None else a.ctypes.data  # noqa: E731
+        if self.lib.ffrf_body_residual(self.ptr, p.ctypes.data, yd.ctypes.data, R.ctypes.data, int(jac), F.ctypes.data,
+                                       address(Fz), address(Fy)):
+            raise ValueError("the C body refused the residual's arrays")
+
     def get_state(self) -> np.ndarray:
         out = np.empty(self.lib.ffrf_body_state_size(self.ptr))
         self.lib.ffrf_body_get_state(self.ptr, out.ctypes.data)
@@ -136,7 +146,7 @@ def failure(status: int, t1: float, max_iter: int, last_increment: float) -> Ste
 
 class NativeStep:
     """The C runtime's step for one BodySystem (its `_compiled`): BodySystem.step, run_schedule, run_extrapolated
-    and output_row call it."""
+    and output_row call it, and BodySystem._local its equations at a given state."""
 
     def __init__(self, system, sanitize: bool = False):
         self.body = B = NativeBody(body_image(system), sanitize)
@@ -160,6 +170,7 @@ class NativeStep:
         self._lu_out, self._piv_out, self._lu_version = None, None, -1.0
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
+        self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
 
     # ---------------------------------------------------------------- state in, results out
     def _adopt(self, system):
@@ -270,6 +281,17 @@ class NativeStep:
         self._h = h
         done, status, worst = self.body.advance(EXTRAPOLATED, int(n), h, t_c, row.reshape(1, -1), None)
         return done, worst, self._finish(system, status)
+
+    def local(self, p, yd, R, jacobian: bool):
+        """BodySystem._local on the C runtime: (F, F_ydot, F_y) at the stage p, yd, R (runtime/layout.py
+        `stage`); (F, None, None) without jacobian."""
+        F = np.empty(self.ny)
+        if not jacobian:
+            self.body.residual(p, yd, R, F)
+            return F, None, None
+        Fz, Fy = np.empty(self.block), np.empty(self.block)
+        self.body.residual(p, yd, R, F, Fz, Fy)
+        return F, Fz, Fy
 
     def record(self, system) -> np.ndarray:
         """simulate.record's row at the current state (BodySystem.port_array, energies, iterations)."""

@@ -66,6 +66,16 @@ size_t ffrf_body_state_size(const ffrf_body *b);
 void ffrf_body_get_state(const ffrf_body *b, double *out);
 int ffrf_body_set_state(ffrf_body *b, const double *in, size_t size);
 
+/* The body's equations at a given stage, without port loads (gravity included): the assembled residual
+ * F [ny] (rows summed at the shared nodes) at the configuration p [ny] (the stage vector: positions, eta
+ * and velocities in their rate slots; rotation slots unread), the rates yd [ny] and the rotations
+ * R [N + E][3][3] (nodes, then CM frames), and, if jac, every superelement's local blocks F_ydot (Fz) and
+ * F_y (Fy) [E][nv + nc][nc + nv] (runtime/equations.py residual_and_jacobian's rows and columns).
+ * BodySystem's residual and linearizations on the C runtime (its initial state, runtime/initial_conditions.py;
+ * linear.py). Returns 0, or -1 if an array is missing. */
+int ffrf_body_residual(ffrf_body *b, const double *p, const double *yd, const double *R, int jac, double *F,
+                       double *Fz, double *Fy);
+
 /* ---- for tests ---- */
 /* The local rows F [nv + nc] of superelement e at the stage (p [ny], yd [ny], R [N + E][3][3]) and, if
  * jac, its blocks F_ydot (Fz) and F_y (Fy) [nv + nc][nc + nv] (runtime/equations.py residual_and_jacobian's

@@ -137,12 +137,12 @@ def body_entries(system) -> dict[str, np.ndarray]:
         "damp_ab": np.array([damping.alpha, damping.beta] if damping is not None else [0.0, 0.0]),
         # layout and integrator maps (runtime/layout.py, integrator.py `_build_newton`)
         "cfg_map": L.cfg_map, "vel_map": L.vel_map, "gravity": system.gravity,
-        "rot_slots": system.fused.rot_slots, "newton_idx": system._newton_idx, "newton_pos": system._newton_pos,
+        "rot_slots": L.rot_cols, "newton_idx": system._newton_idx, "newton_pos": system._newton_pos,
         "k3": 3 * len(system._world_free), "field_of": system._field_of,
         "theta_refresh": system.THETA_REFRESH, "keep_contraction": system.KEEP_CONTRACTION,
         "keep_miss": system.KEEP_MISS, "refresh_min": int(system.REFRESH_AFTER[0]),
         "refresh_max": int(system.REFRESH_AFTER[1]), "world_idx": system._world_idx.reshape(-1, 3),
-        "lin_slots": system.fused.lin_slots, "fixed_idx": system._fixed_idx, "motion_x": system._motion_x,
+        "lin_slots": L.lin_slots, "fixed_idx": system._fixed_idx, "motion_x": system._motion_x,
         "motion_x_slots": system._motion_x_slots, "motion_T_slots": system._motion_T_slots,
         "stage_mask": system._stage_mask, "motion_parts": system._motion_parts,
         # ports (runtime/input_rule.py port_codes) and compliant ports (runtime/coupling.py)

@@ -192,7 +192,7 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
- * (runtime/equations.py residual_and_jacobian, same algebra; fused.py `local_jacobian`). */
+ * (runtime/equations.py residual_and_jacobian, same algebra). */
 static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, double *Fz_, double *Fy_)
 {
     const int gyro = b->data.gyro, stiff = b->data.stiff;
@@ -515,7 +515,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
     }
     if (stiff) { /* stiffening.rotation_rows derivatives */
-        /* Z here is w->HQ, dh/dq = de/dqdot (as fused.py's) */
+        /* Z here is w->HQ, dh/dq = de/dqdot (stiffening.py deformed_inertia: h_q = e_qd) */
         const double (*Z)[n] = (const double (*)[n])w->HQ;
         const double (*Jq)[3] = (const double (*)[3])w->Jq, (*Jqd)[3] = (const double (*)[3])w->Jqd;
         double (*eq)[n] = (double (*)[n])w->eq;
@@ -892,5 +892,25 @@ int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *y
     if (!b || !b->work.se || e < 0 || e >= b->dims.E || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
         return -1;
     ffrf_superelement(b, e, p, yd, R, jac, F, Fz, Fy, b->work.se);
+    return 0;
+}
+
+int ffrf_body_residual(ffrf_body *b, const double *p, const double *yd, const double *R, int jac, double *F,
+                       double *Fz, double *Fy)
+{
+    if (!b || !b->work.se || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
+        return -1;
+    const int E = b->dims.E, nc = b->dims.nc, nv = b->dims.nv;
+    const size_t block = (size_t)(nv + nc) * (size_t)(nc + nv);
+    double *Fl = b->work.Fl;
+    memset(F, 0, sizeof(double) * (size_t)b->dims.ny);
+    for (int e = 0; e < E; e++) {
+        ffrf_superelement(b, e, p, yd, R, jac, Fl, jac ? Fz + e * block : NULL, jac ? Fy + e * block : NULL, b->work.se);
+        const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *vel = b->data.vel_map + (size_t)e * nv;
+        for (int i = 0; i < nv; i++)
+            F[vel[i]] += Fl[i];
+        for (int i = 0; i < nc; i++)
+            F[cfg[i]] += Fl[nv + i];
+    }
     return 0;
 }
