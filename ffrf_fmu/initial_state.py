@@ -32,11 +32,12 @@ def _spin(scene, t0: float) -> np.ndarray:
 def settle(system, scene, inputs, t0: float = 0.0, tol: float = 1e-10, max_iter: int = 40) -> None:
     """Bring an initialized BodySystem (BodySystem.initialize at t0) to the scene's initial state
     (module doc); "rest" leaves it as it is. inputs: the scene's input function (simulate.scene_inputs);
-    the loads taken are those acting at t0 itself (a window from t0 on: the equilibrium it holds)."""
+    the loads taken are those acting at t0 itself (a window from t0 on: the equilibrium it holds). Newton
+    stops at a correction below tol (linear.correction)."""
     state = scene.initial.state
     if state == "rest":
         return
-    from .linear import _spin_operator, _spin_rates  # (scipy: only a scene that starts settled pays its import)
+    from .linear import _spin_operator, _spin_rates, correction  # (scipy: only a scene that starts settled pays its import)
     from .runtime.drives import window_share
 
     if any("compliant" in (p.translation, p.rotation) for p in system.data.ports):
@@ -79,8 +80,8 @@ def settle(system, scene, inputs, t0: float = 0.0, tol: float = 1e-10, max_iter:
         if not np.all(np.isfinite(d)):
             raise StepFailure(t0, f"initial state {state!r}: the body has no unique equilibrium (a free body, or a "
                                   "mechanism: hold its rigid motion with motion-driven ports)")
+        step = correction(system, d)
         system.move(d)
-        step = float(np.abs(d).max())
         if step < tol:
             break
     else:

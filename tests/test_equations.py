@@ -89,3 +89,18 @@ def test_term_hooks_add_an_elastic_force():
     direct = equations.residual_and_jacobian(dataclasses.replace(se, K=1.1 * sd.K), "gyroscopic", s.gravity, *local)
     for a, b in zip(hooked, direct):
         assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+
+
+@pytest.mark.parametrize("name", ["B1", "B4"])
+def test_elastic_rates_are_the_oracles(name):
+    """BodySystem.elastic_rates (q_bar_dot of eq. 91, stacked: the rigid field's r_bar at initialization, the
+    damping's power) against the oracle's `kinematics`, superelement by superelement: round-off (1e-12 of
+    the largest rate). A sign or a transpose wrong in one of its two rows is an O(1) difference."""
+    s = _state(name, "gyroscopic")
+    s.yd = s.yd + np.random.default_rng(1).normal(size=s.yd.shape)
+    qd = s.elastic_rates()
+    for e, sd in enumerate(s.data.superelements):
+        se = equations.Superelement(sd.K, sd.M, sd.G, sd.mass, sd.J0, sd.X_B)
+        kin = equations.kinematics(se, s.x0[e], s.R0[e], s.eta[e], s.xN[sd.nodes], s.RN[sd.nodes], s.yd[s.layout.cfg_map[e]])
+        assert np.abs(qd[e] - kin.qdot).max() <= 1e-12 * np.abs(kin.qdot).max()
+        assert np.abs(kin.qdot[: 6 * len(sd.nodes)]).max() > 0.1  # the rates move the boundary, not only eta

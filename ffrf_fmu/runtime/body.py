@@ -261,18 +261,6 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         q = np.concatenate([np.concatenate([rho - self.X_B, alpha], axis=2).reshape(E, -1), eta], axis=1)
         return q, rho, Q, alpha
 
-    def _elastic_rates(self, yd):
-        """q_bar_dot of eq. (91) at the current configuration and the rates yd (global ydot layout):
-        d_Pdot = R0^T (x_Pdot - x0dot) + rho_P x W0, alpha_Pdot = H(Q_P) (W_P - Q_P^T W0), then etadot."""
-        nodes = self.se_nodes
-        _, rho, Q, _ = self._elastic(self.xN[nodes], self.RN[nodes], self.x0, np.swapaxes(self.R0, -1, -2), self.eta)
-        zN, zS, _ = self.split_rates(yd)
-        W0 = zS[:, None, 3:6]
-        d_dot = (zN[nodes, 0:3] - zS[:, None, 0:3]) @ self.R0 + cross(rho, W0)
-        c = zN[nodes, 3:6] - (W0[..., None, :] @ Q)[..., 0, :]  # W_P - Q^T W0
-        a_dot = (vect_tangent(Q) @ c[..., None])[..., 0]
-        return np.concatenate([np.concatenate([d_dot, a_dot], axis=2).reshape(len(self.x0), -1), zS[:, 6:]], axis=1)
-
     def _local(self, xN, RN, x0, R0, eta, v, yd, jacobian: bool, gravity: bool = True):
         """Assembled residual WITHOUT loads F (ny,) at an explicit configuration and rates yd and, with
         jacobian, (F, F_ydot, F_y): F_ydot (E, nrow, nc + nv) w.r.t. local (zdot, vdot); F_y w.r.t. local
@@ -456,8 +444,16 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         return float(np.einsum("ei,eij,ej->", qd, self.D, qd))
 
     def elastic_rates(self) -> np.ndarray:
-        """q_bar_dot of every superelement (E, n) at the current state and rates, eq. (91)."""
-        return self._elastic_rates(self.yd)
+        """q_bar_dot of every superelement (E, n) at the current state and rates, eq. (91):
+        d_Pdot = R0^T (x_Pdot - x0dot) + rho_P x W0, alpha_Pdot = H(Q_P) (W_P - Q_P^T W0), then etadot."""
+        nodes = self.se_nodes
+        _, rho, Q, _ = self._elastic(self.xN[nodes], self.RN[nodes], self.x0, np.swapaxes(self.R0, -1, -2), self.eta)
+        zN, zS, _ = self.split_rates(self.yd)
+        W0 = zS[:, None, 3:6]
+        d_dot = (zN[nodes, 0:3] - zS[:, None, 0:3]) @ self.R0 + cross(rho, W0)
+        c = zN[nodes, 3:6] - (W0[..., None, :] @ Q)[..., 0, :]  # W_P - Q^T W0
+        a_dot = (vect_tangent(Q) @ c[..., None])[..., 0]
+        return np.concatenate([np.concatenate([d_dot, a_dot], axis=2).reshape(len(self.x0), -1), zS[:, 6:]], axis=1)
 
     def mass_properties(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(mass, CM position (3,), inertia tensor about the CM (3, 3)) of the body as its equations

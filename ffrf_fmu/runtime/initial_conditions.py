@@ -67,7 +67,7 @@ class InitialConditions:
         self.v[:, 0:3] = zS[:, 0:3]
         self.v[:, 3:6] = zS[:, 3:6]
         # r_bar = q_dot_bar of the rigid field (zero unless ports were displaced)
-        self.v[:, 6:] = self._elastic_rates(self.yd)
+        self.v[:, 6:] = self.elastic_rates()
         if self.layout.nm:  # modal rates: the last nm entries of r_bar (kinematic rows k_q)
             zS[:, 6:] = self.v[:, -self.layout.nm :]
         n_cfg = zN.size + zS.size
