@@ -5,7 +5,8 @@ recording inside one call), and what a run costs around it: the figures of docs/
 
 Per configuration (superelements x modes, step, stiffening): the 20 s spin-up from the same initial
 state `--repeat` times, each timed by this process's CPU clock around BodySystem.run_schedule alone
-(set-up and metrics apart), best kept; with the Newton iterations and matrix refreshes per step.
+(set-up and metrics apart), best kept; with the Newton iterations and matrix refreshes per step, and the
+body's set-up (simulate.build_system: BodySystem and its C body, the initial state; CPU, best of `--repeat`).
 Then the phases of one standalone run of B1 1 SE stiffened at 40 ms (CPU, best of `--repeat`): the
 reduction (FE model and superelement), the cached reduced body's load (body_cache.py), the body's
 set-up (BodySystem with its image and C body, the initial state: simulate.build_system), the solve
@@ -33,7 +34,11 @@ def measure(overrides, repeat):
     model = load_model(MODEL, overrides)
     scene = model.scene("spinup")
     body = scene_body_data(model.body, scene)
-    system, _ = sim.build_system(body, scene)
+    setup = float("inf")
+    for _ in range(repeat):
+        c0 = time.process_time()
+        system, _ = sim.build_system(body, scene)
+        setup = min(setup, time.process_time() - c0)
     schedule = sim.scene_schedule(body, scene)
     n = int(round(scene.duration / scene.step))
     rows, times = np.empty((n, len(sim.column_names(body)))), np.empty(n)
@@ -46,7 +51,7 @@ def measure(overrides, repeat):
         best = min(best, time.process_time() - c0)
         refreshes = system._compiled.body.get("lu_version") - v0
     assert done == n and failure is None, failure
-    return best, n, rows[:, -1].mean(), refreshes / n
+    return best, n, rows[:, -1].mean(), refreshes / n, setup
 
 
 def phases(repeat) -> dict[str, float]:
@@ -87,9 +92,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     print(f"B1 spin-up 20 s, C runtime, CPU best of {args.repeat}; load average {os.getloadavg()[0]:.2f}")
     for overrides in CONFIGS:
-        best, n, it, ref = measure(overrides, args.repeat)
+        best, n, it, ref, setup = measure(overrides, args.repeat)
         print(f"  {' '.join(overrides):45s} {n:6d} steps  {1e3 * best:8.2f} ms  {1e6 * best / n:7.1f} us/step  "
-              f"Newton {it:.2f}/step  matrices {ref:.2f}/step")
+              f"Newton {it:.2f}/step  matrices {ref:.2f}/step  set-up {1e3 * setup:.2f} ms")
     print(f"phases of one run of B1 {' '.join(CONFIGS[-1])} (CPU, best of {args.repeat}):")
     for name, seconds in phases(args.repeat).items():
         print(f"  {name:30s} {1e3 * seconds:8.2f} ms")
