@@ -242,7 +242,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
             lu = lu.copy().view(NativeFactor) if has_lu == STATE_FLAG else np.asfortranarray(lu)
             piv = state[i + n * n : i + n * n + n].astype(np.int32)
             beta, R_ref = state[i + n * n + n], state[i + n * n + n + 1 : i + n * n + n + 10].reshape(3, 3).copy()
-            self._lu = (lu, piv, beta, R_ref, bool(state[i + n * n + n + 10]))
+            self._lu = (lu, piv, beta, R_ref, float(state[i + n * n + n + 10]))
 
     # ------------------------------------------------------------- equations
     def split_rates(self, yd):

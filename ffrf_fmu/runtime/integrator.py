@@ -40,6 +40,11 @@ from .layout import Segments
 from .rotation import expm, skew, tangent
 
 
+# The verdict a step leaves on its factorization (its fifth entry) for the rule REFRESH_AFTER of the next
+# step (`_newton`): 0.0 drop it (rebuild at the predictor), SERVES keep it and trust it, KEEPS keep it.
+SERVES, KEEPS = 1.0, 2.0
+
+
 def alpha_coefficients(rho_inf: float) -> tuple[float, float, float]:
     """(am, af, gamma) of the first-order generalized-alpha method (JWH 2000) from rho_inf."""
     if not 0.0 <= rho_inf <= 1.0:
@@ -228,8 +233,9 @@ class GeneralizedAlpha:
         if is_native(self._lu):  # the C runtime's factors are not LAPACK's: a fresh matrix
             self._lu = None
         replay = next(self.newton_replay.decisions) if commit_config and self.newton_replay is not None else None
-        if commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None:
-            if self._lu[4]:
+        if (commit_config and self.REFRESH_AFTER[0] <= self.iterations <= self.REFRESH_AFTER[1] and self._lu is not None
+                and self._lu[4] != KEEPS):
+            if self._lu[4] == SERVES:
                 trusted = True
             else:
                 stale = self._lu
@@ -286,6 +292,9 @@ class GeneralizedAlpha:
         to KEEP_CONTRACTION of it (the matrix ages by less than that per step; one more solve). A matrix
         that REFRESH_AFTER kept on that verdict (`trusted`) and that needs a third increment serves no more:
         it is rebuilt at the second iterate (an FMU's matrix kept 950 steps took 5-6 iterations otherwise).
+        Or that REFRESH_AFTER keeps it without trust (KEEPS): a step whose first increment was within NEAR_MISS
+        tolerances and whose second contracted by theta <= NEAR_CONTRACTION took its second iteration for a
+        near miss of the predictor with a matrix that still contracts; the next step runs on the in-step rules.
         replay: NewtonDecisions to take instead (`newton_replay`)."""
         order = self._newton_idx
         nrm_prev = np.inf
@@ -320,6 +329,7 @@ class GeneralizedAlpha:
             theta = nrm / nrm_prev
             if it == 1:
                 far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
+                near = nrm <= self.NEAR_MISS
                 if far and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
                     serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
             accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
@@ -330,7 +340,8 @@ class GeneralizedAlpha:
                 self._stage_at(yd)
                 if kept:  # (two increments: as many as a matrix built at the predictor needs)
                     serves = it == 2 and far and theta <= self.KEEP_CONTRACTION
-                self._lu = (*self._lu[:4], serves)
+                keeps = it == 2 and near and theta <= self.NEAR_CONTRACTION
+                self._lu = (*self._lu[:4], SERVES if serves else KEEPS if keeps else 0.0)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
             if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
@@ -384,6 +395,17 @@ class GeneralizedAlpha:
     # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved
     # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it)
     KEEP_MISS = 1e-6
+    # A step of two iterations whose first increment was within NEAR_MISS tolerances (the per-field scale) and
+    # whose second contracted by NEAR_CONTRACTION or better keeps its matrix for the next step (KEEPS): the
+    # matrix still contracts, the second iteration was the predictor's near miss. On the C runtime a refresh of
+    # B1's 4 SE x 6 modes costs some 15 iterations; at h = 2 ms REFRESH_AFTER rebuilt it after every such step,
+    # 0.20 matrices per step at 1.20 iterations, now 0.044 at 1.245 (8 SE x 2 modes: 0.25 at 1.25, now 0.051 at
+    # 1.27; 1 SE x 2 modes 0.02 at 1.02, now 0.006 at 1.04). NEAR_CONTRACTION 0.1 kept more (4 SE: 0.011
+    # matrices at 1.61 iterations), 1e-3 fewer (0.099 at 1.21); NEAR_MISS 3, 10, 30 gave the same decisions at
+    # 2 ms and left the runs at 20 and 40 ms unchanged (first increments of ~130 tolerances there); 1e3 took
+    # B1 at 20 ms to 2.27 iterations per step (benchmarks/native_step.py, docs/runtime.md)
+    NEAR_MISS = 10.0
+    NEAR_CONTRACTION = 1e-2
 
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's

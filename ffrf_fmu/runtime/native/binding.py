@@ -218,7 +218,7 @@ class NativeStep:
             if version != self._lu_version:  # refreshed: a copy, so that snapshots keep theirs
                 self._lu_out, self._lu_version = self.luT.copy().view(NativeFactor), version
                 self._piv_out = self.piv.copy()
-            system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), bool(m[11]))
+            system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), float(m[11]))
         else:
             system._lu = None
         return failure(status, system.t + self._h, system.max_iter, float(m[1]))

@@ -522,6 +522,8 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     SCALAR("theta_refresh", b->data.theta_refresh);
     SCALAR("keep_contraction", b->data.keep_contraction);
     SCALAR("keep_miss", b->data.keep_miss);
+    SCALAR("near_miss", b->data.near_miss);
+    SCALAR("near_contraction", b->data.near_contraction);
     SCALAR("refresh_min", b->data.refresh_min);
     SCALAR("refresh_max", b->data.refresh_max);
     SCALAR("tol", b->tol);

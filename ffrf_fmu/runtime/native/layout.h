@@ -69,6 +69,7 @@ typedef struct {
     int k3;                   /* 3 x the free world triplets that lead the Newton order */
     const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
     double theta_refresh, keep_contraction, keep_miss; /* the Newton policy (integrator.py) */
+    double near_miss, near_contraction;                /* NEAR_MISS, NEAR_CONTRACTION: the KEEPS verdict */
     int refresh_min, refresh_max;                      /* REFRESH_AFTER */
     const idx_t *world_idx;   /* [n_world][3] */
     const idx_t *lin_slots;   /* [n_lin]       stage slots of xN, x0, eta, v (in that order) */
@@ -153,7 +154,7 @@ typedef struct {
 typedef struct {
     double *luT;       /* [nf][nf] LU factors, transposed (luT^T is LAPACK's/scipy's LU) */
     int *piv;          /* [nf]     0-based row interchanges */
-    double *meta;      /* [12]     valid, beta, R_ref (9, row-major), serves */
+    double *meta;      /* [12]     valid, beta, R_ref (9, row-major), verdict (0 drop, 1 serves, 2 keeps: integrator SERVES, KEEPS) */
     double *luT_stale; /* [nf][nf] the matrix REFRESH_AFTER dropped, compared at the next refresh */
     int *piv_stale;    /* [nf] */
     double *JT;        /* [nf][nf] the iteration matrix being built (transposed) */

@@ -174,7 +174,7 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
  * evaluation (the accepted iterate is not evaluated again); info = [status, iterations]; a refresh at
  * iteration it sets bit it + offset - 1 of lu.refreshed (offset: iterations of a failed attempt). b->lu holds the
  * LU of the iteration matrix across steps (luT transposed: luT^T is scipy's lu_factor LU; piv 0-based;
- * meta = [valid, beta, R_ref (9), serves]); a refresh factors the matrix built in lu.JT into lu.luT and
+ * meta = [valid, beta, R_ref (9), verdict: 0 drop, 1 serves, 2 keeps]); a refresh factors the matrix built in lu.JT into lu.luT and
  * increments lu.version. On failure meta[0] = 0 and a status != OK, with the last increment in meta[1]
  * for NOT_CONVERGED.
  * Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted on
@@ -195,7 +195,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
     const double keep = D->keep_contraction, keep_miss = D->keep_miss, theta_refresh = D->theta_refresh;
     double *theta = w->theta, *T = w->T, *bx = w->b, *b_stale = w->b_stale, *S = w->S;
     double ref_stale[9] = {0.0};
-    int kept = 1, serves = 0, use_stale = 0, far = 0; /* kept: no matrix built in this step (yet) */
+    int kept = 1, serves = 0, use_stale = 0, far = 0, near = 0; /* kept: no matrix built in this step (yet) */
     double nrm_prev = INFINITY, nrm = 0.0, rate;
     int converged = 0;
     int it = 0;
@@ -260,8 +260,10 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
                 nrm = e;
         }
         rate = nrm / nrm_prev; /* the contraction theta of integrator `_newton` */
-        if (it == 1)
+        if (it == 1) {
             far = nrm * tol > keep_miss;
+            near = nrm <= D->near_miss;
+        }
         if (use_stale && far) { /* the dropped matrix's first increment against the new one's (integrator `_newton`) */
             double dev = 0.0;
             for (int i = 0; i < nf; i++) {
@@ -306,7 +308,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
     }
     info[0] = FFRF_OK;
     info[1] = it;
-    lu_meta[11] = serves ? 1.0 : 0.0;
+    lu_meta[11] = serves ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
 }
 
 /* ------------------------------------------------------------------ one step */
@@ -369,9 +371,10 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
         ydw[D->fixed_idx[i]] = zN_p[D->fixed_idx[i]];
     memcpy(Rn, RN_p, (size_t)9 * N * sizeof(double));
     memcpy(Rn + 9 * N, R0, (size_t)9 * E * sizeof(double));
-    /* the predictor missed at the last step and the matrix is not known to serve: a fresh one (integrator `_step`) */
-    int after = D->refresh_min <= last_it && last_it <= D->refresh_max && lu_meta[0] != 0.0;
-    int stale = after && lu_meta[11] == 0.0, trusted = after && lu_meta[11] != 0.0;
+    /* the predictor missed at the last step and the matrix is not known to serve: a fresh one, unless the last step
+     * kept it (KEEPS: a near miss on a matrix that contracts; integrator `_step`) */
+    int after = D->refresh_min <= last_it && last_it <= D->refresh_max && lu_meta[0] != 0.0 && lu_meta[11] != 2.0;
+    int stale = after && lu_meta[11] == 0.0, trusted = after && lu_meta[11] == 1.0;
     if (stale)
         lu_meta[0] = 0.0;
     b->lu.refreshed = 0;
