@@ -768,12 +768,12 @@ int ffrf_body_set_state(ffrf_body *b, const double *in, size_t size)
         return -1;
     const double *piv = in + size - nf, *meta = piv - nf * nf - 12;
     /* a pivot out of range would make a solve write outside the body: factor.c's pivots are local to their
-     * block (E blocks of n_int for the superelements' own unknowns, then one of n_bnd), each pivot j of a
-     * block of n in [j, n) */
+     * block (E blocks of n_int for the superelements' own unknowns, of which the first 6 + nm are used and the
+     * rest is j, then one of n_bnd), each pivot j of a used block of n in [j, n) */
     for (size_t i = 0; i < nf && meta[0] != 0.0; i++) {
-        size_t block = (size_t)b->dims.E * (size_t)b->dims.n_int;
+        size_t block = (size_t)b->dims.E * (size_t)b->dims.n_int, nz = (size_t)(6 + b->dims.nm);
         size_t j = i < block ? i % (size_t)b->dims.n_int : i - block;
-        size_t n = i < block ? (size_t)b->dims.n_int : (size_t)b->dims.n_bnd;
+        size_t n = i < block ? (j < nz ? nz : j + 1) : (size_t)b->dims.n_bnd;
         if (!(piv[i] >= (double)j && piv[i] < (double)n) || piv[i] != (double)(int)piv[i])
             return -2;
     }

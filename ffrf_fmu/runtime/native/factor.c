@@ -12,16 +12,24 @@
  *
  * and J x = b is solved by eliminating the internals (static condensation):
  *     S = D - sum_e R_e A_e^-1 C_e,   S x_B = b_B - sum_e R_e A_e^-1 b_e,   x_e = A_e^-1 (b_e - C_e x_B).
- * Each A_e (n_int^2, partial pivoting within it) and S (n_bnd^2, partial pivoting) is factored densely
- * (`ffrf_lu_factor` of lu.c, LAPACK's dgetf2): about E n_int^3 + n_bnd^3 operations where the dense LU of the
- * whole matrix takes (E n_int + n_bnd)^3, 10-20x fewer on chains of 4-8 superelements. The result agrees
- * with the dense LU (scipy's lu_factor on the numpy path) to round-off times the condition number.
+ * Within I_e the velocity unknowns V (v0, Omega0, r: nv) go first, by the structure of their rows: (69b), (69d)
+ * and k_q (79) depend on the velocities only through -v0, -Omega0 and -M_bar r (superelement.c), so
+ * J[V, V] = -beta diag(I_6, M_bar) for every state, inverted through M_bar's LU made at creation (accel.c
+ * `ffrf_mass_factors`). With Z = I_e \ V (x0, Theta0, eta rates: 6 + nm) and O = Z + B_e:
+ *     X = J[V, V]^-1 J[V, O],  J'[O, O] = J[O, O] - J[O, V] X,
+ * and A_e, C_e, R_e above are those of J' on Z (nz = 6 + nm); back: x_V = J[V, V]^-1 b_V - X x_O. The dense
+ * work is the products with J[O, V] (nz + m_e)^2 nv and M_bar's solves (nz + m_e) n^2 in place of an LU of
+ * n_int^3 / 3 and the m_e n_int^2 of A_e^-1 C_e: 1.5-2x fewer operations (4 SE x 6 modes: n_int = 36, nz = 12).
+ * Each A_e (nz^2, partial pivoting within it) and S (n_bnd^2, partial pivoting) is factored densely
+ * (`ffrf_lu_factor` of lu.c, LAPACK's dgetf2). The result agrees with the dense LU (scipy's lu_factor on the
+ * numpy path) to round-off times the condition number.
  *
- * The factors are stored in the body's nf x nf factorization buffer, pivots in its nf pivots (E n_int
- * for the A_e, n_bnd for S); with m_e <= n_bnd the free boundary dofs of e, they fit:
- * sum_e (n_int^2 + 2 n_int m_e) + n_bnd^2 <= (E n_int + n_bnd)^2. Layout:
- *     per e: LU(A_e)^T [n_int][n_int] | W_e = A_e^-1 C_e [m_e][n_int] (column k of A_e^-1 C_e in row k)
- *            | R_e [m_e][n_int];  then LU(S)^T [n_bnd][n_bnd].
+ * The factors are stored in the body's nf x nf factorization buffer, pivots in its nf pivots (E blocks of
+ * n_int, the first nz of each used, then n_bnd for S); with m_e <= n_bnd the free boundary dofs of e, they fit:
+ * sum_e (nz^2 + 2 nz m_e + 2 (nz + m_e) nv) + n_bnd^2 + 1 <= (E n_int + n_bnd)^2. Layout:
+ *     per e: LU(A_e)^T [nz][nz] | W_e = A_e^-1 C_e [m_e][nz] (column k of A_e^-1 C_e in row k) | R_e [m_e][nz]
+ *            | X [nz + m_e][nv] (column o of X in row o) | J[O, V] [nz + m_e][nv];
+ *     then LU(S)^T [n_bnd][n_bnd], then -1/beta.
  * The partition (which Newton positions are whose) is body.c `partition`. */
 #include "factor.h"
 #include "lu.h"
@@ -45,16 +53,18 @@ static int free_boundary(const ffrf_body *b, int e, idx_t *fb)
     return m;
 }
 
-/* The entries of the factorization store that ffrf_factor fills: the superelements' blocks and S. */
+/* The entries of the factorization store that ffrf_factor fills: the superelements' blocks, S and -1/beta. */
 size_t ffrf_factor_entries(const ffrf_body *b)
 {
     const ffrf_dims *d = &b->dims;
-    const size_t ni = (size_t)d->n_int, nB = (size_t)d->n_bnd;
+    const size_t nv = (size_t)d->nv, nz = (size_t)(d->n_int - d->nv), nB = (size_t)d->n_bnd;
     idx_t fb[6 * 64];
     size_t blocks = 0;
-    for (int e = 0; e < d->E; e++)
-        blocks += ni * ni + 2 * ni * (size_t)free_boundary(b, e, fb);
-    return blocks + nB * nB;
+    for (int e = 0; e < d->E; e++) {
+        const size_t m = (size_t)free_boundary(b, e, fb);
+        blocks += nz * nz + 2 * m * nz + 2 * (nz + m) * nv;
+    }
+    return blocks + nB * nB + 1;
 }
 
 /* Zero the entries of JT that the structure allows (those ffrf_factor reads: J[I_e, I_e], J[I_e, B_e],
@@ -92,49 +102,81 @@ static int all_finite(const double *x, size_t n)
     return s == 0.0;
 }
 
-int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv)
+/* u <- A_vv^-1 u for one superelement's velocity unknowns u [nv]: A_vv = -beta diag(I_6, M_bar) (c = -1/beta),
+ * M_bar from its LU made at creation (b->work.M_luT). */
+static void velocity_solve(const ffrf_body *b, int e, double c, double *u)
+{
+    const int n = b->dims.n;
+    ffrf_lu_solve(b->work.M_luT + (size_t)e * n * n, b->work.M_piv + (size_t)e * n, u + 6, n);
+    for (int i = 0; i < 6 + n; i++)
+        u[i] *= c;
+}
+
+static double dot(int n, const double *restrict x, const double *restrict y)
+{
+    double s = 0.0;
+    for (int i = 0; i < n; i++)
+        s += x[i] * y[i];
+    return s;
+}
+
+int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store, int *piv)
 {
     const ffrf_dims *d = &b->dims;
-    const int nf = d->nf, ni = d->n_int, nB = d->n_bnd;
+    const int nf = d->nf, ni = d->n_int, nv = d->nv, nz = ni - nv, nB = d->n_bnd;
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
+    const double c = -1.0 / beta;
     idx_t fb[6 * 64];
-    double *A = store; /* the blocks of the superelements, one after the other; then S */
-    size_t blocks = 0;
-    for (int e = 0; e < d->E; e++)
-        blocks += (size_t)ni * ni + 2 * (size_t)ni * free_boundary(b, e, fb);
+    double *A = store; /* the blocks of the superelements, one after the other; then S, then c */
+    size_t blocks = ffrf_factor_entries(b) - (size_t)nB * nB - 1;
     double *S = store + blocks;
     for (int j = 0; j < nB; j++) /* S = D, transposed */
         for (int i = 0; i < nB; i++)
             S[(size_t)j * nB + i] = J(B[i], B[j]);
+    S[(size_t)nB * nB] = c;
     if (!all_finite(S, (size_t)nB * nB))
         return -1;
     for (int e = 0; e < d->E; e++) {
-        const idx_t *Ie = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, fb);
-        double *W = A + (size_t)ni * ni, *R = W + (size_t)m * ni;
-        for (int j = 0; j < ni; j++)
-            for (int i = 0; i < ni; i++)
-                A[(size_t)j * ni + i] = J(Ie[i], Ie[j]);
-        for (int k = 0; k < m; k++) {
-            double *w = W + (size_t)k * ni, *r = R + (size_t)k * ni;
-            for (int i = 0; i < ni; i++) {
-                w[i] = J(Ie[i], B[fb[k]]);
-                r[i] = J(B[fb[k]], Ie[i]);
+        const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
+        const int m = free_boundary(b, e, fb), no = nz + m;
+        double *W = A + (size_t)nz * nz, *R = W + (size_t)m * nz, *X = R + (size_t)m * nz, *P = X + (size_t)no * nv;
+        for (int o = 0; o < no; o++) { /* X = A_vv^-1 J[V, O] by columns, P = J[O, V] by rows */
+            const idx_t Oo = o < nz ? Z[o] : B[fb[o - nz]];
+            double *x = X + (size_t)o * nv, *pr = P + (size_t)o * nv;
+            for (int i = 0; i < nv; i++) {
+                x[i] = J(V[i], Oo);
+                pr[i] = J(Oo, V[i]);
             }
         }
-        if (!all_finite(A, (size_t)ni * ni + 2 * (size_t)m * ni) || ffrf_lu_factor(A, piv + (size_t)e * ni, ni) != 0)
+        if (!all_finite(X, 2 * (size_t)no * nv))
             return -1;
-        for (int k = 0; k < m; k++)
-            ffrf_lu_solve(A, piv + (size_t)e * ni, W + (size_t)k * ni, ni);
-        for (int k = 0; k < m; k++) /* S[fb_k, fb_l] -= R_e[k] . W_e[l] */
-            for (int l = 0; l < m; l++) {
-                double s = 0.0;
-                const double *r = R + (size_t)k * ni, *w = W + (size_t)l * ni;
-                for (int q = 0; q < ni; q++)
-                    s += r[q] * w[q];
-                S[(size_t)fb[l] * nB + fb[k]] -= s;
+        for (int o = 0; o < no; o++)
+            velocity_solve(b, e, c, X + (size_t)o * nv);
+        /* the internal rows and columns after the velocities' elimination: A = J[Z, Z] - P_Z X_Z, C = J[Z, B] - P_Z X_B
+         * (into W), R = J[B, Z] - P_B X_Z, and S[B, B] -= P_B X_B */
+        for (int j = 0; j < nz; j++)
+            for (int i = 0; i < nz; i++)
+                A[(size_t)j * nz + i] = J(Z[i], Z[j]) - dot(nv, P + (size_t)i * nv, X + (size_t)j * nv);
+        for (int k = 0; k < m; k++) {
+            double *w = W + (size_t)k * nz, *r = R + (size_t)k * nz;
+            const double *Pk = P + (size_t)(nz + k) * nv, *Xk = X + (size_t)(nz + k) * nv;
+            for (int i = 0; i < nz; i++) {
+                w[i] = J(Z[i], B[fb[k]]) - dot(nv, P + (size_t)i * nv, Xk);
+                r[i] = J(B[fb[k]], Z[i]) - dot(nv, Pk, X + (size_t)i * nv);
             }
-        A = R + (size_t)m * ni;
+            for (int l = 0; l < m; l++) /* row fb_k, column fb_l */
+                S[(size_t)fb[l] * nB + fb[k]] -= dot(nv, Pk, X + (size_t)(nz + l) * nv);
+        }
+        if (!all_finite(A, (size_t)nz * nz + 2 * (size_t)m * nz) || ffrf_lu_factor(A, piv + (size_t)e * ni, nz) != 0)
+            return -1;
+        for (int j = nz; j < ni; j++) /* (unused: the pivots keep the layout of E blocks of n_int, body.c's state check) */
+            piv[(size_t)e * ni + j] = j;
+        for (int k = 0; k < m; k++)
+            ffrf_lu_solve(A, piv + (size_t)e * ni, W + (size_t)k * nz, nz);
+        for (int k = 0; k < m; k++) /* S[fb_k, fb_l] -= R_e[k] . W_e[l] */
+            for (int l = 0; l < m; l++)
+                S[(size_t)fb[l] * nB + fb[k]] -= dot(nz, R + (size_t)k * nz, W + (size_t)l * nz);
+        A = P + (size_t)no * nv;
     }
     return ffrf_lu_factor(S, piv + (size_t)d->E * ni, nB) != 0 ? -1 : 0;
 }
@@ -142,45 +184,61 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv)
 void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, double *x)
 {
     const ffrf_dims *d = &b->dims;
-    const int ni = d->n_int, nB = d->n_bnd;
+    const int ni = d->n_int, nv = d->nv, nz = ni - nv, nB = d->n_bnd;
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
     double *y = b->part.y, *xB = b->part.xB;
+    const double *S = store + ffrf_factor_entries(b) - (size_t)nB * nB - 1, c = S[(size_t)nB * nB];
     idx_t fb[6 * 64];
+    const double *A = store;
+    for (int e = 0; e < d->E; e++) { /* y_v = A_vv^-1 b_v kept in x[V]; b_O -= P y_v */
+        const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
+        const int m = free_boundary(b, e, fb), no = nz + m;
+        const double *P = A + (size_t)nz * nz + 2 * (size_t)m * nz + (size_t)no * nv;
+        for (int i = 0; i < nv; i++)
+            y[i] = x[V[i]];
+        velocity_solve(b, e, c, y);
+        for (int i = 0; i < nv; i++)
+            x[V[i]] = y[i];
+        for (int o = 0; o < no; o++)
+            x[o < nz ? Z[o] : B[fb[o - nz]]] -= dot(nv, P + (size_t)o * nv, y);
+        A = P + (size_t)no * nv;
+    }
     for (int i = 0; i < nB; i++)
         xB[i] = x[B[i]];
-    const double *A = store;
-    for (int e = 0; e < d->E; e++) { /* y_e = A_e^-1 b_e kept in x[I_e]; b_B -= R_e y_e */
-        const idx_t *Ie = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, fb);
-        const double *R = A + (size_t)ni * ni + (size_t)m * ni;
-        for (int i = 0; i < ni; i++)
-            y[i] = x[Ie[i]];
-        ffrf_lu_solve(A, piv + (size_t)e * ni, y, ni);
-        for (int i = 0; i < ni; i++)
-            x[Ie[i]] = y[i];
-        for (int k = 0; k < m; k++) {
-            double s = 0.0;
-            const double *r = R + (size_t)k * ni;
-            for (int q = 0; q < ni; q++)
-                s += r[q] * y[q];
-            xB[fb[k]] -= s;
-        }
-        A = R + (size_t)m * ni;
-    }
-    ffrf_lu_solve(A, piv + (size_t)d->E * ni, xB, nB); /* A: S, after the blocks */
     A = store;
-    for (int e = 0; e < d->E; e++) { /* x_e = y_e - W_e x_B */
-        const idx_t *Ie = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, fb);
-        const double *W = A + (size_t)ni * ni;
-        for (int k = 0; k < m; k++) {
-            const double *w = W + (size_t)k * ni;
-            double xk = xB[fb[k]];
-            for (int i = 0; i < ni; i++)
-                x[Ie[i]] -= w[i] * xk;
-        }
-        A = W + 2 * (size_t)m * ni;
+    for (int e = 0; e < d->E; e++) { /* y_e = A_e^-1 b_e kept in x[Z]; b_B -= R_e y_e */
+        const idx_t *Z = I + (size_t)e * ni;
+        const int m = free_boundary(b, e, fb), no = nz + m;
+        const double *R = A + (size_t)nz * nz + (size_t)m * nz;
+        for (int i = 0; i < nz; i++)
+            y[i] = x[Z[i]];
+        ffrf_lu_solve(A, piv + (size_t)e * ni, y, nz);
+        for (int i = 0; i < nz; i++)
+            x[Z[i]] = y[i];
+        for (int k = 0; k < m; k++)
+            xB[fb[k]] -= dot(nz, R + (size_t)k * nz, y);
+        A = R + (size_t)m * nz + 2 * (size_t)no * nv;
     }
+    ffrf_lu_solve(S, piv + (size_t)d->E * ni, xB, nB);
     for (int i = 0; i < nB; i++)
         x[B[i]] = xB[i];
+    A = store;
+    for (int e = 0; e < d->E; e++) { /* x_Z = y_Z - W_e x_B, then x_V = y_v - X x_O */
+        const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
+        const int m = free_boundary(b, e, fb), no = nz + m;
+        const double *W = A + (size_t)nz * nz, *X = W + 2 * (size_t)m * nz;
+        for (int k = 0; k < m; k++) {
+            const double *w = W + (size_t)k * nz;
+            double xk = xB[fb[k]];
+            for (int i = 0; i < nz; i++)
+                x[Z[i]] -= w[i] * xk;
+        }
+        for (int o = 0; o < no; o++) {
+            const double *xo = X + (size_t)o * nv;
+            double xk = x[o < nz ? Z[o] : B[fb[o - nz]]];
+            for (int i = 0; i < nv; i++)
+                x[V[i]] -= xo[i] * xk;
+        }
+        A = X + 2 * (size_t)no * nv;
+    }
 }

@@ -5,9 +5,9 @@
 #include "layout.h"
 
 /* ---- factor.c: the iteration matrix factored by its structure (superelements, then nodes) ---- */
-/* The factors of JT [nf][nf] (transposed) into store [nf * nf] and piv [nf]: 0, or -1 when an entry it reads is
- * not finite or a pivot is exactly zero (not factorable). */
-int ffrf_factor(const ffrf_body *b, const double *JT, double *store, int *piv);
+/* The factors of JT [nf][nf] (transposed), the iteration matrix at beta, into store [nf * nf] and piv [nf]: 0, or -1
+ * when an entry it reads is not finite or a pivot is exactly zero (not factorable). */
+int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store, int *piv);
 /* The entries of store that ffrf_factor fills (its leading part; the rest is never read). */
 size_t ffrf_factor_entries(const ffrf_body *b);
 /* JT's structural entries (all that ffrf_factor reads) set to zero: a refresh's start, before ffrf_evaluate

@@ -15,7 +15,7 @@
  * solve, written two entries at a time so that the compiler's SLP vectorizer packs them at -O2 (half
  * the time of the factorization); each entry's operations are those of the plain loop, the results the
  * same bits. */
-static void axpy(int n, double a, const double *restrict x, double *restrict y)
+void ffrf_axpy(int n, double a, const double *restrict x, double *restrict y)
 {
     int i = 0;
     for (; i + 1 < n; i += 2) {
@@ -27,7 +27,7 @@ static void axpy(int n, double a, const double *restrict x, double *restrict y)
         y[i] += x[i] * a;
 }
 
-static void axmy(int n, double a, const double *restrict x, double *restrict y)
+void ffrf_axmy(int n, double a, const double *restrict x, double *restrict y)
 {
     int i = 0;
     for (; i + 1 < n; i += 2) {
@@ -86,7 +86,7 @@ int ffrf_lu_factor(double *aT, int *piv, int n)
             double *ck = aT + (size_t)k * n;
             double temp = -ck[j];
             if (temp != 0.0) /* (dger skips a zero column of y) */
-                axpy(n - j - 1, temp, colj + j + 1, ck + j + 1);
+                ffrf_axpy(n - j - 1, temp, colj + j + 1, ck + j + 1);
         }
     }
     return info;
@@ -106,11 +106,11 @@ void ffrf_lu_solve(const double *luT, const int *piv, double *b, int n)
     }
     for (int j = 0; j < n; j++) { /* unit lower triangle, column by column: L[i, j] = luT[j, i] */
         const double *row = luT + (size_t)j * n;
-        axmy(n - j - 1, b[j], row + j + 1, b + j + 1);
+        ffrf_axmy(n - j - 1, b[j], row + j + 1, b + j + 1);
     }
     for (int j = n - 1; j >= 0; j--) { /* upper triangle */
         const double *row = luT + (size_t)j * n;
         b[j] /= row[j];
-        axmy(j, b[j], row, b);
+        ffrf_axmy(j, b[j], row, b);
     }
 }

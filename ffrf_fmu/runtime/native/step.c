@@ -229,7 +229,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
             L->version++;
             if (it + offset <= 64)
                 L->refreshed |= (uint64_t)1 << (it + offset - 1);
-            int status = ffrf_factor(b, L->JT, L->luT, L->piv); /* -1 also when an entry is not finite */
+            int status = ffrf_factor(b, L->JT, beta, L->luT, L->piv); /* -1 also when an entry is not finite */
             if (status != 0) {
                 lu_meta[0] = 0.0;
                 info[0] = FFRF_NOT_FACTORED;
