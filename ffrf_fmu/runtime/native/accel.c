@@ -13,16 +13,22 @@
 #pragma STDC FP_CONTRACT OFF
 #endif
 
-/* The LU factors of each superelement's M_bar (for q_bar'' with the Coriolis part): once, at creation.
- * Returns 0, or -1 when an M_bar is singular. */
+/* The LU factors of each superelement's M_bar (for q_bar'' with the Coriolis part) and its inverse (factor.c's
+ * elimination of the velocity unknowns): once, at creation. Returns 0, or -1 when an M_bar is singular. */
 int ffrf_mass_factors(ffrf_body *b)
 {
     const int n = b->dims.n;
     for (int e = 0; e < b->dims.E; e++) {
-        double *luT = b->work.M_luT + (size_t)e * n * n;
+        double *luT = b->work.M_luT + (size_t)e * n * n, *inv = b->work.M_inv + (size_t)e * n * n;
         memcpy(luT, b->data.M + (size_t)e * n * n, (size_t)n * n * sizeof(double)); /* symmetric: M^T = M */
         if (ffrf_lu_factor(luT, b->work.M_piv + (size_t)e * n, n))
             return -1;
+        for (int j = 0; j < n; j++) { /* column j of M_bar^-1 */
+            double *col = inv + (size_t)j * n;
+            memset(col, 0, (size_t)n * sizeof(double));
+            col[j] = 1.0;
+            ffrf_lu_solve(luT, b->work.M_piv + (size_t)e * n, col, n);
+        }
     }
     return 0;
 }

@@ -274,6 +274,7 @@ static const array_spec OWN[] = {
     {"node_unknowns", 'q', AT(part.node_unknowns), S(d_bnd)},
     {"factor_y", 'd', AT(part.y), S(d_int)},
     {"factor_xB", 'd', AT(part.xB), S(d_bnd)},
+    {"factor_u", 'd', AT(part.u), S(d_n)},
     /* work */
     {"ydw", 'd', AT(work.ydw), S(d_ny)},
     {"p", 'd', AT(work.p), S(d_ny)},
@@ -295,6 +296,7 @@ static const array_spec OWN[] = {
     {"q_rec", 'd', AT(work.q_rec), S(d_n)},
     {"M_luT", 'd', AT(work.M_luT), S(d_E, d_n, d_n)},
     {"M_piv", 'i', AT(work.M_piv), S(d_E, d_n)},
+    {"M_inv", 'd', AT(work.M_inv), S(d_E, d_n, d_n)},
     {"acc", 'd', AT(work.acc), S(3, d_n)},
 };
 

@@ -28,7 +28,7 @@
  * n_int, the first nz of each used, then n_bnd for S); with m_e <= n_bnd the free boundary dofs of e, they fit:
  * sum_e (nz^2 + 2 nz m_e + 2 (nz + m_e) nv) + n_bnd^2 + 1 <= (E n_int + n_bnd)^2. Layout:
  *     per e: LU(A_e)^T [nz][nz] | W_e = A_e^-1 C_e [m_e][nz] (column k of A_e^-1 C_e in row k) | R_e [m_e][nz]
- *            | X [nz + m_e][nv] (column o of X in row o) | J[O, V] [nz + m_e][nv];
+ *            | X [nz + m_e][nv] (column o of X in row o) | J[O, V]^T [nv][nz + m_e];
  *     then LU(S)^T [n_bnd][n_bnd], then -1/beta.
  * The partition (which Newton positions are whose) is body.c `partition`. */
 #include "factor.h"
@@ -103,13 +103,21 @@ static int all_finite(const double *x, size_t n)
 }
 
 /* u <- A_vv^-1 u for one superelement's velocity unknowns u [nv]: A_vv = -beta diag(I_6, M_bar) (c = -1/beta),
- * M_bar from its LU made at creation (b->work.M_luT). */
+ * M_bar^-1 made at creation (b->work.M_inv; a product, not M_bar's two triangular solves: a third of their time
+ * at n = 15). */
 static void velocity_solve(const ffrf_body *b, int e, double c, double *u)
 {
     const int n = b->dims.n;
-    ffrf_lu_solve(b->work.M_luT + (size_t)e * n * n, b->work.M_piv + (size_t)e * n, u + 6, n);
-    for (int i = 0; i < 6 + n; i++)
+    const double *inv = b->work.M_inv + (size_t)e * n * n;
+    double *t = b->part.u;
+    for (int i = 0; i < n; i++)
+        t[i] = 0.0;
+    for (int j = 0; j < n; j++)
+        axpy(n, u[6 + j], inv + (size_t)j * n, t);
+    for (int i = 0; i < 6; i++)
         u[i] *= c;
+    for (int i = 0; i < n; i++)
+        u[6 + i] = c * t[i];
 }
 
 static double dot(int n, const double *restrict x, const double *restrict y)
@@ -126,6 +134,7 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
     const int nf = d->nf, ni = d->n_int, nv = d->nv, nz = ni - nv, nB = d->n_bnd;
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
     const double c = -1.0 / beta;
+    double *col = b->part.y; /* [nz + m_e] <= [n_int]: a column of J[O, O] - J[O, V] X */
     idx_t fb[6 * 64];
     double *A = store; /* the blocks of the superelements, one after the other; then S, then c */
     size_t blocks = ffrf_factor_entries(b) - (size_t)nB * nB - 1;
@@ -139,35 +148,42 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
     for (int e = 0; e < d->E; e++) {
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
         const int m = free_boundary(b, e, fb), no = nz + m;
-        double *W = A + (size_t)nz * nz, *R = W + (size_t)m * nz, *X = R + (size_t)m * nz, *P = X + (size_t)no * nv;
-        for (int o = 0; o < no; o++) { /* X = A_vv^-1 J[V, O] by columns, P = J[O, V] by rows */
-            const idx_t Oo = o < nz ? Z[o] : B[fb[o - nz]];
-            double *x = X + (size_t)o * nv, *pr = P + (size_t)o * nv;
+        double *W = A + (size_t)nz * nz, *R = W + (size_t)m * nz, *X = R + (size_t)m * nz, *PT = X + (size_t)no * nv;
+#define OUTER(o) ((o) < nz ? Z[o] : B[fb[(o) - nz]])
+        for (int o = 0; o < no; o++) { /* X = J[V, O] by columns (then A_vv^-1 X), PT = J[O, V]^T by rows */
+            const idx_t Oo = OUTER(o);
+            double *x = X + (size_t)o * nv;
             for (int i = 0; i < nv; i++) {
                 x[i] = J(V[i], Oo);
-                pr[i] = J(Oo, V[i]);
+                PT[(size_t)i * no + o] = J(Oo, V[i]);
             }
         }
         if (!all_finite(X, 2 * (size_t)no * nv))
             return -1;
         for (int o = 0; o < no; o++)
             velocity_solve(b, e, c, X + (size_t)o * nv);
-        /* the internal rows and columns after the velocities' elimination: A = J[Z, Z] - P_Z X_Z, C = J[Z, B] - P_Z X_B
-         * (into W), R = J[B, Z] - P_B X_Z, and S[B, B] -= P_B X_B */
-        for (int j = 0; j < nz; j++)
-            for (int i = 0; i < nz; i++)
-                A[(size_t)j * nz + i] = J(Z[i], Z[j]) - dot(nv, P + (size_t)i * nv, X + (size_t)j * nv);
-        for (int k = 0; k < m; k++) {
-            double *w = W + (size_t)k * nz, *r = R + (size_t)k * nz;
-            const double *Pk = P + (size_t)(nz + k) * nv, *Xk = X + (size_t)(nz + k) * nv;
-            for (int i = 0; i < nz; i++) {
-                w[i] = J(Z[i], B[fb[k]]) - dot(nv, P + (size_t)i * nv, Xk);
-                r[i] = J(B[fb[k]], Z[i]) - dot(nv, Pk, X + (size_t)i * nv);
+        /* J'[O, O] = J[O, O] - J[O, V] X column by column: A_e (Z, Z), R_e (B, Z), C_e (Z, B: into W), S (B, B) */
+        for (int o2 = 0; o2 < no; o2++) {
+            const idx_t O2 = OUTER(o2);
+            const double *x = X + (size_t)o2 * nv;
+            for (int o = 0; o < no; o++) /* (S's entries start from 0: they hold D and the other superelements' part) */
+                col[o] = o < nz || o2 < nz ? J(OUTER(o), O2) : 0.0;
+            for (int i = 0; i < nv; i++)
+                axmy(no, x[i], PT + (size_t)i * no, col);
+            if (o2 < nz) {
+                for (int i = 0; i < nz; i++)
+                    A[(size_t)o2 * nz + i] = col[i];
+                for (int k = 0; k < m; k++)
+                    R[(size_t)k * nz + o2] = col[nz + k];
+            } else {
+                for (int i = 0; i < nz; i++)
+                    W[(size_t)(o2 - nz) * nz + i] = col[i];
+                for (int k = 0; k < m; k++) /* row fb_k, column fb_(o2 - nz) */
+                    S[(size_t)fb[o2 - nz] * nB + fb[k]] += col[nz + k];
             }
-            for (int l = 0; l < m; l++) /* row fb_k, column fb_l */
-                S[(size_t)fb[l] * nB + fb[k]] -= dot(nv, Pk, X + (size_t)(nz + l) * nv);
         }
-        if (!all_finite(A, (size_t)nz * nz + 2 * (size_t)m * nz) || ffrf_lu_factor(A, piv + (size_t)e * ni, nz) != 0)
+#undef OUTER
+        if (ffrf_lu_factor(A, piv + (size_t)e * ni, nz) != 0)
             return -1;
         for (int j = nz; j < ni; j++) /* (unused: the pivots keep the layout of E blocks of n_int, body.c's state check) */
             piv[(size_t)e * ni + j] = j;
@@ -176,7 +192,7 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
         for (int k = 0; k < m; k++) /* S[fb_k, fb_l] -= R_e[k] . W_e[l] */
             for (int l = 0; l < m; l++)
                 S[(size_t)fb[l] * nB + fb[k]] -= dot(nz, R + (size_t)k * nz, W + (size_t)l * nz);
-        A = P + (size_t)no * nv;
+        A = PT + (size_t)no * nv;
     }
     return ffrf_lu_factor(S, piv + (size_t)d->E * ni, nB) != 0 ? -1 : 0;
 }
@@ -193,15 +209,17 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
     for (int e = 0; e < d->E; e++) { /* y_v = A_vv^-1 b_v kept in x[V]; b_O -= P y_v */
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
         const int m = free_boundary(b, e, fb), no = nz + m;
-        const double *P = A + (size_t)nz * nz + 2 * (size_t)m * nz + (size_t)no * nv;
+        const double *PT = A + (size_t)nz * nz + 2 * (size_t)m * nz + (size_t)no * nv;
         for (int i = 0; i < nv; i++)
             y[i] = x[V[i]];
         velocity_solve(b, e, c, y);
-        for (int i = 0; i < nv; i++)
+        for (int i = 0; i < nv; i++) {
             x[V[i]] = y[i];
-        for (int o = 0; o < no; o++)
-            x[o < nz ? Z[o] : B[fb[o - nz]]] -= dot(nv, P + (size_t)o * nv, y);
-        A = P + (size_t)no * nv;
+            const double *pt = PT + (size_t)i * no;
+            for (int o = 0; o < no; o++)
+                x[o < nz ? Z[o] : B[fb[o - nz]]] -= pt[o] * y[i];
+        }
+        A = PT + (size_t)no * nv;
     }
     for (int i = 0; i < nB; i++)
         xB[i] = x[B[i]];

@@ -169,7 +169,7 @@ typedef struct {
     idx_t *se_unknowns;   /* [E][n_int]  Newton positions of each superelement's own rates */
     idx_t *se_bnd;        /* [E][n_be]   its boundary dofs' index among the node unknowns, -1: motion-driven */
     idx_t *node_unknowns; /* [n_bnd]     Newton positions of the free boundary-node rates */
-    double *y, *xB;       /* [n_int], [n_bnd] work of the solve */
+    double *y, *xB, *u;   /* [n_int], [n_bnd], [n] work of the factorization and the solve */
 } ffrf_partition;
 
 typedef struct ffrf_se_work ffrf_se_work; /* superelement.c: work arrays of one superelement */
@@ -187,6 +187,7 @@ typedef struct {
     double *q_rec;                    /* [n] */
     double *M_luT;                    /* [E][n][n] LU factors of each M_bar (transposed), made at creation: accel.c */
     int *M_piv;                       /* [E][n] */
+    double *M_inv;                    /* [E][n][n] each M_bar^-1 (column j in row j), made at creation: accel.c; factor.c */
     double *acc;                      /* [3][n] q_bar, q_bar', q_bar'' of accel.c */
     ffrf_se_work *se;                 /* superelement.c */
 } ffrf_work;
