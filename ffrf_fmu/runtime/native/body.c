@@ -275,6 +275,7 @@ static const array_spec OWN[] = {
     {"factor_y", 'd', AT(part.y), S(d_int)},
     {"factor_xB", 'd', AT(part.xB), S(d_bnd)},
     {"factor_u", 'd', AT(part.u), S(d_n)},
+    {"factor_t", 'd', AT(part.t), S(d_int)},
     /* work */
     {"ydw", 'd', AT(work.ydw), S(d_ny)},
     {"p", 'd', AT(work.p), S(d_ny)},

@@ -202,7 +202,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
     const ffrf_dims *d = &b->dims;
     const int ni = d->n_int, nv = d->nv, nz = ni - nv, nB = d->n_bnd;
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
-    double *y = b->part.y, *xB = b->part.xB;
+    double *y = b->part.y, *xB = b->part.xB, *t = b->part.t;
     const double *S = store + ffrf_factor_entries(b) - (size_t)nB * nB - 1, c = S[(size_t)nB * nB];
     idx_t fb[6 * 64];
     const double *A = store;
@@ -213,12 +213,16 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
         for (int i = 0; i < nv; i++)
             y[i] = x[V[i]];
         velocity_solve(b, e, c, y);
+        for (int o = 0; o < no; o++)
+            t[o] = 0.0;
         for (int i = 0; i < nv; i++) {
             x[V[i]] = y[i];
-            const double *pt = PT + (size_t)i * no;
-            for (int o = 0; o < no; o++)
-                x[o < nz ? Z[o] : B[fb[o - nz]]] -= pt[o] * y[i];
+            axpy(no, y[i], PT + (size_t)i * no, t);
         }
+        for (int o = 0; o < nz; o++)
+            x[Z[o]] -= t[o];
+        for (int k = 0; k < m; k++)
+            x[B[fb[k]]] -= t[nz + k];
         A = PT + (size_t)no * nv;
     }
     for (int i = 0; i < nB; i++)
@@ -245,18 +249,20 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
         const int m = free_boundary(b, e, fb), no = nz + m;
         const double *W = A + (size_t)nz * nz, *X = W + 2 * (size_t)m * nz;
+        for (int i = 0; i < nz; i++) /* x_O into t */
+            t[i] = x[Z[i]];
         for (int k = 0; k < m; k++) {
-            const double *w = W + (size_t)k * nz;
-            double xk = xB[fb[k]];
-            for (int i = 0; i < nz; i++)
-                x[Z[i]] -= w[i] * xk;
+            axmy(nz, xB[fb[k]], W + (size_t)k * nz, t);
+            t[nz + k] = xB[fb[k]];
         }
-        for (int o = 0; o < no; o++) {
-            const double *xo = X + (size_t)o * nv;
-            double xk = x[o < nz ? Z[o] : B[fb[o - nz]]];
-            for (int i = 0; i < nv; i++)
-                x[V[i]] -= xo[i] * xk;
-        }
+        for (int i = 0; i < nz; i++)
+            x[Z[i]] = t[i];
+        for (int i = 0; i < nv; i++)
+            y[i] = x[V[i]];
+        for (int o = 0; o < no; o++)
+            axmy(nv, t[o], X + (size_t)o * nv, y);
+        for (int i = 0; i < nv; i++)
+            x[V[i]] = y[i];
         A = X + 2 * (size_t)no * nv;
     }
 }

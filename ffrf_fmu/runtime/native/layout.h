@@ -169,7 +169,7 @@ typedef struct {
     idx_t *se_unknowns;   /* [E][n_int]  Newton positions of each superelement's own rates */
     idx_t *se_bnd;        /* [E][n_be]   its boundary dofs' index among the node unknowns, -1: motion-driven */
     idx_t *node_unknowns; /* [n_bnd]     Newton positions of the free boundary-node rates */
-    double *y, *xB, *u;   /* [n_int], [n_bnd], [n] work of the factorization and the solve */
+    double *y, *xB, *u, *t; /* [n_int], [n_bnd], [n], [n_int] work of the factorization and the solve */
 } ffrf_partition;
 
 typedef struct ffrf_se_work ffrf_se_work; /* superelement.c: work arrays of one superelement */
