@@ -443,7 +443,16 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy) */
             double (*D)[ncv] = pass == 0 ? Fz : Fy;
             double (*dg)[ncv] = pass == 0 ? dgz : dgy;
-            for (int j = 0; j < ncv; j++) {
+            /* the columns where this node's rows of dg are not all zero (dgz: the r columns, without damping or
+             * gyroscopic terms; dgy: the configuration columns, r and Omega0 with those terms): a zero column adds
+             * nothing, so the others' sums are those of the full loop */
+            int *cols = w->cols, ncols = 0;
+            for (int j = 0; j < ncv; j++)
+                if (dg[d][j] != 0.0 || dg[d + 1][j] != 0.0 || dg[d + 2][j] != 0.0 || dg[a][j] != 0.0 ||
+                    dg[a + 1][j] != 0.0 || dg[a + 2][j] != 0.0)
+                    cols[ncols++] = j;
+            for (int t = 0; t < ncols; t++) {
+                const int j = cols[t];
                 for (int i = 0; i < 3; i++) {
                     double s1 = 0.0, s2 = 0.0;
                     for (int m = 0; m < 3; m++) {
