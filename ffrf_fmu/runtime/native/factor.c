@@ -113,7 +113,7 @@ static void velocity_solve(const ffrf_body *b, int e, double c, double *u)
     for (int i = 0; i < n; i++)
         t[i] = 0.0;
     for (int j = 0; j < n; j++)
-        axpy(n, u[6 + j], inv + (size_t)j * n, t);
+        ffrf_axpy(n, u[6 + j], inv + (size_t)j * n, t);
     for (int i = 0; i < 6; i++)
         u[i] *= c;
     for (int i = 0; i < n; i++)
@@ -169,7 +169,7 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
             for (int o = 0; o < no; o++) /* (S's entries start from 0: they hold D and the other superelements' part) */
                 col[o] = o < nz || o2 < nz ? J(OUTER(o), O2) : 0.0;
             for (int i = 0; i < nv; i++)
-                axmy(no, x[i], PT + (size_t)i * no, col);
+                ffrf_axmy(no, x[i], PT + (size_t)i * no, col);
             if (o2 < nz) {
                 for (int i = 0; i < nz; i++)
                     A[(size_t)o2 * nz + i] = col[i];
@@ -217,7 +217,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
             t[o] = 0.0;
         for (int i = 0; i < nv; i++) {
             x[V[i]] = y[i];
-            axpy(no, y[i], PT + (size_t)i * no, t);
+            ffrf_axpy(no, y[i], PT + (size_t)i * no, t);
         }
         for (int o = 0; o < nz; o++)
             x[Z[o]] -= t[o];
@@ -252,7 +252,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
         for (int i = 0; i < nz; i++) /* x_O into t */
             t[i] = x[Z[i]];
         for (int k = 0; k < m; k++) {
-            axmy(nz, xB[fb[k]], W + (size_t)k * nz, t);
+            ffrf_axmy(nz, xB[fb[k]], W + (size_t)k * nz, t);
             t[nz + k] = xB[fb[k]];
         }
         for (int i = 0; i < nz; i++)
@@ -260,7 +260,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
         for (int i = 0; i < nv; i++)
             y[i] = x[V[i]];
         for (int o = 0; o < no; o++)
-            axmy(nv, t[o], X + (size_t)o * nv, y);
+            ffrf_axmy(nv, t[o], X + (size_t)o * nv, y);
         for (int i = 0; i < nv; i++)
             x[V[i]] = y[i];
         A = X + 2 * (size_t)no * nv;
