@@ -11,34 +11,6 @@
 #pragma STDC FP_CONTRACT OFF
 #endif
 
-/* y[i] += x[i] a and y[i] -= x[i] a for i < n (x, y not overlapping): the inner loops of the LU and its
- * solve, written two entries at a time so that the compiler's SLP vectorizer packs them at -O2 (half
- * the time of the factorization); each entry's operations are those of the plain loop, the results the
- * same bits. */
-void ffrf_axpy(int n, double a, const double *restrict x, double *restrict y)
-{
-    int i = 0;
-    for (; i + 1 < n; i += 2) {
-        double y0 = y[i] + x[i] * a, y1 = y[i + 1] + x[i + 1] * a;
-        y[i] = y0;
-        y[i + 1] = y1;
-    }
-    if (i < n)
-        y[i] += x[i] * a;
-}
-
-void ffrf_axmy(int n, double a, const double *restrict x, double *restrict y)
-{
-    int i = 0;
-    for (; i + 1 < n; i += 2) {
-        double y0 = y[i] - x[i] * a, y1 = y[i + 1] - x[i + 1] * a;
-        y[i] = y0;
-        y[i + 1] = y1;
-    }
-    if (i < n)
-        y[i] -= x[i] * a;
-}
-
 /* LU of the n x n matrix A in place, A stored transposed (aT[col][row] = A[row][col], i.e. A in
  * column-major order as LAPACK wants it), row interchanges into piv (0-based). LAPACK's unblocked
  * dgetf2, step for step: column j's pivot is the first entry of largest |a| on or below the diagonal
