@@ -1,0 +1,65 @@
+"""What one superelement's Jacobian costs on the C runtime: `ffrf_body_superelement` (ffrf_runtime.h) with
+its Jacobian blocks and without, at one state of B1's spin-up.
+
+    python benchmarks/jacobian_cost.py [--calls 20000] [--repeat 3] [--config KEY=V ...]
+
+The body steps `--steps` steps of the scene's schedule, then superelement 0's rows are evaluated `--calls`
+times at the last stage (p, ydot, R of the C body's work arrays) with the Jacobian and without, the two
+alternating `--repeat` times; CPU time per call, best of the repeats (the ctypes call is in both, so their
+difference is the Jacobian: its local blocks F_ydot, F_y of superelement.c `jacobian`).
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ffrf_fmu import simulate as sim
+from ffrf_fmu.body_cache import scene_body_data
+from ffrf_fmu.model import load_model
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "haug_beam.toml"
+CONFIG = ["superelements=1", "modes=2", "stiffening=true", "step=0.04"]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--calls", type=int, default=20000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--config", nargs="*", default=CONFIG)
+    args = ap.parse_args(argv)
+    model = load_model(MODEL, args.config)
+    scene = model.scene("spinup")
+    body = scene_body_data(model.body, scene)
+    system, _ = sim.build_system(body, scene)
+    assert system.backend == "native", system.backend_note
+    rows, times = np.empty((args.steps, len(sim.column_names(body)))), np.empty(args.steps)
+    system.run_schedule(scene.step, sim.scene_schedule(body, scene), rows, times)
+    B = system._compiled.body
+    p, yd, R = (B.array(k).copy() for k in ("p", "ydw", "R"))
+    ncv = B.array("Fl").size
+    F, Fz, Fy = np.zeros(ncv), np.zeros((ncv, ncv)), np.zeros((ncv, ncv))
+    fn = B.lib.ffrf_body_superelement
+    fn.restype = ctypes.c_int
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_int] + [ctypes.c_void_p] * 3 + [ctypes.c_int] + [ctypes.c_void_p] * 3
+    inputs, outputs = [a.ctypes.data for a in (p, yd, R)], [a.ctypes.data for a in (F, Fz, Fy)]
+    best = {0: float("inf"), 1: float("inf")}
+    for _ in range(args.repeat):
+        for jac in (0, 1):
+            c0 = time.process_time()
+            for _ in range(args.calls):
+                fn(B.ptr, 0, *inputs, jac, *outputs)
+            best[jac] = min(best[jac], (time.process_time() - c0) / args.calls)
+    print(f"B1 {' '.join(args.config)}, superelement 0 after {args.steps} steps; load average {os.getloadavg()[0]:.2f}")
+    print(f"  rows alone {1e6 * best[0]:.2f} us per call, with the Jacobian {1e6 * best[1]:.2f} us: "
+          f"the Jacobian {1e6 * (best[1] - best[0]):.2f} us (CPU, best of {args.repeat} x {args.calls} calls)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
