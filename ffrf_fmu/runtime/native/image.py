@@ -22,7 +22,7 @@ import numpy as np
 from ..damping import per_mode_ratios
 
 MAGIC = b"FFRFBODY"
-VERSION = 1  # ffrf_runtime.h FFRF_RUNTIME_VERSION
+VERSION = 2  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction)
 NAME_BYTES = 24
 HEADER = struct.Struct("<8sIIQQ")
 ENTRY = struct.Struct("<24sBB6x5Q")
