@@ -17,10 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wstrict-prototypes"
-#endif
+#include "fmi3_types.h"
 #include "fmi3Functions.h"
 #include "fuzz_driver.h"
 
@@ -29,9 +26,6 @@ fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance, const fmi3ValueRefere
                                              size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
 fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance, const fmi3ValueReference[], size_t, const fmi3ValueReference[],
                                          size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
 
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
 {
