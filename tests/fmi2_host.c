@@ -14,17 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#if defined(_WIN32) /* the same host for win64 (cross-compiled by zig, run in wine: tests/test_native_win64.py) */
-#include <windows.h>
-#define RTLD_NOW 0
-#define RTLD_LOCAL 0
-static void *dlopen(const char *path, int flags) { (void)flags; return (void *)LoadLibraryA(path); }
-static void *dlsym(void *lib, const char *name) { return (void *)GetProcAddress((HMODULE)lib, name); }
-static int dlclose(void *lib) { return !FreeLibrary((HMODULE)lib); }
-static const char *dlerror(void) { return "LoadLibrary failed"; }
-#else
-#include <dlfcn.h>
-#endif
+#include "host_loader.h" /* the same host for win64 (cross-compiled by zig, run in wine) */
 
 typedef void *fmi2Component;
 typedef unsigned int fmi2ValueReference;
@@ -62,7 +52,7 @@ static void logger(void *env, const char *name, fmi2Status status, const char *c
 
 static void *sym(void *lib, const char *name)
 {
-    void *f = dlsym(lib, name);
+    void *f = symbol(lib, name);
     if (!f) {
         fprintf(stderr, "missing %s\n", name);
         exit(3);
@@ -73,9 +63,9 @@ static void *sym(void *lib, const char *name)
 int main(int argc, char **argv)
 {
     if (argc < 5) return 2;
-    void *lib = dlopen(argv[2], RTLD_NOW | RTLD_LOCAL);
+    void *lib = open_library(argv[2]);
     if (!lib) {
-        fprintf(stderr, "dlopen: %s\n", dlerror());
+        fprintf(stderr, "dlopen: %s\n", library_error());
         return 4;
     }
     Instantiate instantiate = (Instantiate)sym(lib, "fmi2Instantiate");
@@ -152,6 +142,6 @@ int main(int argc, char **argv)
         for (int rep = 0; rep < 2; rep++) printf("doStep_after_failed_init %d\n", doStep(c, 0.0, 0.01, 1));
         freeInstance(c);
     }
-    if (dlclose(lib)) return 9;
+    if (close_library(lib)) return 9;
     return 0;
 }
