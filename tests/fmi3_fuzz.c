@@ -189,15 +189,4 @@ static int call(fuzz_run *r, int i, int op, int sane)
     return (int)s;
 }
 
-static int setup(const char *in, const char *out)
-{
-    n_in = parse_list(in, inputs, MAX_VR);
-    n_out = parse_list(out, outputs, MAX_VR);
-    return n_in && n_out ? 0 : -1;
-}
-
-int main(int argc, char **argv)
-{
-    const fuzz_api api = FUZZ_API(10, fmi3Error, 1);
-    return fuzz_main(&api, argc, argv);
-}
+FUZZ_MAIN(10, fmi3Error, 1)

@@ -92,6 +92,20 @@ typedef struct {
 
 static const char *fuzz_location, *fuzz_token; /* the FMU under test: main's arguments 1 and 2 */
 
+/* a fuzzer's setup (its parse_list of main's lists into its inputs and outputs) and its main */
+#define FUZZ_MAIN(n_own, error, adjoints)                                                                        \
+    static int setup(const char *in, const char *out)                                                           \
+    {                                                                                                           \
+        n_in = parse_list(in, inputs, MAX_VR);                                                                  \
+        n_out = parse_list(out, outputs, MAX_VR);                                                               \
+        return n_in && n_out ? 0 : -1;                                                                          \
+    }                                                                                                           \
+    int main(int argc, char **argv)                                                                             \
+    {                                                                                                           \
+        const fuzz_api api = FUZZ_API(n_own, error, adjoints);                                                  \
+        return fuzz_main(&api, argc, argv);                                                                     \
+    }
+
 #define N_SHARED 7 /* the calls of every version: doStep (3 ways), get, set and serialize states, the end of
                     * initialization, the rest */
 
