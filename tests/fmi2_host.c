@@ -1,4 +1,5 @@
-/* A minimal FMI 2.0 co-simulation host with no Python in it (tests/test_native_host.py compiles it).
+/* A minimal FMI 2.0 co-simulation host with no Python in it, on the FMI 2.0 headers
+ * (ffrf_fmu/fmu/native/fmi2FunctionTypes.h; tests/test_native_host.py compiles it).
  *
  *   fmi2_host run  BINARY RESOURCE_URI GUID STEPS H INSTANCES CYCLES VR_IN VALUE VR_OUT...
  *       CYCLES times: instantiate INSTANCES instances, set VR_IN = VALUE in initialization mode,
@@ -14,42 +15,23 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#if defined(_WIN32) /* the same host for win64 (cross-compiled by zig, run in wine: tests/test_native_win64.py) */
-#include <windows.h>
-#define RTLD_NOW 0
-#define RTLD_LOCAL 0
-static void *dlopen(const char *path, int flags) { (void)flags; return (void *)LoadLibraryA(path); }
-static void *dlsym(void *lib, const char *name) { return (void *)GetProcAddress((HMODULE)lib, name); }
-static int dlclose(void *lib) { return !FreeLibrary((HMODULE)lib); }
-static const char *dlerror(void) { return "LoadLibrary failed"; }
-#else
-#include <dlfcn.h>
-#endif
+#include "host_loader.h" /* the same host for win64 (cross-compiled by zig, run in wine) */
 
-typedef void *fmi2Component;
-typedef unsigned int fmi2ValueReference;
-typedef int fmi2Status;
-typedef void (*Logger)(void *, const char *, fmi2Status, const char *, const char *, ...);
-typedef struct {
-    Logger logger;
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} Callbacks;
+#include "fmi2FunctionTypes.h" /* the standard's types (ffrf_fmu/fmu/native: compiled with -I there) */
 
-typedef fmi2Component (*Instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int);
-typedef void (*FreeInstance)(fmi2Component);
-typedef fmi2Status (*Setup)(fmi2Component, int, double, double, int, double);
-typedef fmi2Status (*Mode)(fmi2Component);
-typedef fmi2Status (*SetReal)(fmi2Component, const fmi2ValueReference *, size_t, const double *);
-typedef fmi2Status (*GetReal)(fmi2Component, const fmi2ValueReference *, size_t, double *);
-typedef fmi2Status (*SetInteger)(fmi2Component, const fmi2ValueReference *, size_t, const int *);
-typedef fmi2Status (*DoStep)(fmi2Component, double, double, int);
-typedef fmi2Status (*Derivative)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2ValueReference *, size_t,
-                                 const double *, double *);
+typedef fmi2CallbackFunctions Callbacks;
+typedef fmi2InstantiateTYPE *Instantiate;
+typedef fmi2FreeInstanceTYPE *FreeInstance;
+typedef fmi2SetupExperimentTYPE *Setup;
+typedef fmi2EnterInitializationModeTYPE *Mode;
+typedef fmi2SetRealTYPE *SetReal;
+typedef fmi2GetRealTYPE *GetReal;
+typedef fmi2SetIntegerTYPE *SetInteger;
+typedef fmi2DoStepTYPE *DoStep;
+typedef fmi2GetDirectionalDerivativeTYPE *Derivative; /* ffrf2GetStepDerivative has its arguments */
 
-static void logger(void *env, const char *name, fmi2Status status, const char *category, const char *fmt, ...)
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String fmt, ...)
 {
     (void)env;
     va_list ap;
@@ -62,7 +44,7 @@ static void logger(void *env, const char *name, fmi2Status status, const char *c
 
 static void *sym(void *lib, const char *name)
 {
-    void *f = dlsym(lib, name);
+    void *f = symbol(lib, name);
     if (!f) {
         fprintf(stderr, "missing %s\n", name);
         exit(3);
@@ -73,9 +55,9 @@ static void *sym(void *lib, const char *name)
 int main(int argc, char **argv)
 {
     if (argc < 5) return 2;
-    void *lib = dlopen(argv[2], RTLD_NOW | RTLD_LOCAL);
+    void *lib = open_library(argv[2]);
     if (!lib) {
-        fprintf(stderr, "dlopen: %s\n", dlerror());
+        fprintf(stderr, "dlopen: %s\n", library_error());
         return 4;
     }
     Instantiate instantiate = (Instantiate)sym(lib, "fmi2Instantiate");
@@ -152,6 +134,6 @@ int main(int argc, char **argv)
         for (int rep = 0; rep < 2; rep++) printf("doStep_after_failed_init %d\n", doStep(c, 0.0, 0.01, 1));
         freeInstance(c);
     }
-    if (dlclose(lib)) return 9;
+    if (close_library(lib)) return 9;
     return 0;
 }

@@ -11,16 +11,13 @@
  * are none, absurd steps and times, states restored into other instances, damaged serialized states,
  * derivatives and adjoints of anything, calls of the functions this FMU does not provide. Statuses must be
  * fmi3OK..fmi3Error (never Fatal); a sanitizer report, a crash or a leak ends the process with a non-zero
- * status. Prints the number of calls per status and how far the sequences got. The sequences, slots and counts
- * are tests/fuzz_driver.h's (shared with tests/fmi2_fuzz.c); the calls are FMI 3.0's. */
+ * status. Prints the number of calls per status and how far the sequences got. The sequences, slots, counts and
+ * the calls every version has are tests/fuzz_driver.h's (shared with tests/fmi2_fuzz.c); the calls are FMI 3.0's. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wstrict-prototypes"
-#endif
+#include "fmi3_types.h"
 #include "fmi3Functions.h"
 #include "fuzz_driver.h"
 
@@ -29,9 +26,6 @@ fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance, const fmi3ValueRefere
                                              size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
 fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance, const fmi3ValueReference[], size_t, const fmi3ValueReference[],
                                          size_t, const fmi3Float64[], size_t, fmi3Float64[], size_t);
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
 
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
 {
@@ -77,28 +71,42 @@ static size_t refs(int sane, const array_ref *list, int n_list, fmi3ValueReferen
     return total < MAX_VALUES ? total : MAX_VALUES;
 }
 
-/* the FMU under test: its resource path, instantiation token, Float64 input and output arrays (main's arguments) */
-static const char *path, *token;
+/* the FMU under test: its Float64 input and output arrays (main's arguments) */
 static array_ref inputs[MAX_VR], outputs[MAX_VR];
 static int n_in, n_out;
 
 static void *instantiate(void) /* mostly right, sometimes a wrong token, path or event mode */
 {
-    const char *p = pick(10) ? path : (pick(2) ? "/nonexistent/" : "file://host/x");
-    const char *g = pick(10) ? token : "{bad}";
+    const char *p = pick(10) ? fuzz_location : (pick(2) ? "/nonexistent/" : "file://host/x");
+    const char *g = pick(10) ? fuzz_token : "{bad}";
     return fmi3InstantiateCoSimulation("fuzz", g, p, fmi3False, (fmi3Boolean)pick(2), pick(20) == 0, (fmi3Boolean)pick(2),
                                        NULL, 0, NULL, log_message, NULL);
 }
 
-static void free_instance(void *c)
+/* the calls of every version (tests/fuzz_driver.h shared_call) */
+static void free_instance(void *c) { fmi3FreeInstance(c); }
+static int do_step(void *c, double t, double H)
 {
-    fmi3FreeInstance(c);
+    fmi3Boolean event, stop, early;
+    fmi3Float64 last;
+    return (int)fmi3DoStep(c, t, H, fmi3True, &event, &stop, &early, &last);
 }
-
-static void free_state(void *c, void **state)
+static int get_state(void *c, void **state) { return (int)fmi3GetFMUState(c, state); }
+static int set_state(void *c, void *state) { return (int)fmi3SetFMUState(c, state); }
+static void free_state(void *c, void **state) { fmi3FreeFMUState(c, state); }
+static int state_size(void *c, void *state, size_t *size) { return (int)fmi3SerializedFMUStateSize(c, state, size); }
+static int serialize(void *c, void *state, unsigned char *out, size_t size)
 {
-    fmi3FreeFMUState(c, state);
+    return (int)fmi3SerializeFMUState(c, state, out, size);
 }
+static int deserialize(void *c, const unsigned char *in, size_t size, void **state)
+{
+    return (int)fmi3DeserializeFMUState(c, in, size, state);
+}
+static int exit_initialization(void *c) { return (int)fmi3ExitInitializationMode(c); }
+static int reset(void *c) { return (int)fmi3Reset(c); }
+static int terminate(void *c) { return (int)fmi3Terminate(c); }
+static int logging(void *c, int on) { return (int)fmi3SetDebugLogging(c, (fmi3Boolean)on, 0, NULL); }
 
 static int call(fuzz_run *r, int i, int op, int sane)
 {
@@ -107,94 +115,39 @@ static int call(fuzz_run *r, int i, int op, int sane)
     fmi3ValueReference vr[4], u[4];
     size_t n_vr, n_u;
     double x[MAX_VALUES], y[MAX_VALUES];
-    fmi3Boolean event, terminate, early;
-    fmi3Float64 last;
     size_t nx = refs(sane, inputs, n_in, vr, &n_vr);
     for (size_t j = 0; j < MAX_VALUES; j++)
-        x[j] = sane && pick(10) ? 1e-3 * ((double)pick(2001) - 1000.0) : value();
+        x[j] = input_value(sane);
     switch (op) {
     case 1:
         s = fmi3EnterInitializationMode(c, fmi3False, 0.0, pick(4) ? 0.0 : value(), (fmi3Boolean)pick(2), value());
         break;
     case 2:
-        s = fmi3ExitInitializationMode(c);
-        r->t[i] = 0.0;
-        break;
     case 3:
-    case 4:
         s = fmi3SetFloat64(c, vr, n_vr, x, nx);
         break;
-    case 5: {
+    case 4: {
         fmi3Int32 v[MAX_VALUES];
         for (size_t j = 0; j < MAX_VALUES; j++)
             v[j] = pick(3) ? pick(4) : (fmi3Int32)next();
         s = fmi3SetInt32(c, vr, n_vr, v, nx);
         break;
     }
-    case 6: {
+    case 5: {
         size_t ny = refs(sane, outputs, n_out, u, &n_u);
         s = fmi3GetFloat64(c, u, n_u, y, ny);
         break;
     }
-    case 7: {
+    case 6: {
         fmi3Int32 v[MAX_VALUES];
         s = fmi3GetInt32(c, vr, n_vr, v, nx);
         break;
     }
-    case 8:
-    case 9:
-    case 10: { /* doStep: mostly where the FMU is, sometimes anywhere */
-        double H = pick(8) ? 0.01 * (1 + pick(3)) : value();
-        for (int j = 0; j < 20 && sane && pick(4); j++) { /* a few steps in a row */
-            if (fmi3DoStep(c, r->t[i], H, fmi3True, &event, &terminate, &early, &last) != fmi3OK)
-                break;
-            r->t[i] += H;
-            r->steps_ok++;
-        }
-        double tc = pick(8) ? r->t[i] : value();
-        s = fmi3DoStep(c, tc, H, fmi3True, &event, &terminate, &early, &last);
-        if (s == fmi3OK) {
-            r->t[i] = tc + H;
-            r->steps_ok++;
-        }
-        break;
-    }
-    case 11:
-        s = fmi3GetFMUState(c, &r->states[i]);
-        break;
-    case 12: { /* a state of any instance into this one */
-        int j = pick(N_INST);
-        if (r->states[j])
-            s = fmi3SetFMUState(c, r->states[j]);
-        r->restored_ok += s == fmi3OK && r->states[j];
-        break;
-    }
-    case 13: { /* serialize, maybe damage, deserialize, set */
-        if (!r->states[i])
-            break;
-        size_t size = 0;
-        if (fmi3SerializedFMUStateSize(c, r->states[i], &size) != fmi3OK)
-            break;
-        free(r->blob);
-        r->blob = malloc(size ? size : 1);
-        if (!r->blob || fmi3SerializeFMUState(c, r->states[i], r->blob, size) != fmi3OK)
-            break;
-        if (pick(2) && size)
-            r->blob[pick((int)size)] ^= (unsigned char)(1 + pick(255));
-        fmi3FMUState other = NULL;
-        size_t given = pick(5) ? size : (size_t)pick((int)size + 1);
-        s = fmi3DeserializeFMUState(c, r->blob, given, &other);
-        if (s == fmi3OK) {
-            s = fmi3SetFMUState(c, other);
-            fmi3FreeFMUState(c, &other);
-        }
-        break;
-    }
-    case 14:
-    case 15: { /* directional or adjoint derivative of anything */
+    case 7:
+    case 8: { /* directional or adjoint derivative of anything */
         size_t ny = refs(sane, outputs, n_out, u, &n_u);
         int step = pick(2); /* FMI's partial derivatives at the communication point, or the last step's (docs/fmu.md) */
-        if (op == 14) {
+        if (op == 7) {
             s = step ? ffrf3GetStepDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny)
                      : fmi3GetDirectionalDerivative(c, u, n_u, vr, n_vr, x, nx, y, ny);
             r->derivatives_ok += s == fmi3OK;
@@ -205,12 +158,12 @@ static int call(fuzz_run *r, int i, int op, int sane)
         }
         break;
     }
-    case 16: /* the whole start-up in one go */
+    case 9: /* the whole start-up in one go */
         fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0);
         s = fmi3ExitInitializationMode(c);
         r->t[i] = 0.0;
         break;
-    case 17: { /* what this FMU does not provide */
+    default: { /* what this FMU does not provide */
         fmi3Boolean b[MAX_VALUES];
         fmi3Int32 orders[MAX_VALUES] = {0};
         size_t nd = 0;
@@ -232,32 +185,8 @@ static int call(fuzz_run *r, int i, int op, int sane)
         }
         break;
     }
-    default:
-        switch (pick(3)) {
-        case 0:
-            s = fmi3Reset(c);
-            r->t[i] = 0.0;
-            break;
-        case 1:
-            s = fmi3Terminate(c);
-            break;
-        default:
-            s = fmi3SetDebugLogging(c, (fmi3Boolean)pick(2), 0, NULL);
-        }
     }
     return (int)s;
 }
 
-int main(int argc, char **argv)
-{
-    if (argc < 7)
-        return 2;
-    n_in = parse_list(argv[5], inputs, MAX_VR);
-    n_out = parse_list(argv[6], outputs, MAX_VR);
-    if (!n_in || !n_out)
-        return 2;
-    path = argv[1];
-    token = argv[2];
-    const fuzz_api api = {19, fmi3Error, 1, instantiate, free_instance, free_state, call};
-    return fuzz_main(&api, strtoull(argv[3], NULL, 10), atol(argv[4]));
-}
+FUZZ_MAIN(10, fmi3Error, 1)

@@ -1,5 +1,5 @@
 /* A minimal FMI 3.0 co-simulation host with no Python in it, written against the FMI 3.0 headers
- * (ffrf_fmu/fmu/native/fmi3FunctionTypes.h; tests/test_fmi3.py compiles it).
+ * (ffrf_fmu/fmu/native/fmi3_types.h; tests/test_fmi3.py compiles it).
  *
  *   fmi3_host BINARY RESOURCE_PATH TOKEN STEPS H VR_IN N_IN VALUE... -- VR_OUT:N ...
  *       instantiate, set the Float64 array VR_IN (N_IN values) in initialization mode, take STEPS
@@ -16,26 +16,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#if defined(_WIN32)
-#include <windows.h>
-static void *open_library(const char *path) { return (void *)LoadLibraryA(path); }
-static void *symbol(void *lib, const char *name) { return (void *)GetProcAddress((HMODULE)lib, name); }
-static void close_library(void *lib) { FreeLibrary((HMODULE)lib); }
-#else
-#include <dlfcn.h>
-static void *open_library(const char *path) { return strcmp(path, "-") ? dlopen(path, RTLD_NOW | RTLD_LOCAL) : dlopen(NULL, RTLD_NOW); }
-static void *symbol(void *lib, const char *name) { return dlsym(lib, name); }
-static void close_library(void *lib) { dlclose(lib); }
-#endif
+#include "host_loader.h"
 
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wstrict-prototypes"
-#endif
-#include "fmi3FunctionTypes.h"
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
+#include "fmi3_types.h"
 
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
 {
@@ -54,7 +37,7 @@ int main(int argc, char **argv)
     }
     void *lib = open_library(argv[1]);
     if (!lib) {
-        fprintf(stderr, "cannot load %s\n", argv[1]);
+        fprintf(stderr, "cannot load %s: %s\n", argv[1], library_error());
         return 1;
     }
     LOAD(fmi3InstantiateCoSimulationTYPE, fmi3InstantiateCoSimulation)

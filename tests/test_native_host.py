@@ -47,7 +47,8 @@ def _b1(runtime, tmp_path_factory):
                                platforms=("linux64",))
         unzip = Path(extract(str(fmu), str(d / "B1")))
         host = d / "fmi2_host"
-        done = subprocess.run([CC, "-O1", "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"],
+        done = subprocess.run([CC, "-O1", f"-I{ROOT / 'ffrf_fmu' / 'fmu' / 'native'}", "-o", str(host),
+                               str(ROOT / "tests" / "fmi2_host.c"), "-ldl"],
                               capture_output=True, text=True)
         assert done.returncode == 0, done.stderr
         _BUILT[runtime] = (fmu, unzip, host, read_model_description(str(fmu)))

@@ -72,11 +72,12 @@ def test_win64_fmu_in_wine_equals_linux64(b1):
     unzip, md, d = b1
     by = {v.name: v.valueReference for v in md.modelVariables}
     host_exe, host = d / "fmi2_host.exe", d / "fmi2_host"
-    done = _run([sys.executable, "-m", "ziglang", "cc", "-target", "x86_64-windows-gnu", "-O1", "-o", str(host_exe),
-                 str(ROOT / "tests" / "fmi2_host.c")])
+    include = f"-I{ROOT / 'ffrf_fmu' / 'fmu' / 'native'}"  # the standard's FMI 2.0 types
+    done = _run([sys.executable, "-m", "ziglang", "cc", "-target", "x86_64-windows-gnu", "-O1", include, "-o",
+                 str(host_exe), str(ROOT / "tests" / "fmi2_host.c")])
     assert done.returncode == 0, done.stderr
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    done = _run([cc, "-O1", "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"])
+    done = _run([cc, "-O1", include, "-o", str(host), str(ROOT / "tests" / "fmi2_host.c"), "-ldl"])
     assert done.returncode == 0, done.stderr
     args = ["100", "0.002", "1", "1", str(by["tip.f[3]"]), "1.0", *[str(by[n]) for n in OUTPUTS]]
     env = {**os.environ, "WINEDEBUG": "-all", "WINEPREFIX": str(d / "wineprefix")}

@@ -100,8 +100,8 @@ def compile_loader(out: Path) -> str:
     if not cc:
         return "no C compiler found (set CC or install gcc)"
     channel = [f"-DFFRF_DERIVATIVE_{key}={value}u" for key, value in DERIVATIVE_CHANNEL.items()]
-    cmd = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wl,-z,nodelete", *channel, "-o", str(out),
-           str(LOADER_SOURCE), "-ldl", "-lpthread"]
+    cmd = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wl,-z,nodelete", *channel,
+           f"-I{LOADER_SOURCE.parent / 'native'}", "-o", str(out), str(LOADER_SOURCE), "-ldl", "-lpthread"]
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     except (OSError, subprocess.TimeoutExpired) as e:

@@ -18,21 +18,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* the standard's headers as published: their preemption callbacks are declared without a prototype */
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wstrict-prototypes"
-#endif
+#include "fmi3_types.h"
 #include "fmi3Functions.h"
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
 #include "model.h"
 
-#define ANY_MODE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
-#define GET_MODES (MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
-#define SET_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP)
 #define VR_TIME 0u
+#define M(instance) ((fmu_instance *)(instance)) /* the model's instance: the first member of an fmi3_instance */
 
 /* one FMI 3.0 instance: the model's instance first (model.c sees only it), then what FMI 3.0 adds */
 typedef struct {
@@ -56,32 +47,9 @@ static void sink(void *inst, int status, const char *category, const char *messa
         x->log(x->env, (fmi3Status)status, category, message);
 }
 
-static const char *mode_name(fmu_mode mode)
+static fmi3_instance *allowed(fmi3Instance instance, const char *call, int modes)
 {
-    switch (mode) {
-    case MODE_INSTANTIATED:
-        return "instantiated (before fmi3EnterInitializationMode)";
-    case MODE_INITIALIZATION:
-        return "in initialization mode";
-    case MODE_STEP:
-        return "in step mode";
-    case MODE_TERMINATED:
-        return "terminated (after fmi3Terminate)";
-    default:
-        return "in error (a failed instantiation or initialization: reset or free it)";
-    }
-}
-
-static fmi3_instance *allowed(fmi3Instance c, const char *call, int modes)
-{
-    fmi3_instance *x = (fmi3_instance *)c;
-    if (!x)
-        return NULL;
-    if (!(x->m.mode & modes)) {
-        fmu_log(&x->m, fmi2Error, "%s is not allowed when the FMU is %s", call, mode_name(x->m.mode));
-        return NULL;
-    }
-    return x;
+    return model_allowed(M(instance), call, modes) ? (fmi3_instance *)instance : NULL;
 }
 
 /* the base of a scalar's name: up to its first '[' (`tip.R[1,2]` -> `tip.R`) */
@@ -141,11 +109,7 @@ fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, siz
 {
     (void)nCategories;
     (void)categories;
-    fmi3_instance *x = allowed(instance, "fmi3SetDebugLogging", ANY_MODE);
-    if (!x)
-        return fmi3Error;
-    x->m.logging = loggingOn != fmi3False;
-    return fmi3OK;
+    return status3(model_set_logging(M(instance), "fmi3SetDebugLogging", loggingOn != fmi3False));
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
@@ -165,64 +129,50 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     if (!x)
         return NULL;
     fmu_instance *m = &x->m;
-    const char *name = instanceName ? instanceName : "";
-    m->name = malloc(strlen(name) + 1);
-    if (!m->name) {
-        free(x);
-        return NULL;
-    }
-    strcpy(m->name, name);
     m->fmi = "fmi3";
     m->sink = sink;
     x->log = logMessage;
     x->env = instanceEnvironment;
     m->logging = loggingOn != fmi3False;
-    m->mode = MODE_ERROR;
-    char err[4200], path[4096];
-    if (eventModeUsed) {
-        fmu_log(m, fmi2Error, "fmi3InstantiateCoSimulation: this FMU has no event mode (hasEventMode=false): "
-                "eventModeUsed must be false");
+    if (model_instantiate(m, "fmi3InstantiateCoSimulation", instanceName, resourcePath, instantiationToken,
+                          "instantiation token",
+                          eventModeUsed ? "this FMU has no event mode (hasEventMode=false): eventModeUsed must be false"
+                                        : NULL) != fmi2OK)
+        goto fail;
+    if (build_arrays(x)) {
+        fmu_log(m, fmi2Error, "fmi3InstantiateCoSimulation: out of memory");
         goto fail;
     }
     if (nRequiredIntermediateVariables)
         fmu_log(m, fmi2Warning, "fmi3InstantiateCoSimulation: %zu required intermediate variable(s) ignored: this FMU "
                 "provides no intermediate update", nRequiredIntermediateVariables);
-    if (fmu_resource_path(resourcePath, path, sizeof path, err, sizeof err) ||
-        fmu_description_load(&m->desc, path, err, sizeof err)) {
-        fmu_log(m, fmi2Error, "fmi3InstantiateCoSimulation: %s", err);
-        goto fail;
-    }
-    if (!instantiationToken || strcmp(instantiationToken, m->desc.guid) != 0) {
-        fmu_log(m, fmi2Error, "fmi3InstantiateCoSimulation: wrong instantiation token %s: this FMU (%s) has %s",
-                instantiationToken ? instantiationToken : "(NULL)", m->desc.description, m->desc.guid);
-        goto fail;
-    }
-    if (build_arrays(x)) {
-        fmu_log(m, fmi2Error, "fmi3InstantiateCoSimulation: out of memory");
-        goto fail;
-    }
-    if (model_setup(m) != fmi2OK)
-        goto fail;
     return x;
 fail:
     free_instance(x);
     return NULL;
 }
 
+/* an instantiation this FMU does not provide: NULL, with the reason to logMessage */
+static fmi3Instance no_instance(const char *call, fmi3InstanceEnvironment env, fmi3LogMessageCallback logMessage)
+{
+    char text[96];
+    snprintf(text, sizeof text, "%s: this FMU supports co-simulation only", call);
+    if (logMessage)
+        logMessage(env, fmi3Error, "logStatusError", text);
+    return NULL;
+}
+
+/* the arguments of the other instantiations are unused: they are refused whatever they are */
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage)
 {
-    (void)instantiationToken;
-    (void)resourcePath;
-    (void)visible;
-    (void)loggingOn;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                   "fmi3InstantiateModelExchange: this FMU supports co-simulation only");
-    (void)instanceName;
-    return NULL;
+    return no_instance("fmi3InstantiateModelExchange", instanceEnvironment, logMessage);
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
@@ -232,19 +182,11 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                                                fmi3LockPreemptionCallback lockPreemption,
                                                fmi3UnlockPreemptionCallback unlockPreemption)
 {
-    (void)instanceName;
-    (void)instantiationToken;
-    (void)resourcePath;
-    (void)visible;
-    (void)loggingOn;
-    (void)clockUpdate;
-    (void)lockPreemption;
-    (void)unlockPreemption;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                   "fmi3InstantiateScheduledExecution: this FMU supports co-simulation only");
-    return NULL;
+    return no_instance("fmi3InstantiateScheduledExecution", instanceEnvironment, logMessage);
 }
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
 
 void fmi3FreeInstance(fmi3Instance instance)
 {
@@ -257,38 +199,24 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 {
     (void)toleranceDefined;
     (void)tolerance;
-    fmi3_instance *x = allowed(instance, "fmi3EnterInitializationMode", MODE_INSTANTIATED);
-    if (!x)
-        return fmi3Error;
-    x->m.start_time = startTime;
-    x->m.has_stop = stopTimeDefined != fmi3False;
-    x->m.stop_time = stopTime;
-    x->m.mode = MODE_INITIALIZATION;
-    return fmi3OK;
+    fmi2Status s = model_setup_experiment(M(instance), "fmi3EnterInitializationMode", startTime,
+                                          stopTimeDefined != fmi3False, stopTime);
+    return status3(s == fmi2OK ? model_enter_initialization(M(instance), "fmi3EnterInitializationMode") : s);
 }
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
-    fmi3_instance *x = allowed(instance, "fmi3ExitInitializationMode", MODE_INITIALIZATION);
-    return x ? status3(model_exit_initialization(&x->m)) : fmi3Error;
+    return status3(model_exit_initialization(M(instance), "fmi3ExitInitializationMode"));
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance)
 {
-    fmi3_instance *x = allowed(instance, "fmi3Terminate", MODE_STEP | MODE_INITIALIZATION);
-    if (!x)
-        return fmi3Error;
-    x->m.mode = MODE_TERMINATED;
-    return fmi3OK;
+    return status3(model_terminate(M(instance), "fmi3Terminate"));
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance)
 {
-    fmi3_instance *x = allowed(instance, "fmi3Reset", ANY_MODE);
-    if (!x)
-        return fmi3Error;
-    model_reset(&x->m);
-    return fmi3OK;
+    return status3(model_reset(M(instance), "fmi3Reset"));
 }
 
 /* ------------------------------------------------------------------ values */
@@ -352,112 +280,51 @@ static fmi3Status no_values(fmi3Instance instance, const char *call, const fmi3V
     return fmi3OK;
 }
 
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          fmi3Float64 values[], size_t nValues)
+/* The get and set calls of the types this FMU has: the references checked (known, of the type, nValues their
+ * elements), the mode and the array, then each variable's run of scalars through the model. as: AS_FLOAT64 or
+ * AS_INT32 (values' elements). Only fmi3GetFloat64 takes time. */
+static fmi3Status get_set(fmi3Instance instance, const char *call, int set, int as, const fmi3ValueReference vr[],
+                         size_t nvr, void *values, size_t nValues)
 {
     fmi3_instance *x = (fmi3_instance *)instance;
+    const int type = as == AS_FLOAT64 ? T_FLOAT64 : T_INT32;
     size_t total;
-    if (!x || checked_refs(x, "fmi3GetFloat64", valueReferences, nValueReferences, T_FLOAT64, "Float64", nValues, 1,
-                           &total) || !allowed(instance, "fmi3GetFloat64", GET_MODES))
+    if (!x || checked_refs(x, call, vr, nvr, type, NULL, nValues, type == T_FLOAT64 && !set, &total) ||
+        !allowed(instance, call, set ? MODES_SET : MODES_GET))
         return fmi3Error;
     if (total && !values) {
-        fmu_log(&x->m, fmi2Error, "fmi3GetFloat64: NULL array for %zu values", total);
+        fmu_log(&x->m, fmi2Error, "%s: NULL array for %zu values", call, total);
         return fmi3Error;
     }
-    size_t at = 0;
-    for (size_t i = 0; i < nValueReferences; i++) {
-        fmi3ValueReference v = valueReferences[i];
-        if (v == VR_TIME) {
-            values[at++] = x->m.body ? model_time(&x->m) : x->m.start_time;
+    char *at = values;
+    const size_t width = as == AS_FLOAT64 ? sizeof(fmi3Float64) : sizeof(fmi3Int32);
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] == VR_TIME) {
+            *(fmi3Float64 *)at = model_time(&x->m);
+            at += width;
             continue;
         }
-        int first = x->first[v - 1], n = x->count[v - 1];
-        fmi2Status s = model_get_real(&x->m, &x->scalar[first], (size_t)n, values + at);
+        const fmi2ValueReference *scalar = &x->scalar[x->first[vr[i] - 1]];
+        const size_t n = (size_t)x->count[vr[i] - 1];
+        fmi2Status s = set ? model_set_scalars(&x->m, call, scalar, n, as, at) : model_get_scalars(&x->m, scalar, n, as, at);
         if (s != fmi2OK)
             return status3(s);
-        at += (size_t)n;
+        at += n * width;
     }
     return fmi3OK;
 }
 
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          const fmi3Float64 values[], size_t nValues)
-{
-    fmi3_instance *x = (fmi3_instance *)instance;
-    size_t total;
-    if (!x || checked_refs(x, "fmi3SetFloat64", valueReferences, nValueReferences, T_FLOAT64, "Float64", nValues, 0,
-                           &total) || !allowed(instance, "fmi3SetFloat64", SET_MODES))
-        return fmi3Error;
-    if (total && !values) {
-        fmu_log(&x->m, fmi2Error, "fmi3SetFloat64: NULL array for %zu values", total);
-        return fmi3Error;
+#define GET_SET(NAME, CONST, T, SET, AS)                                                                       \
+    fmi3Status NAME(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, \
+                    CONST T values[], size_t nValues)                                                           \
+    {                                                                                                           \
+        return get_set(instance, #NAME, SET, AS, valueReferences, nValueReferences, (void *)values, nValues);   \
     }
-    size_t at = 0;
-    for (size_t i = 0; i < nValueReferences; i++) {
-        int first = x->first[valueReferences[i] - 1], n = x->count[valueReferences[i] - 1];
-        fmi2Status s = model_set_real(&x->m, &x->scalar[first], (size_t)n, values + at);
-        if (s != fmi2OK)
-            return status3(s);
-        at += (size_t)n;
-    }
-    return fmi3OK;
-}
 
-fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        fmi3Int32 values[], size_t nValues)
-{
-    fmi3_instance *x = (fmi3_instance *)instance;
-    size_t total;
-    if (!x || checked_refs(x, "fmi3GetInt32", valueReferences, nValueReferences, T_INT32, "Int32", nValues, 0, &total) ||
-        !allowed(instance, "fmi3GetInt32", GET_MODES))
-        return fmi3Error;
-    if (total && !values) {
-        fmu_log(&x->m, fmi2Error, "fmi3GetInt32: NULL array for %zu values", total);
-        return fmi3Error;
-    }
-    size_t at = 0;
-    for (size_t i = 0; i < nValueReferences; i++) {
-        int first = x->first[valueReferences[i] - 1], n = x->count[valueReferences[i] - 1];
-        fmi2Integer buf[16];
-        for (int done = 0; done < n; done += 16) { /* fmi2Integer is int, fmi3Int32 int32_t: copied, not cast */
-            int part = n - done < 16 ? n - done : 16;
-            fmi2Status s = model_get_integer(&x->m, &x->scalar[first + done], (size_t)part, buf);
-            if (s != fmi2OK)
-                return status3(s);
-            for (int j = 0; j < part; j++)
-                values[at++] = (fmi3Int32)buf[j];
-        }
-    }
-    return fmi3OK;
-}
-
-fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        const fmi3Int32 values[], size_t nValues)
-{
-    fmi3_instance *x = (fmi3_instance *)instance;
-    size_t total;
-    if (!x || checked_refs(x, "fmi3SetInt32", valueReferences, nValueReferences, T_INT32, "Int32", nValues, 0, &total) ||
-        !allowed(instance, "fmi3SetInt32", SET_MODES))
-        return fmi3Error;
-    if (total && !values) {
-        fmu_log(&x->m, fmi2Error, "fmi3SetInt32: NULL array for %zu values", total);
-        return fmi3Error;
-    }
-    size_t at = 0;
-    for (size_t i = 0; i < nValueReferences; i++) {
-        int first = x->first[valueReferences[i] - 1], n = x->count[valueReferences[i] - 1];
-        fmi2Integer buf[16];
-        for (int done = 0; done < n; done += 16) {
-            int part = n - done < 16 ? n - done : 16;
-            for (int j = 0; j < part; j++)
-                buf[j] = (fmi2Integer)values[at++];
-            fmi2Status s = model_set_integer(&x->m, &x->scalar[first + done], (size_t)part, buf);
-            if (s != fmi2OK)
-                return status3(s);
-        }
-    }
-    return fmi3OK;
-}
+GET_SET(fmi3GetFloat64, , fmi3Float64, 0, AS_FLOAT64)
+GET_SET(fmi3SetFloat64, const, fmi3Float64, 1, AS_FLOAT64)
+GET_SET(fmi3GetInt32, , fmi3Int32, 0, AS_INT32)
+GET_SET(fmi3SetInt32, const, fmi3Int32, 1, AS_INT32)
 
 /* no variables of the other types: any reference is refused, naming it */
 #define NO_GET(NAME, T)                                                                                          \
@@ -466,7 +333,7 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueRef
     {                                                                                                            \
         (void)values;                                                                                            \
         (void)nValues;                                                                                           \
-        return no_values(instance, #NAME, valueReferences, nValueReferences, GET_MODES);                         \
+        return no_values(instance, #NAME, valueReferences, nValueReferences, MODES_GET);                         \
     }
 #define NO_SET(NAME, T)                                                                                          \
     fmi3Status NAME(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,  \
@@ -474,7 +341,7 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueRef
     {                                                                                                            \
         (void)values;                                                                                            \
         (void)nValues;                                                                                           \
-        return no_values(instance, #NAME, valueReferences, nValueReferences, SET_MODES);                         \
+        return no_values(instance, #NAME, valueReferences, nValueReferences, MODES_SET);                         \
     }
 
 NO_GET(fmi3GetFloat32, fmi3Float32)
@@ -504,7 +371,7 @@ fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueRe
     (void)valueSizes;
     (void)values;
     (void)nValues;
-    return no_values(instance, "fmi3GetBinary", valueReferences, nValueReferences, GET_MODES);
+    return no_values(instance, "fmi3GetBinary", valueReferences, nValueReferences, MODES_GET);
 }
 
 fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
@@ -513,40 +380,41 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueRe
     (void)valueSizes;
     (void)values;
     (void)nValues;
-    return no_values(instance, "fmi3SetBinary", valueReferences, nValueReferences, SET_MODES);
+    return no_values(instance, "fmi3SetBinary", valueReferences, nValueReferences, MODES_SET);
 }
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         fmi3Clock values[])
 {
     (void)values;
-    return no_values(instance, "fmi3GetClock", valueReferences, nValueReferences, GET_MODES);
+    return no_values(instance, "fmi3GetClock", valueReferences, nValueReferences, MODES_GET);
 }
 
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         const fmi3Clock values[])
 {
     (void)values;
-    return no_values(instance, "fmi3SetClock", valueReferences, nValueReferences, SET_MODES);
+    return no_values(instance, "fmi3SetClock", valueReferences, nValueReferences, MODES_SET);
 }
 
 /* ------------------------------------------------------------------ not provided: fmi3Error with the reason */
 
 static fmi3Status refused(fmi3Instance instance, const char *call, const char *why)
 {
-    fmi3_instance *x = allowed(instance, call, ANY_MODE);
-    if (x)
-        fmu_log(&x->m, fmi2Error, "%s: %s", call, why);
-    return fmi3Error;
+    return status3(model_refused(M(instance), call, why));
 }
+
+/* the arguments of the calls below are unused: each call is refused whatever they are */
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
 
 #define CO_SIMULATION_ONLY "this FMU supports co-simulation without event mode only"
 
 fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
                                                size_t *nDependencies)
 {
-    (void)valueReference;
-    (void)nDependencies;
     return refused(instance, "fmi3GetNumberOfVariableDependencies",
                    "providesPerElementDependencies=false: the dependencies are the ModelStructure's (every output on every input)");
 }
@@ -556,12 +424,6 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
                                        size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
                                        size_t nDependencies)
 {
-    (void)dependent;
-    (void)elementIndicesOfDependent;
-    (void)independents;
-    (void)elementIndicesOfIndependents;
-    (void)dependencyKinds;
-    (void)nDependencies;
     return refused(instance, "fmi3GetVariableDependencies",
                    "providesPerElementDependencies=false: the dependencies are the ModelStructure's (every output on every input)");
 }
@@ -591,7 +453,6 @@ fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance)
 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)intervals, (void)qualifiers;
     return refused(instance, "fmi3GetIntervalDecimal", NO_CLOCKS);
 }
 
@@ -599,28 +460,24 @@ fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReferen
                                    size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
                                    fmi3IntervalQualifier qualifiers[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions, (void)qualifiers;
     return refused(instance, "fmi3GetIntervalFraction", NO_CLOCKS);
 }
 
 fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                size_t nValueReferences, fmi3Float64 shifts[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)shifts;
     return refused(instance, "fmi3GetShiftDecimal", NO_CLOCKS);
 }
 
 fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return refused(instance, "fmi3GetShiftFraction", NO_CLOCKS);
 }
 
 fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, const fmi3Float64 intervals[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)intervals;
     return refused(instance, "fmi3SetIntervalDecimal", NO_CLOCKS);
 }
 
@@ -628,21 +485,18 @@ fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReferen
                                    size_t nValueReferences, const fmi3UInt64 counters[],
                                    const fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return refused(instance, "fmi3SetIntervalFraction", NO_CLOCKS);
 }
 
 fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                size_t nValueReferences, const fmi3Float64 shifts[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)shifts;
     return refused(instance, "fmi3SetShiftDecimal", NO_CLOCKS);
 }
 
 fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return refused(instance, "fmi3SetShiftFraction", NO_CLOCKS);
 }
 
@@ -656,8 +510,6 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime)
 {
-    (void)discreteStatesNeedUpdate, (void)terminateSimulation, (void)nominalsOfContinuousStatesChanged;
-    (void)valuesOfContinuousStatesChanged, (void)nextEventTimeDefined, (void)nextEventTime;
     return refused(instance, "fmi3UpdateDiscreteStates", CO_SIMULATION_ONLY);
 }
 
@@ -669,55 +521,46 @@ fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance)
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation)
 {
-    (void)noSetFMUStatePriorToCurrentPoint, (void)enterEventMode, (void)terminateSimulation;
     return refused(instance, "fmi3CompletedIntegratorStep", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time)
 {
-    (void)time;
     return refused(instance, "fmi3SetTime", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[], size_t n)
 {
-    (void)continuousStates, (void)n;
     return refused(instance, "fmi3SetContinuousStates", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[], size_t n)
 {
-    (void)derivatives, (void)n;
     return refused(instance, "fmi3GetContinuousStateDerivatives", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t n)
 {
-    (void)eventIndicators, (void)n;
     return refused(instance, "fmi3GetEventIndicators", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[], size_t n)
 {
-    (void)continuousStates, (void)n;
     return refused(instance, "fmi3GetContinuousStates", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[], size_t n)
 {
-    (void)nominals, (void)n;
     return refused(instance, "fmi3GetNominalsOfContinuousStates", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators)
 {
-    (void)nEventIndicators;
     return refused(instance, "fmi3GetNumberOfEventIndicators", CO_SIMULATION_ONLY);
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates)
 {
-    (void)nContinuousStates;
     return refused(instance, "fmi3GetNumberOfContinuousStates", CO_SIMULATION_ONLY);
 }
 
@@ -725,29 +568,28 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
                                     size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
                                     size_t nValues)
 {
-    (void)valueReferences, (void)nValueReferences, (void)orders, (void)values, (void)nValues;
     return refused(instance, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder is 0");
 }
 
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
                                       fmi3Float64 activationTime)
 {
-    (void)clockReference, (void)activationTime;
     return refused(instance, "fmi3ActivateModelPartition", CO_SIMULATION_ONLY);
 }
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
 
 /* ------------------------------------------------------------------ FMU state (model.c model_state_*) */
 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
-    fmi3_instance *x = allowed(instance, "fmi3GetFMUState", ANY_MODE);
-    return x && FMUState ? status3(model_state_get(&x->m, "fmi3GetFMUState", FMUState)) : fmi3Error;
+    return status3(model_state_get(M(instance), "fmi3GetFMUState", FMUState));
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
 {
-    fmi3_instance *x = allowed(instance, "fmi3SetFMUState", ANY_MODE);
-    return x ? status3(model_state_set(&x->m, "fmi3SetFMUState", FMUState)) : fmi3Error;
+    return status3(model_state_set(M(instance), "fmi3SetFMUState", FMUState));
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
@@ -759,23 +601,18 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
-    return allowed(instance, "fmi3SerializedFMUStateSize", ANY_MODE) ? status3(model_state_size(FMUState, size))
-                                                                     : fmi3Error;
+    return status3(model_state_size(M(instance), "fmi3SerializedFMUStateSize", FMUState, size));
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size)
 {
-    fmi3_instance *x = allowed(instance, "fmi3SerializeFMUState", ANY_MODE);
-    return x ? status3(model_state_serialize(&x->m, "fmi3SerializeFMUState", FMUState, serializedState, size))
-             : fmi3Error;
+    return status3(model_state_serialize(M(instance), "fmi3SerializeFMUState", FMUState, serializedState, size));
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
                                    fmi3FMUState *FMUState)
 {
-    fmi3_instance *x = allowed(instance, "fmi3DeserializeFMUState", ANY_MODE);
-    return x ? status3(model_state_deserialize(&x->m, "fmi3DeserializeFMUState", serializedState, size, FMUState))
-             : fmi3Error;
+    return status3(model_state_deserialize(M(instance), "fmi3DeserializeFMUState", serializedState, size, FMUState));
 }
 
 /* ------------------------------------------------------------------ derivatives */
@@ -823,67 +660,33 @@ static int derivative_refs(fmi3_instance *x, const char *call, const fmi3ValueRe
     return 0;
 }
 
-static fmi3Status directional(fmi3Instance instance, const char *call, int meaning, const fmi3ValueReference unknowns[],
-                              size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                              size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
+/* A directional (adjoint 0) or adjoint (1) derivative: J seed into sensitivity, or seed^T J (model.c
+ * model_adjoint_derivative), over the scalars of the arrays' references. */
+static fmi3Status derivative(fmi3Instance instance, const char *call, int meaning, int adjoint,
+                             const fmi3ValueReference unknowns[], size_t nUnknowns, const fmi3ValueReference knowns[],
+                             size_t nKnowns, const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
+                             size_t nSensitivity)
 {
     fmi3_instance *x = allowed(instance, call, MODE_STEP | MODE_INITIALIZATION); /* the model says why not in init */
     fmi2ValueReference *u, *k;
     size_t nu, nk;
     if (!x || derivative_refs(x, call, unknowns, nUnknowns, knowns, nKnowns, &u, &nu, &k, &nk))
         return fmi3Error;
-    fmi3Status s = fmi3Error;
-    if (nSeed != nk || nSensitivity != nu)
-        fmu_log(&x->m, fmi2Error, "%s: the knowns hold %zu value(s) and the unknowns %zu: nSeed = %zu and "
-                "nSensitivity = %zu must be those", call, nk, nu, nSeed, nSensitivity);
-    else if ((nk && !seed) || (nu && !sensitivity))
+    const size_t n_in = adjoint ? nu : nk, n_out = adjoint ? nk : nu; /* seed, sensitivity */
+    fmi2Status s = fmi2Error;
+    if (nSeed != n_in || nSensitivity != n_out)
+        fmu_log(&x->m, fmi2Error, "%s: the %s hold %zu value(s) and the %s %zu: nSeed = %zu and nSensitivity = %zu must "
+                "be those", call, adjoint ? "unknowns" : "knowns", n_in, adjoint ? "knowns" : "unknowns", n_out, nSeed,
+                nSensitivity);
+    else if ((n_in && !seed) || (n_out && !sensitivity))
         fmu_log(&x->m, fmi2Error, "%s: NULL seed or sensitivity array", call);
+    else if (adjoint)
+        s = model_adjoint_derivative(&x->m, call, meaning, u, nu, k, nk, seed, sensitivity);
     else
-        s = status3(model_directional_derivative(&x->m, meaning, u, nu, k, nk, seed, sensitivity));
+        s = model_directional_derivative(&x->m, meaning, u, nu, k, nk, seed, sensitivity);
     free(u);
     free(k);
-    return s;
-}
-
-/* v^T J: one directional derivative per known element j (the column J e_j, the seed e_j over all the knowns),
- * then its product with the seed v. The columns are those the directional call of the same meaning gives for
- * the same knowns and the unit seeds, to the bit (a step derivative's column costs two re-runs of the last
- * step: docs/fmu.md). */
-static fmi3Status adjoint(fmi3Instance instance, const char *call, int meaning, const fmi3ValueReference unknowns[],
-                          size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                          size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
-{
-    fmi3_instance *x = allowed(instance, call, MODE_STEP | MODE_INITIALIZATION); /* the model says why not in init */
-    fmi2ValueReference *u, *k;
-    size_t nu, nk;
-    if (!x || derivative_refs(x, call, unknowns, nUnknowns, knowns, nKnowns, &u, &nu, &k, &nk))
-        return fmi3Error;
-    fmi3Status s = fmi3Error;
-    double *column = NULL, *unit = NULL;
-    if (nSeed != nu || nSensitivity != nk) {
-        fmu_log(&x->m, fmi2Error, "%s: the unknowns hold %zu value(s) and the knowns %zu: nSeed = %zu and "
-                "nSensitivity = %zu must be those", call, nu, nk, nSeed, nSensitivity);
-    } else if ((nu && !seed) || (nk && !sensitivity)) {
-        fmu_log(&x->m, fmi2Error, "%s: NULL seed or sensitivity array", call);
-    } else if (!(column = malloc(sizeof(double) * (nu ? nu : 1))) || !(unit = calloc(nk ? nk : 1, sizeof(double)))) {
-        fmu_log(&x->m, fmi2Error, "%s: out of memory", call);
-    } else {
-        s = fmi3OK;
-        for (size_t j = 0; j < nk && s == fmi3OK; j++) { /* J e_j over all the knowns, as the directional call */
-            unit[j] = 1.0;
-            s = status3(model_directional_derivative(&x->m, meaning, u, nu, k, nk, unit, column));
-            unit[j] = 0.0;
-            double sum = 0.0;
-            for (size_t i = 0; i < nu; i++)
-                sum += seed[i] * column[i];
-            sensitivity[j] = sum;
-        }
-    }
-    free(unit);
-    free(column);
-    free(u);
-    free(k);
-    return s;
+    return status3(s);
 }
 
 /* FMI 3.0's meaning (model.h DERIV_FMI): the partial derivatives at the communication point, zero (no output
@@ -892,7 +695,7 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    return directional(instance, "fmi3GetDirectionalDerivative", DERIV_FMI, unknowns, nUnknowns, knowns, nKnowns, seed,
+    return derivative(instance, "fmi3GetDirectionalDerivative", DERIV_FMI, 0, unknowns, nUnknowns, knowns, nKnowns, seed,
                        nSeed, sensitivity, nSensitivity);
 }
 
@@ -900,7 +703,7 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
                                     const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    return adjoint(instance, "fmi3GetAdjointDerivative", DERIV_FMI, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
+    return derivative(instance, "fmi3GetAdjointDerivative", DERIV_FMI, 1, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
                    sensitivity, nSensitivity);
 }
 
@@ -921,7 +724,7 @@ fmi3Status ffrf3GetStepDirectionalDerivative(fmi3Instance instance, const fmi3Va
                                              const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
                                              size_t nSensitivity)
 {
-    return directional(instance, "ffrf3GetStepDirectionalDerivative", DERIV_STEP, unknowns, nUnknowns, knowns, nKnowns,
+    return derivative(instance, "ffrf3GetStepDirectionalDerivative", DERIV_STEP, 0, unknowns, nUnknowns, knowns, nKnowns,
                        seed, nSeed, sensitivity, nSensitivity);
 }
 
@@ -929,7 +732,7 @@ fmi3Status ffrf3GetStepAdjointDerivative(fmi3Instance instance, const fmi3ValueR
                                          const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                          size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    return adjoint(instance, "ffrf3GetStepAdjointDerivative", DERIV_STEP, unknowns, nUnknowns, knowns, nKnowns, seed,
+    return derivative(instance, "ffrf3GetStepAdjointDerivative", DERIV_STEP, 1, unknowns, nUnknowns, knowns, nKnowns, seed,
                    nSeed, sensitivity, nSensitivity);
 }
 
@@ -949,20 +752,8 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         *earlyReturn = fmi3False;
     if (!x)
         return fmi3Error;
-    fmu_instance *m = &x->m;
-    fmi2Status s;
-    if (m->mode == MODE_TERMINATED) {
-        fmu_log(m, fmi2Error, "t = %.6g s: fmi3DoStep after fmi3Terminate (reset or free the instance)",
-                currentCommunicationPoint);
-        s = fmi2Error;
-    } else if (m->mode == MODE_STEP && m->failure[0]) { /* model_do_step names the failed initialization */
-        s = model_do_step(m, currentCommunicationPoint, communicationStepSize);
-    } else {
-        s = allowed(instance, "fmi3DoStep", MODE_STEP) ? model_do_step(m, currentCommunicationPoint,
-                                                                       communicationStepSize)
-                                                       : fmi2Error;
-    }
+    fmi2Status s = model_do_step(&x->m, currentCommunicationPoint, communicationStepSize);
     if (lastSuccessfulTime) /* the body's time: t_c + H, or t_c after a discard */
-        *lastSuccessfulTime = m->body ? model_time(m) : currentCommunicationPoint;
+        *lastSuccessfulTime = x->m.body ? model_time(&x->m) : currentCommunicationPoint;
     return status3(s);
 }

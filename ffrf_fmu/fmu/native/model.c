@@ -76,7 +76,7 @@ static const char *repr3(const double v[3], char *buf, size_t len)
 
 /* ------------------------------------------------------------------ set-up */
 
-fmi2Status model_setup(fmu_instance *m)
+static fmi2Status model_setup(fmu_instance *m)
 {
     const int n = m->desc.n_vars;
     size_t n_row = (size_t)m->desc.n_ports * FFRF_OUTPUT_WIDTH + FFRF_N_ENERGIES + 1 + 3 * (size_t)m->desc.n_probes +
@@ -101,8 +101,107 @@ fmi2Status model_setup(fmu_instance *m)
     return fmi2OK;
 }
 
-void model_reset(fmu_instance *m)
+fmi2Status model_instantiate(fmu_instance *m, const char *call, const char *name, const char *resource_uri,
+                             const char *token, const char *token_word, const char *refusal)
 {
+    m->mode = MODE_ERROR;
+    const char *n = name ? name : "";
+    m->name = malloc(strlen(n) + 1);
+    if (!m->name)
+        return fmi2Error;
+    strcpy(m->name, n);
+    if (refusal) {
+        fmu_log(m, fmi2Error, "%s: %s", call, refusal);
+        return fmi2Error;
+    }
+    char err[4200], path[4096];
+    if (fmu_resource_path(resource_uri, path, sizeof path, err, sizeof err) ||
+        fmu_description_load(&m->desc, path, err, sizeof err)) {
+        fmu_log(m, fmi2Error, "%s: %s", call, err);
+        return fmi2Error;
+    }
+    if (!token || strcmp(token, m->desc.guid) != 0) {
+        fmu_log(m, fmi2Error, "%s: wrong %s %s: this FMU (%s) has %s", call, token_word, token ? token : "(NULL)",
+                m->desc.description, m->desc.guid);
+        return fmi2Error;
+    }
+    return model_setup(m);
+}
+
+fmu_instance *model_allowed(fmu_instance *m, const char *call, int modes)
+{
+    if (!m)
+        return NULL;
+    if (!(m->mode & modes)) {
+        const char *api = FMU_API(m);
+        switch (m->mode) {
+        case MODE_INSTANTIATED:
+            fmu_log(m, fmi2Error, "%s is not allowed when the FMU is instantiated (before %sEnterInitializationMode)",
+                    call, api);
+            break;
+        case MODE_INITIALIZATION:
+            fmu_log(m, fmi2Error, "%s is not allowed when the FMU is in initialization mode", call);
+            break;
+        case MODE_STEP:
+            fmu_log(m, fmi2Error, "%s is not allowed when the FMU is in step mode", call);
+            break;
+        case MODE_TERMINATED:
+            fmu_log(m, fmi2Error, "%s is not allowed when the FMU is terminated (after %sTerminate)", call, api);
+            break;
+        default:
+            fmu_log(m, fmi2Error, "%s is not allowed when the FMU is in error (a failed instantiation or "
+                    "initialization: reset or free it)", call);
+        }
+        return NULL;
+    }
+    return m;
+}
+
+fmi2Status model_refused(fmu_instance *m, const char *call, const char *why)
+{
+    if (m)
+        fmu_log(m, fmi2Error, "%s: %s", call, why);
+    return fmi2Error;
+}
+
+fmi2Status model_set_logging(fmu_instance *m, const char *call, int on)
+{
+    if (!model_allowed(m, call, MODES_ANY))
+        return fmi2Error;
+    m->logging = on;
+    return fmi2OK;
+}
+
+fmi2Status model_setup_experiment(fmu_instance *m, const char *call, double start_time, int has_stop, double stop_time)
+{
+    if (!model_allowed(m, call, MODE_INSTANTIATED))
+        return fmi2Error;
+    m->start_time = start_time;
+    m->has_stop = has_stop;
+    m->stop_time = stop_time;
+    return fmi2OK;
+}
+
+fmi2Status model_enter_initialization(fmu_instance *m, const char *call)
+{
+    if (!model_allowed(m, call, MODE_INSTANTIATED))
+        return fmi2Error;
+    m->mode = MODE_INITIALIZATION;
+    return fmi2OK;
+}
+
+fmi2Status model_terminate(fmu_instance *m, const char *call)
+{
+    if (!model_allowed(m, call, MODE_STEP | MODE_INITIALIZATION))
+        return fmi2Error;
+    m->mode = MODE_TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status model_reset(fmu_instance *m, const char *call)
+{
+    if (!model_allowed(m, call, MODES_ANY))
+        return fmi2Error;
     memcpy(m->values, m->start_values, sizeof(double) * (size_t)m->desc.n_vars);
     m->mode = MODE_INSTANTIATED;
     m->start_time = 0.0;
@@ -110,6 +209,7 @@ void model_reset(fmu_instance *m)
     m->failure[0] = m->discarded[0] = 0;
     m->initialized = 0;
     m->have_last = 0;
+    return fmi2OK;
 }
 
 static void free_state_buffers(fmu_instance *m)
@@ -140,7 +240,8 @@ void model_free(fmu_instance *m)
 
 /* ------------------------------------------------------------------ values */
 
-fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int type, const char *kind)
+/* every value reference exists and is of the type `type` (TYPE_*): fmi2OK, or fmi2Error naming the bad ones */
+static fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int type, const char *kind)
 {
     const fmu_description *d = &m->desc;
     char list[512] = "";
@@ -195,24 +296,23 @@ static void refresh_initial_outputs(fmu_instance *m, const fmi2ValueReference vr
         }
 }
 
-fmi2Status model_get_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Real value[])
+fmi2Status model_get_scalars(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int as, void *value)
 {
     refresh_initial_outputs(m, vr, n);
-    for (size_t i = 0; i < n; i++)
-        value[i] = m->values[vr[i]];
+    for (size_t i = 0; i < n; i++) {
+        double v = m->values[vr[i]];
+        if (as == AS_FLOAT64)
+            ((double *)value)[i] = v;
+        else if (as == AS_INT)
+            ((int *)value)[i] = (int)v;
+        else
+            ((int32_t *)value)[i] = (int32_t)v;
+    }
     return fmi2OK;
 }
 
-fmi2Status model_get_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Integer value[])
-{
-    refresh_initial_outputs(m, vr, n);
-    for (size_t i = 0; i < n; i++)
-        value[i] = (fmi2Integer)m->values[vr[i]];
-    return fmi2OK;
-}
-
-static fmi2Status set_values(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Real *real,
-                             const fmi2Integer *integer, const char *call)
+fmi2Status model_set_scalars(fmu_instance *m, const char *call, const fmi2ValueReference vr[], size_t n, int as,
+                             const void *value)
 {
     for (size_t i = 0; i < n; i++) {
         const fmu_variable *v = &m->desc.vars[vr[i]];
@@ -224,19 +324,51 @@ static fmi2Status set_values(fmu_instance *m, const fmi2ValueReference vr[], siz
             fmu_log(m, fmi2Error, "%s: %s is a fixed parameter: it cannot change after initialization", call, v->name);
             return fmi2Error;
         }
-        m->values[vr[i]] = real ? real[i] : (double)integer[i];
+        m->values[vr[i]] = as == AS_FLOAT64 ? ((const double *)value)[i]
+                           : as == AS_INT   ? (double)((const int *)value)[i]
+                                            : (double)((const int32_t *)value)[i];
     }
     return fmi2OK;
 }
 
-fmi2Status model_set_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Real value[])
+/* the instance, when every value reference exists and is of the call's type (checked first: a bad
+ * reference is named whatever the state), the call is allowed in the instance's state and the arrays are there */
+static fmu_instance *checked(fmu_instance *m, const char *call, int modes, const fmi2ValueReference vr[], size_t n,
+                             int type, const void *value)
 {
-    return set_values(m, vr, n, value, NULL, m->fmi ? "fmi3SetFloat64" : "fmi2SetReal");
+    if (!m)
+        return NULL;
+    if (n && !vr) {
+        fmu_log(m, fmi2Error, "%s: NULL value references for %zu values", call, n);
+        return NULL;
+    }
+    if (model_check_type(m, vr, n, type, call) != fmi2OK || !model_allowed(m, call, modes))
+        return NULL;
+    if (n && !value) {
+        fmu_log(m, fmi2Error, "%s: NULL array for %zu values", call, n);
+        return NULL;
+    }
+    return m;
 }
 
-fmi2Status model_set_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[])
+fmi2Status model_get_values(fmu_instance *m, const char *call, int type, const fmi2ValueReference vr[], size_t n,
+                            void *value)
 {
-    return set_values(m, vr, n, NULL, value, m->fmi ? "fmi3SetInt32" : "fmi2SetInteger");
+    if (!checked(m, call, MODES_GET, vr, n, type, value))
+        return fmi2Error;
+    return type == TYPE_REAL || type == TYPE_INTEGER ? model_get_scalars(m, vr, n, type == TYPE_REAL ? AS_FLOAT64 : AS_INT,
+                                                                         value)
+                                                     : fmi2OK; /* no variables of the other types: n is 0 */
+}
+
+fmi2Status model_set_values(fmu_instance *m, const char *call, int type, const fmi2ValueReference vr[], size_t n,
+                            const void *value)
+{
+    if (!checked(m, call, MODES_SET, vr, n, type, value))
+        return fmi2Error;
+    return type == TYPE_REAL || type == TYPE_INTEGER
+               ? model_set_scalars(m, call, vr, n, type == TYPE_REAL ? AS_FLOAT64 : AS_INT, value)
+               : fmi2OK;
 }
 
 /* ------------------------------------------------------------------ parameters and inputs */
@@ -595,8 +727,10 @@ static int initialize(fmu_instance *m)
     return 0;
 }
 
-fmi2Status model_exit_initialization(fmu_instance *m)
+fmi2Status model_exit_initialization(fmu_instance *m, const char *call)
 {
+    if (!model_allowed(m, call, MODE_INITIALIZATION))
+        return fmi2Error;
     int failed = (inputs_changed(m) || m->failure[0]) ? initialize(m) : 0;
     m->mode = MODE_STEP;
     m->discarded[0] = 0;
@@ -728,12 +862,21 @@ static int finite_outputs(const fmu_instance *m)
 
 fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
 {
+    if (m && m->mode == MODE_TERMINATED) {
+        fmu_log(m, fmi2Error, "t = %.6g s: %sDoStep after %sTerminate (reset or free the instance)", t_c, FMU_API(m),
+                FMU_API(m));
+        return fmi2Error;
+    }
+    char call[16];
+    snprintf(call, sizeof call, "%sDoStep", m ? FMU_API(m) : "");
+    if (!model_allowed(m, call, MODE_STEP))
+        return fmi2Error;
     m->have_last = 0;
     if (m->failure[0]) {
         fmu_log(m, fmi2Error, "%s (doStep needs a successful initialization)", m->failure);
         return fmi2Error;
     }
-    if (m->mode != MODE_STEP || !m->body) {
+    if (!m->body) {
         fmu_log(m, fmi2Error, "t = %.6g s: doStep before the end of initialization", t_c);
         return fmi2Error;
     }
@@ -904,6 +1047,35 @@ fmi2Status model_directional_derivative(fmu_instance *m, int meaning, const fmi2
     return status;
 }
 
+/* v^T J: one directional derivative per known element j (the column J e_j, the seed e_j over all the knowns),
+ * then its product with the seed v. The columns are those the directional call of the same meaning gives for
+ * the same knowns and the unit seeds, to the bit (a step derivative's column costs two re-runs of the last
+ * step: docs/fmu.md). */
+fmi2Status model_adjoint_derivative(fmu_instance *m, const char *call, int meaning, const fmi2ValueReference unknown[],
+                                    size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
+                                    const fmi2Real seed[], fmi2Real out[])
+{
+    double *column = malloc(sizeof(double) * (n_unknown ? n_unknown : 1));
+    double *unit = calloc(n_known ? n_known : 1, sizeof(double));
+    fmi2Status s = fmi2OK;
+    if (!column || !unit) {
+        fmu_log(m, fmi2Error, "%s: out of memory", call);
+        s = fmi2Error;
+    }
+    for (size_t j = 0; j < n_known && s == fmi2OK; j++) { /* J e_j over all the knowns, as the directional call */
+        unit[j] = 1.0;
+        s = model_directional_derivative(m, meaning, unknown, n_unknown, known, n_known, unit, column);
+        unit[j] = 0.0;
+        double sum = 0.0;
+        for (size_t i = 0; i < n_unknown; i++)
+            sum += seed[i] * column[i];
+        out[j] = sum;
+    }
+    free(unit);
+    free(column);
+    return s;
+}
+
 /* ------------------------------------------------------------------ FMU state */
 
 /* serialized: magic "FFRFSTAT" | u32 version | u32 variables | u64 body doubles | u64 GUID hash |
@@ -1006,6 +1178,8 @@ typedef struct {
 
 fmi2Status model_state_get(fmu_instance *m, const char *call, void **state)
 {
+    if (!model_allowed(m, call, MODES_ANY) || !state)
+        return fmi2Error;
     size_t size = model_serialized_size(m);
     saved_state *s = *state;
     if (s && s->size != size) { /* a state given back to be overwritten, of another size: a fresh one */
@@ -1026,6 +1200,8 @@ fmi2Status model_state_get(fmu_instance *m, const char *call, void **state)
 
 fmi2Status model_state_set(fmu_instance *m, const char *call, const void *state)
 {
+    if (!model_allowed(m, call, MODES_ANY))
+        return fmi2Error;
     if (!state) {
         fmu_log(m, fmi2Error, "%s: NULL state", call);
         return fmi2Error;
@@ -1042,9 +1218,9 @@ void model_state_free(void **state)
     }
 }
 
-fmi2Status model_state_size(const void *state, size_t *size)
+fmi2Status model_state_size(fmu_instance *m, const char *call, const void *state, size_t *size)
 {
-    if (!state || !size)
+    if (!model_allowed(m, call, MODES_ANY) || !state || !size)
         return fmi2Error;
     *size = ((const saved_state *)state)->size;
     return fmi2OK;
@@ -1052,7 +1228,7 @@ fmi2Status model_state_size(const void *state, size_t *size)
 
 fmi2Status model_state_serialize(fmu_instance *m, const char *call, const void *state, unsigned char *out, size_t size)
 {
-    if (!state || !out)
+    if (!model_allowed(m, call, MODES_ANY) || !state || !out)
         return fmi2Error;
     const saved_state *s = state;
     if (size < s->size) {
@@ -1065,7 +1241,7 @@ fmi2Status model_state_serialize(fmu_instance *m, const char *call, const void *
 
 fmi2Status model_state_deserialize(fmu_instance *m, const char *call, const unsigned char *in, size_t size, void **state)
 {
-    if (!state || (!in && size))
+    if (!model_allowed(m, call, MODES_ANY) || !state || (!in && size))
         return fmi2Error;
     /* checked here (version, FMU, size, checksum): a damaged state is refused now, not when it is set */
     if (model_serialized_check(m, in, size) != fmi2OK)

@@ -73,15 +73,47 @@ void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
-fmi2Status model_setup(fmu_instance *m);
-void model_reset(fmu_instance *m);
+/* the modes of the calls (FMI 2.0 section 4.2.4, FMI 3.0 section 4.1): values are read after instantiation, set
+ * before step mode ends; the FMU state calls and reset in any */
+#define MODES_ANY (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MODES_GET (MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MODES_SET (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP)
+enum { TYPE_BOOLEAN = 2, TYPE_STRING = 3 }; /* FMI 2.0's other types (TYPE_REAL, TYPE_INTEGER: resource.h): none here */
+enum { AS_FLOAT64 = 0, AS_INT = 1, AS_INT32 = 2 }; /* what a value array holds: double, int, int32_t */
+
+/* An instance just allocated (zeroed, its callbacks set) made ready: its name, resources/body.bin from the
+ * resource URI, the token (`token_word`: GUID, instantiation token) checked against it, its arrays. fmi2OK, or
+ * fmi2Error logged under `call` (with `refusal`, the reason the wrapper refuses the instantiation, if not NULL);
+ * model_free then frees what was made. */
+fmi2Status model_instantiate(fmu_instance *m, const char *call, const char *name, const char *resource_uri,
+                             const char *token, const char *token_word, const char *refusal);
+/* m, if `call` is allowed in its mode (a mask of MODE_*), else NULL (fmi2Error logged); NULL for NULL */
+fmu_instance *model_allowed(fmu_instance *m, const char *call, int modes);
+/* a call this FMU does not provide: fmi2Error, logged with `why` */
+fmi2Status model_refused(fmu_instance *m, const char *call, const char *why);
+/* The calls that move an instance between the modes, each checked to be allowed in the mode it is in (fmi2Error
+ * logged under `call` if not): logging on or off; the experiment's start and stop time, then initialization mode
+ * (FMI 3.0's fmi3EnterInitializationMode is both); its end, which initializes the body; terminate; reset to the
+ * instantiated mode and the start values. */
+fmi2Status model_set_logging(fmu_instance *m, const char *call, int on);
+fmi2Status model_setup_experiment(fmu_instance *m, const char *call, double start_time, int has_stop, double stop_time);
+fmi2Status model_enter_initialization(fmu_instance *m, const char *call);
+fmi2Status model_exit_initialization(fmu_instance *m, const char *call);
+fmi2Status model_terminate(fmu_instance *m, const char *call);
+fmi2Status model_reset(fmu_instance *m, const char *call);
 void model_free(fmu_instance *m);
-fmi2Status model_get_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Real value[]);
-fmi2Status model_get_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]);
-fmi2Status model_set_real(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]);
-fmi2Status model_set_integer(fmu_instance *m, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]);
-fmi2Status model_check_type(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int type, const char *kind);
-fmi2Status model_exit_initialization(fmu_instance *m);
+/* The get and set calls of FMI 2.0 (type TYPE_*, value an array of it): the references checked (known, of the
+ * type: named whatever the mode), the mode, the arrays, then the values. */
+fmi2Status model_get_values(fmu_instance *m, const char *call, int type, const fmi2ValueReference vr[], size_t n,
+                            void *value);
+fmi2Status model_set_values(fmu_instance *m, const char *call, int type, const fmi2ValueReference vr[], size_t n,
+                            const void *value);
+/* The values of scalars of checked references, an array of `as` (AS_*); outputs read in initialization mode
+ * reflect the inputs and parameters set so far. Set refuses an output, and a parameter in step mode. */
+fmi2Status model_get_scalars(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int as, void *value);
+fmi2Status model_set_scalars(fmu_instance *m, const char *call, const fmi2ValueReference vr[], size_t n, int as,
+                             const void *value);
+/* doStep from t_c over H, in step mode only (named in the messages with the FMI prefix) */
 fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
 /* The two meanings of a directional derivative (docs/fmu.md, "Directional derivatives"):
  * DERIV_FMI  FMI 2.0's and 3.0's: the partial derivatives of the outputs with respect to the inputs at the current
@@ -95,14 +127,20 @@ enum { DERIV_FMI = 0, DERIV_STEP = 1 };
 fmi2Status model_directional_derivative(fmu_instance *m, int meaning, const fmi2ValueReference unknown[],
                                         size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
                                         const fmi2Real seed[], fmi2Real out[]);
-/* FMU state objects (fmi2GetFMUstate ... fmi2DeSerializeFMUstate and their FMI 3.0 twins call these; `call` names
- * the function in the messages): a saved state is its serialized form in one allocation, owned through the
- * caller's pointer. get reuses *state when it has the size; deserialize checks the bytes first (a damaged state
- * is refused there, not at set); free of NULL or of a NULL pointer does nothing. */
+/* The transposed product seed^T J [n_known] of the derivatives of `meaning` (FMI 3.0's adjoint derivative), one
+ * directional derivative per known element. */
+fmi2Status model_adjoint_derivative(fmu_instance *m, const char *call, int meaning, const fmi2ValueReference unknown[],
+                                    size_t n_unknown, const fmi2ValueReference known[], size_t n_known,
+                                    const fmi2Real seed[], fmi2Real out[]);
+/* FMU state objects (fmi2GetFMUstate ... fmi2DeSerializeFMUstate and their FMI 3.0 twins are these; `call` names
+ * the function in the messages; any mode, NULL m or pointers are fmi2Error): a saved state is its serialized form
+ * in one allocation, owned through the caller's pointer. get reuses *state when it has the size; deserialize
+ * checks the bytes first (a damaged state is refused there, not at set); free of NULL or of a NULL pointer does
+ * nothing. */
 fmi2Status model_state_get(fmu_instance *m, const char *call, void **state);
 fmi2Status model_state_set(fmu_instance *m, const char *call, const void *state);
 void model_state_free(void **state);
-fmi2Status model_state_size(const void *state, size_t *size);
+fmi2Status model_state_size(fmu_instance *m, const char *call, const void *state, size_t *size);
 fmi2Status model_state_serialize(fmu_instance *m, const char *call, const void *state, unsigned char *out,
                                  size_t size);
 fmi2Status model_state_deserialize(fmu_instance *m, const char *call, const unsigned char *in, size_t size,

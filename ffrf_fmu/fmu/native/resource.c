@@ -14,30 +14,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bytes.h"
 #include "resource.h"
 
 #define HEADER_BYTES 40
-
-static uint64_t rd64(const unsigned char *p)
-{
-    uint64_t v = 0;
-    for (int i = 7; i >= 0; i--)
-        v = (v << 8) | p[i];
-    return v;
-}
-
-static uint32_t rd32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-static uint64_t fnv1a_words(const unsigned char *p, size_t n)
-{
-    uint64_t h = 0xCBF29CE484222325ull;
-    for (size_t i = 0; i + 8 <= n; i += 8)
-        h = (h ^ rd64(p + i)) * 0x100000001B3ull;
-    return h;
-}
 
 static uint64_t splitmix64(uint64_t *s)
 {
@@ -130,7 +110,7 @@ static int find(const unsigned char *pay, size_t size, const char *tag, section 
 {
     size_t i = 0;
     while (i + 16 <= size) {
-        uint64_t n = rd64(pay + i + 8);
+        uint64_t n = ffrf_read_u64(pay + i + 8);
         if (n > size - i - 16)
             return -1;
         if (strncmp((const char *)pay + i, tag, 8) == 0) {
@@ -180,8 +160,8 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
         snprintf(err, err_len, "%.3000s is not an ffrf-fmu body resource (bad header)", path);
         return -1;
     }
-    uint32_t format = rd32(head + 8), runtime = rd32(head + 12);
-    uint64_t size = rd64(head + 16), check = rd64(head + 24), seed = rd64(head + 32);
+    uint32_t format = ffrf_read_u32(head + 8), runtime = ffrf_read_u32(head + 12);
+    uint64_t size = ffrf_read_u64(head + 16), check = ffrf_read_u64(head + 24), seed = ffrf_read_u64(head + 32);
     if (format != FMU_FORMAT_VERSION || runtime != FFRF_RUNTIME_VERSION) {
         fclose(f);
         snprintf(err, err_len, "%.3000s is of format %u for runtime %u; this binary reads format %d for runtime %d "
@@ -202,14 +182,14 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     size_t got = fread(pay, 1, (size_t)size, f);
     int extra = fgetc(f) != EOF;
     fclose(f);
-    if (got != size || extra || fnv1a_words(pay, (size_t)size) != check) {
+    if (got != size || extra || ffrf_fnv1a_words(pay, (size_t)size) != check) {
         free(pay);
         snprintf(err, err_len, "%.3000s is damaged (%s)", path, got != size ? "truncated" : extra ? "trailing bytes"
                  : "checksum mismatch");
         return -1;
     }
     for (size_t i = 0; i < size; i += 8) { /* descramble in place */
-        uint64_t k = splitmix64(&seed), w = rd64(pay + i) ^ k;
+        uint64_t k = splitmix64(&seed), w = ffrf_read_u64(pay + i) ^ k;
         for (int j = 0; j < 8; j++)
             pay[i + j] = (unsigned char)(w >> (8 * j));
     }

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "body.h"
+#include "bytes.h"
 
 /* In an address-sanitizer build every array of the arena is followed by a poisoned red zone, so that a
  * write past an array's end is reported instead of landing silently in its neighbour. */
@@ -36,28 +37,6 @@ typedef struct {
     const void *values; /* into the body's copy of the payload, 8-byte aligned */
 } entry;
 
-static uint64_t read_u64(const unsigned char *p)
-{
-    uint64_t v = 0;
-    for (int i = 7; i >= 0; i--)
-        v = (v << 8) | p[i];
-    return v;
-}
-
-static uint32_t read_u32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-/* FNV-1a 64 over the payload's 8-byte little-endian words (image.py `checksum`). */
-static uint64_t image_checksum(const unsigned char *p, uint64_t size)
-{
-    uint64_t h = 0xCBF29CE484222325ULL;
-    for (uint64_t i = 0; i + 8 <= size; i += 8)
-        h = (h ^ read_u64(p + i)) * 0x100000001B3ULL;
-    return h;
-}
-
 #define MAX_ENTRIES 96
 
 typedef struct {
@@ -85,15 +64,15 @@ static int parse(const unsigned char *image, size_t size, unsigned char **copy, 
 {
     if (size < HEADER_BYTES || memcmp(image, MAGIC, 8) != 0)
         return fail(err, len, "not a body image (no %s header)%lld%lld", MAGIC, 0, 0);
-    uint32_t version = read_u32(image + 8), count = read_u32(image + 12);
-    uint64_t payload = read_u64(image + 16), check = read_u64(image + 24);
+    uint32_t version = ffrf_read_u32(image + 8), count = ffrf_read_u32(image + 12);
+    uint64_t payload = ffrf_read_u64(image + 16), check = ffrf_read_u64(image + 24);
     if (version != FFRF_RUNTIME_VERSION)
         return fail(err, len, "%sbody image of version %lld, this runtime reads version %lld", "", version,
                     FFRF_RUNTIME_VERSION);
     if (payload != size - HEADER_BYTES || payload % 8 != 0)
         return fail(err, len, "%sbody image truncated or padded: %lld payload bytes announced, %lld present", "",
                     (long long)payload, (long long)(size - HEADER_BYTES));
-    if (image_checksum(image + HEADER_BYTES, payload) != check)
+    if (ffrf_fnv1a_words(image + HEADER_BYTES, (size_t)payload) != check)
         return fail(err, len, "%sbody image damaged: checksum mismatch%lld%lld", "", 0, 0);
     if (count > MAX_ENTRIES)
         return fail(err, len, "%sbody image has %lld entries, at most %lld are read", "", count, MAX_ENTRIES);
@@ -115,7 +94,7 @@ static int parse(const unsigned char *image, size_t size, unsigned char **copy, 
             return fail(err, len, "body image entry %s: kind or dimensions not readable%lld%lld", e->name, 0, 0);
         e->count = 1;
         for (int i = 0; i < MAX_DIMS; i++) {
-            e->dims[i] = read_u64(p + NAME_BYTES + 8 + 8 * i);
+            e->dims[i] = ffrf_read_u64(p + NAME_BYTES + 8 + 8 * i);
             if (i < e->ndim) {
                 if (e->dims[i] > (1u << 24) || (e->dims[i] && e->count > ((uint64_t)1 << 40) / e->dims[i]))
                     return fail(err, len, "body image entry %s: dimension %lld too large%lld", e->name, (long long)e->dims[i], 0);
