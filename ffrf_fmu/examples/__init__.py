@@ -25,13 +25,6 @@ HERE = Path(__file__).resolve().parent
 HUB_DRIVE_SOURCE = HERE / "hub_drive_slave.py"
 
 
-def hub_drive_names() -> tuple[str, str]:
-    """(module, class) names of the hub drive FMU: unique per version of its source, so that two
-    builds from different code never collide in one process (docs/fmu.md)."""
-    digest = hashlib.sha256(HUB_DRIVE_SOURCE.read_bytes()).hexdigest()[:10]
-    return f"ffrf_hub_drive_{digest}", f"FfrfHubDrive_{digest}"
-
-
 def build_hub_drive(dest) -> Path:
     """Build the hub drive FMU into `dest` (a .fmu file name or a directory); returns its path."""
     return build_script_fmu(HUB_DRIVE_SOURCE, "HubDrive", "hub_drive", dest)
@@ -59,7 +52,7 @@ def build_script_fmu(source: Path, class_name: str, stem: str, dest) -> Path:
     file name or a directory, then STEM.fmu), module and class renamed with the script's digest."""
     from pythonfmu import FmuBuilder
 
-    module, cls = hub_drive_names() if stem == "hub_drive" else script_names(source, stem)
+    module, cls = script_names(source, stem)
     text = Path(source).read_text(encoding="utf-8").replace(f"class {class_name}(Fmi2Slave):", f"class {cls}(Fmi2Slave):")
     dest = Path(dest)
     if dest.suffix != ".fmu":
