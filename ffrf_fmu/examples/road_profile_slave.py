@@ -16,9 +16,10 @@ standard library and pythonfmu; tests/test_car_body_system.py checks the two agr
 drives over the bump hits it with the rear wheel of the same side `road.wheelbase_time` seconds later
 (0: never, the car body model's scene `bump`).
 
-Built by `ffrf_fmu.examples.build_road_profile`, which renames the module and the class with a digest of this
-file and of partner_slave.py, shipped beside it (pythonfmu FMUs whose scripts share a name collide in one process, docs/fmu.md). Outputs are the
-values at the end of the step (no inputs: an exact signal).
+Built by `ffrf_fmu.examples.build_road_profile`, which renames the module and the class with a
+digest of this file and of partner_slave.py, shipped beside it (pythonfmu FMUs whose scripts share a
+name collide in one process, docs/fmu.md). Outputs are the values at the end of the step (no inputs:
+an exact signal).
 """
 import math
 
