@@ -9,25 +9,22 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh
+from ffrf_fmu.solid.shell import assemble_shells, plate_mesh
 from ffrf_fmu.solid.shell_calculix import run_calculix
 
-from _plate import LEISSA, STEEL, frequency_parameter, rigidity
-
+from _plate import STEEL, elastic_lambdas, frequency_parameter, header
 
 
 def main(meshes=(8, 16, 32), ratios=(100, 1000, 2000), modes=10):
     a = 1.0
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..%d; Leissa: %s" % (modes, LEISSA))
+    print(header(modes))
     for n in meshes:
         nodes, quads = plate_mesh(a, a, n, n)
         for r in ratios:
             h = a / r
-            D = rigidity(h)
             t0 = time.process_time()
             fe = assemble_shells(nodes, quads, h, STEEL)
-            w2, _ = free_modes(fe, 6 + modes, shift=-1e-2 * D / (STEEL.rho * h * a**4))
-            lam = frequency_parameter(np.sqrt(np.abs(w2[6:])), h, a)
+            lam = elastic_lambdas(fe, h, modes, a)
             row = f"MITC4 {n:3d}x{n:<3d} a/h={r:<5d} " + " ".join(f"{x:7.3f}" for x in lam)
             print(row + f"   ({time.process_time() - t0:.1f} s CPU)")
             if shutil.which("ccx") and r <= 1000:

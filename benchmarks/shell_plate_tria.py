@@ -12,27 +12,24 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh, rigid_modes
+from ffrf_fmu.solid.shell import assemble_shells, plate_mesh, rigid_modes
 from ffrf_fmu.solid.shell_calculix import run_calculix, with_midsides
 from ffrf_fmu.solid.shell_tri import split_quads
 
-from _plate import LEISSA, STEEL, frequency_parameter, rigidity
-
+from _plate import STEEL, elastic_lambdas, frequency_parameter, header
 
 
 def main(meshes=(8, 16, 32), ratios=(100, 1000, 2000), what="dkt", modes=10):
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..%d; Leissa: %s" % (modes, LEISSA))
+    print(header(modes))
     for n in meshes:
         nodes, quads = plate_mesh(1.0, 1.0, n, n)
         for r in ratios:
             h = 1.0 / r
-            D = rigidity(h)
             for diagonal in (("02", "13") if what != "ccx" else ("02",)):
                 trias = split_quads(quads, diagonal)
                 t0 = time.process_time()
                 fe = assemble_shells(nodes, None, h, STEEL, trias=trias, tria_bending="mitc3" if what == "mitc3" else "dkt")
-                w2, _ = free_modes(fe, 6 + modes, shift=-1e-2 * D / (STEEL.rho * h))
-                lam = frequency_parameter(np.sqrt(np.abs(w2[6:])), h)
+                lam = elastic_lambdas(fe, h, modes)
                 rigid = np.abs(fe.K @ rigid_modes(nodes)).max() / abs(fe.K).max()
                 name = "MITC3" if what == "mitc3" else "DKT"
                 print(f"{name:5s} {n:3d}x{n:<3d} /{diagonal} a/h={r:<5d} " + " ".join(f"{x:7.3f}" for x in lam)
