@@ -9,32 +9,28 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.mesh import Material
-from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh
+from ffrf_fmu.solid.shell import assemble_shells, plate_mesh
 from ffrf_fmu.solid.shell_calculix import run_calculix
 
-STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
-LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]  # Leissa 1969 (after Barton), modes 1-5
+from _plate import STEEL, elastic_lambdas, frequency_parameter, header
 
 
 def main(meshes=(8, 16, 32), ratios=(100, 1000, 2000), modes=10):
     a = 1.0
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..%d; Leissa: %s" % (modes, LEISSA))
+    print(header(modes))
     for n in meshes:
         nodes, quads = plate_mesh(a, a, n, n)
         for r in ratios:
             h = a / r
-            D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
             t0 = time.process_time()
             fe = assemble_shells(nodes, quads, h, STEEL)
-            w2, _ = free_modes(fe, 6 + modes, shift=-1e-2 * D / (STEEL.rho * h * a**4))
-            lam = np.sqrt(np.abs(w2[6:])) * a**2 * np.sqrt(STEEL.rho * h / D)
+            lam = elastic_lambdas(fe, h, modes, a)
             row = f"MITC4 {n:3d}x{n:<3d} a/h={r:<5d} " + " ".join(f"{x:7.3f}" for x in lam)
             print(row + f"   ({time.process_time() - t0:.1f} s CPU)")
             if shutil.which("ccx") and r <= 1000:
                 t0 = time.time()
                 f = run_calculix(nodes, quads, h, STEEL, 6 + modes)[6:6 + modes]
-                lam_c = 2 * np.pi * f * a**2 * np.sqrt(STEEL.rho * h / D)
+                lam_c = frequency_parameter(2 * np.pi * f, h, a)
                 print(f"ccx S4 {n:3d}x{n:<3d} a/h={r:<5d}" + " ".join(f"{x:7.3f}" for x in lam_c)
                       + f"   ({time.time() - t0:.1f} s wall); max |ours/ccx - 1| modes 1-5 "
                       f"{np.max(np.abs(lam[:5] / lam_c[:5] - 1)):.2%}, 6-{modes} {np.max(np.abs(lam[5:] / lam_c[5:] - 1)):.2%}")

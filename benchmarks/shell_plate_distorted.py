@@ -7,13 +7,11 @@ a/h 100, 1000, 2000. Prints the table of docs/shells.md.
 """
 import numpy as np
 
-from ffrf_fmu.solid.mesh import Material
-from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh
+from ffrf_fmu.solid.shell import assemble_shells, plate_mesh
 from ffrf_fmu.solid.shell_mitc9 import plate_mesh9
 from ffrf_fmu.solid.shell_tri import split_quads
 
-STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
-LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]
+from _plate import STEEL, elastic_lambdas, header
 
 
 def vertices(n, seed=5, amount=0.2):
@@ -36,16 +34,14 @@ def mesh(element, n):
 
 
 def main():
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..5; Leissa: %s" % LEISSA)
+    print(header(5))
     for element, sizes in (("MITC4", (8, 16)), ("DKT", (8, 16)), ("MITC9", (4, 8))):
         for n in sizes:
             nodes, cells = mesh(element, n)
             for r in (100, 1000, 2000):
                 h = 1.0 / r
-                D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
                 fe = assemble_shells(nodes, cells["quads"], h, STEEL, **{k: v for k, v in cells.items() if k != "quads"})
-                w2, _ = free_modes(fe, 11, shift=-1e-2 * D / (STEEL.rho * h))
-                lam = np.sqrt(np.abs(w2[6:])) * np.sqrt(STEEL.rho * h / D)
+                lam = elastic_lambdas(fe, h, 5)
                 print(f"{element:5s} {n:2d}x{n:<2d} distorted a/h={r:<5d}" + " ".join(f"{x:7.3f}" for x in lam))
 
 

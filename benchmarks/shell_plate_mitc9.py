@@ -10,31 +10,27 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.mesh import Material
-from ffrf_fmu.solid.shell import assemble_shells, free_modes
+from ffrf_fmu.solid.shell import assemble_shells
 from ffrf_fmu.solid.shell_calculix import run_calculix, used_nodes
 from ffrf_fmu.solid.shell_mitc9 import plate_mesh9
 
-STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
-LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]
+from _plate import STEEL, elastic_lambdas, frequency_parameter, header
 
 
 def main(meshes=(4, 8, 16), ratios=(100, 1000, 2000), modes=10):
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..%d; Leissa: %s" % (modes, LEISSA))
+    print(header(modes))
     for n in meshes:
         nodes, q9 = plate_mesh9(1.0, 1.0, n, n)
         for r in ratios:
             h = 1.0 / r
-            D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
             t0 = time.process_time()
             fe = assemble_shells(nodes, None, h, STEEL, quads9=q9)
-            w2, _ = free_modes(fe, 6 + modes, shift=-1e-2 * D / (STEEL.rho * h))
-            lam = np.sqrt(np.abs(w2[6:])) * np.sqrt(STEEL.rho * h / D)
+            lam = elastic_lambdas(fe, h, modes)
             print(f"MITC9 {n:3d}x{n:<3d} a/h={r:<5d} " + " ".join(f"{x:7.3f}" for x in lam)
                   + f"   ({time.process_time() - t0:.1f} s CPU)")
             if shutil.which("ccx") and r <= 1000:
                 f = run_calculix(*used_nodes(nodes, q9[:, :8]), h, STEEL, 6 + modes, element="S8")[6:6 + modes]
-                lam_c = 2 * np.pi * f * np.sqrt(STEEL.rho * h / D)
+                lam_c = frequency_parameter(2 * np.pi * f, h)
                 print(f"ccx S8 {n:3d}x{n:<3d} a/h={r:<5d}" + " ".join(f"{x:7.3f}" for x in lam_c)
                       + f"   max |MITC9/ccx - 1| modes 1-5 {np.max(np.abs(lam[:5] / lam_c[:5] - 1)):.2%}, "
                       f"6-{modes} {np.max(np.abs(lam[5:] / lam_c[5:] - 1)):.2%}")

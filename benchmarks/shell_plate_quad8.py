@@ -12,7 +12,8 @@ from scipy.sparse.linalg import eigsh
 from ffrf_fmu.solid.mesh import Material
 from ffrf_fmu.solid.shell_mitc9 import plate_mesh9, quad8_matrices, quad9_frame
 
-STEEL = Material(210e9, 0.3, 7800.0)
+from _plate import STEEL, frequency_parameter
+
 
 
 def quad8_plate(n: int, h: float, centre: str = "condensed", mat: Material = STEEL):
@@ -42,8 +43,7 @@ def plate_lambda(n: int, aoh: float, centre: str = "condensed", count: int = 16,
     h = 1.0 / aoh
     _, _, K, M = quad8_plate(n, h, centre, mat)
     w2 = np.sort(eigsh(K, count, M, sigma=-1.0, which="LM", return_eigenvectors=False))
-    D = mat.E * h**3 / (12 * (1 - mat.nu**2))
-    return np.sqrt(np.abs(w2)) * np.sqrt(mat.rho * h / D)
+    return frequency_parameter(np.sqrt(np.abs(w2)), h, mat=mat)
 
 
 if __name__ == "__main__":

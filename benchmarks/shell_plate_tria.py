@@ -12,33 +12,24 @@ import time
 
 import numpy as np
 
-from ffrf_fmu.solid.mesh import Material
-from ffrf_fmu.solid.shell import assemble_shells, free_modes, plate_mesh, rigid_modes
+from ffrf_fmu.solid.shell import assemble_shells, plate_mesh, rigid_modes
 from ffrf_fmu.solid.shell_calculix import run_calculix, with_midsides
 from ffrf_fmu.solid.shell_tri import split_quads
 
-STEEL = Material(E=210e9, nu=0.3, rho=7800.0)
-LEISSA = [13.49, 19.79, 24.43, 35.02, 35.02]  # Leissa 1969 (after Barton), modes 1-5
-
-
-def lam_of(w2, h, a=1.0):
-    D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
-    return np.sqrt(np.abs(w2)) * a**2 * np.sqrt(STEEL.rho * h / D)
+from _plate import STEEL, elastic_lambdas, frequency_parameter, header
 
 
 def main(meshes=(8, 16, 32), ratios=(100, 1000, 2000), what="dkt", modes=10):
-    print("lambda = omega a^2 sqrt(rho h / D), elastic modes 1..%d; Leissa: %s" % (modes, LEISSA))
+    print(header(modes))
     for n in meshes:
         nodes, quads = plate_mesh(1.0, 1.0, n, n)
         for r in ratios:
             h = 1.0 / r
-            D = STEEL.E * h**3 / (12 * (1 - STEEL.nu**2))
             for diagonal in (("02", "13") if what != "ccx" else ("02",)):
                 trias = split_quads(quads, diagonal)
                 t0 = time.process_time()
                 fe = assemble_shells(nodes, None, h, STEEL, trias=trias, tria_bending="mitc3" if what == "mitc3" else "dkt")
-                w2, _ = free_modes(fe, 6 + modes, shift=-1e-2 * D / (STEEL.rho * h))
-                lam = lam_of(w2[6:], h)
+                lam = elastic_lambdas(fe, h, modes)
                 rigid = np.abs(fe.K @ rigid_modes(nodes)).max() / abs(fe.K).max()
                 name = "MITC3" if what == "mitc3" else "DKT"
                 print(f"{name:5s} {n:3d}x{n:<3d} /{diagonal} a/h={r:<5d} " + " ".join(f"{x:7.3f}" for x in lam)
@@ -48,7 +39,7 @@ def main(meshes=(8, 16, 32), ratios=(100, 1000, 2000), what="dkt", modes=10):
                 for element, mesh in (("S3", (nodes, trias)), ("S6", with_midsides(nodes, trias))):
                     t0 = time.time()
                     f = run_calculix(*mesh, h, STEEL, 6 + modes, element=element)[6:6 + modes]
-                    lam_c = 2 * np.pi * f * np.sqrt(STEEL.rho * h / D)
+                    lam_c = frequency_parameter(2 * np.pi * f, h)
                     print(f"ccx {element} {n:3d}x{n:<3d} /{diagonal} a/h={r:<5d}" + " ".join(f"{x:7.3f}" for x in lam_c)
                           + f"   ({time.time() - t0:.1f} s wall); max |DKT/ccx - 1| modes 1-5 "
                           f"{np.max(np.abs(lam[:5] / lam_c[:5] - 1)):.2%}, 6-{modes} "

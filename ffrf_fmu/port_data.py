@@ -1,6 +1,6 @@
 """The reduced body's port records (runtime/data.py PortData) from the model's ports: their boundary
 node, causality and, for compliant ports, stiffness and damping. Shared by the beam's reduction
-(reduction.py) and the solid's (solid/body.py), below both."""
+and the solid's (reduction.py: reduce_body, reduce_solid_body), below both."""
 from __future__ import annotations
 
 import dataclasses

@@ -295,6 +295,30 @@ def superelement_models(body: Body, e: int, strain: bool = False, tensor: bool =
             tensor_kernel(body.section, d, seg, n_el, lumped) if tensor else None)
 
 
+def reduce_solid_body(body: Body, stiffening: bool = False, inertia: bool = False) -> ReducedBody:
+    """The ReducedBody (BodyData, (SolidReduction,)) of a solid body: one superelement on its port frames.
+    Its FE model (solid/source.py) and the sparse reduction (reduction_sparse.py) are imported here, on
+    first use, so that a beam's reduction never loads them."""
+    from .reduction_sparse import reduce_solid
+    from .solid.frames import solid_frames
+    from .solid.source import solid_fe
+
+    spec = body.solid
+    try:  # a bad selection, a set that cannot hold a frame, a mechanism: the model's fault, said as such
+        fe = solid_fe(spec)
+        frames = solid_frames(spec, fe)
+        red = reduce_solid(fe, frames, n_modes=body.modes if spec.cutoff_hz is None else None,
+                           cutoff_hz=spec.cutoff_hz, inertia=inertia, stiffening=stiffening)
+    except ValueError as e:
+        raise ModelError(f"body {body.name!r} ({body.source}): {e}") from None
+    data = BodyData(name=body.name, superelements=(red.data,),
+                    node_positions=np.array([f.point for f in frames]),
+                    ports=port_data(body, len(frames)), damping=body_damping(body, red.data.n))
+    if any("compliant" in (p.translation, p.rotation) for p in data.ports):
+        data = dataclasses.replace(data, ports=tuple(compliance(data, body, p) for p in data.ports))
+    return ReducedBody(data, (red,))
+
+
 def reduce_body(body: Body, stiffening: bool = False, inertia: bool = False) -> ReducedBody:
     """Split the beam into body.superelements equal segments, each its own FE model of
     body.elements_per_superelement elements, reduce each on its two end nodes.
@@ -306,8 +330,6 @@ def reduce_body(body: Body, stiffening: bool = False, inertia: bool = False) -> 
     (reduce_scene_body).
     """
     if body.solid is not None:  # a solid: one sparse superelement on its port frames (reduction_sparse.py)
-        from .solid.body import reduce_solid_body
-
         return reduce_solid_body(body, stiffening=stiffening, inertia=inertia)
     n_se, n_el = body.superelements, body.elements_per_superelement
     if n_se < 1:

@@ -279,6 +279,13 @@ def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_res
     from .simulate import elastic_tip, end_ports
 
     written = []
+
+    def save(fig, name):
+        fig.tight_layout()
+        fig.savefig(report_dir / name, dpi=100)
+        plt.close(fig)
+        written.append(name)
+
     groups = _groups(compared)
     inside = common_span(t_fmu, ref.t)  # differences only where the standalone run has values
     t_in = t_fmu[inside]
@@ -302,11 +309,7 @@ def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_res
         axes[-1, 0].set_xlabel("time [s]")
         axes[-1, 1].set_xlabel("time [s]")
         fig.suptitle(f"port {port}: FMU (dashed) vs standalone, scene {scene.name}")
-        fig.tight_layout()
-        path = report_dir / f"port_{port}.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        written.append(path.name)
+        save(fig, f"port_{port}.png")
     energies = groups.get("energies", [])
     if energies:
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
@@ -320,11 +323,7 @@ def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_res
         for ax in (a1, a2):
             ax.legend(fontsize=7)
             ax.grid(True, alpha=0.3)
-        fig.tight_layout()
-        path = report_dir / "energies.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        written.append(path.name)
+        save(fig, "energies.png")
     try:
         hub, tip = end_ports(ref.body)
         if hub != tip:
@@ -337,11 +336,7 @@ def write_plots(report_dir: Path, t_fmu, fmu_cols, ref, compared, scene, fmu_res
             ax.set_ylabel(f"elastic {tip} displacement seen from {hub} [m] (eq. 92)")
             ax.legend(fontsize=8)
             ax.grid(True, alpha=0.3)
-            fig.tight_layout()
-            path = report_dir / "tip_deflection.png"
-            fig.savefig(path, dpi=100)
-            plt.close(fig)
-            written.append(path.name)
+            save(fig, "tip_deflection.png")
     except (KeyError, ValueError):
         pass
     return written

@@ -24,7 +24,7 @@ def run(*args):
 # the model adds to the closed form: shear flexibility and rotary inertia (B1's are small: the
 # beam is slender) and the modal truncation of 6 modes per superelement.
 def test_info_prints_a_solid_s_reduction_quality():
-    """`info` on a solid prints the reduction quality report (solid/quality.py): frequencies with MAC, and the
+    """`info` on a solid prints the reduction quality report (reduction_quality.py): frequencies with MAC, and the
     effective mass clamped at each port, the full FE model's beside the reduced body's."""
     out = run("info", "models/haug_solid.toml")
     assert out.returncode == 0, out.stderr

@@ -106,11 +106,11 @@ STAGES = {
     "ffrf_fmu.solid.nastran": 1,  # Nastran decks to K and M with the beam element of fe/beam.py
     "ffrf_fmu.solid.nastran_mass": 1, "ffrf_fmu.solid.nastran_body": 1,  # the deck's mass split, its body
     "ffrf_fmu.solid.nastran_rigid": 1,  # RBE2/RBE3 eliminated
-    "ffrf_fmu.port_data": 3, "ffrf_fmu.reduction": 3, "ffrf_fmu.reduction_sparse": 3, "ffrf_fmu.solid.body": 3,
-    "ffrf_fmu.solid.quality": 3, "ffrf_fmu.linear": 3, "ffrf_fmu.invariants": 3, "ffrf_fmu.initial_state": 3,
+    "ffrf_fmu.port_data": 3, "ffrf_fmu.reduction": 3, "ffrf_fmu.reduction_sparse": 3,
+    "ffrf_fmu.reduction_quality": 3, "ffrf_fmu.linear": 3, "ffrf_fmu.invariants": 3, "ffrf_fmu.initial_state": 3,
     "ffrf_fmu.term_rule": 3, "ffrf_fmu.spin_supports": 3, "ffrf_fmu.body_cache": 3,
     "ffrf_fmu.reference": 4,
-    "ffrf_fmu.simulate": 5, "ffrf_fmu.solid.recovery": 5,
+    "ffrf_fmu.simulate": 5,
     "ffrf_fmu.fmu": 6, "ffrf_fmu.peers": 6,
     "ffrf_fmu.validate": 7, "ffrf_fmu.master": 7, "ffrf_fmu.engines": 7, "ffrf_fmu.examples": 7,
     "ffrf_fmu.studies": 8, "ffrf_fmu.cli": 8, "ffrf_fmu.__main__": 8,

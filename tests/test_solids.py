@@ -273,7 +273,7 @@ def test_quality_report_kept_modes_exact_and_effective_mass():
     """The kept free-free modes are exact eigenvectors of the full model: frequency error at round-off and
     MAC 1 (1e-8); the next ones are approximations (error > 0, from above). Effective mass fractions clamped at
     a port lie in [0, 1] and grow with the modes admitted (cutoff)."""
-    from ffrf_fmu.solid.quality import effective_mass, frequency_report, quality_report
+    from ffrf_fmu.reduction_quality import effective_mass, frequency_report, quality_report
 
     (red,) = reduce_body(load_model(MODELS / "haug_solid.toml").body).reductions
     rows = frequency_report(red, 30.0)
@@ -295,14 +295,14 @@ def test_quality_report_kept_modes_exact_and_effective_mass():
 
 
 def test_recovered_mesh_follows_the_port_frames(tmp_path):
-    """Result recovery (solid/recovery.py): the nodes of a rigid set, recovered as x0 + R0 (X - x_cm + Y q),
+    """Result recovery (simulate/recovery.py): the nodes of a rigid set, recovered as x0 + R0 (X - x_cm + Y q),
     sit where the run's port frame carries them, x_f + R_f (X - X_f), up to the second-order term of the
     frame's elastic rotation alpha (the superelement's kinematics u = Y q are linear, the frames' rotations
     exact): |alpha|^2 r / 2 with r the set's radius (measured 2.8e-8 m against |alpha|^2 r / 2 = 4.0e-8 m
     at alpha = 1.76e-3). At t = 0 the mesh is the reference. Modal CSV and VTK (read back with meshio) are written."""
     import meshio
 
-    from ffrf_fmu.solid.recovery import deformed_positions, run_recorded, write_modal_csv, write_vtk
+    from ffrf_fmu.simulate.recovery import deformed_positions, run_recorded, write_modal_csv, write_vtk
 
     rec, red, data = run_recorded(load_model(MODELS / "haug_solid.toml", ["duration=1", "step=0.01"]), every=25)
     assert np.allclose(deformed_positions(red, rec.x0[0], rec.R0[0], rec.q[0]), red.fe.coords, atol=1e-12)
@@ -381,7 +381,7 @@ def test_nested_dissection_reduction_equals_the_minimum_degree_one(monkeypatch):
 
 @pytest.mark.parametrize("port", [0, 1])
 def test_full_model_effective_masses_sum_to_the_rigid_mass_about_the_port(port):
-    """Effective mass at a port (solid/quality.py): a 1 x 0.1 x 0.1 m hex27 bar (222 dofs in z), port a rigid,
+    """Effective mass at a port (reduction_quality.py): a 1 x 0.1 x 0.1 m hex27 bar (222 dofs in z), port a rigid,
     port b averaging, clamped at one port. Over ALL clamped modes (dense) the effective masses plus what the
     clamped port carries itself, e_d^T (L M^-1 L^T)^-1 e_d, are the mass (x, y, z) and the inertia about the
     frame (rx, ry, rz) to round-off (measured 1.3e-12); those equal the box's analytic values (m = 7.8 kg,
@@ -391,7 +391,7 @@ def test_full_model_effective_masses_sum_to_the_rigid_mass_about_the_port(port):
     the dense partial sums up to a cutoff between two clamped frequencies (not inside a bending pair)."""
     import math
 
-    from ffrf_fmu.solid.quality import full_effective_mass, full_model, port_motion
+    from ffrf_fmu.reduction_quality import full_effective_mass, full_model, port_motion
 
     shares = []
     for div in ((4, 1, 1), (8, 2, 2)):

@@ -21,7 +21,7 @@ def recover(args) -> int:
         raise ModelError(f"--every: expected a positive integer, got {args.every}")
     from pathlib import Path
 
-    from ..solid.recovery import run_recorded, write_modal_csv, write_vtk
+    from ..simulate.recovery import run_recorded, write_modal_csv, write_vtk
 
     rec, red, data = run_recorded(model, scene.name, every=args.every)
     out = Path(args.out)

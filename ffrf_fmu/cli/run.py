@@ -78,8 +78,8 @@ def info(args) -> int:
         inertia["stiffened_frequencies_hz"] = advice.indicators["stiffened_frequencies_hz"]
         inertia["stiffened_frequencies_source"] = advice.indicators["stiffened_frequencies_source"]
     quality = None
-    if body.solid is not None:  # what an FE analyst checks beside a reduced solid (solid/quality.py)
-        from ..solid.quality import quality_report
+    if body.solid is not None:  # what an FE analyst checks beside a reduced solid (reduction_quality.py)
+        from ..reduction_quality import quality_report
 
         red = reductions[0]
         top = float(red.data.frequencies_hz[-1]) if len(red.data.frequencies_hz) else 0.0

@@ -10,6 +10,14 @@ from ..checked_toml import ModelError
 from .common import BACKEND_ARG, MODEL_ARGS, PROG, SWEEP_ARGS, _load, _scheduler, arg, command
 
 
+def reference_args(when: str = "") -> tuple:
+    """--reference-elements, --reference-step: the full-order reference beam of a chart or of advise --check."""
+    return (arg("--reference-elements", type=int, metavar="N", help=f"elements of the full-order reference beam ({when}"
+                "default: the scene's [reference] elements, else max(16, 4 x superelements of the model))"),
+            arg("--reference-step", type=float, metavar="H", help=f"step of the reference ({when}default: the "
+                "scene's [reference] step, else the scene's step)"))
+
+
 @command(
     *MODEL_ARGS,
     arg("--rates", default="0:400:5", metavar="START:STOP:N | W1,W2", help="spin rates [rad/s]"),
@@ -119,10 +127,7 @@ def stability(args) -> int:
              "(cartesian product; repeat --sweep to add another group; unswept keys keep the model's values)"),
     arg("--fmu", action="store_true", help="also run every configuration through its FMU under fmpy "
         "(communication step = internal step)"),
-    arg("--reference-elements", type=int, metavar="N", help="elements of the full-order reference beam "
-        "(default: the scene's [reference] elements, else max(16, 4 x superelements of the model))"),
-    arg("--reference-step", type=float, metavar="H", help="step of the reference (default: the scene's [reference] "
-        "step, else the scene's step)"),
+    *reference_args(),
     *SWEEP_ARGS,
     arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
         "chart.json and the result store of every run, the reference's included (runs.jsonl: a rerun skips finished runs)"),
@@ -243,10 +248,7 @@ def _fraction(text: str) -> float:
         "this chart that meets the tolerance"),
     arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
         "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
-    arg("--reference-elements", type=int, metavar="N", help="elements of the reference beam (with --check; "
-        "default: the scene's [reference] elements, else max(16, 4 x superelements))"),
-    arg("--reference-step", type=float, metavar="H", help="step of the reference (with --check; default: the scene's "
-        "[reference] step, else the scene's step)"),
+    *reference_args("with --check; "),
     arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
         "(a chart's directory: its reference run is not repeated)"),
     BACKEND_ARG,

@@ -13,6 +13,9 @@ under one wheel), the far ends of the car body's compliant mounts (`road_profile
 `car_body_system.py`). `build_spin_drive(dest)`: a prescribed Wu-Haug spin-up about X with a
 rotating unbalance force, the partner of the Jeffcott rotor run-up (`spin_drive_slave.py`,
 `rotor_system.py`). Both have no inputs (exact signals) and only standard library code.
+
+Each partner script is a `partner_slave.PartnerSlave` (its parameters, variables and FMU state
+written once); `build_script_fmu` ships that module beside the script in the FMU.
 """
 from __future__ import annotations
 
@@ -23,13 +26,6 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 HUB_DRIVE_SOURCE = HERE / "hub_drive_slave.py"
-
-
-def hub_drive_names() -> tuple[str, str]:
-    """(module, class) names of the hub drive FMU: unique per version of its source, so that two
-    builds from different code never collide in one process (docs/fmu.md)."""
-    digest = hashlib.sha256(HUB_DRIVE_SOURCE.read_bytes()).hexdigest()[:10]
-    return f"ffrf_hub_drive_{digest}", f"FfrfHubDrive_{digest}"
 
 
 def build_hub_drive(dest) -> Path:
@@ -47,20 +43,30 @@ def build_spin_drive(dest) -> Path:
     return build_script_fmu(HERE / "spin_drive_slave.py", "SpinDrive", "spin_drive", dest)
 
 
-def script_names(source: Path, stem: str) -> tuple[str, str]:
-    """(module, class) names of a pythonfmu script's FMU, unique per version of its source."""
-    digest = hashlib.sha256(Path(source).read_bytes()).hexdigest()[:10]
+PARTNER_SOURCE = HERE / "partner_slave.py"
+PARTNER_IMPORT = "from ffrf_fmu.examples.partner_slave import PartnerSlave"
+
+
+def script_names(source: Path, stem: str) -> tuple[str, str, str]:
+    """(module, class, partner module) names of a pythonfmu script's FMU, unique per version of its
+    source and of partner_slave.py, which it ships."""
+    digest = hashlib.sha256(Path(source).read_bytes() + PARTNER_SOURCE.read_bytes()).hexdigest()[:10]
     camel = "".join(w.capitalize() for w in stem.split("_"))
-    return f"ffrf_{stem}_{digest}", f"Ffrf{camel}_{digest}"
+    return f"ffrf_{stem}_{digest}", f"Ffrf{camel}_{digest}", f"ffrf_partner_{digest}"
 
 
 def build_script_fmu(source: Path, class_name: str, stem: str, dest) -> Path:
-    """Build the pythonfmu FMU of script `source` (its slave class `class_name`) into `dest` (a .fmu
-    file name or a directory, then STEM.fmu), module and class renamed with the script's digest."""
+    """Build the pythonfmu FMU of script `source` (its slave class `class_name`, a PartnerSlave) into
+    `dest` (a .fmu file name or a directory, then STEM.fmu), module and class renamed with the digest,
+    partner_slave.py shipped beside it under its own digest name."""
     from pythonfmu import FmuBuilder
 
-    module, cls = hub_drive_names() if stem == "hub_drive" else script_names(source, stem)
-    text = Path(source).read_text(encoding="utf-8").replace(f"class {class_name}(Fmi2Slave):", f"class {cls}(Fmi2Slave):")
+    module, cls, partner = script_names(source, stem)
+    text = Path(source).read_text(encoding="utf-8")
+    if PARTNER_IMPORT not in text:
+        raise ValueError(f"{source}: a partner script imports its slave as {PARTNER_IMPORT!r}")
+    text = text.replace(f"class {class_name}(PartnerSlave):", f"class {cls}(PartnerSlave):")
+    text = text.replace(PARTNER_IMPORT, f"from {partner} import PartnerSlave")
     dest = Path(dest)
     if dest.suffix != ".fmu":
         dest = dest / f"{stem}.fmu"
@@ -68,12 +74,16 @@ def build_script_fmu(source: Path, class_name: str, stem: str, dest) -> Path:
     with tempfile.TemporaryDirectory(prefix=f"ffrf_{stem}_") as tmp:
         script = Path(tmp) / f"{module}.py"
         script.write_text(text, encoding="utf-8")
+        shipped = Path(tmp) / f"{partner}.py"
+        shipped.write_bytes(PARTNER_SOURCE.read_bytes())
         saved = list(sys.path)
         try:
-            out = FmuBuilder.build_FMU(script, dest=dest, canHandleVariableCommunicationStepSize=True,
+            out = FmuBuilder.build_FMU(script, dest=dest, project_files=[shipped],
+                                       canHandleVariableCommunicationStepSize=True,
                                        canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                                        canBeInstantiatedOnlyOncePerProcess=False)
         finally:
             sys.path[:] = saved
             sys.modules.pop(module, None)
+            sys.modules.pop(partner, None)
     return Path(out)

@@ -24,14 +24,13 @@ Monolithic reference: `crank_monolithic.py`.
 """
 from __future__ import annotations
 
-import hashlib
 import math
-import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from . import build_script_fmu
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE.parents[1] / "models" / "conrod_crank.toml"
@@ -76,44 +75,14 @@ class CrankRun:
     wall: float = 0.0
 
 
-def _slave(source: Path, cls: str) -> tuple[str, str, str]:
-    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:10]
-    text = source.read_text(encoding="utf-8").replace(f"class {cls}(Fmi2Slave):", f"class {cls}_{digest}(Fmi2Slave):")
-    return f"ffrf_{source.stem}_{digest}", f"{cls}_{digest}", text
-
-
-def _build(source: Path, cls: str, dest, default_name: str) -> Path:
-    """pythonfmu build of a slave script, module and class renamed with its digest (pythonfmu FMUs whose
-    scripts share a name collide in one process, docs/fmu.md)."""
-    from pythonfmu import FmuBuilder
-
-    module, _, text = _slave(source, cls)
-    dest = Path(dest)
-    if dest.suffix != ".fmu":
-        dest = dest / default_name
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="ffrf_crank_") as tmp:
-        script = Path(tmp) / f"{module}.py"
-        script.write_text(text, encoding="utf-8")
-        saved = list(sys.path)
-        try:
-            out = FmuBuilder.build_FMU(script, dest=dest, canHandleVariableCommunicationStepSize=True,
-                                       canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-                                       canBeInstantiatedOnlyOncePerProcess=False)
-        finally:
-            sys.path[:] = saved
-            sys.modules.pop(module, None)
-    return Path(out)
-
-
 def build_crank(dest) -> Path:
     """The crank FMU (crank_pin_slave.py) into `dest` (a .fmu file or a directory)."""
-    return _build(CRANK_SOURCE, "CrankPin", dest, "crank_pin.fmu")
+    return build_script_fmu(CRANK_SOURCE, "CrankPin", "crank_pin", dest)
 
 
 def build_piston(dest) -> Path:
     """The piston FMU (piston_slave.py) into `dest` (a .fmu file or a directory)."""
-    return _build(PISTON_SOURCE, "Piston", dest, "piston.fmu")
+    return build_script_fmu(PISTON_SOURCE, "Piston", "piston", dest)
 
 
 def _laws():

@@ -3,7 +3,7 @@
 `monolithic`: the conrod's standalone system (the C runtime's BodySystem, the same
 reduced body and small-eye spring), the crank pin's motion evaluated exactly at every step, and the
 piston's equation m_p x'' = -f_y - F_gas(t) integrated together with the body by the body's
-first-order generalized-alpha (runtime/integrator.py: the same rho_inf, equations at t_{n+1}), as
+first-order generalized-alpha (simulate/partner.py; runtime/integrator.py: the same rho_inf, equations at t_{n+1}), as
 studies/stability/monolithic.py does for B5's hub: per step the piston's acceleration s at t_{n+1}
 fixes its position and velocity (affine in s), the far end of the spring for the body's step; the
 piston equation r(s) = m_p s + f_y(s) + F_gas(t_{n+1}) = 0 is solved by secant steps from the saved
@@ -32,9 +32,9 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
     scene when the caller has it (`reduced_body`), else reduced here."""
     from ..model import load_model
     from ..reduction import reduce_scene_body
-    from ..runtime.integrator import alpha_coefficients
     from ..runtime.ports import PortValues, StepFailure
     from ..simulate import build_system, whole_steps
+    from ..simulate.partner import PartnerDof
 
     crank_law, piston_law = _laws()
     model = load_model(model_path, list(overrides))
@@ -42,8 +42,7 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
     body = reduce_scene_body(model.body, scene).data if body is None else body
     node = {q.name: q.node for q in body.ports}
     n_steps, h = whole_steps(duration, h)
-    am, af, gamma = alpha_coefficients(scene.rho_inf)
-    beta = h * gamma * af / am
+    dof = PartnerDof(scene.rho_inf, h)  # the piston's (x, v)
     y0 = L_EYES
     far = {"x": 0.0, "v": 0.0, "a": 0.0}
     I3, z3 = np.eye(3), np.zeros(3)
@@ -60,32 +59,24 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
 
     t0 = time.perf_counter()
     system, _ = build_system(body, scene, model.body.origin, backend)
-    y, yd, a = np.zeros(2), np.zeros(2), np.zeros(2)  # piston (x, v), rates, generalized-alpha's a
-    c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
     rows, stopped = [], ""
     load = drive.m_p * drive.r * drive.omega**2 + drive.F_max  # the piston's force scale [N]
 
     def record(t):
         xN = system.xN  # the port frames' origins (BodySystem.port_array's r)
         ax, be = deformation(xN[node["big_eye"]], xN[node["small_eye"]], xN[node["mid_shank"]])
-        rows.append((t, crank_law.crank_motion(t, drive.omega, drive.T)[0], ax[0], be[0], y[0],
+        rows.append((t, crank_law.crank_motion(t, drive.omega, drive.T)[0], ax[0], be[0], dof.y[0],
                      float(system.fN[node["small_eye"], 1])))
 
     record(0.0)
-    s_prev = 0.0
     for n in range(n_steps):
         t1 = (n + 1) * h
-        A0 = c1 * yd + c2 * a
-        D0 = h * ((1.0 - gamma) * a + gamma * A0)
+        dof.begin()
         snap = system.snapshot()
         F = gas(t1)
 
-        def state(s):
-            v1 = y[1] + D0[1] + beta * s
-            return y[0] + D0[0] + beta * v1, v1
-
         def residual(s):
-            far["x"], far["v"] = state(s)
+            far["x"], far["v"] = dof.state(s)
             far["a"] = s
             system.restore(snap)
             system.step(h, inputs)
@@ -93,24 +84,12 @@ def monolithic(drive: CrankDrive, h: float, duration: float, model_path=MODEL, o
             return drive.m_p * s + fy + F, max(drive.m_p * abs(s) + abs(fy) + abs(F), load)
 
         try:
-            s0 = s_prev
-            r_a, _ = residual(s0)
-            s1 = s0 - r_a / drive.m_p
-            r_b, scale = residual(s1)
-            it = 2
-            while abs(r_b) > PISTON_TOLERANCE * scale:
-                if it >= PISTON_ITERATIONS or r_b == r_a:
-                    raise StepFailure(t1, f"piston equation not solved in {it} body steps (residual {r_b:.3g} N)")
-                s0, s1, r_a = s1, s1 - r_b * (s1 - s0) / (r_b - r_a), r_b
-                r_b, scale = residual(s1)
-                it += 1
+            s1 = dof.solve(residual, drive.m_p, PISTON_TOLERANCE, PISTON_ITERATIONS, t1,
+                           "piston equation not solved in {it} body steps (residual {residual:.3g} N)")
         except StepFailure as exc:
             stopped = f"monolithic crank drive: {exc}"
             break
-        x1, v1 = state(s1)
-        yd_new = np.array([v1, s1])
-        a = (af / am) * yd_new + A0
-        y, yd, s_prev = np.array([x1, v1]), yd_new, s1
+        dof.accept(s1)
         record(t1)
     cols = np.array(rows).T
     return CrankRun(*cols, stopped=stopped, wall=time.perf_counter() - t0)

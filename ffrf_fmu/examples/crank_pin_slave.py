@@ -4,7 +4,8 @@ speed omega in T (docs/background.md B1's law) and at omega after it, so that it
 dead centre at the origin (the conrod's big eye in its reference position).
 
 Built by `ffrf_fmu.examples.crank_drive.build_crank` (module and class renamed with a digest of this
-file, docs/fmu.md). Only the standard library and pythonfmu are imported.
+file, docs/fmu.md). Only the standard library and pythonfmu are imported, through the slave
+the partners share (partner_slave.py, shipped beside this script).
 
 A prescribed motion (the crank is rigid and its speed imposed: the conrod's loads do not change it), so
 the FMU has no inputs; outputs, exact at every communication point (world axes):
@@ -15,12 +16,9 @@ the FMU has no inputs; outputs, exact at every communication point (world axes):
 and crank.angle, crank.speed. Joined to the conrod's big eye (translation motion-driven) as r, v, a:
 the body extrapolates them to second order over the step (docs/cosim.md, acceleration inputs).
 """
-import json
 import math
 
-from pythonfmu import Fmi2Slave, Real
-from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+from ffrf_fmu.examples.partner_slave import PartnerSlave
 
 PARAMETERS = {
     "crank.r": (0.01, "m", "crank radius (half the stroke)"),
@@ -47,34 +45,20 @@ def pin_motion(t, r, omega, T):
             [0.0, -r * ddth * s - r * dth * dth * c, r * ddth * c - r * dth * dth * s])
 
 
-class CrankPin(Fmi2Slave):
+class CrankPin(PartnerSlave):
 
-    author = "ffrf-fmu"
     DESCRIPTION = ("Rigid crank at an imposed speed (Wu-Haug run-up to crank.omega in crank.T): outputs the "
                    "crank pin's motion pin.r, pin.v, pin.a (world axes), exact at the communication points; no inputs.")
+    PARAMETERS = PARAMETERS
+    EXPERIMENT = (0.0, 0.01, 1e-5)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.description = self.DESCRIPTION
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=0.01, step_size=1e-5)
-        self.p = {k: v[0] for k, v in PARAMETERS.items()}
-        self.t = 0.0
-        reg = self.register_variable
-        for name, (default, unit, desc) in PARAMETERS.items():
-            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
-                nested=False)
-
-        def out(name, desc, getter):
-            reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=getter(), description=desc, getter=getter), nested=False)
-
         for k, (fld, desc) in enumerate((("r", "position [m]"), ("v", "velocity [m/s]"), ("a", "acceleration [m/s2]"))):
             for i in range(3):
-                out(f"pin.{fld}[{i + 1}]", f"crank pin {desc}, world axes", lambda k=k, i=i: self._pin()[k][i])
-        out("crank.angle", "crank angle from top dead centre [rad]", lambda: self._motion()[0])
-        out("crank.speed", "crank speed [rad/s]", lambda: self._motion()[1])
+                self.output(f"pin.{fld}[{i + 1}]", f"crank pin {desc}, world axes", lambda k=k, i=i: self._pin()[k][i])
+        self.output("crank.angle", "crank angle from top dead centre [rad]", lambda: self._motion()[0])
+        self.output("crank.speed", "crank speed [rad/s]", lambda: self._motion()[1])
 
     def _motion(self):
         return crank_motion(self.t, self.p["crank.omega"], self.p["crank.T"])
@@ -82,23 +66,6 @@ class CrankPin(Fmi2Slave):
     def _pin(self):
         return pin_motion(self.t, self.p["crank.r"], self.p["crank.omega"], self.p["crank.T"])
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.t = float(start_time)
-
     def do_step(self, current_time, step_size):
         self.t = current_time + step_size
         return True
-
-    def _get_fmu_state(self):
-        return {"p": dict(self.p), "t": self.t}
-
-    def _set_fmu_state(self, state):
-        self.p, self.t = dict(state["p"]), float(state["t"])
-
-    @staticmethod
-    def _fmu_state_to_bytes(state):
-        return json.dumps(state).encode("utf-8")
-
-    @staticmethod
-    def _fmu_state_from_bytes(state):
-        return json.loads(state.decode("utf-8"))

@@ -4,7 +4,8 @@ speed profile, and joined to the beam root by a torsional shaft (stiffness k, da
 
 Built by `ffrf_fmu.examples.build_hub_drive`, which renames the module and the class with a digest
 of this file (pythonfmu FMUs whose scripts share a name collide in one process, docs/fmu.md). Only
-the standard library and pythonfmu are imported: the FMU runs wherever pythonfmu runs.
+the standard library and pythonfmu are imported (with partner_slave.py, the slave the partners share,
+shipped beside this script): the FMU runs wherever pythonfmu runs.
 
 Port `hub` follows docs/fmu.md, seen from the drive:
 - translation force-driven: outputs hub.r = 0, hub.v = 0 (the bearing holds the hub axis at the
@@ -33,12 +34,11 @@ on the hub `hub_frame.t` (world axes, held over the step; only the Z component a
     J domega/dt = tau_m - tau_s + hub_frame.t[3].
 Outputs are the values at the end of the step (no direct feedthrough).
 """
-import json
 import math
 
-from pythonfmu import Fmi2Slave, Real
-from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+from pythonfmu.enums import Fmi2Status
+
+from ffrf_fmu.examples.partner_slave import PartnerSlave
 
 PARAMETERS = {
     # name: (default, unit, description)
@@ -69,88 +69,59 @@ def speed_reference(t, omega, T):
     return omega * (tau - math.sin(2.0 * math.pi * tau) / (2.0 * math.pi))
 
 
-class HubDrive(Fmi2Slave):
+class HubDrive(PartnerSlave):
 
-    author = "ffrf-fmu"
     DESCRIPTION = ("Hub inertia + motor + PI speed controller (Wu-Haug speed profile) + torsional shaft to "
                    "the beam root. Port hub (docs/fmu.md): rotation motion-driven (inputs R, w of the beam root; "
                    "output t = moment of the beam on the hub), translation force-driven (r = v = 0 outputs, "
                    "f input unused). Inputs are values at t_c; the beam angle is extrapolated with its rate "
                    "over the step. RK4 substeps. Outputs at the step end, no direct feedthrough.")
+    PARAMETERS = PARAMETERS
+    EXPERIMENT = (0.0, 20.0, 2e-3)
+    STATE = ("p", "R", "w", "f", "x", "t", "out", "torque_on_drive", "t_ext", "dw")  # complete
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.description = self.DESCRIPTION
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=2e-3)
-        self.p = {k: v[0] for k, v in PARAMETERS.items()}
         self.R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]  # row-major, R[i,j] = R[3(i-1) + j-1]
         self.w = [0.0, 0.0, 0.0]
         self.f = [0.0, 0.0, 0.0]
         self.x = [0.0, 0.0, 0.0]  # theta, omega, z
-        self.t = 0.0
         self.out = {k: 0.0 for k in OUTPUTS}
         self.torque_on_drive = [0.0, 0.0, 0.0]
         self.t_ext = [0.0, 0.0, 0.0]  # hub_frame.t: external moment on the hub (compliant coupling)
         self.dw = 0.0  # hub angular acceleration at the step end
-        reg = self.register_variable
-        for name, (default, unit, desc) in PARAMETERS.items():
-            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
-                nested=False)
+        out, inp = self.output, self.input
         for i in range(3):
-            reg(Real(f"hub.r[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0, description="hub position (fixed bearing) [m]",
-                     getter=lambda: 0.0), nested=False)
+            out(f"hub.r[{i + 1}]", "hub position (fixed bearing) [m]", lambda: 0.0, 0.0)
         for i in range(3):
             for j in range(3):
-                reg(Real(f"hub.R[{i + 1},{j + 1}]", causality=Fmi2Causality.input,
-                         variability=Fmi2Variability.continuous, start=1.0 if i == j else 0.0,
-                         description="beam root frame: world component i of nodal axis j",
-                         getter=lambda k=3 * i + j: self.R[k], setter=lambda v, k=3 * i + j: self.R.__setitem__(k, float(v))),
-                    nested=False)
+                inp(f"hub.R[{i + 1},{j + 1}]", "beam root frame: world component i of nodal axis j", "R", 3 * i + j,
+                    1.0 if i == j else 0.0)
         for i in range(3):
-            reg(Real(f"hub.v[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0, description="hub velocity (fixed bearing) [m/s]",
-                     getter=lambda: 0.0), nested=False)
+            out(f"hub.v[{i + 1}]", "hub velocity (fixed bearing) [m/s]", lambda: 0.0, 0.0)
         for i in range(3):
-            reg(Real(f"hub.w[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
-                     start=0.0, description="beam root angular velocity, world axes [rad/s]",
-                     getter=lambda k=i: self.w[k], setter=lambda v, k=i: self.w.__setitem__(k, float(v))), nested=False)
+            inp(f"hub.w[{i + 1}]", "beam root angular velocity, world axes [rad/s]", "w", i)
         for i in range(3):
-            reg(Real(f"hub.f[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
-                     start=0.0, description="force of the beam on the hub (taken by the bearing, unused) [N]",
-                     getter=lambda k=i: self.f[k], setter=lambda v, k=i: self.f.__setitem__(k, float(v))), nested=False)
+            inp(f"hub.f[{i + 1}]", "force of the beam on the hub (taken by the bearing, unused) [N]", "f", i)
         for i in range(3):
-            reg(Real(f"hub.t[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0,
-                     description="moment of the beam ON the hub = -(shaft torque on the beam), world axes [N.m]",
-                     getter=lambda k=i: self.torque_on_drive[k]), nested=False)
+            out(f"hub.t[{i + 1}]", "moment of the beam ON the hub = -(shaft torque on the beam), world axes [N.m]",
+                lambda k=i: self.torque_on_drive[k], 0.0)
         for i in range(3):
             for j in range(3):
-                reg(Real(f"hub_frame.R[{i + 1},{j + 1}]", causality=Fmi2Causality.output,
-                         variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
-                         start=1.0 if i == j else 0.0,
-                         description="hub frame (rotation about Z by the hub angle): world component i of axis j",
-                         getter=lambda a=i, b=j: self._hub_R()[3 * a + b]), nested=False)
+                out(f"hub_frame.R[{i + 1},{j + 1}]",
+                    "hub frame (rotation about Z by the hub angle): world component i of axis j",
+                    lambda a=i, b=j: self._hub_R()[3 * a + b], 1.0 if i == j else 0.0)
         for i in range(3):
-            reg(Real(f"hub_frame.w[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0, description="hub angular velocity, world axes [rad/s]",
-                     getter=lambda k=i: self.x[1] if k == 2 else 0.0), nested=False)
+            out(f"hub_frame.w[{i + 1}]", "hub angular velocity, world axes [rad/s]",
+                lambda k=i: self.x[1] if k == 2 else 0.0, 0.0)
         for i in range(3):
-            reg(Real(f"hub_frame.dw[{i + 1}]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0, description="hub angular acceleration, world axes [rad/s2]",
-                     getter=lambda k=i: self.dw if k == 2 else 0.0), nested=False)
+            out(f"hub_frame.dw[{i + 1}]", "hub angular acceleration, world axes [rad/s2]",
+                lambda k=i: self.dw if k == 2 else 0.0, 0.0)
         for i in range(3):
-            reg(Real(f"hub_frame.t[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
-                     start=0.0, description="external moment on the hub, world axes (compliant coupling: minus the "
-                     "beam's hub.t; only Z acts) [N.m]",
-                     getter=lambda k=i: self.t_ext[k], setter=lambda v, k=i: self.t_ext.__setitem__(k, float(v))),
-                nested=False)
+            inp(f"hub_frame.t[{i + 1}]", "external moment on the hub, world axes (compliant coupling: minus the "
+                "beam's hub.t; only Z acts) [N.m]", "t_ext", i)
         for name, (unit, desc) in OUTPUTS.items():
-            reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=0.0, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.out[n]), nested=False)
+            out(name, f"{desc} [{unit}]", lambda n=name: self.out[n], 0.0)
 
     # ------------------------------------------------------------------ dynamics
     def _hub_R(self):
@@ -179,9 +150,6 @@ class HubDrive(Fmi2Slave):
                          "drive.shaft_torque": tau_s, "drive.integral": z})
         self.torque_on_drive = [0.0, 0.0, -tau_s]
         self.dw = self._rhs(t, self.x, theta_b, omega_b)[1]
-
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.t = float(start_time)
 
     def exit_initialization_mode(self):
         self._update_outputs(self.t, self._beam_angle(self.x[0]), self.w[2])
@@ -212,23 +180,3 @@ class HubDrive(Fmi2Slave):
         self.x, self.t = x, current_time + step_size
         self._update_outputs(self.t, tb(self.t), omega_b)
         return True
-
-    # ------------------------------------------------------------------ FMU state (complete)
-    def _get_fmu_state(self):
-        return {"p": dict(self.p), "R": list(self.R), "w": list(self.w), "f": list(self.f), "x": list(self.x),
-                "t": self.t, "out": dict(self.out), "tq": list(self.torque_on_drive), "te": list(self.t_ext),
-                "dw": self.dw}
-
-    def _set_fmu_state(self, state):
-        self.p, self.R, self.w, self.f = dict(state["p"]), list(state["R"]), list(state["w"]), list(state["f"])
-        self.x, self.t, self.out = list(state["x"]), float(state["t"]), dict(state["out"])
-        self.torque_on_drive = list(state["tq"])
-        self.t_ext, self.dw = list(state["te"]), float(state["dw"])
-
-    @staticmethod
-    def _fmu_state_to_bytes(state):
-        return json.dumps(state).encode("utf-8")
-
-    @staticmethod
-    def _fmu_state_from_bytes(state):
-        return json.loads(state.decode("utf-8"))

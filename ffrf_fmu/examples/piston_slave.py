@@ -3,7 +3,8 @@ a piston of mass m sliding along the cylinder axis (world Y), loaded by the gas 
 gudgeon pin's spring, whose spring lives in the conrod FMU (its small eye `compliant`, docs/cosim.md).
 
 Built by `ffrf_fmu.examples.crank_drive.build_piston` (module and class renamed with a digest of this
-file, docs/fmu.md). Only the standard library and pythonfmu are imported.
+file, docs/fmu.md). Only the standard library and pythonfmu are imported, through the slave
+the partners share (partner_slave.py, shipped beside this script).
 
 Seen from the piston (port `pin`, docs/fmu.md's fields):
 - outputs pin.r, pin.v, pin.a (world axes): the gudgeon pin's centre (0, y0 + x, 0), its velocity and
@@ -21,12 +22,11 @@ Inputs between communication points: pin.f held at its value at t_c (a Jacobi ma
 force is evaluated at each substep. Integration: classical Runge-Kutta with n = ceil(H / solver.substep)
 substeps. Outputs are the values at the end of the step (no direct feedthrough).
 """
-import json
 import math
 
-from pythonfmu import Fmi2Slave, Real
-from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
+from pythonfmu.enums import Fmi2Status
+
+from ffrf_fmu.examples.partner_slave import PartnerSlave
 
 PARAMETERS = {
     "piston.m": (0.2, "kg", "piston mass (with its gudgeon pin)"),
@@ -57,33 +57,21 @@ def gas_force(t, omega, T, F_max, width):
     return F_max * math.sin(math.pi * phi / width) ** 4
 
 
-class Piston(Fmi2Slave):
+class Piston(PartnerSlave):
 
-    author = "ffrf-fmu"
     DESCRIPTION = ("Piston mass on the cylinder axis (world Y) with the gas force of a firing engine; port pin: "
                    "outputs the gudgeon pin's motion (r, v, a; R = I, w = dw = 0), input the pin spring's force "
                    "on the conrod (f). Inputs held over the step, RK4 substeps, outputs at the step end.")
+    PARAMETERS = PARAMETERS
+    EXPERIMENT = (0.0, 0.01, 1e-5)
+    STATE = ("p", "f", "x", "t", "acc")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.description = self.DESCRIPTION
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=0.01, step_size=1e-5)
-        self.p = {k: v[0] for k, v in PARAMETERS.items()}
         self.f = [0.0, 0.0, 0.0]
         self.x = [0.0, 0.0]  # displacement, velocity
         self.acc = 0.0
-        self.t = 0.0
-        reg = self.register_variable
-        for name, (default, unit, desc) in PARAMETERS.items():
-            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
-                nested=False)
-
-        def out(name, desc, getter):
-            reg(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                     initial=Fmi2Initial.exact, start=getter(), description=desc, getter=getter), nested=False)
-
+        out = self.output
         for i in range(3):
             out(f"pin.r[{i + 1}]", "gudgeon pin centre, world axes [m]",
                 lambda k=i: self.p["piston.y0"] + self.x[0] if k == 1 else 0.0)
@@ -100,9 +88,7 @@ class Piston(Fmi2Slave):
         for i in range(3):
             out(f"pin.dw[{i + 1}]", "piston angular acceleration (0) [rad/s2]", lambda: 0.0)
         for i in range(3):
-            reg(Real(f"pin.f[{i + 1}]", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
-                     start=0.0, description="force of the pin spring ON THE CONROD, world axes [N]",
-                     getter=lambda k=i: self.f[k], setter=lambda v, k=i: self.f.__setitem__(k, float(v))), nested=False)
+            self.input(f"pin.f[{i + 1}]", "force of the pin spring ON THE CONROD, world axes [N]", "f", i)
         out("piston.x", "piston displacement from y0 along Y [m]", lambda: self.x[0])
         out("piston.side_force", "force of the piston on the cylinder wall across the axis (Z) [N]", lambda: -self.f[2])
         out("gas.force", "gas force on the piston (towards the crank) [N]", lambda: self._gas(self.t))
@@ -113,9 +99,6 @@ class Piston(Fmi2Slave):
 
     def _rhs(self, t, x):
         return [x[1], (-self.f[1] - self._gas(t)) / self.p["piston.m"]]
-
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.t = float(start_time)
 
     def exit_initialization_mode(self):
         self.acc = self._rhs(self.t, self.x)[1]
@@ -137,18 +120,3 @@ class Piston(Fmi2Slave):
         self.x, self.t = x, current_time + step_size
         self.acc = self._rhs(self.t, self.x)[1]
         return True
-
-    def _get_fmu_state(self):
-        return {"p": dict(self.p), "f": list(self.f), "x": list(self.x), "t": self.t, "acc": self.acc}
-
-    def _set_fmu_state(self, state):
-        self.p, self.f, self.x = dict(state["p"]), list(state["f"]), list(state["x"])
-        self.t, self.acc = float(state["t"]), float(state["acc"])
-
-    @staticmethod
-    def _fmu_state_to_bytes(state):
-        return json.dumps(state).encode("utf-8")
-
-    @staticmethod
-    def _fmu_state_from_bytes(state):
-        return json.loads(state.decode("utf-8"))

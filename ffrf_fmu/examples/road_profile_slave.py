@@ -16,16 +16,17 @@ standard library and pythonfmu; tests/test_car_body_system.py checks the two agr
 drives over the bump hits it with the rear wheel of the same side `road.wheelbase_time` seconds later
 (0: never, the car body model's scene `bump`).
 
-Built by `ffrf_fmu.examples.build_road_profile`, which renames the class with a digest of this file
-(pythonfmu FMUs whose scripts share a name collide in one process, docs/fmu.md). Outputs are the
-values at the end of the step (no inputs: an exact signal).
+Built by `ffrf_fmu.examples.build_road_profile`, which renames the module and the class with a
+digest of this file and of partner_slave.py, shipped beside it (pythonfmu FMUs whose scripts share a
+name collide in one process, docs/fmu.md). Outputs are the values at the end of the step (no inputs:
+an exact signal).
 """
-import json
 import math
 
-from pythonfmu import Fmi2Slave, Real
-from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu import Real
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+
+from ffrf_fmu.examples.partner_slave import PartnerSlave
 
 WHEELS = ("front_left", "front_right", "rear_left", "rear_right")
 REAR_OF = {1: 3, 2: 4}  # the rear wheel on the side of a front one
@@ -47,39 +48,30 @@ def bump(t, value, t_start, duration):
     return value * sn**4, 4.0 * value * k * sn**3 * cs, 4.0 * value * k * k * (3.0 * sn * sn * cs * cs - sn**4)
 
 
-class RoadProfile(Fmi2Slave):
+class RoadProfile(PartnerSlave):
 
-    author = "ffrf-fmu"
     DESCRIPTION = ("Road heights under four wheels (front_left, front_right, rear_left, rear_right): W.r[3], W.v[3], "
                    "W.a[3], flat but for a sin^4 bump under road.bump.wheel (1..4) from road.bump.t_start for "
                    "road.bump.duration s, the rear wheel of that side road.wheelbase_time s later (0: never). "
                    "Outputs at the step end; no inputs.")
+    PARAMETERS = PARAMETERS
+    EXPERIMENT = (0.0, 2.0, 1e-3)
+    STATE = ("p", "wheel", "t", "z")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.description = self.DESCRIPTION
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=2.0, step_size=1e-3)
-        self.p = {k: v[0] for k, v in PARAMETERS.items()}
         self.wheel = 1
-        self.t = 0.0
         self.z = [[0.0, 0.0, 0.0] for _ in WHEELS]
-        reg = self.register_variable
-        for name, (default, unit, desc) in PARAMETERS.items():
-            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
-                nested=False)
-        reg(Real("road.bump.wheel", start=1.0, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                    initial=Fmi2Initial.exact, description="the bumped wheel: 1 front_left, 2 front_right, 3 rear_left, "
-                    "4 rear_right (a Real: SSP parameter sets carry reals)", getter=lambda: float(self.wheel),
+        self.register_variable(
+            Real("road.bump.wheel", start=1.0, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+                 initial=Fmi2Initial.exact, description="the bumped wheel: 1 front_left, 2 front_right, 3 rear_left, "
+                 "4 rear_right (a Real: SSP parameter sets carry reals)", getter=lambda: float(self.wheel),
                  setter=lambda v: setattr(self, "wheel", int(round(float(v))))),
             nested=False)
         for w, wheel in enumerate(WHEELS):
             for k, (fld, unit) in enumerate((("r", "m"), ("v", "m/s"), ("a", "m/s2"))):
-                reg(Real(f"{wheel}.{fld}[3]", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                         initial=Fmi2Initial.exact, start=0.0,
-                         description=f"road under {wheel}: vertical {('height', 'rate', 'acceleration')[k]} [{unit}]",
-                         getter=lambda w=w, k=k: self.z[w][k]), nested=False)
+                self.output(f"{wheel}.{fld}[3]", f"road under {wheel}: vertical {('height', 'rate', 'acceleration')[k]} "
+                            f"[{unit}]", lambda w=w, k=k: self.z[w][k], 0.0)
 
     def _update(self, t):
         p = self.p
@@ -89,9 +81,6 @@ class RoadProfile(Fmi2Slave):
         rear = REAR_OF.get(self.wheel)
         if rear and p["road.wheelbase_time"] > 0.0:
             self.z[rear - 1] = list(bump(t - p["road.wheelbase_time"], *law))
-
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.t = float(start_time)
 
     def exit_initialization_mode(self):
         if not 1 <= self.wheel <= 4 or self.p["road.bump.duration"] <= 0.0:
@@ -104,18 +93,3 @@ class RoadProfile(Fmi2Slave):
         self.t = current_time + step_size
         self._update(self.t)
         return True
-
-    def _get_fmu_state(self):
-        return {"p": dict(self.p), "wheel": self.wheel, "t": self.t, "z": [list(z) for z in self.z]}
-
-    def _set_fmu_state(self, state):
-        self.p, self.wheel, self.t = dict(state["p"]), int(state["wheel"]), float(state["t"])
-        self.z = [list(z) for z in state["z"]]
-
-    @staticmethod
-    def _fmu_state_to_bytes(state):
-        return json.dumps(state).encode("utf-8")
-
-    @staticmethod
-    def _fmu_state_from_bytes(state):
-        return json.loads(state.decode("utf-8"))

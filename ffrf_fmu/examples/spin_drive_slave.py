@@ -14,15 +14,13 @@ output `unbalance.f[i]` (world axes) for the disc's force input. The rotor holds
 step (docs/fmu.md), so the co-simulated unbalance lags the standalone one by one communication step:
 a phase lag psi' H that moves the whirl's phase, not its amplitude envelope.
 
-Built by `ffrf_fmu.examples.build_spin_drive` (class renamed with a digest of this file). Outputs are
+Built by `ffrf_fmu.examples.build_spin_drive` (module and class renamed with a digest of this file;
+partner_slave.py, the slave the partners share, shipped beside it). Outputs are
 the values at the end of the step; no inputs.
 """
-import json
 import math
 
-from pythonfmu import Fmi2Slave, Real
-from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+from ffrf_fmu.examples.partner_slave import PartnerSlave
 
 PARAMETERS = {
     # name: (default, unit, description)
@@ -41,43 +39,34 @@ def haug_spinup(t, omega, T):
     return omega * T * (t / T - 0.5), omega, 0.0
 
 
-class SpinDrive(Fmi2Slave):
+class SpinDrive(PartnerSlave):
 
-    author = "ffrf-fmu"
     DESCRIPTION = ("Prescribed Wu-Haug spin-up about world X (drive.R, drive.w, drive.dw) and the inertia force of a "
                    "rotating unbalance m e at angle 0 along +Y (unbalance.f, world axes). Outputs at the step end; "
                    "no inputs.")
+    PARAMETERS = PARAMETERS
+    EXPERIMENT = (0.0, 10.0, 5e-4)
+    STATE = ("p", "t", "psi")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.description = self.DESCRIPTION
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=5e-4)
-        self.p = {k: v[0] for k, v in PARAMETERS.items()}
-        self.t = 0.0
         self.psi = (0.0, 0.0, 0.0)
-        reg = self.register_variable
-        for name, (default, unit, desc) in PARAMETERS.items():
-            reg(Real(name, start=default, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                     initial=Fmi2Initial.exact, description=f"{desc} [{unit}]",
-                     getter=lambda n=name: self.p[n], setter=lambda v, n=name: self.p.__setitem__(n, float(v))),
-                nested=False)
-        out = lambda name, desc, getter, start=0.0: reg(Real(  # noqa: E731
-            name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
-            start=start, description=desc, getter=getter), nested=False)
+        out = self.output
         for i in range(3):
             for j in range(3):
                 out(f"drive.R[{i + 1},{j + 1}]", "drive frame: world component i of axis j",
                     lambda a=i, b=j: self._R()[3 * a + b], 1.0 if i == j else 0.0)
         for i in range(3):
-            out(f"drive.w[{i + 1}]", "drive angular velocity, world axes [rad/s]", lambda k=i: self.psi[1] if k == 0 else 0.0)
+            out(f"drive.w[{i + 1}]", "drive angular velocity, world axes [rad/s]", lambda k=i: self.psi[1] if k == 0 else 0.0,
+                0.0)
         for i in range(3):
             out(f"drive.dw[{i + 1}]", "drive angular acceleration, world axes [rad/s2]",
-                lambda k=i: self.psi[2] if k == 0 else 0.0)
+                lambda k=i: self.psi[2] if k == 0 else 0.0, 0.0)
         for i in range(3):
             out(f"unbalance.f[{i + 1}]", "inertia force of the unbalance on the disc, world axes [N]",
-                lambda k=i: self._force()[k])
-        out("drive.angle", "drive angle [rad]", lambda: self.psi[0])
-        out("drive.speed", "drive speed [rad/s]", lambda: self.psi[1])
+                lambda k=i: self._force()[k], 0.0)
+        out("drive.angle", "drive angle [rad]", lambda: self.psi[0], 0.0)
+        out("drive.speed", "drive speed [rad/s]", lambda: self.psi[1], 0.0)
 
     def _R(self):
         c, s = math.cos(self.psi[0]), math.sin(self.psi[0])
@@ -88,9 +77,6 @@ class SpinDrive(Fmi2Slave):
         me, c, s = self.p["unbalance.me"], math.cos(psi), math.sin(psi)
         return [0.0, me * (d * d * c + dd * s), me * (d * d * s - dd * c)]
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.t = float(start_time)
-
     def exit_initialization_mode(self):
         self.psi = haug_spinup(self.t, self.p["profile.omega"], self.p["profile.T"])
 
@@ -98,17 +84,3 @@ class SpinDrive(Fmi2Slave):
         self.t = current_time + step_size
         self.psi = haug_spinup(self.t, self.p["profile.omega"], self.p["profile.T"])
         return True
-
-    def _get_fmu_state(self):
-        return {"p": dict(self.p), "t": self.t, "psi": list(self.psi)}
-
-    def _set_fmu_state(self, state):
-        self.p, self.t, self.psi = dict(state["p"]), float(state["t"]), tuple(state["psi"])
-
-    @staticmethod
-    def _fmu_state_to_bytes(state):
-        return json.dumps(state).encode("utf-8")
-
-    @staticmethod
-    def _fmu_state_from_bytes(state):
-        return json.loads(state.decode("utf-8"))

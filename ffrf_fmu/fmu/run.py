@@ -259,27 +259,25 @@ def run_fmu(fmu_path, scene, inputs: Callable | None = None, comm_step: float | 
         log.append(f"[{dec(category)}] {dec(message)}")
 
     t0, c0 = time.perf_counter(), time.process_time()
-    if fmi3:
-        t, columns = _run_fmu3(fmu_path, scene, table, start_values, [n for n in record if n not in table.dtype.names],
-                               H, log)
+
+    def finish(t, columns, recorded_inputs) -> FmuRun:
+        """The run of times t and columns, its recorded inputs taken from the signal at t."""
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        recorded_inputs = [n for n in table.dtype.names[1:] if n in record]
         if recorded_inputs:
             exact = fmu_input_table(fmu_path, inputs, t)
             columns.update({n: np.asarray(exact[n], dtype=float) for n in recorded_inputs})
         reached = bool(abs(t[-1] - scene.duration) <= 1e-9 * max(1.0, scene.duration))
         return FmuRun(t, columns, reached, wall, cpu, log)
+
+    if fmi3:
+        t, columns = _run_fmu3(fmu_path, scene, table, start_values, [n for n in record if n not in table.dtype.names],
+                               H, log)
+        return finish(t, columns, [n for n in table.dtype.names[1:] if n in record])
     res = fmpy.simulate_fmu(str(fmu_path), start_time=0.0, stop_time=scene.duration, output_interval=H,
                             input=table, output=list(record), start_values=start_values, debug_logging=True,
                             logger=logger)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     t = np.asarray(res["time"], dtype=float)
     keep = np.concatenate([np.diff(t) > 0, [True]])
     t = t[keep]
     columns = {n: np.asarray(res[n], dtype=float)[keep] for n in res.dtype.names if n != "time"}
-    recorded_inputs = [n for n in table.dtype.names[1:] if n in columns]
-    if recorded_inputs:
-        exact = fmu_input_table(fmu_path, inputs, t)
-        columns.update({n: np.asarray(exact[n], dtype=float) for n in recorded_inputs})
-    reached = bool(abs(t[-1] - scene.duration) <= 1e-9 * max(1.0, scene.duration))
-    return FmuRun(t, columns, reached, wall, cpu, log)
+    return finish(t, columns, [n for n in table.dtype.names[1:] if n in columns])

@@ -67,20 +67,19 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         path = join(dp, pname)
         r.port_name(ports, path, pname)
         r.table(d, path, DRIVE_KEYS)
-        rotation = translation = None
-        if "rotation" in d:
-            rp = join(path, "rotation")
-            require_part(rp, pname, "rotation", "motion", "only a motion-driven part can be prescribed")
-            rt = r.table(d["rotation"], rp, ROTATION_DRIVE_KEYS, required=("axis", "angle"))
-            rotation = RotationDrive(r.vec3(rt, rp, "axis", ROTATION_DRIVE_KEYS["axis"], unit=True),
-                                     _parse_time_function(r, rt, rp, "angle"))
-        if "translation" in d:
-            tp = join(path, "translation")
-            require_part(tp, pname, "translation", "motion", "only a motion-driven part can be prescribed")
-            tt = r.table(d["translation"], tp, TRANSLATION_DRIVE_KEYS, required=("direction", "displacement"))
-            translation = TranslationDrive(r.vec3(tt, tp, "direction", TRANSLATION_DRIVE_KEYS["direction"], unit=True),
-                                           _parse_time_function(r, tt, tp, "displacement"))
-        drives.append(Drive(pname, rotation, translation))
+
+        def part_drive(part, keys, cls, unit_vector, law):
+            """The drive of one part: a unit vector and a time function, the part motion-driven."""
+            if part not in d:
+                return None
+            pp = join(path, part)
+            require_part(pp, pname, part, "motion", "only a motion-driven part can be prescribed")
+            pt = r.table(d[part], pp, keys, required=(unit_vector, law))
+            return cls(r.vec3(pt, pp, unit_vector, keys[unit_vector], unit=True), _parse_time_function(r, pt, pp, law))
+
+        drives.append(Drive(pname, part_drive("rotation", ROTATION_DRIVE_KEYS, RotationDrive, "axis", "angle"),
+                            part_drive("translation", TRANSLATION_DRIVE_KEYS, TranslationDrive, "direction",
+                                       "displacement")))
 
     loads = []
     lv = t.get("loads", [])

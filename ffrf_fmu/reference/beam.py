@@ -58,6 +58,20 @@ def newton_update(x: np.ndarray, R: np.ndarray, d: np.ndarray, length: float, to
             bool(np.abs(d[:, :3]).max() < tol * length and np.abs(d[:, 3:]).max() < tol))
 
 
+def newton(x: np.ndarray, R: np.ndarray, correction, length: float, tol: float, max_iterations: int):
+    """Static Newton from (x, R): correction(x, R) gives d (nn, 6), applied by newton_update, until it
+    converges. (x, R, converged); not converged when d is None (a singular tangent) or not finite, or
+    after max_iterations corrections."""
+    for _ in range(max_iterations):
+        d = correction(x, R)
+        if d is None or not np.all(np.isfinite(d)):
+            return x, R, False
+        x, R, converged = newton_update(x, R, d, length, tol)
+        if converged:
+            return x, R, True
+    return x, R, False
+
+
 def coefficients(p: np.ndarray, derivatives: bool = False) -> np.ndarray:
     """Coefficient functions of p = phi^2, stacked on a new last axis.
 

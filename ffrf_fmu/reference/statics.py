@@ -10,7 +10,7 @@ import numpy as np
 from ..model import Body
 from ..runtime.rotation import skew
 from .assembly import _Banded, _internal
-from .beam import newton_update
+from .beam import newton
 from .mesh import Mesh
 
 
@@ -53,28 +53,21 @@ def relaxed_shape(mesh: Mesh, body: Body, displacements: dict, *, load_steps: in
     for j, (k, e, _) in enumerate(displaced):
         C[j, k, :3] = e
     C = C.reshape(len(displaced), -1)
-    d = np.zeros((nn, 6))
     for step in range(1, load_steps + 1):
-        for _ in range(max_iterations):
+        def correction(x, R, step=step):
             fint, st = _internal(mesh, x, R)
             try:
                 fac = band.factor(mesh.elements.tangent_from(st), None)
             except np.linalg.LinAlgError:  # the fixed parts leave the body a mechanism: no unique shape
-                d[:] = np.inf
-                break
+                return None
             y1 = band.solve(fac, -fint.ravel())
             Y2 = np.column_stack([band.solve(fac, c) for c in C] or [np.zeros(len(y1))])[:, : len(C)]
             gap = np.array([step / load_steps * size - e @ (x[k] - mesh.X[k]) for k, e, size in displaced])
             lam = np.linalg.solve(C @ Y2, gap - C @ y1)
-            d = (y1 + Y2 @ lam).reshape(nn, 6)
-            if not np.all(np.isfinite(d)):
-                break
-            x, R, converged = newton_update(x, R, d, mesh.length, tol)
-            if converged:
-                break
-        else:
-            d[:] = np.inf
-        if not np.all(np.isfinite(d)):
+            return (y1 + Y2 @ lam).reshape(nn, 6)
+
+        x, R, converged = newton(x, R, correction, mesh.length, tol, max_iterations)
+        if not converged:
             raise RuntimeError(f"reference: initial port displacements {sorted(displacements)}: no static equilibrium "
                                f"of the deformed body ({max_iterations} Newton iterations); smaller displacements, or "
                                "ports whose displacements the body can hold")
@@ -127,18 +120,16 @@ def static_reference(
     R = np.repeat(mesh.Lam0[None], nn, axis=0)
     for step in range(1, load_steps + 1):
         lam = step / load_steps
-        for it in range(max_iterations):
+
+        def correction(x, R, lam=lam):
             fint, st = _internal(mesh, x, R)
             Tmat = np.einsum("nji,nj->ni", R, lam * Ttot)
             r = fint.copy()
             r[:, :3] -= lam * Ftot
             r[:, 3:] -= Tmat
-            Ke = mesh.elements.tangent_from(st)
-            Kr = -skew(Tmat)
-            d = band.solve(band.factor(Ke, Kr), -r.ravel()).reshape(nn, 6)
-            x, R, converged = newton_update(x, R, d, mesh.length, tol)
-            if converged:
-                break
-        else:
+            return band.solve(band.factor(mesh.elements.tangent_from(st), -skew(Tmat)), -r.ravel()).reshape(nn, 6)
+
+        x, R, converged = newton(x, R, correction, mesh.length, tol, max_iterations)
+        if not converged:
             raise RuntimeError(f"reference: static Newton did not converge at load factor {lam:.3g}")
     return StaticResult(r=x, R=R @ mesh.Lam0.T)

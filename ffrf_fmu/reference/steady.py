@@ -23,7 +23,7 @@ import numpy as np
 
 from ..runtime.drives import evaluate
 from ..runtime.rotation import cross, expm, skew
-from .beam import newton_update
+from .beam import newton
 
 
 def spin_of(scene, t0: float = 0.0) -> tuple[np.ndarray, float, np.ndarray]:
@@ -69,7 +69,7 @@ def steady_spin_state(mesh, sc, w, phi: float, F: np.ndarray, T: np.ndarray, *, 
         Kc[:, 0:3, 0:3] = diag[:-1, None, None] * W2
         Kc[:, 6:9, 6:9] = diag[1:, None, None] * W2
         Kc[:, 0:3, 6:9] = Kc[:, 6:9, 0:3] = mesh.mo[:, None, None] * W2
-        for it in range(max_iterations):
+        def correction(x, R, ws=ws, Kc=Kc):
             fint, st = internal(mesh, x, R)
             acc = np.zeros((nn, 6))
             acc[:, :3] = cross(ws, cross(ws, x))
@@ -79,15 +79,10 @@ def steady_spin_state(mesh, sc, w, phi: float, F: np.ndarray, T: np.ndarray, *, 
             r[:, :3] -= f_ext
             r[:, 3:] += cross(W, JW) - np.einsum("nji,nj->ni", R, T)
             Kr = (skew(W) * J[:, None, :] - skew(JW)) @ skew(W) - skew(np.einsum("nji,nj->ni", R, T))
-            d = band.solve(band.factor(mesh.elements.tangent_from(st) + Kc, Kr), -(r * free).ravel()).reshape(nn, 6)
-            if not np.all(np.isfinite(d)):
-                break
-            x, R, converged = newton_update(x, R, d, mesh.length, tol)
-            if converged:
-                break
-        else:
-            d = np.full(1, np.inf)
-        if not np.all(np.isfinite(d)):
+            return band.solve(band.factor(mesh.elements.tangent_from(st) + Kc, Kr), -(r * free).ravel()).reshape(nn, 6)
+
+        x, R, converged = newton(x, R, correction, mesh.length, tol, max_iterations)
+        if not converged:
             raise RuntimeError(f"reference: initial state 'steady_spin': Newton did not converge at {math.sqrt(step / load_steps):.3g} "
                                f"x the spin ({max_iterations} iterations): the spin is beyond what the body holds")
     v = np.zeros((nn, 6))

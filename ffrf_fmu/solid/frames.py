@@ -16,6 +16,7 @@ Both reproduce a rigid motion of the set exactly (the frame then moves with it).
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,3 +110,17 @@ def averaging_weights(coords: np.ndarray, frame: Frame, weights=None) -> np.ndar
     w = np.ones(k) if weights is None else np.asarray(weights, dtype=float)
     Dw = np.repeat(w, 3)
     return np.linalg.solve(A.T @ (Dw[:, None] * A), (A * Dw[:, None]).T)
+
+
+def solid_frames(spec, fe) -> tuple[Frame, ...]:
+    """The port frames of a SolidSpec (model/solid.py) on its FE model (a SolidFE): node selections, link, origin."""
+    scale = float(np.linalg.norm(fe.coords.max(0) - fe.coords.min(0)))
+    out = []
+    for f in spec.frames:
+        try:
+            nodes = select_nodes(fe.coords, fe.node_sets, json.loads(f.select), scale)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"port {f.port!r}: {e}") from None
+        point = np.asarray(f.point, dtype=float) if f.point is not None else fe.coords[nodes].mean(0)
+        out.append(Frame(f.port, nodes, f.link, point))
+    return tuple(out)

@@ -227,3 +227,33 @@ def read_mesh(path):
     mesh = meshio.read(str(path))
     sets = {k: np.asarray(v, dtype=int) for k, v in getattr(mesh, "point_sets", {}).items()}
     return mesh, sets
+
+
+def gmsh_model(name: str):
+    """gmsh started quietly on a new model `name`; its OpenCASCADE kernel (the mesh scripts of
+    models/data/ draw their solids in millimetres with it, then call write_tet10)."""
+    import gmsh
+
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(name)
+    return gmsh.model.occ
+
+
+def write_tet10(out, group: str, size: float) -> None:
+    """The volumes of the gmsh model (one physical group `group`) meshed with quadratic tetrahedra of
+    size `size` [mm], written in metres to `out` (gmsh 2.2 ASCII); one thread and a fixed seed, so that
+    a rerun gives the committed mesh. Ends the gmsh session."""
+    import gmsh
+
+    gmsh.model.occ.synchronize()
+    vols = gmsh.model.getEntities(3)
+    gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], name=group)
+    for option, value in (("Mesh.MeshSizeMin", size), ("Mesh.MeshSizeMax", size), ("Mesh.ElementOrder", 2),
+                          ("Mesh.SecondOrderLinear", 0), ("Mesh.ScalingFactor", 1e-3),  # mm -> m
+                          ("Mesh.MshFileVersion", 2.2), ("Mesh.Binary", 0), ("General.NumThreads", 1),
+                          ("Mesh.RandomSeed", 1)):
+        gmsh.option.setNumber(option, value)
+    gmsh.model.mesh.generate(3)
+    gmsh.write(str(out))
+    gmsh.finalize()

@@ -1,6 +1,6 @@
 """The FE model a solid's SolidSpec names (a generated or read mesh assembled with scikit-fem, or a
-partner's export) and its size: what model.py needs while it reads a model file, below solid/body.py
-(which reduces) so that reading a model never imports the reduction."""
+partner's export) and its size: what model.py needs while it reads a model file, below the reduction
+(reduction.reduce_solid_body) so that reading a model never imports it."""
 from __future__ import annotations
 
 import functools

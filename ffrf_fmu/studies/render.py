@@ -2,7 +2,7 @@
 matplotlib's 3D polygon collection, the elastic deformation scaled and the scale stated.
 
 What is drawn: the body in its floating (CM) frame, model axes, at one recorded state of
-`solid.recovery.run_recorded`: node X + s u, u = Y q_bar the elastic displacement (eq. 76), s the
+`simulate.recovery.run_recorded`: node X + s u, u = Y q_bar the elastic displacement (eq. 76), s the
 scale factor (default: the largest |u| drawn as 5 % of the body's largest extent); the faces coloured
 by |u| (unscaled, mm). The rigid motion is left out, so the picture shows the deformation only.
 

@@ -14,6 +14,11 @@ runners.run_configuration; `reference` (the full-order beam, runners.run_referen
 elements, step); `beam` (runners.run_beam, the stability maps' standalone run; option
 record_every); `cosim` (a coupled run of the co-simulation map, stability/tasks.py; options case,
 H, scheme, settings); `peer:NAME` (ffrf_fmu.peers; options elements, step).
+
+The one import that runs up within studies/: `_run` imports the `cosim` runner from
+stability/tasks.py, on first use. A worker resolves a task's runner by its name here, the one place
+that knows them all, while the coupled runs live beside the stability map that defines their
+options (stability/ builds its tasks with this module's make_task).
 """
 from __future__ import annotations
 

@@ -234,7 +234,7 @@ class CosimCase:
         """The case under libcosim's fixed-step (Jacobi, held inputs) algorithm (engines.libcosim_run);
         same outputs as `run`."""
         from ...engines import libcosim_run
-        from ...master import FmuInstance, Motion, body_port_links, port_causality
+        from ...master.ssp import body_port_connections
 
         if self.kind == "motor":
             hub = self.beam.hub
@@ -245,18 +245,7 @@ class CosimCase:
             record = [*_vec("beam", self.beam.hub, "R"), *_vec("beam", self.beam.tip, "r"), f"beam.{self.beam.hub}.w[3]", "drive.drive.shaft_torque"]
             sources = None
         else:
-            a, b = (FmuInstance(n, self.fmus[n]) for n in ("A", "B"))
-            try:
-                links = body_port_links("A", "cut", "B", "cut", port_causality(a, "cut"), port_causality(b, "cut"))
-            finally:
-                a.close()
-                b.close()
-            conns = []
-            for link in links:
-                if isinstance(link, Motion):
-                    conns += [(s, d, 1.0) for s, d in zip(link.src, link.dst)]
-                else:
-                    conns.append((link.src, link.dst, link.gain))
+            conns = [(c.src, c.dst, c.factor) for c in body_port_connections("A", "cut", "B", "cut", self.fmus)]
             start = {f"{n}.solver.step": H for n in ("A", "B")} if self.settings.split_internal_is_H else {}
             record = [*_vec("B", "tip", "r"), "A.cut.t[3]"]
             sources = self._hub_sources("A")

@@ -10,8 +10,8 @@ without FMUs and without the co-simulation master whose schemes the map judges.
     integral. With z(0) = theta(0) = 0, z = phi_ref(t) - theta exactly (phi_ref the Wu-Haug angle law,
     whose rate is omega_ref), so the PI law is a spring Ki and a damper Kp towards the reference
     motion and the hub has the state (theta, omega) only.
-    Both are integrated by the body's first-order generalized-alpha (runtime/integrator.py: the
-    same rho_inf, am, af, gamma, equations enforced at t_{n+1}): per step the hub's one unknown,
+    Both are integrated by the body's first-order generalized-alpha (simulate/partner.py;
+    runtime/integrator.py: the same rho_inf, am, af, gamma, equations enforced at t_{n+1}): per step the hub's one unknown,
     its angular acceleration rate s = omega'_{n+1}, fixes theta_{n+1} and omega_{n+1} (affine in s),
     which are the spring's far end for the body's step at t_{n+1}; the hub equation
         r(s) = J s - Kp (omega_ref - omega_{n+1}) - Ki (phi_ref - theta_{n+1}) + t_s,{n+1}(s) = 0
@@ -61,8 +61,8 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     moment on the beam about Z, at every step; `sweeps` is the mean number of body steps a step."""
     from ...model import load_model
     from ...reduction import reduce_scene_body
-    from ...runtime.integrator import alpha_coefficients
     from ...simulate import build_system, whole_steps
+    from ...simulate.partner import PartnerDof
 
     duration = settings.duration if duration is None else duration
     b = settings.beam
@@ -77,8 +77,7 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     p = settings.drive
     J, Kp, Ki = float(p["drive.J"]), float(p["drive.Kp"]), float(p["drive.Ki"])
     n_steps, h = whole_steps(duration, h)
-    am, af, gamma = alpha_coefficients(scene.rho_inf)
-    beta = h * gamma * af / am
+    dof = PartnerDof(scene.rho_inf, h)  # the hub's (theta, omega)
     r0 = np.asarray(body.node_positions[next(q.node for q in body.ports if q.name == hub)], float)
     far = {"theta": 0.0, "omega": 0.0}
 
@@ -101,12 +100,8 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     system, _ = build_system(body, scene, model.body.origin, backend)
     e = np.asarray(model.body.direction, float)
     X_tip = model.body.length * e / np.linalg.norm(e)
-    # hub state y = (theta, omega), rates yd = (theta', omega'), generalized-alpha's a; all 0 at rest
-    y, yd, a = np.zeros(2), np.zeros(2), np.zeros(2)
-    c1, c2 = (1.0 - af) / am, -(1.0 - am) / am
     t_list, defl, speed, torque = [0.0], [0.0], [0.0], [0.0]
     stopped, body_steps = "", 0
-    s_prev = 0.0
 
     def record():
         out = system.outputs()
@@ -117,18 +112,12 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
     for n in range(n_steps):
         t1 = (n + 1) * h
         phi_ref, omega_ref = _profile(t1, omega_f, settings.T)
-        A0 = c1 * yd + c2 * a  # a_{n+1} = (af/am) yd_{n+1} + A0
-        D0 = h * ((1.0 - gamma) * a + gamma * A0)  # y_{n+1} = y_n + D0 + beta yd_{n+1}
+        dof.begin()
         snap = system.snapshot()
-
-        def state(s):
-            omega1 = y[1] + D0[1] + beta * s
-            theta1 = y[0] + D0[0] + beta * omega1  # theta' = omega at t_{n+1}
-            return theta1, omega1
 
         def residual(s):
             nonlocal body_steps
-            theta1, omega1 = state(s)
+            theta1, omega1 = dof.state(s)
             far["theta"], far["omega"] = theta1, omega1
             system.restore(snap)
             system.step(h, inputs)
@@ -138,26 +127,12 @@ def b5_monolithic(model_path, settings: CosimSettings, h: float, duration: float
             return J * s - tau_m + ts, J * abs(s) + abs(tau_m) + abs(ts) + 1.0
 
         try:
-            s0 = s_prev
-            r_a, scale = residual(s0)
-            s1 = s0 - r_a / J  # the hub's own inertia as the first slope
-            r_b, scale = residual(s1)
-            it = 2
-            while abs(r_b) > HUB_TOLERANCE * scale:
-                if it >= HUB_ITERATIONS or r_b == r_a:
-                    raise StepFailure(t1, f"hub equation not solved in {it} body steps (residual {r_b:.3g} N m)")
-                s0, s1, r_a = s1, s1 - r_b * (s1 - s0) / (r_b - r_a), r_b
-                r_b, scale = residual(s1)
-                it += 1
+            s1 = dof.solve(residual, J, HUB_TOLERANCE, HUB_ITERATIONS, t1,
+                           "hub equation not solved in {it} body steps (residual {residual:.3g} N m)")
         except StepFailure as exc:
             stopped = f"monolithic B5: {exc}"
             break
-        theta1, omega1 = state(s1)
-        yd_new = np.array([omega1, s1])
-        a = (af / am) * yd_new + A0
-        y = np.array([theta1, omega1])
-        yd = yd_new
-        s_prev = s1
+        dof.accept(s1)
         d, w, ts = record()
         t_list.append(t1)
         defl.append(d)

@@ -10,7 +10,7 @@ ASCII). Run: python models/data/conrod/make_conrod.py [out.msh]
 import sys
 from pathlib import Path
 
-import gmsh
+from ffrf_fmu.solid.mesh import gmsh_model, write_tet10
 
 T = 20.0          # thickness along X
 R_BIG, r_BIG = 40.0, 25.0
@@ -21,10 +21,7 @@ H = 7.0           # element size
 
 
 def build(out: Path) -> None:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("conrod")
-    occ = gmsh.model.occ
+    occ = gmsh_model("conrod")
     x0 = -T / 2
     big = occ.addCylinder(x0, 0, 0, T, 0, 0, R_BIG)
     small = occ.addCylinder(x0, L_EYES, 0, T, 0, 0, R_SMALL)
@@ -33,21 +30,7 @@ def build(out: Path) -> None:
     hb = occ.addCylinder(x0 - 1, 0, 0, T + 2, 0, 0, r_BIG)
     hs = occ.addCylinder(x0 - 1, L_EYES, 0, T + 2, 0, 0, r_SMALL)
     occ.cut(body, [(3, hb), (3, hs)])
-    occ.synchronize()
-    vols = gmsh.model.getEntities(3)
-    gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], name="conrod")
-    gmsh.option.setNumber("Mesh.MeshSizeMin", H)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", H)
-    gmsh.option.setNumber("Mesh.ElementOrder", 2)
-    gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)
-    gmsh.option.setNumber("Mesh.ScalingFactor", 1e-3)   # mm -> m
-    gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
-    gmsh.option.setNumber("Mesh.Binary", 0)
-    gmsh.option.setNumber("General.NumThreads", 1)
-    gmsh.option.setNumber("Mesh.RandomSeed", 1)
-    gmsh.model.mesh.generate(3)
-    gmsh.write(str(out))
-    gmsh.finalize()
+    write_tet10(out, "conrod", H)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ Run: python models/data/genstruct/make_genstruct.py [out_dir]
 import sys
 from pathlib import Path
 
-import gmsh
+from ffrf_fmu.solid.mesh import gmsh_model, write_tet10
 
 LX, LY, T = 330.0, 200.0, 8.0  # extent [mm]
 F = 14.0          # frame bar width
@@ -32,10 +32,7 @@ H = 7.0           # element size
 
 
 def build(out: Path, braced: bool) -> None:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("genstruct2" if braced else "genstruct1")
-    occ = gmsh.model.occ
+    occ = gmsh_model("genstruct2" if braced else "genstruct1")
     z0 = -T / 2
     outer = occ.addBox(-LX / 2, -LY / 2, z0, LX, LY, T)
     inner = occ.addBox(-LX / 2 + F, -LY / 2 + F, z0 - 1, LX - 2 * F, LY - 2 * F, T + 2)
@@ -48,21 +45,7 @@ def build(out: Path, braced: bool) -> None:
     if braced:
         parts.append((3, occ.addBox(-LX / 2 + F / 2, -W_X / 2, z0, LX - F, W_X, T)))
     occ.fuse(frame, parts)
-    occ.synchronize()
-    vols = gmsh.model.getEntities(3)
-    gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], name="genstruct")
-    gmsh.option.setNumber("Mesh.MeshSizeMin", H)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", H)
-    gmsh.option.setNumber("Mesh.ElementOrder", 2)
-    gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)
-    gmsh.option.setNumber("Mesh.ScalingFactor", 1e-3)   # mm -> m
-    gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
-    gmsh.option.setNumber("Mesh.Binary", 0)
-    gmsh.option.setNumber("General.NumThreads", 1)
-    gmsh.option.setNumber("Mesh.RandomSeed", 1)
-    gmsh.model.mesh.generate(3)
-    gmsh.write(str(out))
-    gmsh.finalize()
+    write_tet10(out, "genstruct", H)
 
 
 if __name__ == "__main__":

@@ -31,8 +31,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
-from ..reduction_sparse import MAX_MODES, SHIFT_FRACTION, element_scale, free_free_modes, ritz_estimate, shifted_lu
-from .constraints import Constraints, constraints, mass_properties, rigid_rows
+from .reduction_sparse import MAX_MODES, SHIFT_FRACTION, element_scale, free_free_modes, ritz_estimate, shifted_lu
+from .solid.constraints import Constraints, constraints, mass_properties, rigid_rows
 
 
 CLUSTER = 1e-6  # reduced frequencies this close (relative) form one eigenspace for the MAC

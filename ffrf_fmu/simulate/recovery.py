@@ -35,7 +35,7 @@ def run_recorded(model, scene_name=None, every: int = 10, backend: str = "numpy"
     """(Recovery, SolidReduction, BodyData) of the scene's standalone run of a solid body, states every
     `every` steps (and the first)."""
     from ..reduction import reduce_scene_body
-    from ..simulate import build_system, whole_steps
+    from .loop import build_system, whole_steps
 
     scene = model.scene(scene_name)
     if model.body.solid is None:
