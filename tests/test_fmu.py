@@ -572,7 +572,11 @@ def test_b1_cut_in_two_fmus_agrees_with_one_body(tmp_path, halves):
 
     with CoSimulation({"F": one}, step=sc.step) as sim:
         r1 = sim.run(sc.duration, sources=sources("F"), record=["F.tip.r[1]", "F.tip.r[2]", "F.hub.t[3]"])
-    with CoSimulation({"A": fa, "B": fb}, step=sc.step, scheme="gauss-seidel", iterations=20) as sim:
+    # the sweep cap guards against a stall, it is not the claim: most steps take 2-5 sweeps, but one step
+    # near t = 0.24 s takes 25 sweeps, where the factorization's rounding before its reordering needed 20 or fewer (each half's
+    # modified Newton keeps or refreshes its matrix differently from sweep to sweep there, at the Newton
+    # tolerance): 50 leaves a factor 2 on any CPU; the mean is asserted below
+    with CoSimulation({"A": fa, "B": fb}, step=sc.step, scheme="gauss-seidel", iterations=50) as sim:
         sim.connect_ports("A", "cut", "B", "cut")
         r2 = sim.run(sc.duration, sources=sources("A"), record=["B.tip.r[1]", "B.tip.r[2]", "A.hub.t[3]"])
     assert r1.stopped_early == "" and r2.stopped_early == "", r2.stopped_early
