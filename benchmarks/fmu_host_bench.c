@@ -1,7 +1,7 @@
 /* The native FMU in a plain C host against the C runtime it wraps, same inputs, same machine, one process
  * (benchmarks/fmu_overhead.py compiles and runs it).
  *
- *   fmu_host_bench FMU_BINARY RESOURCE_URI GUID RUNTIME_LIBRARY IMAGE TABLE STEPS H REPEAT INTERNAL
+ *   fmu_host_bench FMU_BINARY RESOURCE_URI GUID RUNTIME_LIBRARY IMAGE TABLE STEPS H REPEAT INTERNAL [STEP_LOG ITER_VR]
  *
  * INTERNAL: internal steps per communication step (H / solver.step), as the FMU takes them.
  * TABLE (binary, little-endian doubles): n_in, n_point, n_out, then n_in value references, n_out value
@@ -11,7 +11,12 @@
  *   runtime  the runtime library's body (from IMAGE, started from the FMU's initial state): point values at
  *            t_k, ffrf_body_advance(EXTRAPOLATED, H / h steps), ffrf_body_record: the same numbers without the FMI layer
  * Prints CPU seconds (CLOCK_PROCESS_CPUTIME_ID) of each loop (best of REPEAT), the wall time of instantiate +
- * initialize + the first doStep, and whether the last outputs of both are equal. */
+ * initialize + the first doStep, and whether the last outputs of both are equal.
+ * With STEP_LOG (benchmarks/realtime.py, the real-time datasheet): the FMU loop only, once, every fmi2DoStep timed
+ * alone (wall: CLOCK_MONOTONIC, CPU: CLOCK_THREAD_CPUTIME_ID, read just before and after the call) and the Integer
+ * output ITER_VR (solver.newton_iterations) read after it; STEP_LOG gets STEPS rows of three little-endian doubles
+ * (wall s, CPU s, iterations). A doStep that does not return fmi2OK ends the run with its status as exit code 20 +
+ * status, the rows so far written. */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
 #include <stdarg.h>
@@ -116,6 +121,7 @@ int main(int argc, char **argv)
     int (*leave)(fmi2Component) = sym(lib, "fmi2ExitInitializationMode");
     int (*set_real)(fmi2Component, const vr_t *, size_t, const double *) = sym(lib, "fmi2SetReal");
     int (*get_real)(fmi2Component, const vr_t *, size_t, double *) = sym(lib, "fmi2GetReal");
+    int (*get_integer)(fmi2Component, const vr_t *, size_t, int *) = sym(lib, "fmi2GetInteger");
     int (*do_step)(fmi2Component, double, double, int) = sym(lib, "fmi2DoStep");
     int (*get_state)(fmi2Component, void **) = sym(lib, "fmi2GetFMUstate");
     int (*state_size)(fmi2Component, void *, size_t *) = sym(lib, "fmi2SerializedFMUstateSize");
@@ -129,7 +135,13 @@ int main(int argc, char **argv)
 
     double best_fmu = 1e300, best_rt = 1e300, first = 0.0;
     char err[512];
-    for (int r = 0; r < repeat; r++) {
+    const char *step_log = argc >= 13 ? argv[11] : NULL;
+    const vr_t vr_iter = step_log ? (vr_t)atoi(argv[12]) : 0;
+    double *log_rows = step_log ? malloc(sizeof(double) * 3 * (size_t)steps) : NULL;
+    if (step_log && !log_rows)
+        return 4;
+    int logged = 0, step_status = 0;
+    for (int r = 0; r < (step_log ? 1 : repeat); r++) {
         /* the FMU */
         double w0 = now(CLOCK_MONOTONIC);
         fmi2Component c = instantiate("bench", 1, argv[3], argv[2], &cb, 0, 0);
@@ -151,7 +163,20 @@ int main(int argc, char **argv)
         for (int k = 0; k < steps; k++) {
             if (k && set_real(c, vr_in, (size_t)n_in, rows + (size_t)k * width))
                 return 8;
-            if (do_step(c, k * H, H, 1))
+            if (step_log) {
+                double w = now(CLOCK_MONOTONIC), u = now(CLOCK_THREAD_CPUTIME_ID);
+                step_status = do_step(c, k * H, H, 1);
+                double u1 = now(CLOCK_THREAD_CPUTIME_ID), w1 = now(CLOCK_MONOTONIC);
+                int it = 0;
+                if (step_status)
+                    break;
+                if (get_integer(c, &vr_iter, 1, &it))
+                    return 10;
+                log_rows[3 * k] = w1 - w;
+                log_rows[3 * k + 1] = u1 - u;
+                log_rows[3 * k + 2] = it;
+                logged = k + 1;
+            } else if (do_step(c, k * H, H, 1))
                 return 9;
             if (get_real(c, vr_out, (size_t)n_out, out))
                 return 10;
@@ -163,6 +188,15 @@ int main(int argc, char **argv)
             best_fmu = t_fmu;
         free_instance(c);
         free(bytes);
+        if (step_log) {
+            FILE *f = fopen(step_log, "wb");
+            if (!f || fwrite(log_rows, sizeof(double), 3 * (size_t)logged, f) != 3 * (size_t)logged)
+                return 15;
+            fclose(f);
+            free(init);
+            printf("steps %d status %d\n", logged, step_status);
+            return step_status ? 20 + step_status : 0;
+        }
         /* the runtime's body, the same inputs through the same rule */
         void *b = body_create(image, image_size, err, sizeof err);
         if (!b) {

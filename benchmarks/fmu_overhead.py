@@ -74,6 +74,24 @@ def host_table(fmu: Path, body, scene, inputs, H: float, path: Path) -> int:
     return n
 
 
+def host_command(fmu: Path, scene, tmp: Path) -> tuple[list, object]:
+    """The FMU unpacked into tmp, benchmarks/fmu_host_bench.c compiled there: the host's first six arguments
+    (the host, FMU_BINARY, RESOURCE_URI, GUID, RUNTIME_LIBRARY, IMAGE of the scene's term set) and the
+    FMU's model description."""
+    x = tmp / "x"
+    zipfile.ZipFile(fmu).extractall(x)
+    md = read_model_description(str(fmu))
+    binary = x / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    image = tmp / "image.bin"
+    image.write_bytes(images((x / "resources" / "body.bin").read_bytes())[scene.terms])
+    host = tmp / "fmu_host_bench"
+    done = subprocess.run([c_compiler(), "-std=c11", "-O2", "-o", str(host), str(ROOT / "benchmarks" / "fmu_host_bench.c"),
+                           "-ldl"], capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(done.stderr)
+    return [str(host), str(binary), (x / "resources").as_uri(), md.guid, str(runtime_build.library(False)), str(image)], md
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument("--model", default=str(ROOT / "models" / "haug_beam.toml"))
@@ -99,17 +117,7 @@ def main(argv=None) -> int:
         tmp = Path(tmp)
         fmu = build_fmu(args.model, tmp / "body.fmu", scene=scene.name, overrides=overrides)
         floor = c_floor(fmu, tmp)
-        x = tmp / "x"
-        zipfile.ZipFile(fmu).extractall(x)
-        md = read_model_description(str(fmu))
-        binary = x / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
-        image = tmp / "image.bin"
-        image.write_bytes(images((x / "resources" / "body.bin").read_bytes())[scene.terms])
-        host = tmp / "fmu_host_bench"
-        done = subprocess.run([c_compiler(), "-std=c11", "-O2", "-o", str(host), str(ROOT / "benchmarks" / "fmu_host_bench.c"),
-                               "-ldl"], capture_output=True, text=True)
-        if done.returncode:
-            raise RuntimeError(done.stderr)
+        host, md = host_command(fmu, scene, tmp)
         tables = {H: (tmp / f"table_{H:g}.bin") for H in Hs}
         steps = {H: host_table(fmu, body, scene, inputs, H, tables[H]) for H in Hs}
         outputs = [v.name for v in md.modelVariables if v.causality == "output"]
@@ -119,9 +127,8 @@ def main(argv=None) -> int:
             ref = run(body, scene, origin=model.body.origin, progress=False)
             keep("standalone", time.process_time() - t0)
             for H in Hs:
-                done = subprocess.run([str(host), str(binary), (x / "resources").as_uri(), md.guid,
-                                       str(runtime_build.library(False)), str(image), str(tables[H]), str(steps[H]),
-                                       repr(H), "1", str(max(1, round(H / scene.step)))],
+                done = subprocess.run([*host, str(tables[H]), str(steps[H]), repr(H), "1",
+                                       str(max(1, round(H / scene.step)))],
                                       capture_output=True, text=True, timeout=3600)
                 if done.returncode:
                     raise RuntimeError(f"fmu_host_bench exit {done.returncode}: {done.stderr[-2000:]}")
