@@ -14,7 +14,8 @@ fmi2GetInteger of `solver.newton_iterations`. Cases:
   solid      models/haug_solid.toml, scene spinup (the bar of hex27 elements, 1 superelement x 6 modes, h = 2 ms)
 Prints per case the median, p99, p99.9 and max of the wall and CPU time of one doStep (all steps; the first one
 separately), the histogram of the iterations per step, and the CPU time by iteration count (median and max):
-what a cap of the iterations bounds. --cap N builds with solver.max_newton_iterations = N (docs/fmu.md).
+what a cap of the iterations bounds. --cap N builds with max_newton_iterations = N (the build checks the cap on
+the whole run, fmu/realtime.py, and refuses it when it changes the result; docs/fmu.md).
 Load average before and after each case: on a shared machine the wall time's tail is the scheduler's.
 """
 from __future__ import annotations
@@ -46,12 +47,12 @@ CASES = {
 }
 
 
-def step_log(case: str, steps: int, tmp: Path, cap: int | None = None) -> tuple[np.ndarray, dict]:
+def step_log(case: str, steps: int, tmp: Path, cap: int = 0) -> tuple[np.ndarray, dict]:
     """Rows (wall s, CPU s, iterations) of `steps` doSteps of a case's FMU at H = h in the C host, and what was run."""
     name, scene_name, extra = CASES[case]
     path = ROOT / "models" / name
     h = load_model(path).scene(scene_name).step
-    overrides = [*extra, f"duration={steps * h!r}"]
+    overrides = [*extra, f"duration={steps * h!r}", f"max_newton_iterations={cap}"]
     model = load_model(path, overrides)
     scene = model.scene(scene_name)
     body = reduce_scene_body(model.body, scene).data
@@ -67,7 +68,7 @@ def step_log(case: str, steps: int, tmp: Path, cap: int | None = None) -> tuple[
     if done.returncode:
         raise RuntimeError(f"{case}: fmu_host_bench exit {done.returncode}: {done.stdout[-500:]}{done.stderr[-2000:]}")
     rows = np.fromfile(log, dtype="<f8").reshape(-1, 3)
-    about = {"model": f"models/{name}", "scene": scene_name, "overrides": extra, "h": h, "steps": n,
+    about = {"model": f"models/{name}", "scene": scene_name, "overrides": extra, "cap": cap, "h": h, "steps": n,
              "superelements": len(body.superelements), "load_before": load, "load_after": os.getloadavg()[0]}
     return rows, about
 
@@ -79,7 +80,7 @@ def _us(x) -> str:
 def report(case: str, rows: np.ndarray, about: dict) -> None:
     wall, cpu, it = rows[:, 0], rows[:, 1], rows[:, 2].astype(int)
     print(f"{case}: {about['model']} {about['scene']} {' '.join(about['overrides'])} ({about['superelements']} SE), "
-          f"h = {about['h']:g} s, {len(rows)} doSteps at H = h; load average {about['load_before']:.2f} before, "
+          f"h = {about['h']:g} s, {len(rows)} doSteps at H = h, max_newton_iterations = {about['cap']}; load average {about['load_before']:.2f} before, "
           f"{about['load_after']:.2f} after, {time.strftime('%H:%M UTC', time.gmtime())}")
     print("  | per doStep [us] | median | p99 | p99.9 | max | first doStep |")
     print("  |---|---|---|---|---|---|")
@@ -97,10 +98,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument("--steps", type=int, default=100_000, help="doSteps per case (default 100000)")
     ap.add_argument("--case", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--cap", type=int, default=0, help="max_newton_iterations of the FMUs (default 0: no cap)")
     args = ap.parse_args(argv)
     for case in args.case:
         with tempfile.TemporaryDirectory() as tmp:
-            rows, about = step_log(case, args.steps, Path(tmp))
+            rows, about = step_log(case, args.steps, Path(tmp), args.cap)
         report(case, rows, about)
     return 0
 

@@ -143,6 +143,7 @@ class SceneParameters:
     rho_inf: float = 0.8
     gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     terms: str = "linear"
+    max_newton_iterations: int = 0  # a step's Newton iterations at most (0: no cap; docs/fmu.md, real time)
     initial_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     initial_angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     port_displacements: tuple[tuple[str, tuple[float, float, float]], ...] = ()
@@ -157,6 +158,7 @@ class SceneParameters:
             rho_inf=scene.rho_inf,
             gravity=tuple(scene.gravity),
             terms=scene.terms,
+            max_newton_iterations=scene.max_newton_iterations,
             initial_velocity=tuple(scene.initial.velocity),
             initial_angular_velocity=tuple(scene.initial.angular_velocity),
             port_displacements=tuple(scene.initial.port_displacements),
@@ -175,6 +177,7 @@ class SceneParameters:
             "rho_inf": float(self.rho_inf),
             "gravity": [float(g) for g in self.gravity],
             "terms": self.terms,
+            "max_newton_iterations": int(self.max_newton_iterations),
             "initial_velocity": [float(x) for x in self.initial_velocity],
             "initial_angular_velocity": [float(x) for x in self.initial_angular_velocity],
             "port_displacements": {k: [float(x) for x in v] for k, v in self.port_displacements},
@@ -427,13 +430,26 @@ def build_fmu(model_path, dest, *, scene: str | None = None, overrides=(), backe
         from .native.build import NativeBuildError
 
         try:
-            return build_native_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin,
+            path = build_native_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin,
                                     build_info=info, platforms=platforms, compiler=compiler, log=log, fmi=fmi,
                                     start=start)
         except NativeBuildError as e:
             raise BuildError(str(e)) from None
-    return build_python_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
-                     backend=backend, native_loader=native_loader, start=start)
+    else:
+        path = build_python_fmu(data, dest, SceneParameters.of_scene(sc), origin=model.body.origin, build_info=info,
+                                backend=backend, native_loader=native_loader, start=start)
+    if sc.max_newton_iterations:  # the real-time cap, checked on the scene (fmu/realtime.py)
+        from .realtime import IterationCapRefused, check_iteration_cap
+
+        try:
+            check = check_iteration_cap(path, sc)
+        except IterationCapRefused as e:
+            Path(path).unlink()
+            raise BuildError(f"{Path(model_path).name}: {e}") from None
+        if log:
+            log(f"max_newton_iterations = {check['cap']} holds on scene {sc.name!r}: at most {check['max_iterations']} "
+                f"Newton iterations per step, port outputs within {check['deviation']:.3g} of their peaks")
+    return path
 
 
 def read_fmu_config(fmu_path) -> dict:

@@ -30,7 +30,7 @@ from ..runtime import input_rule
 from ..runtime.damping import Damping
 from ..runtime.data import BodyData
 from ..runtime.outputs import FIELD_COLUMNS, output_sources, tip_from_hub
-from ..runtime.ports import StepFailure
+from ..runtime.ports import IterationCapReached, StepFailure
 from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
@@ -212,6 +212,7 @@ class BodyCoSim:
             "step": float(v[self.index[("parameter", "step")][0]]),
             "rho_inf": float(v[self.index[("parameter", "rho_inf")][0]]),
             "terms": terms,
+            "max_newton_iterations": float(v[self.index[("parameter", "max_newton_iterations")][0]]),
             "gravity": v[self.index[("parameter", "gravity")]].copy(),
             "initial_velocity": v[self.index[("parameter", "initial_velocity")]].copy(),
             "initial_angular_velocity": v[self.index[("parameter", "initial_angular_velocity")]].copy(),
@@ -241,6 +242,9 @@ class BodyCoSim:
         terms = float(self.values[self.index[("parameter", "terms")][0]])
         if terms not in range(len(TERM_SETS)):
             return f"parameter solver.terms must be 0 (linear), 1 (gyroscopic) or 2 (full), got {terms!r}"
+        cap = p["max_newton_iterations"]
+        if not (cap >= 0.0 and cap == int(cap)):
+            return f"parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got {cap!r}"
         if TERM_SETS[int(terms)] == "full" and any(se.W2 is None for se in self.data.superelements):
             return ("parameter solver.terms = 2 (full) needs the inertia data W1, W2, which this FMU was built "
                     "without: build it from a scene with terms = \"full\"")
@@ -281,6 +285,7 @@ class BodyCoSim:
             self._system_params = key
         for port, KC in p["compliance"].items():  # compliant ports: the coupling parameters
             self.system.compliance[port][...] = KC
+        self.system.iteration_cap = int(p["max_newton_iterations"])
         return self.system
 
     # ------------------------------------------------------------------ inputs
@@ -447,6 +452,9 @@ class BodyCoSim:
                 system.t = t_end  # the master's clock, not the sum of n rounded steps
                 dst, out = self._output_values(worst, self._row)
             self._check_finite(system, out)
+        except IterationCapReached as e:  # a real-time bound broken: not a step a smaller H should retry
+            system.restore(saved)
+            return StepReport(False, f"t = {e.time:.6g} s: {e.cause}", status="error")
         except StepFailure as e:
             system.restore(saved)
             return StepReport(False, f"t = {e.time:.6g} s: {e.cause}", status="discard")

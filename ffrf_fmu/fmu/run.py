@@ -115,7 +115,8 @@ def fmu_input_table(fmu_path, inputs: Callable, times) -> np.ndarray:
 def scene_start_values(scene, fmu_path) -> dict:
     """The scene's solver and initial values as FMU parameter start values."""
     names = {n for v in _variables(fmu_path) for n in scalar_names(v)}
-    sv = {"solver.step": scene.step, "solver.rho_inf": scene.rho_inf, "solver.terms": TERM_SETS.index(scene.terms)}
+    sv = {"solver.step": scene.step, "solver.rho_inf": scene.rho_inf, "solver.terms": TERM_SETS.index(scene.terms),
+          "solver.max_newton_iterations": scene.max_newton_iterations}
     for i in range(3):
         sv[component_name("gravity", (i,))] = scene.gravity[i]
         sv[component_name("initial.v", (i,))] = scene.initial.velocity[i]

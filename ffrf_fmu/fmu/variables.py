@@ -179,7 +179,8 @@ def body_variables(ports, node_positions, parameters: dict, damping=None,
 
     ports: objects with name, node, translation, rotation (runtime.data.PortData);
     node_positions: reference node positions (start values of motion-driven r inputs);
-    parameters: defaults with keys step, rho_inf, gravity (3), terms (name), initial_velocity (3),
+    parameters: defaults with keys step, rho_inf, gravity (3), terms (name), max_newton_iterations (optional,
+    default 0), initial_velocity (3),
     initial_angular_velocity (3), port_displacements {port: (3,)} (force-driven translations);
     damping: the body's runtime.damping.Damping (the damping parameters' defaults), None: undamped;
     modes: `modal_shape` of the body, the modal outputs (none for (0, 0)).
@@ -249,6 +250,11 @@ def body_variables(ports, node_positions, parameters: dict, damping=None,
                         "term set of the body equations (Integer enumeration): 0 = linear, 1 = gyroscopic, 2 = full (needs the "
                         "inertia data, built when the scene's term set is full)",
                         TERM_SETS.index(par["terms"]), "parameter", field="terms", min=0, max=len(TERM_SETS) - 1))
+    out.append(Variable("solver.max_newton_iterations", "Integer", "parameter", "fixed", None,
+                        "hard real-time cap: at most this many Newton iterations in an internal step, retry included; a "
+                        "step that needs more makes doStep return Error naming the cap (never an unconverged step "
+                        "accepted). 0 = no cap (docs/fmu.md, Real-time datasheet)",
+                        int(par.get("max_newton_iterations", 0)), "parameter", field="max_newton_iterations", min=0))
     for i in range(3):
         out.append(Variable(component_name("gravity", (i,)), "Real", "parameter", "fixed", "m/s2",
                             "uniform gravity acceleration, world axes", float(par["gravity"][i]), "parameter",

@@ -67,6 +67,8 @@ SCENE_KEYS = {
     "step": "a positive time step [s], at most the duration",
     "rho_inf": "a spectral radius in [0, 1] (default 0.8)",
     "terms": f"one of {', '.join(TERM_SETS)} (default linear)",
+    "max_newton_iterations": "an integer >= 0: at most this many Newton iterations in a step, a step that needs more "
+                             "fails (a hard real-time bound, docs/fmu.md 'Real-time datasheet'; default 0: no cap)",
     "stiffening": "true or false: geometric stiffening inside each superelement (default false)",
     "full_terms": f"an array of Witteveen's terms for terms = 'full', from {', '.join(FULL_TERMS)} (default all)",
     "gravity": "3 numbers [m/s^2] (default [0, 0, 0])",
@@ -126,7 +128,8 @@ OVERRIDE_ALIASES = {
     "length": ("body.length",),
     "rotary_inertia": ("body.section.m22", "body.section.m33"),
     **{k: (f"body.section.{k}",) for k in SECTION_KEYS},
-    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening", "full_terms")},
+    **{k: (f"scenes.*.{k}",) for k in ("duration", "step", "rho_inf", "terms", "gravity", "metrics", "stiffening", "full_terms",
+                                            "max_newton_iterations")},
 }
 
 # Short keys refused, with what to write instead: `elements` meant the elements of each superelement

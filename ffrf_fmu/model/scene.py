@@ -167,6 +167,7 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         step=r.real(t, sp, "step", SCENE_KEYS["step"], ok=lambda x: 0.0 < x <= duration),
         rho_inf=r.real(t, sp, "rho_inf", SCENE_KEYS["rho_inf"], 0.8, ok=lambda x: 0.0 <= x <= 1.0),
         terms=r.string(t, sp, "terms", SCENE_KEYS["terms"], "linear", TERM_SETS),
+        max_newton_iterations=r.integer(t, sp, "max_newton_iterations", SCENE_KEYS["max_newton_iterations"], 0),
         gravity=r.vec3(t, sp, "gravity", SCENE_KEYS["gravity"], (0.0, 0.0, 0.0)),
         drives=tuple(drives),
         loads=tuple(loads),

@@ -223,6 +223,7 @@ class Scene:
     full_terms: tuple[str, ...] = FULL_TERMS  # Witteveen's terms on in the term set `full`
     reference: ReferenceOptions = ReferenceOptions()  # the reference that resolves the primary metric
     unbalances: tuple[Unbalance, ...] = ()  # rotating unbalance forces ([[scenes.NAME.unbalances]])
+    max_newton_iterations: int = 0  # Newton iterations of a step at most (0: no cap; docs/fmu.md, real time)
 
 
 @dataclass(frozen=True)

@@ -82,6 +82,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         gravity=(0.0, 0.0, 0.0),
         tol: float = 1e-9,
         max_iter: int = 25,
+        iteration_cap: int = 0,
         backend: str = "native",
         damping: Damping | None = None,
     ):
@@ -97,6 +98,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         self.coefficients = alpha_coefficients(self.rho_inf)
         self.gravity = np.asarray(gravity, dtype=float)
         self.tol, self.max_iter = tol, max_iter
+        self.iteration_cap = int(iteration_cap)  # a step's Newton iterations at most (0: none; IterationCapReached)
         self.layout = L = Layout.of(data)
         self.stack = S = SuperelementStack.of(data)
         # the stacked superelement matrices, under the names of the equations

@@ -34,7 +34,7 @@ import numpy as np
 
 from .coupling import add_springs
 from .input_rule import extrapolate
-from .ports import PortValues, StepFailure
+from .ports import IterationCapReached, PortValues, StepFailure
 from .factorization import is_native
 from .layout import Segments
 from .rotation import expm, skew, tangent
@@ -241,6 +241,9 @@ class GeneralizedAlpha:
                 stale = self._lu
                 if replay is None:  # (a replay decides the refresh: `_newton`)
                     self._lu = None
+        # the cap (iteration_cap): step.c bounds its loops by it; here a step fails when it needed more, which is
+        # the same verdict (a bounded Newton converges exactly when the unbounded one did within the bound)
+        cap = self.iteration_cap if commit_config and 0 < self.iteration_cap < 2 * self.max_iter else 0
         try:
             if replay is not None and replay.iterations > self.max_iter:
                 raise StepFailure(t1, "the replayed run's first attempt failed")
@@ -248,6 +251,9 @@ class GeneralizedAlpha:
         except StepFailure:
             if not commit_config:
                 raise
+            if 0 < cap <= self.max_iter:  # no iteration left for a retry
+                self._lu = None
+                raise IterationCapReached(t1, cap) from None
             # one retry from the last step's rates with a fresh matrix: an extrapolation across a jump
             # (a load switched on, unresolved modes at a large step) can start Newton outside its basin
             # (B2 at h = 0.2 s, rho_inf = 0.8: fails at t = 19.6 s without, completes with it)
@@ -256,6 +262,9 @@ class GeneralizedAlpha:
             self._lu = None
             F, it = self._newton(yd, beta, t1, replay=replay and replay.retry(self.max_iter))
             it += self.max_iter  # the failed attempt's iterations count
+        if 0 < cap < it:
+            self._lu = None
+            raise IterationCapReached(t1, cap)
         self._check_rotation_increments(t1)
         if not commit_config:
             return yd.copy()

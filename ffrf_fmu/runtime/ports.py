@@ -29,3 +29,14 @@ class StepFailure(RuntimeError):
         super().__init__(f"step failed at t = {time:.6g} s: {cause}")
         self.time = time
         self.cause = cause
+
+
+class IterationCapReached(StepFailure):
+    """A step that needs more Newton iterations than its cap (BodySystem.iteration_cap: a scene's
+    max_newton_iterations, an FMU's solver.max_newton_iterations, the hard real-time bound of docs/fmu.md): it
+    fails; an unconverged iterate is never accepted."""
+
+    def __init__(self, time: float, cap: int):
+        super().__init__(time, f"Newton did not converge within max_newton_iterations = {cap} iterations (the cap "
+                               "of a step's iterations: a step that needs more fails)")
+        self.cap = cap

@@ -56,7 +56,8 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
     """A BodySystem for the scene, initialized at t = 0; returns it with its input function.
     backend: "native" (the C runtime; numpy with a logged note where it cannot be compiled) or "numpy"
     (the reference)."""
-    system = BodySystem(body, terms=scene.terms, full_terms=scene.full_terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend)
+    system = BodySystem(body, terms=scene.terms, full_terms=scene.full_terms, rho_inf=scene.rho_inf, gravity=scene.gravity, backend=backend,
+                         iteration_cap=scene.max_newton_iterations)
 
     inputs = scene_inputs(body, scene, load_interval=(-scene.step, 0.0))  # each window's mean over the step
     init = scene.initial

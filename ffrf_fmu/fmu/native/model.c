@@ -406,6 +406,12 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
                  py_repr(terms, a, sizeof a));
         return 1;
     }
+    double cap = v[d->vr_max_iterations];
+    if (!(cap >= 0.0 && cap == floor(cap))) {
+        snprintf(why, len, "parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got %s",
+                 py_repr(cap, a, sizeof a));
+        return 1;
+    }
     if (!d->image[(int)terms]) {
         if ((int)terms == 2)
             snprintf(why, len, "parameter solver.terms = 2 (full) needs the inertia data W1, W2, which this FMU was "
@@ -599,6 +605,7 @@ static int make_body(fmu_instance *m, char *why, size_t len)
     }
     ffrf_body *b = m->body;
     b->rho_inf = m->values[d->vr_rho_inf];
+    b->iteration_cap = (int)m->values[d->vr_max_iterations];
     alpha_coefficients(b->rho_inf, &b->am, &b->af, &b->gamma);
     double *gravity = (double *)b->data.gravity; /* the body's own copy of its image */
     for (int i = 0; i < 3; i++)
@@ -822,7 +829,8 @@ static void write_outputs(fmu_instance *m, int iterations)
 }
 
 /* n internal steps of H / n from the body's state with the point values in m->point_values; the output row into
- * m->row. 0, or 1 with the failure in why (the body then is at its last completed step). */
+ * m->row. 0, or 1 with the failure in why (the body then is at its last completed step); 2 when the failure is the
+ * iteration cap (solver.max_newton_iterations: a real-time bound broken, an Error, not a step to retry smaller). */
 static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, char *why, size_t len)
 {
     ffrf_body *b = m->body;
@@ -833,9 +841,12 @@ static int run_step(fmu_instance *m, double t_c, double H, int n, int *worst, ch
     if (status != FFRF_OK || done != n) {
         if (status == FFRF_NOT_CONVERGED)
             snprintf(why, len, "t = %.6g s: Newton did not converge in %d iterations", t0 + (done + 1) * hh, b->max_iter);
+        else if (status == FFRF_ITERATION_CAP) /* runtime/ports.py IterationCapReached */
+            snprintf(why, len, "t = %.6g s: Newton did not converge within max_newton_iterations = %d iterations (the "
+                     "cap of a step's iterations: a step that needs more fails)", t0 + (done + 1) * hh, b->iteration_cap);
         else
             snprintf(why, len, "t = %.6g s: %s", t0 + (done + 1) * hh, ffrf_status_text(status));
-        return 1;
+        return status == FFRF_ITERATION_CAP ? 2 : 1;
     }
     return 0;
 }
@@ -919,6 +930,10 @@ fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
     if (failed) {
         ffrf_body_set_state(b, m->rollback, m->state_size);
         m->rollback_lu_valid = 0; /* set_state made a new matrix version */
+        if (failed == 2) {
+            fmu_log(m, fmi2Error, "%s", why);
+            return fmi2Error;
+        }
         snprintf(m->discarded, sizeof m->discarded, "%s", why);
         fmu_log(m, fmi2Discard, "%s", why);
         return fmi2Discard;

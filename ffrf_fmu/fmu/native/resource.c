@@ -257,7 +257,7 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
     d->probe_frame = (const int32_t *)s.data;
     NEED("pdX", (size_t)d->n_probes * 24, &s);
     d->probe_dX = (const double *)s.data;
-    NEED("params", 13 * 4, &s);
+    NEED("params", 14 * 4, &s);
     {
         const int32_t *pv = (const int32_t *)s.data;
         d->vr_step = pv[0];
@@ -269,7 +269,8 @@ int fmu_description_load(fmu_description *d, const char *dir, char *err, size_t 
             d->vr_velocity[i] = pv[7 + i];
             d->vr_angular_velocity[i] = pv[10 + i];
         }
-        for (int i = 0; i < 13; i++)
+        d->vr_max_iterations = pv[13];
+        for (int i = 0; i < 14; i++)
             if (pv[i] < 0 || pv[i] >= d->n_vars)
                 goto bad_content;
     }

@@ -50,7 +50,7 @@ typedef struct {
     const int32_t *probe_frame;
     const double *probe_dX;       /* [n_probes][3] X_seen - X_frame */
     int n_modal;                  /* modal outputs modal.eta[e,i]: superelements x modes (their rates as many) */
-    int vr_step, vr_rho_inf, vr_terms, vr_iterations;
+    int vr_step, vr_rho_inf, vr_terms, vr_iterations, vr_max_iterations;
     int vr_gravity[3], vr_velocity[3], vr_angular_velocity[3];
     const int32_t *disp_vr;       /* [n_ports][3] initial.<port>.d, -1 */
     const int32_t *coupling_vr;   /* [n_ports][12] <port>.coupling.{k, c, k_rot, c_rot}, -1 */

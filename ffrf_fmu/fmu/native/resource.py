@@ -134,7 +134,7 @@ def payload(c: ResourceContent) -> bytes:
         dX.append(c.node_positions[by_name[s].node] - c.node_positions[by_name[f].node])
     par = lambda key: index[("parameter", key)]  # noqa: E731
     params = [par("step")[0], par("rho_inf")[0], par("terms")[0], index[("solver", "newton_iterations")][0],
-              *par("gravity"), *par("initial_velocity"), *par("initial_angular_velocity")]
+              *par("gravity"), *par("initial_velocity"), *par("initial_angular_velocity"), par("max_newton_iterations")[0]]
     disp = np.full((len(ports), 3), -1, dtype=np.int32)
     coupling = np.full((len(ports), 12), -1, dtype=np.int32)
     for j, p in enumerate(ports):

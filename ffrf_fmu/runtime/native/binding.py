@@ -13,13 +13,13 @@ import logging
 
 import numpy as np
 
-from ..ports import StepFailure
+from ..ports import IterationCapReached, StepFailure
 from . import build
 from ..factorization import NativeFactor
 from .image import body_image
 
 GIVEN, SCHEDULED, EXTRAPOLATED = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
-OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP = range(6)
+OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP, ITERATION_CAP = range(7)
 
 _LIB: dict[bool, C.CDLL] = {}
 
@@ -204,6 +204,7 @@ class NativeStep:
         B.set("gamma", gamma)
         B.set("tol", system.tol)
         B.set("max_iter", system.max_iter)
+        B.set("iteration_cap", system.iteration_cap)
         for i, name in enumerate(self.spring_ports):
             self.KC[i] = system.compliance[name]
         self.energy[0], self.energy[1] = system.work, system.power
@@ -221,6 +222,8 @@ class NativeStep:
             system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), float(m[11]))
         else:
             system._lu = None
+        if status == ITERATION_CAP:
+            return IterationCapReached(system.t + self._h, system.iteration_cap)
         return failure(status, system.t + self._h, system.max_iter, float(m[1]))
 
     # ---------------------------------------------------------------- the three ways to step

@@ -599,6 +599,8 @@ const char *ffrf_status_text(int status)
         return "a rotation increment over the step exceeds pi (step too large for the motion, or an absurd input)";
     case FFRF_BAD_STEP:
         return "step size must be positive and finite";
+    case FFRF_ITERATION_CAP:
+        return "Newton did not converge within the iteration cap (max_newton_iterations)";
     default:
         return "step failed";
     }
@@ -660,6 +662,7 @@ int ffrf_body_get_scalar(const ffrf_body *b, const char *name, double *value)
     const ffrf_dims *d = &b->dims;
     struct { const char *name; double value; } s[] = {
         {"t", b->state.t}, {"iterations", b->state.iterations}, {"tol", b->tol}, {"max_iter", b->max_iter},
+        {"iteration_cap", b->iteration_cap},
         {"rho_inf", b->rho_inf}, {"am", b->am}, {"af", b->af}, {"gamma", b->gamma},
         {"lu_version", (double)b->lu.version}, {"refreshed", (double)b->lu.refreshed}, {"N", d->N}, {"E", d->E},
         {"n", d->n}, {"nb", d->nb}, {"nm", d->nm},
@@ -683,6 +686,8 @@ int ffrf_body_set_scalar(ffrf_body *b, const char *name, double value)
         b->tol = value;
     else if (strcmp(name, "max_iter") == 0)
         b->max_iter = (int)value;
+    else if (strcmp(name, "iteration_cap") == 0)
+        b->iteration_cap = (int)value;
     else if (strcmp(name, "am") == 0)
         b->am = value;
     else if (strcmp(name, "af") == 0)

@@ -11,7 +11,7 @@
 
 /* statuses of a step (the numpy path's StepFailure causes) */
 enum { FFRF_OK = 0, FFRF_NOT_FINITE = 1, FFRF_NOT_CONVERGED = 2, FFRF_NOT_FACTORED = 3, FFRF_ROTATION_ALIAS = 4,
-       FFRF_BAD_STEP = 5 };
+       FFRF_BAD_STEP = 5, FFRF_ITERATION_CAP = 6 /* no convergence within iteration_cap iterations */ };
 /* The words of a step's status (the numpy path's StepFailure messages): a static string. */
 const char *ffrf_status_text(int status);
 /* the gyroscopic terms' two parts: the elastic Coriolis G(W0) (53), the inertia coupling S(q) r (55) */

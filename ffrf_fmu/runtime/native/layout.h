@@ -206,6 +206,7 @@ struct ffrf_body {
     ffrf_work work;
     double tol;                       /* Newton tolerance */
     int max_iter;
+    int iteration_cap;                /* a step's Newton iterations, a retry's counted, at most this (0: no cap) */
     double rho_inf, am, af, gamma;    /* generalized-alpha coefficients (integrator alpha_coefficients) */
     void *arena;                      /* the one allocation holding every array */
     void *image;                      /* the image's arrays (owned copy) */

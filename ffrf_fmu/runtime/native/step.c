@@ -378,8 +378,12 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
     if (stale)
         lu_meta[0] = 0.0;
     b->lu.refreshed = 0;
-    for (int attempt = 0; attempt < 2; attempt++) {
-        newton_step(b, stale, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, b->max_iter, ydw, p, R, F, attempt * b->max_iter, info);
+    /* a hard real-time bound (iteration_cap, solver.max_newton_iterations): the iterations of both attempts
+     * together at most the cap, the loop itself bounded so that no step iterates past it */
+    const int cap = b->iteration_cap > 0 && b->iteration_cap < 2 * b->max_iter ? b->iteration_cap : 2 * b->max_iter;
+    for (int attempt = 0; attempt < 2 && cap > attempt * b->max_iter; attempt++) {
+        int n_it = cap - attempt * b->max_iter < b->max_iter ? cap - attempt * b->max_iter : b->max_iter;
+        newton_step(b, stale, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, n_it, ydw, p, R, F, attempt * b->max_iter, info);
         if (attempt == 1)
             info[1] += b->max_iter; /* the failed attempt's iterations count */
         if (info[0] == FFRF_OK || info[0] == FFRF_ROTATION_ALIAS || attempt == 1)
@@ -393,6 +397,8 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
         stale = 0;
         trusted = 0;
     }
+    if (info[0] == FFRF_NOT_CONVERGED && cap < 2 * b->max_iter)
+        return FFRF_ITERATION_CAP;
     if (info[0] != FFRF_OK)
         return info[0];
     /* commit (integrator `_commit`) */
