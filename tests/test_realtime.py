@@ -9,8 +9,6 @@ of 1 changes the result and a cap of 2 never binds.
 from __future__ import annotations
 
 import dataclasses
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -18,7 +16,6 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
 from ffrf_fmu.fmu.builder import BuildError, build_fmu
@@ -31,9 +28,6 @@ from ffrf_fmu.simulate import run, scene_inputs
 ROOT = Path(__file__).resolve().parent.parent
 B1 = ROOT / "models" / "haug_beam.toml"
 SHORT = ["duration=0.1"]
-CC = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux") or CC is None,
-                                reason="the native FMU and the C host are built on Linux with a C compiler")
 
 
 @pytest.fixture(scope="module")

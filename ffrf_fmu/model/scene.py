@@ -153,6 +153,9 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
             r.fail(join(ip, "state"), str(e))
 
     duration = r.real(t, sp, "duration", SCENE_KEYS["duration"], ok=positive)
+    cap = r.integer(t, sp, "max_newton_iterations", SCENE_KEYS["max_newton_iterations"], 0)
+    if cap > 2**31 - 1:  # an FMU's Integer parameter (int32)
+        r.expected(join(sp, "max_newton_iterations"), SCENE_KEYS["max_newton_iterations"] + ", at most 2^31 - 1", cap)
     outputs = t.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
         r.expected(join(sp, "outputs"), SCENE_KEYS["outputs"], outputs)
@@ -167,7 +170,7 @@ def _parse_scene(r: Reader, body: Body, name: str, t: Any) -> Scene:
         step=r.real(t, sp, "step", SCENE_KEYS["step"], ok=lambda x: 0.0 < x <= duration),
         rho_inf=r.real(t, sp, "rho_inf", SCENE_KEYS["rho_inf"], 0.8, ok=lambda x: 0.0 <= x <= 1.0),
         terms=r.string(t, sp, "terms", SCENE_KEYS["terms"], "linear", TERM_SETS),
-        max_newton_iterations=r.integer(t, sp, "max_newton_iterations", SCENE_KEYS["max_newton_iterations"], 0),
+        max_newton_iterations=cap,
         gravity=r.vec3(t, sp, "gravity", SCENE_KEYS["gravity"], (0.0, 0.0, 0.0)),
         drives=tuple(drives),
         loads=tuple(loads),
