@@ -6,8 +6,8 @@ reference run as a result of the same shape (reference_run).
 The names below are the package's public interface: `from ffrf_fmu import simulate as sim;
 sim.run_scene(...)`."""
 from .inputs import scene_inputs, scene_schedule
-from .loop import (InitializationFailure, Progress, build_system, free_body_state, record, run, run_scene,
-                   whole_steps)
+from .loop import (InitializationFailure, Progress, build_system, free_body_state, record, run, run_input_rule,
+                   run_scene, whole_steps)
 from .plots import plot
 from .quantities import (dominant_frequency, elastic_tip, end_ports, energy_balance, metrics, tip_from_cm,
                          tip_trajectory)
@@ -19,6 +19,6 @@ __all__ = [
     "ENERGIES", "FREE_BODY_FIELDS", "InitializationFailure", "Progress", "SimulationResult", "build_system",
     "column_names", "dominant_frequency", "elastic_tip", "end_ports", "energy_balance", "free_body_columns",
     "free_body_keys", "free_body_series", "free_body_state", "metrics", "plot", "record", "run",
-    "run_reference", "run_scene", "scene_inputs", "scene_schedule", "tip_from_cm", "tip_trajectory", "variable_names",
+    "run_input_rule", "run_reference", "run_scene", "scene_inputs", "scene_schedule", "tip_from_cm", "tip_trajectory", "variable_names",
     "whole_steps",
 ]
