@@ -194,16 +194,18 @@ def format_crank(advice: ModalAdvice, res: dict | None, drive: cd.CrankDrive, du
 
 
 def advise_command(args) -> int:
-    """`ffrf-fmu advise MODEL --system crank`: exit 0 (within the tolerance), 1 (not), 3 (no verdict)."""
+    """`ffrf-fmu advise MODEL --system crank`: exit 0 (within the tolerance), 1 (not), 3 (no verdict), 2 (a body
+    not of the drive)."""
     import sys
 
-    from ..checked_toml import ModelError
     from ..model import load_model
 
     ports = {p.name for p in load_model(args.model, args.overrides).body.ports}
     if not {"big_eye", "small_eye", "mid_shank"} <= ports:
-        raise ModelError(f"{args.model}: --system crank advises the conrod of the crank drive, whose partners drive the "
-                         f"ports big_eye, small_eye and mid_shank (models/conrod_crank.toml); this body has {sorted(ports)}")
+        print(f"ffrf-fmu advise: error: {args.model}: --system crank advises the conrod of the crank drive, whose "
+              f"partners drive the ports big_eye, small_eye and mid_shank (models/conrod_crank.toml); this body has "
+              f"{sorted(ports)}", file=sys.stderr)
+        return 2
     drive = cd.CrankDrive()
     duration = args.duration or DURATION
     runs = Runs(drive, duration, args.model, args.overrides)
