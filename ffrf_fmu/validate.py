@@ -152,54 +152,19 @@ def input_sampling(body, scene, H: float, sampled, continuous, names, model) -> 
     """What the FMU's input rule itself costs, reported beside the validation (never part of its verdict): the
     standalone run under the FMU's rule (`sampled`, simulate.run_input_rule) against the one with the exact inputs
     at every step's end (`continuous`, simulate.run), per output group, and per driven part the bound of the
-    rule's input error. A drive u(t) sampled at t_c with (u, u', u'') and extrapolated to second order misses
-    u''' s^3 / 6 in u and u''' s^2 / 2 in u' at s = t - t_c <= H (runtime/input_rule.py), so with J = max |u'''|:
-    rate error <= J H^2 / 2, displacement error <= J H^3 / 6; a compliant part's spring (stiffness k, damping c,
-    the largest per axis) then sees a force error <= (c H^2 / 2 + k H^3 / 6) J: second order in H while c J H^2
-    leads; the body's response to it is of that order (docs/fmu.md, "Validation against the standalone run").
-    J: the drive's acceleration differenced at min(H, step) / 8; `rate_error`: the rule's largest rate error
-    at the internal step ends (what the body sees)."""
+    rule's input error (simulate.rule_error: second order in H; a compliant part's spring force error relative
+    to that port's largest force here; docs/fmu.md, "Validation against the standalone run")."""
     import numpy as np
 
-    from .runtime import drives
-    from .runtime.steps import communication_grid, whole_steps
+    from .simulate import rule_error
 
     groups = {g: {k: d[k] for k in ("max_abs_diff", "max_rel_diff", "scale")}
               for g, d in compare(sampled.t, sampled.columns, continuous.t, continuous.columns, names,
                                   np.inf, DEFAULT_ATOL).items()}
-    dt = min(H, scene.step) / 8
-    fine = np.arange(0.0, scene.duration + 0.5 * dt, dt)
-    grid = communication_grid(scene.duration, H)
-    parts = {}
-    for d in scene.drives:
-        for part, drive in (("translation", d.translation), ("rotation", d.rotation)):
-            if drive is None:
-                continue
-            fn = drive.displacement if part == "translation" else drive.angle
-
-            def ev(t, fn=fn):
-                return drives.evaluate(fn.kind, dict(fn.params), float(t))
-
-            u = np.array([ev(t) for t in fine])
-            J = float(np.max(np.abs(np.diff(u[:, 2])))) / dt
-            worst = 0.0
-            for t_c, t_end in zip(grid[:-1], grid[1:]):
-                n, h = whole_steps(t_end - t_c, scene.step)
-                _, v_c, a_c = ev(t_c)
-                worst = max(worst, *(abs(ev(t_c + j * h)[1] - v_c - a_c * j * h) for j in range(1, n + 1)))
-            row = {"jerk_max": J, "rate_error": worst, "rate_error_bound": 0.5 * J * H * H,
-                   "displacement_error_bound": J * H**3 / 6, "rate_peak": float(np.max(np.abs(u[:, 1])))}
-            port = model.body.port(d.port)
-            if getattr(port, part) == "compliant":
-                cp, rot = dict(port.coupling), part == "rotation"
-                k = float(np.max(cp.get("rotational_stiffness" if rot else "stiffness", 0.0)))
-                c = float(np.max(cp.get("rotational_damping" if rot else "damping", 0.0)))
-                group = f"{d.port}.{'t' if rot else 'f'}"
-                bound = (0.5 * c * H * H + k * H**3 / 6) * J
-                row |= {"force_error_bound": bound, "group": group}
-                if groups.get(group, {}).get("scale", 0.0) > 0:
-                    row["force_error_bound_rel"] = bound / groups[group]["scale"]
-            parts[f"{d.port}.{part}"] = row
+    parts = rule_error(scene, H, {p.name: (p.translation, p.rotation, dict(p.coupling)) for p in model.body.ports})
+    for row in parts.values():
+        if groups.get(row.get("group"), {}).get("scale", 0.0) > 0:
+            row["force_error_bound_rel"] = row["force_error_bound"] / groups[row["group"]]["scale"]
     return {"comm_step": H, "groups": groups, "drives": parts,
             "note": "the standalone run under the FMU's input rule against the exact inputs at every step's end: "
                     "the input sampling's own error (not part of the verdict)"}
