@@ -107,8 +107,9 @@ def excitation(drive: cd.CrankDrive) -> tuple[float, str]:
     return f2, f"the crank's second harmonic 2 omega = {f2:.4g} Hz"
 
 
-def advise_crank(runs: Runs, tolerance: float, rho_inf: float = 0.8, max_modes: int = 40) -> ModalAdvice:
-    """The advice of the module doc for the drive of `runs`."""
+def advise_crank(runs: Runs, tolerance: float, rho_inf: float, max_modes: int = 40) -> ModalAdvice:
+    """The advice of the module doc for the drive of `runs` (rho_inf: the scene's; the modes seen up to
+    max_modes)."""
     reasons = {}
     drive = runs.drive
     f_exc, what = excitation(drive)
@@ -209,7 +210,7 @@ def advise_command(args) -> int:
     drive = cd.CrankDrive()
     duration = args.duration or DURATION
     runs = Runs(drive, duration, args.model, args.overrides)
-    advice = advise_crank(runs, args.tolerance)
+    advice = advise_crank(runs, args.tolerance, load_model(args.model, args.overrides).scene("crank").rho_inf)
     res = None
     if args.check:
         if args.cutoffs:
