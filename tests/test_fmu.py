@@ -186,10 +186,11 @@ def test_build_cli(small, tmp_path):
 # ------------------------------------------------------------------------------ behaviour
 def test_validate_clean_when_extrapolation_is_exact(small, tmp_path):
     """Scene `spin`: constant hub rates and constant loads, so the FMU's input rule reproduces the
-    exact signals and the FMU must equal the standalone run to the Newton tolerance (1e-10)."""
+    exact signals: the FMU equals the standalone run under its input rule, and that run the one with the exact
+    inputs at every step's end (the input sampling costs nothing), to the Newton tolerance (1e-10)."""
     rep = validate(small, scene="spin", report_dir=tmp_path / "rep")
     assert rep["passed"] and rep["fmu_reached_stop_time"] and rep["fmu_matches_model"]
-    for g, d in rep["groups"].items():
+    for g, d in [*rep["groups"].items(), *rep["input_sampling"]["groups"].items()]:
         assert d["max_rel_diff"] < 1e-7, (g, d)
     assert set(rep["groups"]) == {"hub.f", "hub.t", "tip.r", "tip.R", "tip.v", "tip.w", "tip.a", "tip.dw", "energies"}
     saved = json.loads((tmp_path / "rep" / "report.json").read_text())
@@ -199,7 +200,7 @@ def test_validate_clean_when_extrapolation_is_exact(small, tmp_path):
     assert all((tmp_path / "rep" / png).exists() for png in saved["plots"])
 
 
-def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
+def test_validate_cli_exit_codes(small, small_fmu, small_toml, tmp_path, capsys):
     from ffrf_fmu.cli import build_parser
 
     parser = build_parser()
@@ -212,12 +213,16 @@ def test_validate_cli_exit_codes(small, small_fmu, tmp_path, capsys):
     args = parser.parse_args(["validate", str(free_fmu), "--model", str(small), "--scene", "spin"])
     assert args.run(args) == 2
     assert "build the FMU for this scene" in capsys.readouterr().err
-    # a tolerance no run can meet: exit 1
-    args = parser.parse_args(["validate", str(small_fmu), "--model", str(small), "--scene", "spinup",
-                              "--rtol", "1e-12", "--report", str(tmp_path / "r")])
+    # the FMU of another body with the same ports (length 6 against 8): exit 1 whatever its outputs (the
+    # standalone run under the FMU's input rule matches an FMU of this body to round-off, so no tolerance fails it)
+    other = tmp_path / "other.toml"
+    other.write_text(small_toml(length=6.0))
+    other_fmu = build_fmu(other, tmp_path / "other.fmu", scene="spin", runtime="python")
+    args = parser.parse_args(["validate", str(other_fmu), "--model", str(small), "--scene", "spin",
+                              "--report", str(tmp_path / "r")])
     assert args.run(args) == 1
     out = capsys.readouterr().out
-    assert "FAILED" in out and "BAD" in out
+    assert "FAILED" in out and "built from another model" in out
     assert not json.loads((tmp_path / "r" / "report.json").read_text())["passed"]
 
 

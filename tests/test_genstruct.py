@@ -102,22 +102,19 @@ def test_the_term_rule_keeps_w2_for_genstruct1_only(bodies):
 
 
 def test_genstruct1_fmu_equals_its_standalone_run(tmp_path):
-    """GenStruct1's scene as an FMU under fmpy against its standalone run: every group within validate's rtol 1e-3
-    but the hub's reaction force. The body is balanced (CM on the axis to the mesh's asymmetry), so that force is
-    a residue (max 7.6e-3 N measured) of the internal centrifugal load, which is (m / 2) w^2 (b / 4) = 360 N on
-    each half at 200 rad/s: its difference is held to 1e-3 of that load (measured 3.1e-4 N, 1e-6 of it; the FMU
-    extrapolates the motion inputs within a communication step, docs/fmu.md)."""
+    """GenStruct1's scene as an FMU under fmpy against its standalone run under the FMU's input rule (validate.py):
+    every group within validate's rtol 1e-3, the hub's reaction force too. That force is a residue (max 7.6e-3 N
+    measured) of the internal centrifugal load of each half (the body is balanced), which the continuous-input run
+    met only to 1e-3 of that load: the difference was the FMU's extrapolation of the spin within a communication
+    step, now reported apart (`input_sampling`, docs/fmu.md)."""
     from ffrf_fmu.fmu.builder import build_fmu
     from ffrf_fmu.validate import validate
 
     model = MODELS / "genstruct1.toml"
     fmu = build_fmu(model, tmp_path / "genstruct1.fmu")
     rep = validate(fmu, model=model, plots=False)
-    assert rep["fmu_reached_stop_time"] and rep["fmu_matches_model"]
-    groups = rep["groups"]
-    assert all(g["passed"] for k, g in groups.items() if k != "hub.f"), {k: g["max_rel_diff"] for k, g in groups.items()}
-    half_load = 0.36 / 2 * 200.0**2 * 0.2 / 4
-    assert groups["hub.f"]["max_abs_diff"] < 1e-3 * half_load
+    assert rep["passed"] and rep["fmu_reached_stop_time"] and rep["fmu_matches_model"]
+    assert "hub.f" in rep["groups"], sorted(rep["groups"])
 
 
 def test_bundled_beam_is_his_beam_row():

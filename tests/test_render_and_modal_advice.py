@@ -86,11 +86,12 @@ def test_modal_check_halves_the_reference_step_until_it_converges(monkeypatch):
 def test_advise_refuses_a_scene_that_its_partners_move():
     """The crank drive's scene (models/conrod_crank.toml) is the conrod with its ports open to the partner FMUs:
     nothing in the model file moves it, so `advise` (which runs the model's scene) says so instead of advising
-    `linear` for a body at rest (the drive needs W1: docs/inertia-terms.md, 2.3 % without it)."""
+    `linear` for a body at rest (the drive needs W1: docs/inertia-terms.md, 2.3 % without it), and names the route
+    that advises it in its system (`--system crank`, tests/test_crank_advice.py)."""
     from ffrf_fmu.checked_toml import ModelError
     from ffrf_fmu.model import load_model
     from ffrf_fmu.studies import modal_advice as ma
 
     m = load_model("models/conrod_crank.toml")
-    with pytest.raises(ModelError, match="partners outside the model file"):
+    with pytest.raises(ModelError, match="partners outside the model file.*--system crank"):
         ma.advise_modal(m, m.scene("crank"), 0.01)

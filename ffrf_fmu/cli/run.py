@@ -318,6 +318,15 @@ def validate(args) -> int:
     for g, d in rep["groups"].items():
         mark = "ok " if d["passed"] else "BAD"
         print(f"  {mark} {g:28s} max|diff| {d['max_abs_diff']:.3e}  rel {d['max_rel_diff']:.3e}")
+    samp = rep["input_sampling"]
+    worst = max(samp["groups"].items(), key=lambda kv: kv[1]["max_rel_diff"], default=None)
+    if worst is not None:
+        print(f"  input sampling (the standalone run under the FMU's input rule against the exact inputs at every "
+              f"step's end; not part of the verdict): largest {worst[0]} rel {worst[1]['max_rel_diff']:.3e}")
+    for part, d in samp["drives"].items():
+        force = (f", spring force <= {d['force_error_bound']:.3e} ({d['force_error_bound_rel']:.3e} of {d['group']})"
+                 if "force_error_bound_rel" in d else "")
+        print(f"    {part}: rate error {d['rate_error']:.3e} <= J H^2/2 = {d['rate_error_bound']:.3e}{force}")
     for k, d in rep["metrics"].items():
         print(f"  metric {k}: FMU {d['fmu']:.6g}, standalone {d['standalone']:.6g}, rel diff {d['rel_diff']:.2e}")
     w = rep["wall_time_s"]

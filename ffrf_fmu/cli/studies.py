@@ -256,6 +256,11 @@ def _fraction(text: str) -> float:
     arg("--cutoffs", metavar="N1,N2,...", help="with --check, where the reference is the scene's own converged modes (a "
         "solid or shell body, a rotating unbalance: studies/modal_advice.py): the mode counts to converge over "
         "(default: the advised count x 1, 1.5, 2, 3, 4)"),
+    arg("--system", choices=("crank",), help="advise the body in the system its partner FMUs make, against that "
+        "system's monolithic reference: crank, the conrod in the crank drive (models/conrod_crank.toml; "
+        "studies/crank_advice.py)"),
+    arg("--duration", type=float, metavar="T", help="with --system: the system run's duration [s] (default: the "
+        "drive's 7.5 ms)"),
     *SWEEP_ARGS,
 )
 def advise(args) -> int:
@@ -270,6 +275,10 @@ def advise(args) -> int:
         return 2
     from ..studies import modal_advice as ma
 
+    if args.system:
+        from ..studies import crank_advice
+
+        return crank_advice.advise_command(args)
     if ma.needs_modal_reference(model, scene):
         return ma.advise_command(args, model, scene)
     advice = ad.advise(model, scene.name, args.tolerance, fmu=args.fmu, backend=args.backend)

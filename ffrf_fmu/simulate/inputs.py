@@ -109,3 +109,42 @@ def scene_schedule(body: BodyData, scene: Scene) -> tuple:
     load_window = np.array([[ld.t_start, ld.t_end] for ld in loads], dtype=float).reshape(-1, 2)
     load_fm = np.array([[ld.force, ld.moment] for ld in loads], dtype=float).reshape(-1, 2, 3)
     return node, mode, spring, r0, kind, prm, axis, load_port, load_window, load_fm
+
+
+def rule_error(scene: Scene, H: float, ports: dict) -> dict:
+    """Per driven part ("port.translation" / "port.rotation") what an FMU's input rule misses of the drive over a
+    communication step H (runtime/input_rule.py). A drive u(t) sampled at t_c with (u, u', u'') and extrapolated
+    to second order misses u''' s^3 / 6 in u and u''' s^2 / 2 in u' at s = t - t_c <= H, so with
+    J = max |u'''|: rate error <= J H^2 / 2, displacement error <= J H^3 / 6; a compliant part's spring
+    (stiffness k, damping c, the largest per axis) sees a force error <= (c H^2 / 2 + k H^3 / 6) J, second order
+    in H while c J H^2 leads. J: the drive's acceleration differenced at min(H, step) / 8; `rate_error`: the
+    rule's largest rate error at the internal step ends (what the body sees). ports: {name: (translation,
+    rotation causality, coupling table)}."""
+    from ..runtime.steps import communication_grid, whole_steps
+
+    dt = min(H, scene.step) / 8
+    fine = np.arange(0.0, scene.duration + 0.5 * dt, dt)
+    grid = communication_grid(scene.duration, H)
+    out = {}
+    for d in scene.drives:
+        for part, drive in (("translation", d.translation), ("rotation", d.rotation)):
+            if drive is None:
+                continue
+            fn = drive.displacement if part == "translation" else drive.angle
+            u = np.array([_tf(fn, t) for t in fine])
+            J = float(np.max(np.abs(np.diff(u[:, 2])))) / dt
+            worst = 0.0
+            for t_c, t_end in zip(grid[:-1], grid[1:]):
+                n, h = whole_steps(t_end - t_c, scene.step)
+                _, v_c, a_c = _tf(fn, t_c)
+                worst = max(worst, *(abs(_tf(fn, t_c + j * h)[1] - v_c - a_c * j * h) for j in range(1, n + 1)))
+            row = {"jerk_max": J, "rate_error": worst, "rate_error_bound": 0.5 * J * H * H,
+                   "displacement_error_bound": J * H**3 / 6, "rate_peak": float(np.max(np.abs(u[:, 1])))}
+            translation, rotation, coupling = ports[d.port]
+            rot = part == "rotation"
+            if (rotation if rot else translation) == "compliant":
+                k = float(np.max(coupling.get("rotational_stiffness" if rot else "stiffness", 0.0)))
+                c = float(np.max(coupling.get("rotational_damping" if rot else "damping", 0.0)))
+                row |= {"force_error_bound": (0.5 * c * H * H + k * H**3 / 6) * J, "group": f"{d.port}.{'t' if rot else 'f'}"}
+            out[f"{d.port}.{part}"] = row
+    return out

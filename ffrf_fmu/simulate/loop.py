@@ -206,3 +206,48 @@ def run_scene(model: Model | str, scene: str | None = None, overrides: Sequence[
     result = run(body, scene, origin=model.body.origin, progress=progress, backend=backend)
     result.summary["load_time_s"] = load
     return result
+
+
+def run_input_rule(body: BodyData, scene: Scene, comm_step: float, *, origin=(0.0, 0.0, 0.0),
+                   backend: str = "native") -> SimulationResult:
+    """The standalone body stepped as its FMU steps: the scene's inputs sampled at the communication points
+    t_c of a master's grid (runtime/steps.communication_grid, step H = comm_step; loads as each window's mean
+    over (t_c, t_c + H], fmu/run.py) and between them the FMU's input rule (runtime/input_rule.py: motions
+    extrapolated to second order, loads held), each communication step n equal internal steps of at most the
+    scene's step (BodySystem.run_extrapolated, as fmu/core.py `do_step`). Recorded at the communication
+    points: the FMU's outputs under fmpy, to the Newton tolerance (validate.py compares the two); against
+    `run`, which evaluates the exact inputs at every step's end, it differs by the sampling (docs/fmu.md)."""
+    from ..runtime.input_rule import point_values
+    from ..runtime.steps import communication_grid
+
+    start = time.perf_counter()
+    system, _ = build_system(body, scene, origin, backend)
+    sampled = scene_inputs(body, scene, load_interval=(0.0, comm_step))
+    grid = communication_grid(scene.duration, comm_step)
+    rows = np.empty((len(grid), len(column_names(body))))
+    rows[0] = record(system)
+    free = scene.metrics.kind == "momentum"
+    masses = [free_body_state(system)] if free else []
+    failure, k = None, 0
+    for k in range(len(grid) - 1):
+        t_c, t_end = grid[k], grid[k + 1]
+        n, h = whole_steps(t_end - t_c, scene.step)
+        try:
+            system.run_extrapolated(h, n, t_c, point_values(body.ports, sampled(t_c)), rows[k + 1])
+        except StepFailure as exc:
+            failure = str(exc)
+            break
+        system.t = t_end  # the master's clock, as the FMU keeps it
+        if free:
+            masses.append(free_body_state(system))
+    else:
+        k = len(grid) - 1
+    columns = dict(zip(column_names(body), rows[: k + 1].T))
+    if free:
+        columns |= free_body_columns(*(np.array(x) for x in zip(*masses)))
+    times = np.asarray(grid[: k + 1], dtype=float)
+    summary = {"body": body.name, "scene": scene.name, "terms": scene.terms, "step": scene.step,
+               "comm_step": comm_step, "backend": system.backend, "completed": failure is None, "failure": failure,
+               "t_end": float(times[-1]), "wall_time_s": time.perf_counter() - start,
+               "inputs": "the FMU's input rule: sampled at the communication points, extrapolated between them"}
+    return SimulationResult(times, columns, summary, body)

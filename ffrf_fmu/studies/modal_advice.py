@@ -100,7 +100,8 @@ def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -
 
         raise ModelError(f"{model.path}: scene {scene.name}: nothing in it moves the body (no drives, loads, unbalances, "
                          "gravity or initial motion): its motion comes from partners outside the model file, a system "
-                         "that advise, which runs a model's scene, cannot advise as a whole (docs/cosim.md, \"Advice at "
+                         "that advise, which runs a model's scene, cannot advise as a whole; where the system is one advise "
+                         "knows, name it (--system crank: the conrod in the crank drive; docs/cosim.md, \"Advice at "
                          "1 % on the scenes\")")
 
     effects = steady_term_effects(scene_body(model.body, scene), scene)  # as `info` does
