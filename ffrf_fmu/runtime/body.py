@@ -12,12 +12,13 @@ equations, layout and step live in the modules named above.
 from __future__ import annotations
 
 import logging
+from functools import cached_property
 from typing import Callable
 
 import numpy as np
 
 from .accelerations import port_accelerations
-from .damping import Damping, body_basis, damping_matrices
+from .damping import Damping, body_basis, damping_matrices, is_damped
 from .data import BodyData
 from . import outputs, stiffening
 from .initial_conditions import InitialConditions
@@ -131,8 +132,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         if self.stiffening:
             self.vk_a = np.stack([se.vk_a for se in ses])
             self.vk_B = np.stack([se.vk_B for se in ses])
-        self.damping_basis = body_basis(self.damping, S.K, S.M)  # the elastic modes D is built on
-        self.D = damping_matrices(self.damping, self.damping_basis)  # (E, n, n) or None
+        self.D = damping_matrices(self.damping, self.damping_basis) if is_damped(self.damping) else None  # (E, n, n)
         self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
@@ -176,6 +176,12 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
                 logging.getLogger("ffrf_fmu").warning(self.backend_note)
             else:
                 self.backend = "native"
+
+    @cached_property
+    def damping_basis(self):
+        """The elastic modes D is built on (damping.py body_basis, of K and M as set up): computed on first
+        use, by a damped body or an FMU's image (its damping parameters), not by an undamped run."""
+        return body_basis(self.damping, self.K, self.M)
 
     # ------------------------------------------------------------------ state
     def reset_reference(self):

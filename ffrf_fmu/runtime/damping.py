@@ -121,9 +121,14 @@ def body_basis(damping: Damping | None, K: np.ndarray, M: np.ndarray) -> ModalBa
         return None
 
 
+def is_damped(damping: Damping | None) -> bool:
+    """Whether a body's damping damps (a Damping of no ratios and no coefficients does not)."""
+    return damping is not None and damping.kind != "none"
+
+
 def damping_matrices(damping: Damping | None, basis: ModalBasis | None) -> np.ndarray | None:
     """D (E, n, n) of each superelement, or None without damping."""
-    if damping is None or damping.kind == "none":
+    if not is_damped(damping):
         return None
     c = modal_coefficients(damping, basis)
     return np.einsum("eik,ek,ejk->eij", basis.MPhi, c, basis.MPhi)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes as C
 import logging
+from functools import cached_property
 
 import numpy as np
 
@@ -26,6 +27,7 @@ _LIB: dict[bool, C.CDLL] = {}
 _p, _d, _i, _sz = C.c_void_p, C.c_double, C.c_int, C.c_size_t
 _SIGNATURES = {
     "ffrf_body_create": (_p, [C.c_char_p, _sz, C.c_char_p, _sz]),
+    "ffrf_image_checksum": (C.c_uint64, [C.c_char_p, C.c_uint64]),
     "ffrf_body_free": (None, [_p]),
     "ffrf_body_array": (_p, [_p, C.c_char_p, C.POINTER(_sz), C.c_char_p]),
     "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, C.POINTER(_d)]),
@@ -51,7 +53,16 @@ def load(sanitize: bool = False) -> C.CDLL:
     return _LIB[sanitize]
 
 
-_KINDS = {b"d": np.float64, b"q": np.int64, b"i": np.intc}
+_KINDS = {b"d": np.dtype(np.float64), b"q": np.dtype(np.int64), b"i": np.dtype(np.intc)}
+
+
+class _Memory:
+    """Memory of the C body as numpy's array interface describes it (NativeBody.array)."""
+
+    __slots__ = ("__array_interface__",)
+
+    def __init__(self, interface: dict):
+        self.__array_interface__ = interface
 
 
 class NativeBody:
@@ -61,6 +72,7 @@ class NativeBody:
         self.lib = lib = load(sanitize)
         err = C.create_string_buffer(512)
         self._image = image
+        self._count, self._kind = _sz(), C.create_string_buffer(1)  # (`array`'s out-arguments)
         self.ptr = lib.ffrf_body_create(image, len(image), err, len(err))
         if not self.ptr:
             raise ValueError(f"C runtime refused the body image: {err.value.decode(errors='replace')}")
@@ -72,16 +84,15 @@ class NativeBody:
 
     def array(self, name: str, shape=None) -> np.ndarray:
         """The body's array `name` as a writable numpy view (reshaped to shape)."""
-        count, kind = _sz(), C.create_string_buffer(1)
-        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), C.byref(count), kind)
+        count, kind = self._count, self._kind
+        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), count, kind)
         if addr is None and count.value:
             raise KeyError(f"the C body has no array {name!r}")
-        dtype = np.dtype(_KINDS[kind.raw[:1]])
+        dtype = _KINDS[kind.raw]
         if count.value == 0:
             a = np.zeros(0, dtype=dtype)
-        else:
-            buf = (C.c_char * (count.value * dtype.itemsize)).from_address(addr)
-            a = np.frombuffer(buf, dtype=dtype)
+        else:  # the memory by its address (numpy's array interface: a third of a ctypes buffer's cost)
+            a = np.asarray(_Memory({"data": (addr, False), "shape": (count.value,), "typestr": dtype.str, "version": 3}))
         return a.reshape(shape) if shape is not None else a
 
     def get(self, name: str) -> float:
@@ -149,21 +160,19 @@ class NativeStep:
     and output_row call it, and BodySystem._local its equations at a given state."""
 
     def __init__(self, system, sanitize: bool = False):
-        self.body = B = NativeBody(body_image(system), sanitize)
+        lib = load(sanitize)  # the image's checksum by the C runtime (image.py pack); no basis unless damped
+        image = body_image(system, basis=False, checksum_of=lambda payload: lib.ffrf_image_checksum(payload, len(payload)))
+        self.body = B = NativeBody(image, sanitize)
         L = system.layout
         N = L.n_nodes
         self.state = {k: B.array(k, np.shape(getattr(system, k))) for k in system._STATE_FIELDS}
         self.energy = B.array("energy")
-        self.inputs = tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),
-                                                         ("f_in", (N, 3)), ("t_in", (N, 3))))
-        ns = len(system.compliant)
-        self.KC, self.r_in, self.v_in = B.array("KC", (ns, 4, 3)), B.array("r_in", (ns, 3)), B.array("v_in", (ns, 3))
-        self.R_in, self.w_in = B.array("R_in", (ns, 3, 3)), B.array("w_in", (ns, 3))
+        self._N, self._ns, self._n_ports = N, len(system.compliant), len(system.data.ports)  # (the lazy views')
+        self.KC = B.array("KC", (self._ns, 4, 3))
         self.spring_ports = [p.name for p in system.data.ports if p.name in system.compliant]
         loads = B.array("spring_loads", (N, 2, 3))
         loads[...] = system._spring_loads
         system._spring_loads = loads  # the springs' loads: written by the C steps, read by the numpy path
-        self.point_values = B.array("point_values", (len(system.data.ports), -1))
         nf = len(system._newton_idx)
         self.luT, self.piv, self.meta = B.array("luT", (nf, nf)), B.array("piv"), B.array("lu_meta")
         # the factorization last handed to system._lu (copies of the C body's), and the C version they copy
@@ -171,6 +180,23 @@ class NativeStep:
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
+
+    # the views only one way to step uses (`step`, `run_extrapolated`): made on its first call
+    @cached_property
+    def inputs(self) -> tuple[np.ndarray, ...]:
+        N, B = self._N, self.body
+        return tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),
+                                                ("f_in", (N, 3)), ("t_in", (N, 3))))
+
+    @cached_property
+    def spring_inputs(self) -> tuple[np.ndarray, ...]:
+        """r_in, v_in, R_in, w_in of the compliant ports."""
+        ns, B = self._ns, self.body
+        return B.array("r_in", (ns, 3)), B.array("v_in", (ns, 3)), B.array("R_in", (ns, 3, 3)), B.array("w_in", (ns, 3))
+
+    @cached_property
+    def point_values(self) -> np.ndarray:
+        return self.body.array("point_values", (self._n_ports, -1))
 
     # ---------------------------------------------------------------- state in, results out
     def _adopt(self, system):
@@ -235,12 +261,14 @@ class NativeStep:
         for dst, src in zip(self.inputs, read):
             dst[...] = src
         self._prepare(system, am, af, gamma)
+        if system._springs:
+            r_in, v_in, R_in, w_in = self.spring_inputs
         for i, (_, _, _, kc, (r, v, R, w)) in enumerate(system._springs):
             self.KC[i] = kc
             if r is not None:
-                self.r_in[i], self.v_in[i] = r, v
+                r_in[i], v_in[i] = r, v
             if R is not None:
-                self.R_in[i], self.w_in[i] = R, w
+                R_in[i], w_in[i] = R, w
         self._h = h
         _, status, _ = self.body.advance(GIVEN, 1, h, 0.0, None, None)
         exc = self._finish(system, status)

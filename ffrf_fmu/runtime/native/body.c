@@ -37,6 +37,11 @@ typedef struct {
     const void *values; /* into the body's copy of the payload, 8-byte aligned */
 } entry;
 
+uint64_t ffrf_image_checksum(const void *payload, uint64_t size)
+{
+    return ffrf_fnv1a_words(payload, (size_t)size);
+}
+
 #define MAX_ENTRIES 96
 
 typedef struct {

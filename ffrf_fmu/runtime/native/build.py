@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+HERE_STR = str(HERE)
 SOURCES = ("so3.c", "lu.c", "superelement.c", "factor.c", "step.c", "accel.c", "advance.c", "body.c")
 HEADERS = ("ffrf_runtime.h", "layout.h", "bytes.h", "so3.h", "lu.h", "superelement.h", "factor.h", "step.h", "accel.h", "advance.h", "body.h")
 # -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
@@ -38,20 +39,28 @@ class BuildError(RuntimeError):
 
 
 def cache_root() -> Path:
+    return Path(cache_dir())
+
+
+def cache_dir() -> str:
+    """cache_root() as a plain string (pathlib's first calls in a process cost more than a run's lookups)."""
     env = os.environ.get("FFRF_FMU_CACHE_DIR")
     if env:
-        return Path(env)
+        return env
     xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "ffrf-fmu"
+    return os.path.join(xdg or os.path.join(os.path.expanduser("~"), ".cache"), "ffrf-fmu")
 
 
 def sources() -> list[Path]:
     return [HERE / s for s in SOURCES]
 
 
+_KEYED = tuple(os.path.join(HERE_STR, name) for name in SOURCES + HEADERS)  # the files of the cache key
+
+
 def source_digest(extra: tuple[str, ...] = ()) -> str:
     """sha256 of the runtime's sources and headers (and the compile command's words): the cache key."""
-    return remembered_digest([HERE / name for name in SOURCES + HEADERS], extra)
+    return remembered_digest(_KEYED, extra)
 
 
 def file_digest(paths, extra: tuple[str, ...] = ()) -> str:
@@ -77,7 +86,7 @@ def remembered_digest(paths, extra: tuple[str, ...] = ()) -> str:
     except OSError:
         return file_digest([Path(q) for q in names], extra)
     signature = hashlib.sha256("\0\0".join([*words, *extra]).encode()).hexdigest()[:32]
-    folder = os.path.join(os.fspath(cache_root()), "digests")
+    folder = os.path.join(cache_dir(), "digests")
     memo = os.path.join(folder, signature)
     try:
         with open(memo, "rb") as fh:
@@ -110,7 +119,7 @@ def compiler() -> list[str]:
     if env:
         return env.split()
     for name in ("cc", "gcc", "clang"):
-        path = shutil.which(name)
+        path = _which(name)
         if path:
             return [path]
     try:
@@ -119,6 +128,18 @@ def compiler() -> list[str]:
         raise BuildError("no C compiler: none of cc, gcc, clang on the PATH, and the ziglang package is not "
                          "installed (pip install ziglang), or set FFRF_FMU_CC") from None
     return [sys.executable, "-m", "ziglang", "cc"]
+
+
+def _which(name: str) -> str | None:
+    """shutil.which(name) on POSIX as a plain scan of $PATH (a third of its cost: every run looks up the
+    compiler, whose path is part of the cache key); shutil.which itself on Windows (PATHEXT)."""
+    if sys.platform == "win32":
+        return shutil.which(name)
+    for folder in os.environ.get("PATH", os.defpath).split(os.pathsep):
+        path = os.path.join(folder or os.curdir, name)
+        if os.access(path, os.X_OK) and not os.path.isdir(path):
+            return path
+    return None
 
 
 def _library_name() -> str:
@@ -166,17 +187,18 @@ def library(sanitize: bool = False) -> Path:
     process that loses a race uses the winner's file). sanitize: the address and undefined-behaviour
     sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`). A copy of this
     package shipped in a pythonfmu FMU carries its library in prebuilt/ (`ship`): no compiler on the host."""
-    shipped = HERE / PREBUILT / _library_name()
-    if not sanitize and not extra_cflags() and shipped.exists():  # extra flags: built here, never the shipped one
-        return shipped
+    name = _library_name()
+    shipped = os.path.join(HERE_STR, PREBUILT, name)
+    if not sanitize and not extra_cflags() and os.path.exists(shipped):  # extra flags: built here, never the shipped one
+        return Path(shipped)
     extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
     cc = compiler()
-    digest = source_digest((*cc[-1:], *FLAGS, *extra))
+    folder = library_key(cc, extra) + ("-sanitize" if sanitize else "")
     for root in _cache_roots():
-        d = root / "native" / (digest + ("-sanitize" if sanitize else ""))
-        lib = d / _library_name()
-        if lib.exists():
-            return lib
+        if os.path.exists(found := os.path.join(root, "native", folder, name)):  # (one stat: the usual case)
+            return Path(found)
+        d = Path(root, "native", folder)
+        lib = d / name
         try:
             d.mkdir(parents=True, exist_ok=True)
         except OSError:
@@ -190,13 +212,19 @@ def library(sanitize: bool = False) -> Path:
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
 
 
+def library_key(cc: list[str], extra: tuple[str, ...] = ()) -> str:
+    """The compiled runtime's folder in the cache: the digest of the sources and headers, the compiler's
+    path, FLAGS and the extra flags; any change of them compiles afresh."""
+    return source_digest((*cc[-1:], *FLAGS, *extra))
+
+
 def _cache_roots():
     """The cache, then a temporary directory (asked for only when the cache cannot be written:
     tempfile.gettempdir's first call writes a probe file)."""
-    yield cache_root()
+    yield cache_dir()
     import tempfile  # (after the first: a run with a writable cache does not import it)
 
-    yield Path(tempfile.gettempdir()) / f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}"
+    yield os.path.join(tempfile.gettempdir(), f"ffrf-fmu-{os.getuid() if hasattr(os, 'getuid') else 0}")
 
 
 def ship(dest: Path) -> None:

@@ -28,6 +28,9 @@ typedef struct ffrf_body ffrf_body;
 /* A body from its image (`size` bytes, runtime/native/image.py); NULL with a message in err
  * (err_len bytes) when the image is damaged, of another version or inconsistent. */
 ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t err_len);
+/* The checksum of an image's payload (`size` bytes; FNV-1a 64 over its 8-byte words, image.py `checksum`),
+ * for an image packed in the process that creates the body from it (runtime/native/binding.py). */
+uint64_t ffrf_image_checksum(const void *payload, uint64_t size);
 void ffrf_body_free(ffrf_body *b);
 
 /* The address and size (in elements) of a named array of the body (state, inputs, springs,

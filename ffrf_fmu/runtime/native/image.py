@@ -19,7 +19,7 @@ import struct
 
 import numpy as np
 
-from ..damping import per_mode_ratios
+from ..damping import is_damped, per_mode_ratios
 
 MAGIC = b"FFRFBODY"
 VERSION = 2  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction)
@@ -29,22 +29,30 @@ ENTRY = struct.Struct("<24sBB6x5Q")
 MAX_DIMS = 5
 
 
-def pack(entries: dict[str, np.ndarray]) -> bytes:
-    """The image of named arrays (float64 or int64), in the given order."""
+_INT64, _FLOAT64 = np.dtype("<i8"), np.dtype("<f8")
+
+
+def pack(entries: dict[str, np.ndarray], checksum_of=None) -> bytes:
+    """The image of named arrays (float64 or int64), in the given order. checksum_of: the function of the
+    payload's checksum, `checksum` by default; binding.py passes the C runtime's (the same sum in C: the
+    Python loop takes 0.2 us a word, 0.3-0.5 ms of a B1 body's set-up)."""
     parts = []
     for name, value in entries.items():
         a = np.asarray(value)
         if a.dtype.kind in "iub":
-            a, kind = np.ascontiguousarray(a, dtype="<i8"), b"q"
+            a, kind = np.ascontiguousarray(a, dtype=_INT64), 113  # b"q"
         else:
-            a, kind = np.ascontiguousarray(a, dtype="<f8"), b"d"
-        if a.ndim > MAX_DIMS or len(name.encode()) >= NAME_BYTES:
+            a, kind = np.ascontiguousarray(a, dtype=_FLOAT64), 100  # b"d"
+        key = name.encode()
+        if a.ndim > MAX_DIMS or len(key) >= NAME_BYTES:
             raise ValueError(f"image entry {name!r}: at most {MAX_DIMS} dimensions and {NAME_BYTES - 1} name bytes")
-        dims = list(a.shape) + [1] * (MAX_DIMS - a.ndim)
-        parts.append(ENTRY.pack(name.encode(), kind[0], a.ndim, *dims))
-        parts.append(a.tobytes())
+        parts.append(ENTRY.pack(key, kind, a.ndim, *a.shape, *_ONES[a.ndim:]))
+        parts.append(a.data)
     payload = b"".join(parts)
-    return HEADER.pack(MAGIC, VERSION, len(entries), len(payload), remembered_checksum(payload)) + payload
+    return HEADER.pack(MAGIC, VERSION, len(entries), len(payload), (checksum_of or checksum)(payload)) + payload
+
+
+_ONES = (1,) * MAX_DIMS
 
 
 def checksum(payload: bytes) -> int:
@@ -54,39 +62,6 @@ def checksum(payload: bytes) -> int:
     for w in np.frombuffer(payload, dtype="<u8").tolist():
         h = ((h ^ w) * 0x100000001B3) & mask
     return h
-
-
-def remembered_checksum(payload: bytes) -> int:
-    """checksum(payload), remembered in the cache of the compiled runtime (<cache>/image_checksums/) under
-    the payload's BLAKE2b digest: FNV-1a runs word after word, in Python about 0.2 us a word (0.5 ms of a
-    B1 body's set-up), the digest in C (30 us). A run of a body set up before reads 16 hex digits; without
-    a writable cache the checksum is computed each time. (Plain strings and os: pathlib's first calls in
-    a process cost as much as the checksum.)"""
-    import hashlib
-    import os
-
-    from .build import cache_root
-
-    name = hashlib.blake2b(payload, digest_size=16).hexdigest()
-    folder = os.path.join(os.fspath(cache_root()), "image_checksums", name[:2])
-    memo = os.path.join(folder, name)
-    try:
-        with open(memo, "rb") as fh:
-            text = fh.read(17)
-        if len(text) == 16:
-            return int(text, 16)
-    except (OSError, ValueError):
-        pass
-    value = checksum(payload)
-    try:
-        os.makedirs(folder, exist_ok=True)
-        tmp = os.path.join(folder, f".{name}.{os.getpid()}.tmp")
-        with open(tmp, "w", encoding="ascii") as fh:
-            fh.write(f"{value:016x}")
-        os.replace(tmp, memo)
-    except OSError:  # a read-only cache: computed again next time
-        pass
-    return value
 
 
 def unpack(image: bytes) -> dict[str, np.ndarray]:
@@ -109,9 +84,12 @@ def unpack(image: bytes) -> dict[str, np.ndarray]:
     return out
 
 
-def body_entries(system) -> dict[str, np.ndarray]:
+def body_entries(system, basis: bool = True) -> dict[str, np.ndarray]:
     """The named arrays of a BodySystem's image: its reduced data (the term set's), the integrator's maps
-    and Newton policy, the ports, the compliances and the reference state (runtime/native/body.h)."""
+    and Newton policy, the ports, the compliances and the reference state (runtime/native/body.h).
+    basis: the damping's modal basis (damping.py) in the image, so that an FMU's damping parameters act
+    without an eigensolver; False leaves it out of an undamped body's image (a body that no one damps
+    later, the standalone run's: an eigenproblem per superelement saved, the steps the same)."""
     L = system.layout
     E, n = L.n_se, L.n
     gyro = (1 if system.coriolis else 0) | (2 if system.inertia_coupling else 0)  # FFRF_CORIOLIS | FFRF_COUPLING
@@ -119,7 +97,8 @@ def body_entries(system) -> dict[str, np.ndarray]:
     springs = [p for p in ports if p.name in system.compliant]
     node, mode, spring = system._port_codes
     am, af, gamma = system.coefficients
-    basis, damping = system.damping_basis, system.damping
+    damping = system.damping
+    basis = system.damping_basis if basis or is_damped(damping) else None
     n_el = basis.n_elastic if basis is not None else 0
     e = {
         # reduced data (geradin 76, 53, 13) and the deformation-dependent inertia / membrane strain
@@ -161,6 +140,7 @@ def body_entries(system) -> dict[str, np.ndarray]:
     return e
 
 
-def body_image(system) -> bytes:
-    """The image of a BodySystem (its term set, stiffening, ports, compliances and settings)."""
-    return pack(body_entries(system))
+def body_image(system, basis: bool = True, checksum_of=None) -> bytes:
+    """The image of a BodySystem (its term set, stiffening, ports, compliances and settings; `body_entries`,
+    `pack`)."""
+    return pack(body_entries(system, basis), checksum_of)
