@@ -76,16 +76,37 @@ def test_analytic_sinusoid_with_trend(h, uneven):
     assert abs(fr.dominant_frequency(t, y, 0.1, 2.0) - f0) < 1e-9
 
 
-def test_chirp_z_pair_is_the_sums():
-    """The chirp z-transform of rows x against sum_n x_n exp(i a_k n) and sum_n exp(2 i a_k n) summed
-    directly: FFT round-off is about eps log2(size) of the largest term sum, 1e-12 of it is far above."""
+@pytest.mark.parametrize("sums", [fr.chirp_z_pair, fr.grid_sums])
+@pytest.mark.parametrize("m", [57, 400, 401])
+def test_grid_sums_are_the_sums(sums, m):
+    """The chirp z-transform and the factored sums (grid_sums; m a square, one more, neither) of rows x
+    against sum_n x_n exp(i a_k n) and sum_n exp(2 i a_k n) summed term by term: FFT round-off is about
+    eps log2(size) of the largest term sum, the factored sums' eps sqrt(N) (the exponentials' angles
+    rounded apart, a0 + q p da), 1e-12 of it is far above both."""
     x = np.random.default_rng(1).normal(size=(3, 301))
-    n, a = np.arange(301), 0.013 + 0.0021 * np.arange(57)
+    n, a = np.arange(301), 0.013 + 0.0021 * np.arange(m)
     direct = x @ np.exp(1j * np.outer(n, a))
     direct2 = np.exp(2j * np.outer(a, n)).sum(axis=1)
-    s1, s2 = fr.chirp_z_pair(x, 0.013, 0.0021, 57)
+    s1, s2 = sums(x, 0.013, 0.0021, m)
+    assert s1.shape == direct.shape and s2.shape == direct2.shape
     assert np.max(np.abs(s1 - direct)) < 1e-12 * np.max(np.abs(direct))
     assert np.max(np.abs(s2 - direct2)) < 1e-12 * np.max(np.abs(direct2))
+
+
+def test_both_routes_pick_the_same_grid_point(monkeypatch):
+    """B1's window at 40 ms (126 samples, the factored sums) and at 2 ms (2501, the chirp z-transform):
+    each route's grid scores agree to round-off with the other's and have their maximum at the same
+    frequency, so the refined estimate (from that point's bracket only) is bit for bit the same."""
+    for h in (0.04, 0.002):
+        t = window(h)
+        y = 0.3 * np.sin(2 * np.pi * 0.53 * t) + 0.1 * np.sin(2 * np.pi * 1.37 * t + 1) + 0.002 * t
+        fit, grid = fr.TrendFit(t, y), np.linspace(0.1, 2.0, fr.GRID)
+        scores = {}
+        for limit in (0, 10**6):  # every sample count by chirp z, then every one by the sums
+            monkeypatch.setattr(fr, "DIRECT_SUMS_MAX", limit)
+            scores[limit] = fit.grid_scores(grid)
+        assert np.max(np.abs(scores[0] - scores[10**6])) < 1e-9 * np.max(np.abs(scores[0]))
+        assert np.argmax(scores[0]) == np.argmax(scores[10**6])
 
 
 @pytest.mark.parametrize("h", [0.04, 0.002])
