@@ -184,8 +184,8 @@ def grid_sums(x: np.ndarray, a0: float, da: float, m: int) -> tuple[np.ndarray, 
     q = math.isqrt(m - 1) + 1
     outer = _powers(q * da * n, -(-m // q)) * _unit(a0 * n)  # (p, N)
     inner = _powers(da * n, q).T  # (N, q)
-    # one product per row (a stack of small ones: a single large one would go to threaded BLAS)
-    s1 = ((x[:, None, :] * outer) @ inner).reshape(x.shape[0], -1)[:, :m]
+    # one product per row (a single one of all rows would go to threaded BLAS)
+    s1 = np.stack([(outer * row) @ inner for row in x.astype(complex)]).reshape(x.shape[0], -1)[:, :m]
     s2 = ((outer * outer) @ (inner * inner)).reshape(-1)[:m]
     return s1, s2
 
