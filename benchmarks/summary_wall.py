@@ -16,8 +16,10 @@ with this one's runs; its bytecode cached under a temporary prefix, not written 
 prints the ratio of its best times over this checkout's, per configuration.
 --phases runs the same command with the pieces of its run timed (PHASES: the functions of the run
 wrapped in the child process, before the CLI is imported; any checkout), and prints their best of N:
-the body from the cache (body_cache.scene_body_data), BodySystem(), initialize, the steps (run_schedule,
-all chunks), the metrics, and wall_time_s less the steps (what the summary counts outside the steps).
+the body from the cache (body_cache.scene_body_data), BodySystem(), of it the C body (NativeStep: its
+image, the library, the views) and the damping's modal basis (damping.body_basis; 0 where not computed),
+initialize, the steps (run_schedule, all chunks), the metrics, of them the dominant frequency's grid
+(TrendFit.grid_scores), and wall_time_s less the steps (what the summary counts outside the steps).
 """
 from __future__ import annotations
 
@@ -57,11 +59,14 @@ def timer(owner, name, key):
             T[key] = T.get(key, 0.0) + time.perf_counter() - t
     setattr(owner, name, timed)
 from ffrf_fmu import body_cache
+from ffrf_fmu.runtime import body
 from ffrf_fmu.runtime.body import BodySystem
-from ffrf_fmu.simulate import loop
+from ffrf_fmu.runtime.native import binding
+from ffrf_fmu.simulate import frequency, loop
 for owner, name, key in ((body_cache, "scene_body_data", "load"), (BodySystem, "__init__", "BodySystem()"),
+                         (binding.NativeStep, "__init__", "C body"), (body, "body_basis", "damping basis"),
                          (BodySystem, "initialize", "initialize"), (BodySystem, "run_schedule", "steps"),
-                         (loop, "metrics", "metrics")):
+                         (loop, "metrics", "metrics"), (frequency.TrendFit, "grid_scores", "frequency grid")):
     timer(owner, name, key)
 try:
     runpy.run_module("ffrf_fmu", run_name="__main__")
@@ -70,7 +75,7 @@ except SystemExit:
 with open(out, "w") as fh:
     json.dump(T, fh)
 """
-PHASE_KEYS = ("load", "BodySystem()", "initialize", "metrics", "steps")
+PHASE_KEYS = ("load", "BodySystem()", "C body", "damping basis", "initialize", "metrics", "frequency grid", "steps")
 
 
 def run(config: str, out: Path, checkout: Path = ROOT, pycache: str | None = None, phases: bool = False) -> dict:

@@ -26,6 +26,9 @@ def test_c_checksum_is_the_python_checksum():
     assert packed == image.pack(entries)
     back = image.unpack(packed)
     assert np.array_equal(back["a"], entries["a"]) and back["n"][0] == 3 and back["s"] == 2.5
+    # a Python scalar's entry (packed in one struct) is that of the array of its one value
+    assert image.pack({"s": 2.5, "n": 3, "b": True}) == image.pack({"s": np.array([2.5]), "n": np.array([3]),
+                                                                   "b": np.array([1])})
 
 
 def test_library_key_follows_sources_flags_and_compiler(tmp_path, monkeypatch):

@@ -30,6 +30,9 @@ MAX_DIMS = 5
 
 
 _INT64, _FLOAT64 = np.dtype("<i8"), np.dtype("<f8")
+_ONES = (1,) * MAX_DIMS
+# a Python scalar's entry and value in one (a third of the entries; numpy's conversions cost 3 us each)
+_SCALAR = {int: struct.Struct("<24sBB6x5Qq"), bool: struct.Struct("<24sBB6x5Qq"), float: struct.Struct("<24sBB6x5Qd")}
 
 
 def pack(entries: dict[str, np.ndarray], checksum_of=None) -> bytes:
@@ -38,21 +41,24 @@ def pack(entries: dict[str, np.ndarray], checksum_of=None) -> bytes:
     Python loop takes 0.2 us a word, 0.3-0.5 ms of a B1 body's set-up)."""
     parts = []
     for name, value in entries.items():
+        key = name.encode()
+        if len(key) >= NAME_BYTES:
+            raise ValueError(f"image entry {name!r}: at most {NAME_BYTES - 1} name bytes")
+        scalar = _SCALAR.get(type(value))
+        if scalar is not None:
+            parts.append(scalar.pack(key, 100 if type(value) is float else 113, 1, *_ONES, value))  # shape (1,), as ascontiguousarray makes a scalar below
+            continue
         a = np.asarray(value)
         if a.dtype.kind in "iub":
             a, kind = np.ascontiguousarray(a, dtype=_INT64), 113  # b"q"
         else:
             a, kind = np.ascontiguousarray(a, dtype=_FLOAT64), 100  # b"d"
-        key = name.encode()
-        if a.ndim > MAX_DIMS or len(key) >= NAME_BYTES:
-            raise ValueError(f"image entry {name!r}: at most {MAX_DIMS} dimensions and {NAME_BYTES - 1} name bytes")
+        if a.ndim > MAX_DIMS:
+            raise ValueError(f"image entry {name!r}: at most {MAX_DIMS} dimensions")
         parts.append(ENTRY.pack(key, kind, a.ndim, *a.shape, *_ONES[a.ndim:]))
         parts.append(a.data)
     payload = b"".join(parts)
     return HEADER.pack(MAGIC, VERSION, len(entries), len(payload), (checksum_of or checksum)(payload)) + payload
-
-
-_ONES = (1,) * MAX_DIMS
 
 
 def checksum(payload: bytes) -> int:
