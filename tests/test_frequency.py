@@ -1,7 +1,7 @@
 """simulate/frequency.py: the dominant frequency (least-squares sinusoid with a linear trend) by a grid
-of chirp z-transforms and the zero of the misfit's derivative, against an analytic sinusoid, the sums
-it replaces and the estimator it replaced (golden-section search of numpy lstsq fits, kept here as
-the oracle) on a real run."""
+of factored sums or chirp z-transforms and the zero of the misfit's derivative, against an analytic
+sinusoid, the sums they stand for and the estimator it replaced (golden-section search of numpy lstsq
+fits, kept here as the oracle) on a real run."""
 from __future__ import annotations
 
 from pathlib import Path
