@@ -454,3 +454,35 @@ def test_a_damped_tumbling_free_beam_fmu_equals_its_standalone_run(tmp_path):
     worst = max(np.abs(run.columns[n] - ref.columns[n]).max() / max(np.abs(ref.columns[n]).max(), 1e-300)
                 for n in names)
     assert worst <= 1e-8, worst
+
+
+def test_an_undamped_run_makes_no_basis_and_steps_the_same(monkeypatch):
+    """An undamped body computes no modal basis in its set-up and its C body's image carries none
+    (BodySystem.damping_basis on first use; an FMU's image, body_image's default, has it, for its damping
+    parameters); its run is that of a C body from the image with the basis, bit for bit (no damping:
+    D = 0 either way). B1 (models/haug_beam.toml) 1 SE x 2 modes, stiffened, 40 ms."""
+    from pathlib import Path
+
+    from ffrf_fmu.body_cache import scene_body_data
+    from ffrf_fmu.runtime.native import binding, image
+    from ffrf_fmu.simulate import loop
+
+    model = load_model(str(Path(__file__).resolve().parents[1] / "models" / "haug_beam.toml"),
+                       ["superelements=1", "modes=2", "stiffening=true", "step=0.04"])
+    scene = model.scene("spinup")
+    data = scene_body_data(model.body, scene)
+    runs = []
+    for with_basis in (False, True):
+        if with_basis:
+            monkeypatch.setattr(binding, "body_image", lambda s, basis, checksum_of: image.body_image(s, True, checksum_of))
+        s, _ = loop.build_system(data, scene)
+        assert s.backend == "native" and ("damping_basis" in vars(s)) == with_basis
+        runs.append(loop.run(data, scene, progress=False))
+    assert runs[0].columns.keys() == runs[1].columns.keys()
+    assert all(np.array_equal(runs[0].columns[k], runs[1].columns[k]) for k in runs[0].columns)
+    monkeypatch.undo()
+    s, _ = loop.build_system(data, scene)
+    assert image.unpack(image.body_image(s, basis=False))["damp_omega"].shape == (1, 0)
+    assert "damping_basis" not in vars(s)
+    assert image.unpack(image.body_image(s))["damp_omega"].shape == (1, data.superelements[0].n)  # made now
+    assert "damping_basis" in vars(s)
