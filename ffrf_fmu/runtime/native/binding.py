@@ -167,7 +167,9 @@ class NativeStep:
         N = L.n_nodes
         self.state = {k: B.array(k, np.shape(getattr(system, k))) for k in system._STATE_FIELDS}
         self.energy = B.array("energy")
-        self._N, self._ns, self._n_ports = N, len(system.compliant), len(system.data.ports)  # (the lazy views')
+        self.inputs = tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),
+                                                         ("f_in", (N, 3)), ("t_in", (N, 3))))
+        self._ns, self._n_ports = len(system.compliant), len(system.data.ports)  # (the lazy views')
         self.KC = B.array("KC", (self._ns, 4, 3))
         self.spring_ports = [p.name for p in system.data.ports if p.name in system.compliant]
         loads = B.array("spring_loads", (N, 2, 3))
@@ -181,13 +183,8 @@ class NativeStep:
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
 
-    # the views only one way to step uses (`step`, `run_extrapolated`): made on its first call
-    @cached_property
-    def inputs(self) -> tuple[np.ndarray, ...]:
-        N, B = self._N, self.body
-        return tuple(B.array(k, s) for k, s in (("xN_p", (N, 3)), ("RN_p", (N, 3, 3)), ("zN_p", (N, 6)),
-                                                ("f_in", (N, 3)), ("t_in", (N, 3))))
-
+    # views that only some bodies or one way to step use: made on first use (a step of a body with compliant
+    # ports, `run_extrapolated`)
     @cached_property
     def spring_inputs(self) -> tuple[np.ndarray, ...]:
         """r_in, v_in, R_in, w_in of the compliant ports."""
