@@ -16,8 +16,9 @@ with this one's runs; its bytecode cached under a temporary prefix, not written 
 prints the ratio of its best times over this checkout's, per configuration.
 --phases runs the same command with the pieces of its run timed (PHASES: the functions of the run
 wrapped in the child process, before the CLI is imported; any checkout), and prints their best of N:
-the body from the cache (body_cache.scene_body_data), BodySystem(), of it the C body (NativeStep: its
-image, the library, the views) and the damping's modal basis (damping.body_basis; 0 where not computed),
+the body from the cache (body_cache.scene_body_data), BodySystem(), of it the C body (NativeStep) and of
+that the library's lookup (build.library), its load (ctypes.CDLL), the image (body_image) and the array
+views (NativeBody.array), the damping's modal basis (damping.body_basis; 0 where not computed),
 initialize, the steps (run_schedule, all chunks), the metrics, of them the dominant frequency's grid
 (TrendFit.grid_scores), and wall_time_s less the steps (what the summary counts outside the steps).
 """
@@ -58,13 +59,16 @@ def timer(owner, name, key):
         finally:
             T[key] = T.get(key, 0.0) + time.perf_counter() - t
     setattr(owner, name, timed)
+import ctypes
 from ffrf_fmu import body_cache
 from ffrf_fmu.runtime import body
 from ffrf_fmu.runtime.body import BodySystem
-from ffrf_fmu.runtime.native import binding
+from ffrf_fmu.runtime.native import binding, build
 from ffrf_fmu.simulate import frequency, loop
 for owner, name, key in ((body_cache, "scene_body_data", "load"), (BodySystem, "__init__", "BodySystem()"),
-                         (binding.NativeStep, "__init__", "C body"), (body, "body_basis", "damping basis"),
+                         (binding.NativeStep, "__init__", "C body"), (build, "library", "library lookup"),
+                         (ctypes.CDLL, "__init__", "ctypes.CDLL"), (binding, "body_image", "image"),
+                         (binding.NativeBody, "array", "array views"), (body, "body_basis", "damping basis"),
                          (BodySystem, "initialize", "initialize"), (BodySystem, "run_schedule", "steps"),
                          (loop, "metrics", "metrics"), (frequency.TrendFit, "grid_scores", "frequency grid")):
     timer(owner, name, key)
@@ -75,7 +79,8 @@ except SystemExit:
 with open(out, "w") as fh:
     json.dump(T, fh)
 """
-PHASE_KEYS = ("load", "BodySystem()", "C body", "damping basis", "initialize", "metrics", "frequency grid", "steps")
+PHASE_KEYS = ("load", "BodySystem()", "C body", "library lookup", "ctypes.CDLL", "image", "array views", "damping basis",
+              "initialize", "metrics", "frequency grid", "steps")
 
 
 def run(config: str, out: Path, checkout: Path = ROOT, pycache: str | None = None, phases: bool = False) -> dict:
@@ -125,14 +130,18 @@ def main(argv=None) -> int:
         steps = rs[0]["steps"]
         per = 1e6 * min(s["wall_time_s"] for s in rs) / steps
         print(f"{c:48s} {steps:6d} {cols[0]:>18s} {cols[1]:>14s} {cols[2]:>14s} {cols[3]:>14s} {per:14.1f}")
-    if args.phases:
+    if args.phases:  # a row per piece, a column per configuration (and checkout)
         print(f"pieces of the same runs [ms], best of {args.repeat} (median); outside the steps: wall_time_s - steps")
-        print(f"{'configuration':48s} " + " ".join(f"{key:>17s}" for key in (*PHASE_KEYS, "outside the steps")))
-        for (k, c), rs in runs.items():
-            per = [[s["phases"].get(key, 0.0) for s in rs] for key in PHASE_KEYS]
-            per.append([s["wall_time_s"] - s["phases"].get("steps", 0.0) for s in rs])
-            label = f"{k.name}: {c}" if len(checkouts) > 1 else c
-            print(f"{label:48s} " + " ".join(f"{1e3 * min(v):7.3f} ({1e3 * statistics.median(v):7.3f})" for v in per))
+        for j, (k, c) in enumerate(runs):
+            print(f"  [{j}] {k.name + ': ' if len(checkouts) > 1 else ''}{c}")
+        print(f"{'piece':20s}" + "".join(f"{f'[{j}]':>20s}" for j in range(len(runs))))
+        for key in (*PHASE_KEYS, "outside the steps"):
+            cells = []
+            for rs in runs.values():
+                v = [s["wall_time_s"] - s["phases"].get("steps", 0.0) if key == "outside the steps"
+                     else s["phases"].get(key, 0.0) for s in rs]
+                cells.append(f"{1e3 * min(v):8.3f} ({1e3 * statistics.median(v):7.3f})")
+            print(f"{key:20s}" + "".join(f"{cell:>20s}" for cell in cells))
     for k in checkouts[1:]:  # the baseline ratios, of the same run's best times
         for c in args.config or CONFIGS:
             ratio = {key: min(s[key] for s in runs[k, c]) / min(s[key] for s in runs[ROOT, c])
