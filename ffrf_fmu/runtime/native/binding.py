@@ -92,7 +92,8 @@ class NativeBody:
         if count.value == 0:
             a = np.zeros(0, dtype=dtype)
         else:  # the memory by its address (numpy's array interface: a third of a ctypes buffer's cost)
-            a = np.asarray(_Memory({"data": (addr, False), "shape": (count.value,), "typestr": dtype.str, "version": 3}))
+            a = np.asarray(_Memory({"data": (addr, False), "shape": (count.value,), "typestr": dtype.str,
+                                    "version": 3}))
         return a.reshape(shape) if shape is not None else a
 
     def get(self, name: str) -> float:
@@ -161,7 +162,8 @@ class NativeStep:
 
     def __init__(self, system, sanitize: bool = False):
         lib = load(sanitize)  # the image's checksum by the C runtime (image.py pack); no basis unless damped
-        image = body_image(system, basis=False, checksum_of=lambda payload: lib.ffrf_image_checksum(payload, len(payload)))
+        image = body_image(system, basis=False,
+                           checksum_of=lambda payload: lib.ffrf_image_checksum(payload, len(payload)))
         self.body = B = NativeBody(image, sanitize)
         L = system.layout
         N = L.n_nodes

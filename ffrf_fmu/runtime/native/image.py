@@ -45,8 +45,8 @@ def pack(entries: dict[str, np.ndarray], checksum_of=None) -> bytes:
         if len(key) >= NAME_BYTES:
             raise ValueError(f"image entry {name!r}: at most {NAME_BYTES - 1} name bytes")
         scalar = _SCALAR.get(type(value))
-        if scalar is not None:
-            parts.append(scalar.pack(key, 100 if type(value) is float else 113, 1, *_ONES, value))  # shape (1,), as ascontiguousarray makes a scalar below
+        if scalar is not None:  # of shape (1,), as ascontiguousarray makes a scalar below
+            parts.append(scalar.pack(key, 100 if type(value) is float else 113, 1, *_ONES, value))
             continue
         a = np.asarray(value)
         if a.dtype.kind in "iub":
