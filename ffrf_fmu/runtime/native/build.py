@@ -136,7 +136,7 @@ def _which(name: str) -> str | None:
     if sys.platform == "win32":
         return shutil.which(name)
     for folder in os.environ.get("PATH", os.defpath).split(os.pathsep):
-        path = os.path.join(folder or os.curdir, name)
+        path = os.path.join(folder, name)
         if os.access(path, os.X_OK) and not os.path.isdir(path):
             return path
     return None
