@@ -10,33 +10,23 @@ difference is the Jacobian: its local blocks F_ydot, F_y of superelement.c `jaco
 """
 from __future__ import annotations
 
-import argparse
 import ctypes
 import os
 import time
-from pathlib import Path
 
 import numpy as np
 
+from _timing import b1_arguments, b1_spinup
 from ffrf_fmu import simulate as sim
-from ffrf_fmu.body_cache import scene_body_data
-from ffrf_fmu.model import load_model
-
-MODEL = Path(__file__).resolve().parents[1] / "models" / "haug_beam.toml"
-CONFIG = ["superelements=1", "modes=2", "stiffening=true", "step=0.04"]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = b1_arguments(__doc__)
     ap.add_argument("--calls", type=int, default=20000)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=100)
-    ap.add_argument("--config", nargs="*", default=CONFIG)
     args = ap.parse_args(argv)
-    model = load_model(MODEL, args.config)
-    scene = model.scene("spinup")
-    body = scene_body_data(model.body, scene)
-    system, _ = sim.build_system(body, scene)
+    scene, body, system, _ = b1_spinup(args.config)
     assert system.backend == "native", system.backend_note
     rows, times = np.empty((args.steps, len(sim.column_names(body)))), np.empty(args.steps)
     system.run_schedule(scene.step, sim.scene_schedule(body, scene), rows, times)

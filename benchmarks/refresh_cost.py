@@ -13,19 +13,12 @@ takes a third iteration), so only some states qualify; the script says how many.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ffrf_fmu import simulate as sim
-from ffrf_fmu.body_cache import scene_body_data
-from ffrf_fmu.model import load_model
-
-MODEL = Path(__file__).resolve().parents[1] / "models" / "haug_beam.toml"
-CONFIG = ["superelements=1", "modes=2", "stiffening=true", "step=0.04"]
+from _timing import b1_arguments, b1_spinup
 
 
 def timed_step(system, state, h, inputs, fresh: bool, repeat: int):
@@ -45,15 +38,11 @@ def timed_step(system, state, h, inputs, fresh: bool, repeat: int):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = b1_arguments(__doc__)
     ap.add_argument("--repeat", type=int, default=20)
     ap.add_argument("--every", type=int, default=2)
-    ap.add_argument("--config", nargs="*", default=CONFIG)
     args = ap.parse_args(argv)
-    model = load_model(MODEL, args.config)
-    scene = model.scene("spinup")
-    body = scene_body_data(model.body, scene)
-    system, inputs = sim.build_system(body, scene)
+    scene, _, system, inputs = b1_spinup(args.config)
     h, n = scene.step, int(round(scene.duration / scene.step))
     states = []
     for k in range(n):
