@@ -10,12 +10,16 @@ from ..checked_toml import ModelError
 from .common import BACKEND_ARG, MODEL_ARGS, PROG, SWEEP_ARGS, _load, _scheduler, arg, command
 
 
-def reference_args(when: str = "") -> tuple:
-    """--reference-elements, --reference-step: the full-order reference beam of a chart or of advise --check."""
+def reference_args(when: str, output_help: str) -> tuple:
+    """--reference-elements, --reference-step: the full-order reference beam of a chart or of advise --check;
+    -o DIR, the result store its run is kept in (default `chart` for both, so that advise --check reuses a
+    chart's reference run), and --backend."""
     return (arg("--reference-elements", type=int, metavar="N", help=f"elements of the full-order reference beam ({when}"
                 "default: the scene's [reference] elements, else max(16, 4 x superelements of the model))"),
             arg("--reference-step", type=float, metavar="H", help=f"step of the reference ({when}default: the "
-                "scene's [reference] step, else the scene's step)"))
+                "scene's [reference] step, else the scene's step)"),
+            arg("-o", "--output", default="chart", metavar="DIR", help=output_help),
+            BACKEND_ARG)
 
 
 @command(
@@ -127,11 +131,9 @@ def stability(args) -> int:
              "(cartesian product; repeat --sweep to add another group; unswept keys keep the model's values)"),
     arg("--fmu", action="store_true", help="also run every configuration through its FMU under fmpy "
         "(communication step = internal step)"),
-    *reference_args(),
     *SWEEP_ARGS,
-    arg("-o", "--output", default="chart", metavar="DIR", help="output directory: chart.csv, chart.png, "
-        "chart.json and the result store of every run, the reference's included (runs.jsonl: a rerun skips finished runs)"),
-    BACKEND_ARG,
+    *reference_args("", "output directory: chart.csv, chart.png, chart.json and the result store of every run, "
+                    "the reference's included (runs.jsonl: a rerun skips finished runs)"),
     arg("--cost", choices=("wall", "cpu"), default="wall", help="time on the x axis and for the Pareto front "
         "(default wall; cpu is the load-independent measure on a busy machine)"),
     arg("--plot-only", action="store_true", help="redraw DIR/chart.png from DIR/chart.csv and chart.json, run nothing"),
@@ -248,10 +250,8 @@ def _fraction(text: str) -> float:
         "this chart that meets the tolerance"),
     arg("--fmu", action="store_true", help="the body runs as an FMU with communication step = step: budget the "
         "FMU's input extrapolation too (and --check runs the FMU under fmpy)"),
-    *reference_args("with --check; "),
-    arg("-o", "--output", default="chart", metavar="DIR", help="with --check: the result store of its two runs "
-        "(a chart's directory: its reference run is not repeated)"),
-    BACKEND_ARG,
+    *reference_args("with --check; ", "with --check: the result store of its two runs (a chart's directory: its "
+                    "reference run is not repeated)"),
     arg("--json", action="store_true", help="print a JSON object instead of text"),
     arg("--cutoffs", metavar="N1,N2,...", help="with --check, where the reference is the scene's own converged modes (a "
         "solid or shell body, a rotating unbalance: studies/modal_advice.py): the mode counts to converge over "
