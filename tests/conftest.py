@@ -180,33 +180,36 @@ def small_fmu(small):
     return build_fmu(small, small.parent / "small_spin.fmu", scene="spin", runtime="python")
 
 
+def toml_table(name: str, **keys) -> str:
+    """The model file's table [NAME] with its keys; each value a str, number or list of numbers, written as
+    JSON (which is TOML for these)."""
+    import json
+
+    return "\n".join([f"[{name}]"] + [f"{k} = {json.dumps(v)}" for k, v in keys.items()])
+
+
+def end_face_port(name: str, x: float, **keys) -> str:
+    """A solid bar's port [body.ports.NAME] on its end face, the nodes of the plane x = const normal to X
+    (docs/model-format.md, solids), with its further keys (toml_table)."""
+    select = f"select = {{ plane = {{ point = [{x!r}, 0.0, 0.0], normal = [1.0, 0.0, 0.0] }} }}"
+    table = toml_table(f"body.ports.{name}", **keys).split("\n")
+    return "\n".join([table[0], select] + table[1:])
+
+
 # A small solid bar (steel, 1 x 0.1 x 0.1 m, 4 quadratic serendipity hexahedra) on two end-face frames:
 # the hub rigidly linked, translation motion-driven and rotation force-driven (far_from_reference's
 # inputs), the tip averaging and force-driven.
-SOLID_BAR = """
+SOLID_BAR = f"""
 [body]
 name = "solid_bar"
 kind = "solid"
 modes = 3
 [body.mesh]
-box = { size = [1.0, 0.1, 0.1], divisions = [4, 1, 1], origin = [0.0, -0.05, -0.05] }
+box = {{ size = [1.0, 0.1, 0.1], divisions = [4, 1, 1], origin = [0.0, -0.05, -0.05] }}
 element = "hex20"
-[body.material]
-E = 2.1e11
-nu = 0.3
-rho = 7850.0
-[body.ports.hub]
-select = { plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
-link = "rigid"
-point = [0.0, 0.0, 0.0]
-translation = "motion"
-rotation = "force"
-[body.ports.tip]
-select = { plane = { point = [1.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
-link = "averaging"
-point = [1.0, 0.0, 0.0]
-translation = "force"
-rotation = "force"
+{toml_table("body.material", E=2.1e11, nu=0.3, rho=7850.0)}
+{end_face_port("hub", 0.0, link="rigid", point=[0.0, 0.0, 0.0], translation="motion", rotation="force")}
+{end_face_port("tip", 1.0, link="averaging", point=[1.0, 0.0, 0.0], translation="force", rotation="force")}
 [scenes.s]
 duration = 0.01
 step = 0.001

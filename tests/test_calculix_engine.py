@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
+from conftest import end_face_port
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import reduce_body
 from ffrf_fmu.solid.calculix_engine import CalculixError, run_ccx, solid_deck
@@ -52,7 +53,7 @@ def test_calculix_export_in_a_model_file(tmp_path):
     points = ours.coords
     cells = [(t, c) for t, c in ours.cells if t == "hexahedron"]
     (tmp_path / "bar.inp").write_text(solid_deck(points, cells, (mat.E, mat.nu, mat.rho)))
-    (tmp_path / "bar.toml").write_text('''
+    (tmp_path / "bar.toml").write_text(f'''
 [body]
 name = "bar"
 kind = "solid"
@@ -63,15 +64,9 @@ format = "calculix"
 inp = "bar.inp"
 units = "SI: m, kg, N (written so)"
 
-[body.ports.a]
-select = { plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
-link = "averaging"
-point = [0.0, 0.05, 0.05]
+{end_face_port("a", 0.0, link="averaging", point=[0.0, 0.05, 0.05])}
 
-[body.ports.b]
-select = { plane = { point = [1.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
-link = "averaging"
-point = [1.0, 0.05, 0.05]
+{end_face_port("b", 1.0, link="averaging", point=[1.0, 0.05, 0.05])}
 
 [scenes.free]
 duration = 0.01

@@ -8,6 +8,7 @@ import scipy.sparse as sp
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
+from conftest import end_face_port, toml_table
 from ffrf_fmu.fe.beam import beam_model
 from ffrf_fmu.model import ModelError, Section, load_model
 from ffrf_fmu.reduction import reduce_body
@@ -197,19 +198,18 @@ def write(tmp_path, text):
     return p
 
 
-SOLID = """
+def solid(extra: str, sel: str, scene: str) -> str:
+    """A model file of a STEEL hex27 bar with the body keys `extra`, ports a (the end face x = 0) and b
+    (nodes `sel`), and the scene keys `scene`."""
+    return f"""
 [body]
 kind = "solid"
 {extra}
 [body.mesh]
 box = {{ size = [1.0, 0.1, 0.1], divisions = [4, 1, 1] }}
 element = "hex27"
-[body.material]
-E = 2e11
-nu = 0.3
-rho = 7800
-[body.ports.a]
-select = {{ plane = {{ point = [0, 0, 0], normal = [1, 0, 0] }} }}
+{toml_table("body.material", E=STEEL.E, nu=STEEL.nu, rho=STEEL.rho)}
+{end_face_port("a", 0.0)}
 [body.ports.b]
 select = {sel}
 [scenes.s]
@@ -221,19 +221,19 @@ step = 0.01
 
 def test_solid_model_errors(tmp_path):
     ok = dict(extra="modes = 2", sel="{ plane = { point = [1, 0, 0], normal = [1, 0, 0] } }", scene="")
-    load_model(write(tmp_path, SOLID.format(**ok)))
+    load_model(write(tmp_path, solid(**ok)))
     with pytest.raises(ModelError, match="a solid is one superelement"):
-        load_model(write(tmp_path, SOLID.format(**{**ok, "extra": "modes = 2\nsuperelements = 2"})))
+        load_model(write(tmp_path, solid(**{**ok, "extra": "modes = 2\nsuperelements = 2"})))
     with pytest.raises(ModelError, match="one of modes = N or cutoff_hz"):
-        load_model(write(tmp_path, SOLID.format(**{**ok, "extra": ""})))
+        load_model(write(tmp_path, solid(**{**ok, "extra": ""})))
     one_node = "{ near = { point = [1, 0, 0], radius = 0.001 } }"
-    m = load_model(write(tmp_path, SOLID.format(**{**ok, "sel": one_node})))
+    m = load_model(write(tmp_path, solid(**{**ok, "sel": one_node})))
     with pytest.raises(ValueError, match="does not fix a frame's rotation"):
         reduce_body(m.body)
-    m = load_model(write(tmp_path, SOLID.format(**{**ok, "sel": "{ set = 'nothere' }"})))
+    m = load_model(write(tmp_path, solid(**{**ok, "sel": "{ set = 'nothere' }"})))
     with pytest.raises(ValueError, match="no node set 'nothere'"):
         reduce_body(m.body)
-    m = load_model(write(tmp_path, SOLID.format(**{**ok, "scene": "stiffening = true"})))
+    m = load_model(write(tmp_path, solid(**{**ok, "scene": "stiffening = true"})))
     from ffrf_fmu.reduction import reduce_scene_body
 
     assert reduce_scene_body(m.body, m.scenes[0]).data.superelements[0].stiffening  # a mesh: from its stresses
@@ -342,7 +342,7 @@ def test_mesh_file_with_a_named_set(tmp_path):
     m = box_points((1.0, 0.2, 0.1), (4, 2, 1))
     m.point_sets = {"end": np.flatnonzero(np.isclose(m.points[:, 0], 1.0))}
     meshio.write(tmp_path / "bar.inp", m)
-    (tmp_path / "bar.toml").write_text(SOLID.format(extra="modes = 2", sel="{ set = 'end' }", scene="").replace(
+    (tmp_path / "bar.toml").write_text(solid(extra="modes = 2", sel="{ set = 'end' }", scene="").replace(
         'box = { size = [1.0, 0.1, 0.1], divisions = [4, 1, 1] }\nelement = "hex27"', 'file = "bar.inp"\nelement = "hex20"'))
     (red,) = reduce_body(load_model(tmp_path / "bar.toml").body).reductions
     assert red.frames[1].nodes.size == 13
