@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import system_scene
+
 MODEL = Path(__file__).resolve().parents[2] / "models" / "car_body.toml"
 WHEELS = ("front_left", "front_right", "rear_left", "rear_right")
 TRACK = 1.5  # m, the mounts' y distance (models/car_body.toml)
@@ -51,13 +53,11 @@ def model_overrides(step: float, duration: float) -> list[str]:
 
 def build(fmu_dir, step: float = 1e-3, duration: float = 2.0) -> CarBodyFmus:
     """The car body FMU (internal step `step`) and the road profile FMU in `fmu_dir`."""
-    from ..fmu.builder import build_fmu
     from . import build_road_profile
 
-    d = Path(fmu_dir)
-    d.mkdir(parents=True, exist_ok=True)
-    body = build_fmu(MODEL, d / "car_body.fmu", scene="bump", overrides=model_overrides(step, duration))
-    return CarBodyFmus(Path(body), build_road_profile(d / "road_profile.fmu"), step)
+    body, road = system_scene.build_pair(fmu_dir, MODEL, "car_body.fmu", "bump", model_overrides(step, duration),
+                                         build_road_profile, "road_profile.fmu")
+    return CarBodyFmus(body, road, step)
 
 
 def connections() -> list[tuple[str, str, float]]:
@@ -82,26 +82,20 @@ def road_parameters(model=None) -> dict[str, float]:
 def system(fmus: CarBodyFmus, H: float, duration: float):
     """The SSP system (master/ssp.py): body and road, the connections, the road's bump and the body's
     internal step as parameters."""
-    from ..master.ssp import Connection, System
-
-    params = {**road_parameters(), "body.solver.step": fmus.step}
-    return System("car_body_bump", {"body": str(fmus.body), "road": str(fmus.road)},
-                  tuple(Connection(*c) for c in connections()), params, H, 0.0, duration)
+    return system_scene.system("car_body_bump", {"body": fmus.body, "road": fmus.road}, connections(),
+                               {**road_parameters(), "body.solver.step": fmus.step}, H, duration)
 
 
 RECORD = [f"body.{w}.node.r[3]" for w in WHEELS] + [f"body.{PROBE}", "body.front_left.f[3]"]
 
 
 @dataclass
-class CarBodyRun:
+class CarBodyRun(system_scene.Run):
     """Histories of one run: t, the twist angle theta [rad], the probe [m], the bumped mount's force [N]."""
 
-    t: np.ndarray
     twist: np.ndarray
     probe: np.ndarray
     force: np.ndarray
-    wall: float = 0.0
-    stopped: str = ""
 
 
 def twist_angle(z: dict) -> np.ndarray:
@@ -117,7 +111,7 @@ def run_engine(package, engine: str) -> CarBodyRun:
     c = r.columns
     z = {w: np.asarray(c[f"body.{w}.node.r[3]"]) for w in WHEELS}
     return CarBodyRun(np.asarray(r.t), twist_angle(z), np.asarray(c[f"body.{PROBE}"]),
-                      np.asarray(c["body.front_left.f[3]"]), r.wall, r.stopped)
+                      np.asarray(c["body.front_left.f[3]"]), wall=r.wall, stopped=r.stopped)
 
 
 def run_monolithic(step: float, duration: float) -> CarBodyRun:
@@ -133,7 +127,7 @@ def run_monolithic(step: float, duration: float) -> CarBodyRun:
     z = {w: np.asarray(c[f"{w}.r[3]"]) for w in WHEELS}  # a compliant part's r: the body's node
     probe = probe_history(res)
     return CarBodyRun(np.asarray(res.t), twist_angle(z), probe[:, 2], np.asarray(c["front_left.f[3]"]),
-                      time.perf_counter() - t0, "" if res.summary["completed"] else str(res.summary["failure"]))
+                      wall=time.perf_counter() - t0, stopped=system_scene.stopped(res))
 
 
 def probe_history(result) -> np.ndarray:

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import system_scene
+
 MODELS = Path(__file__).resolve().parents[2] / "models"
 AXES = (1, 2, 0)  # s(i): the drive's axis whose component lands on the hub's axis i (module doc; X -> Z)
 
@@ -45,13 +47,11 @@ class GenStructFmus:
 
 
 def build(fmu_dir, n: int, step: float = 5e-4) -> GenStructFmus:
-    from ..fmu.builder import build_fmu
     from . import build_spin_drive
 
-    d = Path(fmu_dir)
-    d.mkdir(parents=True, exist_ok=True)
-    body = build_fmu(model_path(n), d / f"genstruct{n}.fmu", scene="spin", overrides=[f"step={step!r}"])
-    return GenStructFmus(Path(body), build_spin_drive(d / "spin_drive.fmu"), step, n)
+    body, drive = system_scene.build_pair(fmu_dir, model_path(n), f"genstruct{n}.fmu", "spin", [f"step={step!r}"],
+                                          build_spin_drive, "spin_drive.fmu")
+    return GenStructFmus(body, drive, step, n)
 
 
 def connections() -> list[tuple[str, str, float]]:
@@ -69,16 +69,12 @@ def drive_parameters(n: int) -> dict[str, float]:
     fn = drive.rotation.angle
     if fn.kind != "haug_spinup" or tuple(drive.rotation.axis) != (0.0, 0.0, 1.0) or drive.port != "hub":
         raise ValueError(f"{model_path(n)}: scene spin: the system wires a haug_spinup of the hub about Z")
-    p = dict(fn.params)
-    return {"drive.profile.omega": p["omega"], "drive.profile.T": p["T"], "drive.unbalance.me": 0.0}
+    return system_scene.spin_drive_parameters(fn, 0.0)
 
 
 def system(fmus: GenStructFmus, H: float, duration: float):
-    from ..master.ssp import Connection, System
-
-    params = {**drive_parameters(fmus.n), "body.solver.step": fmus.step}
-    return System(f"genstruct{fmus.n}_spin", {"body": str(fmus.body), "drive": str(fmus.drive)},
-                  tuple(Connection(*c) for c in connections()), params, H, 0.0, duration)
+    return system_scene.system(f"genstruct{fmus.n}_spin", {"body": fmus.body, "drive": fmus.drive}, connections(),
+                               {**drive_parameters(fmus.n), "body.solver.step": fmus.step}, H, duration)
 
 
 # the hub frame from the drive's outputs at the step's end (the body's hub.R are inputs, which the engines record
@@ -88,14 +84,11 @@ RECORD = ([f"drive.drive.R[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
 
 
 @dataclass
-class SpinRun:
+class SpinRun(system_scene.Run):
     """t, the corner's displacement seen from the hub frame (eq. 92, (nt, 3) [m]), the spin rate [rad/s]."""
 
-    t: np.ndarray
     u: np.ndarray
     speed: np.ndarray
-    wall: float = 0.0
-    stopped: str = ""
 
     @property
     def magnitude(self) -> np.ndarray:
@@ -121,22 +114,19 @@ def run_engine(package, engine: str) -> SpinRun:
                  axis=-1).reshape(-1, 3, 3)
     corner = np.stack([c[f"body.corner.r[{k}]"] for k in (1, 2, 3)], axis=-1)
     return SpinRun(np.asarray(r.t), _corner_from_hub(R, np.zeros_like(corner), corner),
-                   np.asarray(c["drive.drive.speed"]), r.wall, r.stopped)
+                   np.asarray(c["drive.drive.speed"]), wall=r.wall, stopped=r.stopped)
 
 
 def run_monolithic(n: int, step: float) -> SpinRun:
     from ..model import load_model
-    from ..runtime import drives
     from ..simulate import run_scene
 
     t0 = time.perf_counter()
     m = load_model(model_path(n), [f"step={step!r}"])
     res = run_scene(m, "spin")
-    fn = m.scene("spin").drives[0].rotation.angle
-    speed = np.array([drives.evaluate(fn.kind, dict(fn.params), t)[1] for t in res.t])
+    speed = system_scene.drive_speed(m.scene("spin").drives[0].rotation.angle, res.t)
     u = _corner_from_hub(res.port("hub", "R"), res.port("hub", "r"), res.port("corner", "r"))
-    return SpinRun(np.asarray(res.t), u, speed, time.perf_counter() - t0,
-                   "" if res.summary["completed"] else str(res.summary["failure"]))
+    return SpinRun(np.asarray(res.t), u, speed, wall=time.perf_counter() - t0, stopped=system_scene.stopped(res))
 
 
 def error(run: SpinRun, ref: SpinRun) -> float:

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import system_scene
+
 MODEL = Path(__file__).resolve().parents[2] / "models" / "jeffcott_runup.toml"
 
 
@@ -43,13 +45,11 @@ def model_overrides(step: float, duration: float, T: float | None = None) -> lis
 
 
 def build(fmu_dir, step: float = 5e-4, duration: float = 10.0) -> RotorFmus:
-    from ..fmu.builder import build_fmu
     from . import build_spin_drive
 
-    d = Path(fmu_dir)
-    d.mkdir(parents=True, exist_ok=True)
-    body = build_fmu(MODEL, d / "jeffcott_rotor.fmu", scene="runup", overrides=model_overrides(step, duration))
-    return RotorFmus(Path(body), build_spin_drive(d / "spin_drive.fmu"), step)
+    body, drive = system_scene.build_pair(fmu_dir, MODEL, "jeffcott_rotor.fmu", "runup",
+                                          model_overrides(step, duration), build_spin_drive, "spin_drive.fmu")
+    return RotorFmus(body, drive, step)
 
 
 def connections() -> list[tuple[str, str, float]]:
@@ -71,30 +71,23 @@ def drive_parameters(T: float | None = None) -> dict[str, float]:
     if (fn.kind != "haug_spinup" or tuple(drive.rotation.axis) != (1.0, 0.0, 0.0) or tuple(ub.reference) != (0.0, 1.0, 0.0)
             or ub.phase != 0.0):
         raise ValueError(f"{MODEL}: scene runup: the spin drive FMU turns about X with the unbalance at +Y")
-    p = dict(fn.params)
-    return {"drive.profile.omega": p["omega"], "drive.profile.T": p["T"], "drive.unbalance.me": ub.mass_eccentricity}
+    return system_scene.spin_drive_parameters(fn, ub.mass_eccentricity)
 
 
 def system(fmus: RotorFmus, H: float, duration: float, T: float | None = None):
-    from ..master.ssp import Connection, System
-
-    params = {**drive_parameters(T), "body.solver.step": fmus.step}
-    return System("jeffcott_runup", {"body": str(fmus.body), "drive": str(fmus.drive)},
-                  tuple(Connection(*c) for c in connections()), params, H, 0.0, duration)
+    return system_scene.system("jeffcott_runup", {"body": fmus.body, "drive": fmus.drive}, connections(),
+                               {**drive_parameters(T), "body.solver.step": fmus.step}, H, duration)
 
 
 RECORD = ["body.disc.r[2]", "body.disc.r[3]", "drive.drive.speed"]
 
 
 @dataclass
-class RotorRun:
+class RotorRun(system_scene.Run):
     """t, the disc's whirl amplitude hypot(y, z) [m], the drive speed [rad/s]."""
 
-    t: np.ndarray
     whirl: np.ndarray
     speed: np.ndarray
-    wall: float = 0.0
-    stopped: str = ""
 
     @property
     def peak(self) -> tuple[float, float]:
@@ -109,23 +102,21 @@ def run_engine(package, engine: str) -> RotorRun:
     r = run_ssp(package, engine, RECORD)
     c = r.columns
     return RotorRun(np.asarray(r.t), np.hypot(c["body.disc.r[2]"], c["body.disc.r[3]"]),
-                    np.asarray(c["drive.drive.speed"]), r.wall, r.stopped)
+                    np.asarray(c["drive.drive.speed"]), wall=r.wall, stopped=r.stopped)
 
 
 def run_monolithic(step: float, duration: float, T: float | None = None) -> RotorRun:
     import time
 
     from ..model import load_model
-    from ..runtime import drives
     from ..simulate import run_scene
 
     t0 = time.perf_counter()
     m = load_model(MODEL, model_overrides(step, duration, T))
     res = run_scene(m, "runup")
-    fn = m.scene("runup").drives[0].rotation.angle
-    speed = np.array([drives.evaluate(fn.kind, dict(fn.params), t)[1] for t in res.t])
+    speed = system_scene.drive_speed(m.scene("runup").drives[0].rotation.angle, res.t)
     return RotorRun(np.asarray(res.t), np.hypot(res.columns["disc.r[2]"], res.columns["disc.r[3]"]), speed,
-                    time.perf_counter() - t0, "" if res.summary["completed"] else str(res.summary["failure"]))
+                    wall=time.perf_counter() - t0, stopped=system_scene.stopped(res))
 
 
 def error(run: RotorRun, ref: RotorRun) -> float:
