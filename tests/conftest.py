@@ -243,3 +243,14 @@ _SOLID_BARS: dict = {}
 def solid_bar():
     """solid_bar(stiffening=True, inertia=True) -> (BodyData, SolidReduction) of a small solid bar."""
     return solid_bar_body
+
+
+def stepping_on_is_an_error(slave, t: float, h: float, cause: str, retry_from: float) -> None:
+    """After a step the FMU discarded (fmi2Discard, fmi3Discard), a master that steps on (doStep(t, h)) gets
+    Error (3 in FMI 2.0 and 3.0), each time, with one log message naming the discard, its cause and the time
+    to retry from. `slave` has .fmu (fmpy), .log [(status, category, message)] and .status(call, *args)."""
+    for _ in range(2):
+        slave.log.clear()
+        assert slave.status(slave.fmu.doStep, t, h) == 3
+        (st, _, msg), = slave.log
+        assert st == 3 and "discarded" in msg and cause in msg and f"retry from t = {retry_from!r}" in msg, msg
