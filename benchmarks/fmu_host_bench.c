@@ -18,13 +18,13 @@
  * (wall s, CPU s, iterations). A doStep that does not return fmi2OK ends the run with its status as exit code 20 +
  * status, the rows so far written. */
 #define _POSIX_C_SOURCE 200809L
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include "../tests/host_loader.h" /* open_library, sym */
 
 typedef void *fmi2Component;
 typedef unsigned int vr_t;
@@ -56,16 +56,6 @@ static double now(clockid_t id)
     struct timespec ts;
     clock_gettime(id, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-static void *sym(void *lib, const char *name)
-{
-    void *f = dlsym(lib, name);
-    if (!f) {
-        fprintf(stderr, "missing %s\n", name);
-        exit(3);
-    }
-    return f;
 }
 
 static void *read_file(const char *path, size_t *size)
@@ -107,10 +97,10 @@ int main(int argc, char **argv)
     const int width = n_in + n_point;
     double *out = malloc(sizeof(double) * n_out), *out_rt = NULL;
 
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    void *rt = dlopen(argv[4], RTLD_NOW | RTLD_LOCAL);
+    void *lib = open_library(argv[1]);
+    void *rt = open_library(argv[4]);
     if (!lib || !rt) {
-        fprintf(stderr, "dlopen: %s\n", dlerror());
+        fprintf(stderr, "dlopen: %s\n", library_error());
         return 5;
     }
     fmi2Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int) =

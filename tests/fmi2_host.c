@@ -42,16 +42,6 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     va_end(ap);
 }
 
-static void *sym(void *lib, const char *name)
-{
-    void *f = symbol(lib, name);
-    if (!f) {
-        fprintf(stderr, "missing %s\n", name);
-        exit(3);
-    }
-    return f;
-}
-
 int main(int argc, char **argv)
 {
     if (argc < 5) return 2;
