@@ -38,7 +38,7 @@ import math
 
 from pythonfmu.enums import Fmi2Status
 
-from ffrf_fmu.examples.partner_slave import PartnerSlave
+from ffrf_fmu.examples.partner_slave import PartnerSlave, haug_spinup
 
 PARAMETERS = {
     # name: (default, unit, description)
@@ -62,11 +62,8 @@ OUTPUTS = {
 
 
 def speed_reference(t, omega, T):
-    """Wu-Haug spin-up rate (docs/background.md B1, with the 1/(2 pi)^2 factor of the angle law)."""
-    if t >= T:
-        return omega
-    tau = max(t, 0.0) / T
-    return omega * (tau - math.sin(2.0 * math.pi * tau) / (2.0 * math.pi))
+    """Wu-Haug spin-up rate (partner_slave.haug_spinup; docs/background.md B1)."""
+    return haug_spinup(t, omega, T)[1]
 
 
 class HubDrive(PartnerSlave):

@@ -1,6 +1,7 @@
 """The pythonfmu slave that the example partner FMUs share (crank_pin_slave.py, piston_slave.py,
 hub_drive_slave.py, road_profile_slave.py, spin_drive_slave.py): its parameters, the registration of
-outputs and inputs, the time the experiment starts at, and the FMU state.
+outputs and inputs, the time the experiment starts at, and the FMU state; and the Wu-Haug spin-up law
+the drives follow (`haug_spinup`).
 
 A partner names its parameters in PARAMETERS {name: (default, unit, description)}: fixed FMU
 parameters, held in self.p. Its FMU state is the JSON copy of the attributes STATE names (self.p and
@@ -11,10 +12,24 @@ the FMU beside the partner's script, renamed with a digest of both (pythonfmu FM
 a name collide in one process, docs/fmu.md).
 """
 import json
+import math
 
 from pythonfmu import Fmi2Slave, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+
+
+def haug_spinup(t, omega, T):
+    """(psi, psi', psi'') of the Wu-Haug spin-up to omega over T (docs/background.md B1; the model format's
+    `kind = "haug_spinup"`, runtime/drives.py, repeated here for the FMUs' standard-library-only scripts:
+    tests/test_rotor_system.py checks the two agree), at rest before t = 0:
+        psi = omega T (tau^2/2 + (cos 2 pi tau - 1)/(2 pi)^2),  tau = t/T < 1;  omega T (t/T - 1/2) after."""
+    t = max(t, 0.0)
+    if t < T:
+        tau, two_pi = t / T, 2.0 * math.pi
+        return (omega * T * (tau**2 / 2.0 + (math.cos(two_pi * tau) - 1.0) / two_pi**2),
+                omega * (tau - math.sin(two_pi * tau) / two_pi), (omega / T) * (1.0 - math.cos(two_pi * tau)))
+    return omega * T * (t / T - 0.5), omega, 0.0
 
 
 class PartnerSlave(Fmi2Slave):

@@ -26,7 +26,7 @@ import math
 
 from pythonfmu.enums import Fmi2Status
 
-from ffrf_fmu.examples.partner_slave import PartnerSlave
+from ffrf_fmu.examples.partner_slave import PartnerSlave, haug_spinup
 
 PARAMETERS = {
     "piston.m": (0.2, "kg", "piston mass (with its gudgeon pin)"),
@@ -40,11 +40,8 @@ PARAMETERS = {
 
 
 def crank_angle(t, omega, T):
-    """Wu-Haug run-up angle (runtime/drives.py `haug_spinup`): omega T (tau^2/2 + (cos 2 pi tau - 1)/(2 pi)^2)."""
-    if t >= T:
-        return omega * (t - 0.5 * T)
-    tau = max(t, 0.0) / T
-    return omega * T * (0.5 * tau * tau + (math.cos(2.0 * math.pi * tau) - 1.0) / (2.0 * math.pi) ** 2)
+    """Wu-Haug run-up angle (partner_slave.haug_spinup, runtime/drives.py `haug_spinup`)."""
+    return haug_spinup(t, omega, T)[0]
 
 
 def gas_force(t, omega, T, F_max, width):

@@ -3,8 +3,8 @@ unbalance, the partner of a rotor FMU whose drive port and bearings are `complia
 (models/jeffcott_runup.toml: the torsional drive spring and the bearings inside the rotor FMU).
 
 The drive angle follows the Wu-Haug spin-up to `profile.omega` over `profile.T` (the model format's
-`kind = "haug_spinup"`, runtime/drives.py; repeated here so that the FMU needs only the standard
-library and pythonfmu: tests/test_rotor_system.py checks the two agree) about the world X axis:
+`kind = "haug_spinup"`, runtime/drives.py; partner_slave.haug_spinup, so that the FMU needs only the
+standard library and pythonfmu: tests/test_rotor_system.py checks the two agree) about the world X axis:
     psi(t),  R = rotation about X by psi,  w = (psi', 0, 0),  dw = (psi'', 0, 0),
 the motion inputs `drive.R`, `drive.w`, `drive.dw` of the rotor's driven port (dw for its
 second-order extrapolation, docs/fmu.md). The unbalance m e on the disc, at angle 0 along +Y
@@ -20,7 +20,7 @@ the values at the end of the step; no inputs.
 """
 import math
 
-from ffrf_fmu.examples.partner_slave import PartnerSlave
+from ffrf_fmu.examples.partner_slave import PartnerSlave, haug_spinup
 
 PARAMETERS = {
     # name: (default, unit, description)
@@ -28,15 +28,6 @@ PARAMETERS = {
     "profile.T": (10.0, "s", "spin-up time of the Wu-Haug spin-up"),
     "unbalance.me": (5.5504e-4, "kg.m", "unbalance mass times its eccentricity"),
 }
-
-
-def haug_spinup(t, omega, T):
-    """(psi, psi', psi'') of the Wu-Haug spin-up (docs/background.md B1)."""
-    if t < T:
-        tau, two_pi = t / T, 2.0 * math.pi
-        return (omega * T * (tau**2 / 2.0 + (math.cos(two_pi * tau) - 1.0) / two_pi**2),
-                omega * (tau - math.sin(two_pi * tau) / two_pi), (omega / T) * (1.0 - math.cos(two_pi * tau)))
-    return omega * T * (t / T - 0.5), omega, 0.0
 
 
 class SpinDrive(PartnerSlave):
