@@ -18,7 +18,7 @@ the body extrapolates them to second order over the step (docs/cosim.md, acceler
 """
 import math
 
-from ffrf_fmu.examples.partner_slave import PartnerSlave
+from ffrf_fmu.examples.partner_slave import PartnerSlave, haug_spinup
 
 PARAMETERS = {
     "crank.r": (0.01, "m", "crank radius (half the stroke)"),
@@ -28,13 +28,8 @@ PARAMETERS = {
 
 
 def crank_motion(t, omega, T):
-    """(theta, theta', theta'') of the Wu-Haug run-up (runtime/drives.py `haug_spinup`)."""
-    if t >= T:
-        return omega * (t - 0.5 * T), omega, 0.0
-    tau = max(t, 0.0) / T
-    c, s = math.cos(2.0 * math.pi * tau), math.sin(2.0 * math.pi * tau)
-    return (omega * T * (0.5 * tau * tau + (c - 1.0) / (2.0 * math.pi) ** 2),
-            omega * (tau - s / (2.0 * math.pi)), omega / T * (1.0 - c))
+    """(theta, theta', theta'') of the Wu-Haug run-up (partner_slave.haug_spinup, runtime/drives.py `haug_spinup`)."""
+    return haug_spinup(t, omega, T)
 
 
 def pin_motion(t, r, omega, T):
