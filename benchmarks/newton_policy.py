@@ -1,5 +1,5 @@
 """Newton on B1 (Haug's rotating beam spin-up): iterations and factorizations per step against the
-step size and the Jacobian-reuse rules (runtime/integrator.py THETA_REFRESH, REFRESH_AFTER).
+step size and the Jacobian-reuse rules (runtime/newton.py THETA_REFRESH, REFRESH_AFTER).
 
     python benchmarks/newton_policy.py [--steps 0.002,0.02,0.05] [--configs 1x2,4x2] [--thetas 0.1,0.25,0.5,0.9]
                                        [--refresh-after 2:3] [--duration 20] [--point-steps 1,5,10]

@@ -5,7 +5,7 @@ the C run's Newton decisions, are tests/test_native_runs.py.
 
 Tolerances: 1e-10 of each output field's largest value (over all ports) for the kinematic outputs
 (r, R, v, w); reaction loads are residual rows at the last evaluated Newton iterate, one increment
-before the accepted one (runtime/integrator.py `_newton`), differences of elastic forces of order
+before the accepted one (runtime/newton.py `_newton`), differences of elastic forces of order
 K_bar q through the ill-conditioned iteration matrix (condition ~1e11 on B1), so their round-off is up
 to ~1e-6 of their own size: 2e-6 for them. The extrapolated-input runs are chosen so that no convergence test
 sits at its threshold (there round-off can flip an iteration count).

@@ -9,7 +9,7 @@ coned beam) cannot make the compared runs differ by more than round-off, and the
 is tight: 1e-10 of each kinematic output field's largest value over all ports (r, R, v, w), as
 tests/test_backends.py argues for the C runtime's communication steps. The decisions themselves are checked: along the
 replayed run the numpy path still evaluates its own rules and logs every decision they would take
-otherwise (NewtonReplay.disagreements), so a C Newton policy that differs from integrator.py's
+otherwise (NewtonReplay.disagreements), so a C Newton policy that differs from runtime/newton.py's
 (a threshold, the refresh rule REFRESH_AFTER, the serves verdict) fails the test.
 Reaction loads (f, t) are residual rows at the last evaluated iterate, one increment before the accepted
 one: their round-off passes through the ill-conditioned iteration matrix (condition ~1e11 on B1), so
@@ -36,7 +36,7 @@ from ffrf_fmu import simulate as sim
 from ffrf_fmu.model import load_model
 from ffrf_fmu.reduction import reduce_scene_body
 from ffrf_fmu.runtime import input_rule
-from ffrf_fmu.runtime.integrator import NewtonDecisions, NewtonReplay
+from ffrf_fmu.runtime.newton import NewtonDecisions, NewtonReplay
 
 COMPLIANT_B5 = [  # B5 (haug_beam hub_free) with the hub shaft as a compliant rotation, its far end driven
     'scenes.hub_free.causality.hub.rotation="compliant"',

@@ -1,4 +1,4 @@
-"""Newton of the integrator on B1 (runtime/integrator.py `_step`, `_newton`): iterations per step at
+"""Newton of the integrator on B1 (runtime/integrator.py `_step`, runtime/newton.py `_newton`): iterations per step at
 B1's 20 ms step, the accuracy they buy, and a 50 ms step.
 
 An iteration is one residual evaluation followed by one solve; the counts here are the calls of

@@ -4,7 +4,8 @@ Layout of resources/ in the FMU (the FMU is a black box: no FE mesh, no model fi
 
     ffrf_slave_<body>_<hash>.py     pythonfmu script, one class FfrfBody_<body>_<hash>(Fmi2Slave)
     ffrf_rt_<body>_<hash>/          private package: runtime/ (copy of ffrf_fmu/runtime) and
-                                    fmu/ (core.py, derivatives.py, variables.py); imports numpy, scipy only
+                                    fmu/ (core.py, parameters.py, signals.py, state.py, derivatives.py,
+                                    variables.py); imports numpy, scipy only
     body.npz                        BodyData.save: reduced matrices, node positions, ports
     ffrf_fmu.json                   parameter defaults, body origin, description, build info
     ffrf_python.json                the building Python: version, libpython, site-packages of numpy/scipy
@@ -52,7 +53,7 @@ from .variables import (DERIVATIVE_CHANNEL, DESCRIPTION_BASE, DIRECTIONAL_DERIVA
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent  # ffrf_fmu/
 RUNTIME_DIR = PACKAGE_ROOT / "runtime"
-SHIPPED_FMU_MODULES = ("core.py", "derivatives.py", "variables.py")
+SHIPPED_FMU_MODULES = ("core.py", "parameters.py", "signals.py", "state.py", "derivatives.py", "variables.py")
 LOADER_SOURCE = Path(__file__).resolve().parent / "native_loader.c"
 PYTHON_FILE = "ffrf_python.json"
 LIBPYTHON_FILE = "ffrf_libpython.txt"

@@ -2,7 +2,7 @@
 
 The pythonfmu slave (slave_template.py) is a thin shell around `BodyCoSim`; keeping the logic
 here makes it testable in-process and the same code runs inside every FMU (the builder copies
-this module next to a copy of ffrf_fmu/runtime). Imports: numpy, the standard library and the
+this module and its halves next to a copy of ffrf_fmu/runtime). Imports: numpy, the standard library and the
 runtime package (relative), nothing else.
 
 Inputs between communication points and internal steps: variables.INPUTS_BETWEEN_COMMUNICATION_POINTS
@@ -10,14 +10,14 @@ and variables.INTERNAL_STEPS (the one source of the modelDescription text and do
 H -> 0 the extrapolated inputs tend to the exact signals, so the FMU run tends to the standalone
 run (which evaluates the exact signals at every internal step).
 
-Over 400 lines: one class, the FMU's state machine (values, initialization, communication steps,
-saved states); its invariants hold across all of its methods, so it stays in one file. The directional
-derivatives of the last step (re-runs of it) are in fmu/derivatives.py.
+`BodyCoSim` is the FMU's state machine (values, initialization, communication steps) over its halves:
+the parameters and the body they make (fmu/parameters.py), the inputs and outputs (fmu/signals.py), the
+FMU state (fmu/state.py); the directional derivatives of the last step (re-runs of it) are in
+fmu/derivatives.py.
 """
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import math
 import traceback
@@ -27,14 +27,14 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime import input_rule
-from ..runtime.damping import Damping
 from ..runtime.data import BodyData
-from ..runtime.outputs import FIELD_COLUMNS, output_sources, tip_from_hub
 from ..runtime.ports import IterationCapReached, StepFailure
-from ..runtime.rotation import ROTATION_TOL, rotation_defect
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
 from .derivatives import LastStep, directional_derivative
+from .parameters import Parameters
+from .signals import Signals
+from .state import FmuState
 from .variables import Variable, body_variables, modal_shape
 
 try:  # the C runtime's binding, imported with the FMU's first instance: a later instance importing it lazily
@@ -52,10 +52,6 @@ try:  # optional: one BLAS thread during the FMU's own calls only (docs/fmu.md, 
     from threadpoolctl import ThreadpoolController
 except ImportError:  # the slave script then sets OPENBLAS_NUM_THREADS=1 before numpy loads, when it can
     ThreadpoolController = None
-
-ROTATION_EXACT = 1e-12  # re-orthonormalize R (polar factor) when max |R^T R - I| exceeds this
-_I3 = np.eye(3)
-STATE_VERSION = 1
 
 CONFIG_FILE = "ffrf_fmu.json"
 DATA_FILE = "body.npz"
@@ -75,7 +71,7 @@ class StepReport:
     status: str = "ok"
 
 
-class BodyCoSim:
+class BodyCoSim(Parameters, Signals, FmuState):
     """A body behind the FMI co-simulation calls.
 
     Every variable value lives in one float64 array `values` indexed by value reference
@@ -199,123 +195,6 @@ class BodyCoSim:
             return f"{name} is a fixed parameter: it cannot change after initialization"
         self.values[vr] = value
         return ""
-
-    def parameters(self) -> dict:
-        v = self.values
-        terms = int(round(v[self.index[("parameter", "terms")][0]]))
-        disp = {}
-        for p in self.data.ports:
-            ix = self.index.get((p.name, "port_displacement"))
-            if ix is not None:
-                disp[p.name] = v[ix].copy()
-        return {
-            "step": float(v[self.index[("parameter", "step")][0]]),
-            "rho_inf": float(v[self.index[("parameter", "rho_inf")][0]]),
-            "terms": terms,
-            "max_newton_iterations": float(v[self.index[("parameter", "max_newton_iterations")][0]]),
-            "gravity": v[self.index[("parameter", "gravity")]].copy(),
-            "initial_velocity": v[self.index[("parameter", "initial_velocity")]].copy(),
-            "initial_angular_velocity": v[self.index[("parameter", "initial_angular_velocity")]].copy(),
-            "port_displacements": disp,
-            "compliance": {p.name: np.concatenate([v[self.index[(p.name, "coupling." + k)]]
-                                                   if (p.name, "coupling." + k) in self.index else np.zeros(3)
-                                                   for k in ("k", "c", "k_rot", "c_rot")]).reshape(4, 3)
-                           for p in self.data.ports if "compliant" in (p.translation, p.rotation)},
-            # structural damping: ratios (one for every mode, or one per mode), Rayleigh alpha, beta
-            "damping": (v[self.index[("parameter", "damping_ratio")]].copy(),
-                        float(v[self.index[("parameter", "damping_alpha")][0]]),
-                        float(v[self.index[("parameter", "damping_beta")][0]])),
-        }
-
-    def _check_parameters(self, p: dict) -> str:
-        """Why the parameters cannot start a run ('' when they can): out of range (min/max of the
-        modelDescription), not finite, or implausible (a step longer than the experiment, initial
-        values on a part whose motion is driven, which the motion input would override)."""
-        if not (p["step"] > 0.0 and math.isfinite(p["step"])):
-            return f"parameter solver.step must be positive and finite, got {p['step']!r}"
-        span = None if self.stop_time is None else self.stop_time - self.start_time
-        if span is not None and span > 0.0 and p["step"] > span:
-            return (f"parameter solver.step = {p['step']:g} s is longer than the experiment "
-                    f"({self.start_time:g} s to {self.stop_time:g} s)")
-        if not 0.0 <= p["rho_inf"] <= 1.0:
-            return f"parameter solver.rho_inf must be in [0, 1], got {p['rho_inf']!r}"
-        terms = float(self.values[self.index[("parameter", "terms")][0]])
-        if terms not in range(len(TERM_SETS)):
-            return f"parameter solver.terms must be 0 (linear), 1 (gyroscopic) or 2 (full), got {terms!r}"
-        cap = p["max_newton_iterations"]
-        if not (cap >= 0.0 and cap == int(cap)):
-            return f"parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got {cap!r}"
-        if TERM_SETS[int(terms)] == "full" and any(se.W2 is None for se in self.data.superelements):
-            return ("parameter solver.terms = 2 (full) needs the inertia data W1, W2, which this FMU was built "
-                    "without: build it from a scene with terms = \"full\"")
-        named = {"gravity": "gravity", "initial_velocity": "initial.v", "initial_angular_velocity": "initial.w"}
-        for key, name in named.items():
-            if not np.all(np.isfinite(p[key])):
-                return f"parameter {name} is not finite: {p[key].tolist()}"
-        for port, d in p["port_displacements"].items():
-            if not np.all(np.isfinite(d)):
-                return f"parameter initial.{port}.d is not finite: {d.tolist()}"
-        for key, part, field in (("initial_velocity", "translation", "v"), ("initial_angular_velocity", "rotation", "w")):
-            driven = [q.name for q in self.data.ports if getattr(q, part) == "motion"]
-            if driven and np.any(p[key] != 0.0):
-                return (f"parameter {named[key]} = {p[key].tolist()} is set, but the {part} of port {driven[0]} is "
-                        f"motion-driven: its input {driven[0]}.{field} gives the initial rigid "
-                        f"{'velocity' if field == 'v' else 'angular velocity'} (set that input instead)")
-        ratios, alpha, beta = p["damping"]
-        for k, x in zip(self.index[("parameter", "damping_ratio")].tolist() + [self.index[("parameter", key)][0]
-                        for key in ("damping_alpha", "damping_beta")], ratios.tolist() + [alpha, beta]):
-            if not (x >= 0.0 and math.isfinite(x)):
-                return (f"parameter {self.variables[k].name} must be finite and >= 0 (a damping ratio or Rayleigh "
-                        f"coefficient), got {x!r}")
-        for port, KC in p["compliance"].items():
-            if not (np.all(np.isfinite(KC)) and np.all(KC >= 0.0)):
-                return f"parameters {port}.coupling.* must be finite and >= 0, got {KC.ravel().tolist()}"
-        return ""
-
-    def _make_system(self) -> BodySystem:
-        p = self.parameters()
-        ratios, alpha, beta = p["damping"]
-        damping = Damping(tuple(ratios.tolist()), alpha, beta)
-        key = (p["rho_inf"], p["terms"], tuple(p["gravity"]), damping)
-        if self.system is None or self._system_params != key:
-            self.system = BodySystem(self.data, terms=TERM_SETS[p["terms"]], rho_inf=p["rho_inf"], gravity=p["gravity"],
-                                     full_terms=tuple(self.config["parameters"]["full_terms"]),
-                                     backend=self.config.get("backend", "numpy"), damping=damping)
-            self.backend_note = self.system.backend_note  # native wanted but not usable: the slave logs it
-            self._system_params = key
-        for port, KC in p["compliance"].items():  # compliant ports: the coupling parameters
-            self.system.compliance[port][...] = KC
-        self.system.iteration_cap = int(p["max_newton_iterations"])
-        return self.system
-
-    # ------------------------------------------------------------------ inputs
-    def _point_values(self, t_c: float, values: np.ndarray | None = None, strict: bool = True) -> tuple[np.ndarray, str]:
-        """The input values set for t_c (or those of `values`), checked: (one row per port, the columns of
-        runtime/input_rule.py, failure text). strict=False projects a rotation input onto the nearest rotation
-        however far it is (the perturbed inputs of the directional derivatives: the projection is what the
-        FMU does within ROTATION_TOL, and its derivative is the FMU's)."""
-        values = self.values if values is None else values
-        u = values[self.input_ix]
-        if not math.isfinite(u.sum()) and not np.isfinite(u).all():  # a finite sum clears all; names only on failure
-            bad = [self.variables[i].name for i in self.input_ix if not math.isfinite(values[i])]
-            shown = ", ".join(bad[:6]) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
-            return None, f"t = {t_c:.6g} s: input(s) {shown} not finite (NaN or inf)"
-        ix, turns = self._point_map
-        point = values[ix]  # one gather (a column a port does not read holds some other value: never read)
-        for k in turns:  # per rotation input, on Python floats: numpy calls on 3 x 3 cost more than they save
-            name = self.data.ports[k].name
-            defect = rotation_defect(point[k, 9:18].tolist())  # R row-major
-            dev, det = defect.orthonormality, defect.det
-            if dev > ROTATION_TOL and strict:
-                return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix "
-                              f"(not orthonormal: max |R^T R - I| = {dev:.3g} > {ROTATION_TOL:g})")
-            if det <= 0.0:
-                return None, (f"t = {t_c:.6g} s: input {name}.R is not a rotation matrix (a reflection: "
-                              f"det = {det:.6g}, a rotation has det = +1)")
-            if dev > ROTATION_EXACT:  # nearest rotation: the polar factor U V^T
-                U, _, Vt = np.linalg.svd(point[k, 9:18].reshape(3, 3))
-                point[k, 9:18] = (U @ Vt).ravel()
-        return point, ""
 
     # ------------------------------------------------------------------ modes
     def setup_experiment(self, start_time: float, stop_time: float | None = None) -> None:
@@ -472,118 +351,3 @@ class BodyCoSim:
         inputs `knowns` along `seeds`; False: FMI's partial derivatives at the communication point (zero)
         (fmu/derivatives.py): (values, '') or (None, why not)."""
         return directional_derivative(self, knowns, seeds, unknowns, step)
-
-    @staticmethod
-    def _check_finite(system: BodySystem, outputs: np.ndarray) -> None:
-        """The step's outputs (port motions and forces, energies: they read every configuration
-        field and the velocities) and all rates yd are finite. Not the Newton iteration matrix of
-        get_state: checking that copy cost 60 us a step (B1), half the FMU's own overhead. A NaN or
-        inf makes a sum non-finite, so two finite sums clear both arrays at one reduction each (~3 us
-        less); a sum that overflowed on finite entries falls through to the element test."""
-        if math.isfinite(outputs.sum()) and math.isfinite(system.yd.sum()):
-            return
-        if not (np.isfinite(outputs).all() and np.isfinite(system.yd).all()):
-            raise StepFailure(system.t, "the state is not finite (NaN or overflow)")
-
-    def _output_values(self, iterations: int, row: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(value references, values) of every output at the current state, not yet written; row: the
-        body's output_row at this state if already computed (BodySystem.run_extrapolated fills one), else computed.
-
-        Port fields come from the row's port_array part (one row per port, columns OUTPUT_FIELDS, 3 or
-        9 each, R row-major as the variables), then the energies, the iterations, the probes and the
-        modal coordinates with their rates: one gather with a map built on first use."""
-        if self._output_map is None:
-            self._output_map = self._build_output_map()
-        dst, src, seen, frame, dX = self._output_map
-        row = self.system.output_row() if row is None else row
-        row[-1] = iterations  # the most of the communication step's internal steps, not the last one's
-        extra = []
-        if seen.size:  # probes, eq. (92): d = R_f^T (r_s - r_f) - (X_s - X_f), one per probe
-            pr = row[: BodySystem.OUTPUT_WIDTH * len(self.data.ports)].reshape(len(self.data.ports), -1)
-            R, r = FIELD_COLUMNS["R"], FIELD_COLUMNS["r"]
-            extra.append(tip_from_hub(pr[frame, R].reshape(-1, 3, 3), pr[frame, r], pr[seen, r], dX).ravel())
-        if ("modal", "eta") in self.index:  # the modal coordinates and their rates (the eta slots of the rates)
-            nm = self.system.layout.nm
-            extra += [self.system.eta.ravel(), self.system.yd[self.system.layout.cfg_map[:, 6 : 6 + nm].ravel()]]
-        if extra:
-            row = np.concatenate([row, *extra])
-        return dst, row[src]
-
-    def _build_output_map(self) -> tuple:
-        """(value references, positions in [output_row, probes, eta, eta rates] (variables.output_sources), then
-        per probe the rows of its seen and frame ports and X_s - X_f) of `_output_values`."""
-        probes = list(self.config["parameters"].get("probes", ()))
-        dst, src = output_sources(self.variables, self.data.ports, probes)
-        row_of = {p.name: j for j, p in enumerate(self.data.ports)}
-        X, seen, frame, dX = self.data.node_positions, [], [], []
-        for name in probes:
-            s, _, f = name.partition("_from_")
-            seen.append(row_of[s])
-            frame.append(row_of[f])
-            dX.append(X[self.data.port(s).node] - X[self.data.port(f).node])
-        return (np.array(dst, dtype=int), np.array(src, dtype=int), np.array(seen, dtype=int),
-                np.array(frame, dtype=int), np.array(dX, dtype=float).reshape(-1, 3))
-
-    def _write_outputs(self, iterations: int) -> None:
-        dst, out = self._output_values(iterations)
-        self.values[dst] = out
-
-    # ------------------------------------------------------------------ FMU state
-    def get_state(self) -> dict:
-        """A complete snapshot (arrays are copies): values, mode, time, body integrator state
-        (which includes the body's Newton iteration matrix: a restored run takes bit-identical
-        steps)."""
-        sys_state = None if self.system is None else self.system.get_state()
-        return {
-            "version": STATE_VERSION,
-            "values": self.values.copy(),
-            "mode": self.mode,
-            "start_time": self.start_time,
-            "failure": self.failure,
-            "system": None if sys_state is None else sys_state.copy(),
-            "initialized_with": None if self._initialized_with is None else self._initialized_with.copy(),
-        }
-
-    def set_state(self, state: dict) -> None:
-        if state.get("version") != STATE_VERSION:
-            raise ValueError(f"FMU state version {state.get('version')!r} is not {STATE_VERSION}")
-        values = np.asarray(state["values"], dtype=float)
-        if values.shape != self.values.shape:
-            raise ValueError(f"FMU state has {values.size} values, this FMU has {self.values.size}")
-        self.values = values.copy()
-        self.mode = str(state["mode"])
-        self.start_time = float(state["start_time"])
-        self.failure = str(state["failure"])
-        self.discarded = ""  # a restored state is a fresh start from its time
-        self.last_step = None  # derivatives need a doStep from it
-        iw = state.get("initialized_with")
-        self._initialized_with = None if iw is None else np.asarray(iw, dtype=float).copy()
-        if state["system"] is None:
-            self.system = None
-            self._system_params = None
-        else:
-            self._make_system().set_state(np.asarray(state["system"], dtype=float))
-
-
-    @staticmethod
-    def state_to_bytes(state: dict) -> bytes:
-        buf = io.BytesIO()
-        arrays = {
-            "values": state["values"],
-            "meta": np.array(json.dumps({k: state[k] for k in ("version", "mode", "start_time", "failure")})),
-        }
-        if state["system"] is not None:
-            arrays["system"] = state["system"]
-        if state["initialized_with"] is not None:
-            arrays["initialized_with"] = state["initialized_with"]
-        np.savez(buf, **arrays)
-        return buf.getvalue()
-
-    @staticmethod
-    def state_from_bytes(blob: bytes) -> dict:
-        with np.load(io.BytesIO(bytes(blob)), allow_pickle=False) as z:
-            state = json.loads(str(z["meta"]))
-            state["values"] = z["values"].copy()
-            state["system"] = z["system"].copy() if "system" in z.files else None
-            state["initialized_with"] = z["initialized_with"].copy() if "initialized_with" in z.files else None
-        return state

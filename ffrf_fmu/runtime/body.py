@@ -23,7 +23,8 @@ from .data import BodyData
 from . import outputs, stiffening
 from .initial_conditions import InitialConditions
 from .input_rule import port_codes
-from .integrator import GeneralizedAlpha, alpha_coefficients, zero_or_nan
+from .integrator import GeneralizedAlpha, alpha_coefficients
+from .newton import zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
 from .factorization import STATE_FLAG, NativeFactor, is_native
 from .coupling import add_springs

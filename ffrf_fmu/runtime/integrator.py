@@ -10,7 +10,8 @@ equations enforced at t_{n+1}:
 am = (3 - rho)/(2 (1 + rho)), af = 1/(1 + rho), gamma = 1/2 + am - af. Newton on ydot_{n+1} with
 the analytic iteration matrix F_ydot + beta [F_y T, F_v], beta = h gamma af / am, T the SO(3)
 tangent operator; the factorization is kept across iterations and steps while Newton contracts and
-the predictor hits, and rebuilt at the predictor after a step that needed two or three iterations.
+the predictor hits, and rebuilt at the predictor after a step that needed two or three iterations
+(runtime/newton.py: the iteration, its convergence test and that policy).
 The predictor extrapolates the rates with their world-axes triplets carried along with the body.
 
 Within a step, a_{n+1} and the configuration are affine in ydot_{n+1}: p = beta ydot + P0 for
@@ -18,17 +19,12 @@ positions, eta and v, R = R_n exp(beta W + ...) for rotations (`_prepare_step` c
 once), so a Newton iteration is one stage (a multiply-add and the exponentials) and one residual.
 
 `GeneralizedAlpha` is the stepping half of `body.BodySystem` (a mixin: it works on the body's
-state and its inputs). This is the numpy path; its equations are the oracle's (runtime/assembly.py);
-runtime/native/step.c is the C runtime's twin.
-
-Over 400 lines: one class, the step and its modified Newton, whose decisions (keep, refresh, replay the
-factorization; the predictor; the rotation checks) read and write the same iteration state; split, the
-rules would be apart from the state they govern.
+state and its inputs), over `newton.ModifiedNewton`. This is the numpy path; its equations are the
+oracle's (runtime/assembly.py); runtime/native/step.c is the C runtime's twin.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 
@@ -37,12 +33,8 @@ from .input_rule import extrapolate
 from .ports import IterationCapReached, PortValues, StepFailure
 from .factorization import is_native
 from .layout import Segments
+from .newton import KEEPS, SERVES, ModifiedNewton
 from .rotation import expm, skew, tangent
-
-
-# The verdict a step leaves on its factorization (its fifth entry) for the rule REFRESH_AFTER of the next
-# step (`_newton`): 0.0 drop it (rebuild at the predictor), SERVES keep it and trust it, KEEPS keep it.
-SERVES, KEEPS = 1.0, 2.0
 
 
 def alpha_coefficients(rho_inf: float) -> tuple[float, float, float]:
@@ -54,46 +46,8 @@ def alpha_coefficients(rho_inf: float) -> tuple[float, float, float]:
     return am, af, 0.5 + am - af
 
 
-
-def zero_or_nan(x: np.ndarray, zeros: np.ndarray) -> float:
-    """0.0 if every entry of x is finite, NaN otherwise (0 * x is 0 for finite x, NaN for inf or NaN;
-    one dot product, cheaper than isfinite().all() on the hot path)."""
-    return float(x @ zeros)
-
-
-@dataclass(frozen=True)
-class NewtonDecisions:
-    """The Newton decisions of one step as another run of the same body took them (`GeneralizedAlpha.
-    newton_replay`): its iterations (a retry's counted after the failed attempt's max_iter, as
-    `iterations`) and the iterations at which it built the iteration matrix."""
-
-    iterations: int
-    refreshed: frozenset[int]
-
-    def retry(self, max_iter: int) -> "NewtonDecisions":
-        """The decisions of the retry that followed a failed first attempt of max_iter iterations."""
-        return NewtonDecisions(self.iterations - max_iter, frozenset(i - max_iter for i in self.refreshed if i > max_iter))
-
-
-@dataclass
-class NewtonReplay:
-    """Newton decisions to replay, one NewtonDecisions per step (`GeneralizedAlpha.newton_replay`), and
-    where this run's own rules would have decided otherwise (one line each: time, iteration, which
-    decision): the replayed run's policy checked against this one's, decision by decision."""
-
-    decisions: Iterator[NewtonDecisions]
-    disagreements: list[str] = field(default_factory=list)
-
-
-class GeneralizedAlpha:
+class GeneralizedAlpha(ModifiedNewton):
     """Stepping of a body (see the module docstring); the state lives on the body."""
-
-    # Tests only: Newton then builds the matrix and accepts the iterate where the replayed run did, instead
-    # of following its own convergence and refresh rules (REFRESH_AFTER included; they are still evaluated,
-    # and where they differ it is logged), so that two runs compared to round-off (the C runtime against
-    # this path) cannot part at a test that round-off tips (a count one apart moves the rates by up to the
-    # tolerance).
-    newton_replay: NewtonReplay | None = None
 
     def _build_newton(self):
         """Index maps of the Newton system: the unknowns (free rates), their order in the stored
@@ -276,146 +230,6 @@ class GeneralizedAlpha:
         self.power = p_new
         return it
 
-    def _newton(self, yd, beta, t1, stale=None, trusted=False, replay=None):
-        """Newton on the rates yd (updated in place) of the prepared step; returns the residual of the
-        last evaluation and the iterations (residual evaluations, each followed by one solve).
-        runtime/native/step.c `newton_step` is its C twin.
-
-        Increments are measured per field (`_field_scale`): |dx_i| / (tol/beta + tol S_f), S_f the
-        largest rate of the field of unknown i, so that a modal acceleration and a node velocity
-        are each compared with their own kind. With theta the contraction of successive increments,
-        the iterate after increment k is accepted when the error it leaves, estimated as
-        theta/(1 - theta) |dx_k| (the increments shrink geometrically), is within the tolerance, or
-        when the increment itself is 10x below it; the first increment is accepted when it is within
-        the tolerance. The accepted iterate is not evaluated again: its configuration is staged
-        (`_stage_at`) and the residual of the last evaluation, one increment within the tolerance,
-        serves for the reactions. Within the step, the factorization is kept while theta <= THETA_REFRESH
-        and the contraction would reach the tolerance within 3 more iterations (theta^4/(1 - theta)
-        |dx_k| <= 1); `_step` drops it before the step by the rule REFRESH_AFTER.
-
-        The step also records on the factorization whether it serves the next step as it is (its fifth
-        entry, read by REFRESH_AFTER), if its first increment was more than KEEP_MISS/tol tolerances: a matrix kept
-        through the step that converged in two increments,
-        the second contracted by theta <= KEEP_CONTRACTION; or one built at the predictor, replacing `stale` (the matrix
-        REFRESH_AFTER dropped, one step older), when `stale` would have given the same first increment
-        to KEEP_CONTRACTION of it (the matrix ages by less than that per step; one more solve). A matrix
-        that REFRESH_AFTER kept on that verdict (`trusted`) and that needs a third increment serves no more:
-        it is rebuilt at the second iterate (an FMU's matrix kept 950 steps took 5-6 iterations otherwise).
-        Or that REFRESH_AFTER keeps it without trust (KEEPS): a step whose first increment was within NEAR_MISS
-        tolerances and whose second contracted by theta <= NEAR_CONTRACTION took its second iteration for a
-        near miss of the predictor with a matrix that still contracts; the next step runs on the in-step rules.
-        replay: NewtonDecisions to take instead (`newton_replay`)."""
-        order = self._newton_idx
-        nrm_prev = np.inf
-        kept, serves = True, False  # kept: no matrix built in this step (yet)
-        drop = replay is not None and stale is not None  # (a replay's own verdict: `_step` dropped the matrix)
-        for it in range(1, self.max_iter + 1):
-            # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
-            # communication grid repeats its step only up to round-off
-            refresh = self._lu is None or abs(self._lu[2] - beta) > 1e-6 * beta
-            if replay is not None:
-                self._replay_verdict(t1, it, "refresh", refresh or drop, it in replay.refreshed)
-                drop = False
-                if self._lu is None and it not in replay.refreshed:
-                    raise ValueError(f"Newton replay at t = {t1}: the replayed run kept a matrix at iteration {it}, "
-                                     "this one has none")
-                refresh = it in replay.refreshed
-            if refresh:
-                F, J = self._residual_at(yd, jacobian=True, beta=beta)
-                kept = False
-            else:
-                F = self._residual_at(yd)
-            if zero_or_nan(F, self._zeros_ny) != 0.0:
-                self._lu = None
-                raise StepFailure(t1, "the residual is not finite (NaN or overflow)")
-            R_now = self._R[self.layout.n_nodes]  # first CM frame
-            if refresh:
-                self._factor(J, beta, t1, R_now)
-            dx = self._solve(F, R_now)
-            yd[order] -= dx
-            scale = self._field_scale(yd, beta)
-            nrm = float(np.max(np.abs(dx) / scale))
-            theta = nrm / nrm_prev
-            if it == 1:
-                far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
-                near = nrm <= self.NEAR_MISS
-                if far and stale is not None and abs(stale[2] - beta) <= 1e-6 * beta:
-                    serves = float(np.max(np.abs(self._solve(F, R_now, stale) - dx) / scale)) <= self.KEEP_CONTRACTION * nrm
-            accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 or (theta < 1.0 and theta / (1.0 - theta) * nrm <= 1.0)
-            if replay is not None:
-                self._replay_verdict(t1, it, "accept", accept, it == replay.iterations)
-                accept = it == replay.iterations
-            if accept:
-                self._stage_at(yd)
-                if kept:  # (two increments: as many as a matrix built at the predictor needs)
-                    serves = it == 2 and far and theta <= self.KEEP_CONTRACTION
-                keeps = it == 2 and near and theta <= self.NEAR_CONTRACTION
-                self._lu = (*self._lu[:4], SERVES if serves else KEEPS if keeps else 0.0)
-                return F, it
-            # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh
-            if it > 1 and (theta > self.THETA_REFRESH or theta**4 / (1.0 - theta) * nrm > 1.0 or (trusted and kept)):
-                serves = False
-                if replay is None:
-                    self._lu = None
-                else:
-                    drop = True
-            nrm_prev = nrm
-        self._lu = None
-        raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
-                              f"(last increment {nrm_prev:.3g} of the tolerance)")
-
-    def _replay_verdict(self, t1, it, decision, own, replayed):
-        """Log where this run's own rule decides otherwise than the replayed run (`newton_replay`)."""
-        if own != replayed:
-            self.newton_replay.disagreements.append(f"t = {t1}, iteration {it}: {decision} {replayed} replayed, {own} by this run's rule")
-
-    # contraction beyond which the kept iteration matrix is rebuilt (besides: when the contraction would not
-    # reach the tolerance within 3 more iterations). Measured on B1 with benchmarks/newton_policy.py before
-    # REFRESH_AFTER: 0.25, 0.5 and 0.9 gave the same iterations and factorizations at 20 and 50 ms; at 2 ms
-    # (4 SE, 6 modes) 0.9 cost iterations (1.91 against 1.85 solves)
-    THETA_REFRESH = 0.5
-    # the matrix is rebuilt at the predictor when the last step took REFRESH_AFTER[0] to REFRESH_AFTER[1]
-    # iterations: the predictor misses at this step size, and a matrix built at it converges in two increments
-    # where a kept one needs three (B1 at 20 ms: 2.00 against 2.4-2.9 iterations; benchmarks/
-    # newton_iterations.py). Not after a harder step: there the predictor is far off (unresolved modes ringing
-    # undamped), a matrix built at it is a poor one, and the kept matrix with the in-step rules does better
-    # (B4 at h = 10 ms, rho_inf = 1: 4-6 iterations per step; rebuilt after every step of 2 or more, Newton
-    # failed at t = 0.16 s). Nor when the last step showed that the matrix serves as it is (`_newton`: it ages
-    # by less than KEEP_CONTRACTION per step): a predictor can miss by far more than the tolerance while the
-    # matrix stays good. An FMU's inputs do that: the extrapolation from the point values jumps back onto the signal at
-    # every communication point (acceleration by ~jerk H), which sets the beam's elastic modes vibrating; their
-    # accelerations are 1e4-1e8 tolerances (tol/beta) at B1's h = 2 ms, H = 5-100 h, a quadratic rate predictor
-    # cannot follow them, and every internal step takes 2 iterations whatever the matrix (a kept one contracts
-    # by 1e-7-1e-3). Rebuilding there bought nothing: 0.99 factorizations per internal step, now 0.007-0.013
-    # (docs/benchmarks.md, "Newton iterations under the FMU's input rule")
-    REFRESH_AFTER = (2, 3)
-    # contraction (a kept matrix's second increment over its first, or the dropped matrix's first increment
-    # against the new one's, each per step) up to which a matrix serves the next step as it is. On B1 an FMU
-    # at h = 2 ms, H = 5 h ages its matrix by 1e-7 per step (median, p90 5e-7), the standalone run at 20 ms by
-    # 0.4 (p10 0.02). In a first version of this rule (without the two-increment condition) 1e-4, 1e-3 and
-    # 1e-2 all kept the FMU's matrix (0.010 / 0.004 / 0.003 factorizations per internal step), and 1e-2 cost
-    # the standalone run iterations (50 ms: 2.01 per step; 2 ms, 4 SE x 6 modes, 2 s: 1.22 against 1.12)
-    KEEP_CONTRACTION = 1e-3
-    # ... and only after a first increment of more than KEEP_MISS in the per-field scale (KEEP_MISS/tol
-    # tolerances, 1e3 at tol = 1e-9; a bound of its own, so that a tighter tolerance keeps its super-converged
-    # fresh matrices), where a second increment follows whatever the matrix (an FMU's extrapolated inputs: 1e4-1e8
-    # tolerances; B1's standalone run at 20 ms: ~130). Near the tolerance the iteration count hinges on the
-    # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s) fell into a run of 2-iteration steps on
-    # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved
-    # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it)
-    KEEP_MISS = 1e-6
-    # A step of two iterations whose first increment was within NEAR_MISS tolerances (the per-field scale) and
-    # whose second contracted by NEAR_CONTRACTION or better keeps its matrix for the next step (KEEPS): the
-    # matrix still contracts, the second iteration was the predictor's near miss. On the C runtime a refresh of
-    # B1's 4 SE x 6 modes costs some 15 iterations; at h = 2 ms REFRESH_AFTER rebuilt it after every such step,
-    # 0.20 matrices per step at 1.20 iterations, now 0.044 at 1.245 (8 SE x 2 modes: 0.25 at 1.25, now 0.051 at
-    # 1.27; 1 SE x 2 modes 0.02 at 1.02, now 0.006 at 1.04). NEAR_CONTRACTION 0.1 kept more (4 SE: 0.011
-    # matrices at 1.61 iterations), 1e-3 fewer (0.099 at 1.21); NEAR_MISS 3, 10, 30 gave the same decisions at
-    # 2 ms and left the runs at 20 and 40 ms unchanged (first increments of ~130 tolerances there); 1e3 took
-    # B1 at 20 ms to 2.27 iterations per step (benchmarks/native_step.py, docs/runtime.md)
-    NEAR_MISS = 10.0
-    NEAR_CONTRACTION = 1e-2
-
     def _check_rotation_increments(self, t1):
         """A rotation increment h Delta of more than pi over one step is beyond the exponential map's
         injectivity: such a Newton root (e.g. after an absurd input) is an alias, not the motion."""
@@ -424,11 +238,6 @@ class GeneralizedAlpha:
             self._lu = None
             raise StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
                                   "or an absurd input)")
-
-    def _field_scale(self, yd, beta):
-        """Tolerance of each unknown's increment, Newton order: tol/beta + tol S_f (see `_newton`)."""
-        S = np.maximum.reduceat(np.abs(yd[self._field_perm]), self._field_starts)
-        return self.tol / beta + self.tol * S[self._field_of]
 
     def _predicted_rotation(self, yd, beta):
         """World rotation of the first CM frame over the step, from the predicted rates yd:
@@ -458,40 +267,6 @@ class GeneralizedAlpha:
         self._rotate_world(self.yd_prev, Q)
         self.a = af_am * yd + A0
         self.yd = yd
-
-    def _factor(self, J, beta, t, R_ref):
-        """LU of the iteration matrix (unknowns in the Newton order), with the rotation of the first CM
-        frame it was built at; not yet known to serve the next step (`_newton`)."""
-        try:
-            from scipy.linalg import lu_factor  # (the numpy path only: a native run never imports scipy here)
-
-            lu, piv = lu_factor(J, overwrite_a=True, check_finite=True)  # J is not used afterwards
-        except (ValueError, np.linalg.LinAlgError) as exc:
-            self._lu = None
-            raise StepFailure(t, f"iteration matrix cannot be factored: {exc}")
-        self._lu = (lu, piv, beta, R_ref.copy(), False)
-
-    def _solve(self, F, R_now, factorization=None):
-        """J^-1 F on the unknowns in the Newton order (the increment is minus this), with the stored
-        factorization (or the given one) carried along the rigid rotation; F is not modified.
-
-        The equations are frame-indifferent: rotating every world-axes vector (node and CM positions,
-        CM velocities, forces) by a rigid rotation P maps J to P J P^T. So the matrix factored at the
-        orientation R_ref serves at R_now through P = R_now R_ref^T, and modified Newton keeps its
-        contraction while the body spins."""
-        lu, piv, _, R_ref, _ = factorization or self._lu
-        P = R_now @ R_ref.T
-        k3 = 3 * len(self._world_free)
-        F = F[self._newton_idx]  # world triplets first
-        Fw = F[:k3].reshape(-1, 3)
-        Fw[...] = Fw @ P  # P^T F on each triplet
-        from scipy.linalg.lapack import dgetrs
-
-        dx, info = dgetrs(lu, piv, F, overwrite_b=1)  # LAPACK directly: scipy's lu_solve wrapper costs more than the solve
-        dw = dx[:k3].reshape(-1, 3)
-        dw[...] = dw @ P.T  # P J_ref^-1 P^T F
-        return dx
-
 
     def _configuration(self, xN_pres, RN_pres, delta_h):
         """Configuration at t_{n+1} from the increment h*Delta (global ydot layout); prescribed nodes from inputs."""

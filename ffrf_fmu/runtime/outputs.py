@@ -106,7 +106,7 @@ def output_sources(variables, ports, probes) -> tuple[list[int], list[int]]:
     """(value references, positions) of every output: where each output's value is in [the body's output row
     (runtime/outputs.py: every port's OUTPUT_FIELDS, the energies, the iterations last), the probes (3 each, in
     `probes` order), the modal coordinates eta, their rates (superelement by superelement)]. The one map of both
-    FMUs: fmu/native/resource.py writes it into body.bin for model.c, the pythonfmu slave (core.py) gathers by it.
+    FMUs: fmu/native/resource.py writes it into body.bin for model.c, the pythonfmu slave (fmu/signals.py) gathers by it.
     variables: fmu/variables.py Variable rows (name, causality, kind, port, field); ports: with .name."""
     index: dict[tuple[str, str], list[int]] = {}
     for i, v in enumerate(variables):

@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 # An input rotation matrix is accepted when max |R^T R - I| <= ROTATION_TOL and det R > 0 (runtime/body.py,
-# fmu/core.py; the FMU variable descriptions quote it)
+# fmu/signals.py; the FMU variable descriptions quote it)
 ROTATION_TOL = 1e-6
 _EPS = 1e-5  # below this angle 1 - t^2/6 and 1 + t^2/6 equal sin(t)/t and t/sin(t) to round-off (next term t^4/120)
 

@@ -378,7 +378,7 @@ static int terms_of(const fmu_instance *m)
     return (int)m->values[m->desc.vr_terms];
 }
 
-/* why the parameters cannot start a run ('' when they can): core.py `_check_parameters` */
+/* why the parameters cannot start a run ('' when they can): parameters.py `_check_parameters` */
 static int check_parameters(fmu_instance *m, char *why, size_t len)
 {
     const fmu_description *d = &m->desc;
@@ -490,7 +490,7 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
     return 0;
 }
 
-/* The point values (runtime/input_rule.py) of the inputs in `values` at t_c (core.py `_point_values`): one row per port, the
+/* The point values (runtime/input_rule.py) of the inputs in `values` at t_c (signals.py `_point_values`): one row per port, the
  * columns of runtime/input_rule.py; checked finite, R a rotation (re-orthonormalized when not exact).
  * strict = 0 projects any R with det > 0 onto the nearest rotation (the derivatives' perturbed inputs). */
 static int point_values(fmu_instance *m, const double *values, double t_c, int strict, double *out, char *why,
@@ -565,7 +565,7 @@ static void alpha_coefficients(double rho, double *am, double *af, double *gamma
     *gamma = 0.5 + *am - *af;
 }
 
-/* The body of the term set asked for, with the parameters of this run (core.py `_make_system`). */
+/* The body of the term set asked for, with the parameters of this run (parameters.py `_make_system`). */
 static int make_body(fmu_instance *m, char *why, size_t len)
 {
     const fmu_description *d = &m->desc;
