@@ -53,6 +53,10 @@ def jeffcott_runup(omega, T, duration, t_eval):
 def main(out=None):
     from ffrf_fmu.simulate import run_scene
 
+    from ffrf_fmu.model import load_model
+
+    sc = load_model(MODEL).scene("runup")
+    terms = sc.terms + (f" ({' + '.join(sc.full_terms)})" if sc.terms == "full" else "")
     res = run_scene(str(MODEL))
     t = res.t
     r_ffrf = np.hypot(res.columns["disc.r[2]"], res.columns["disc.r[3]"])
@@ -72,7 +76,7 @@ def main(out=None):
         import matplotlib.pyplot as plt
 
         fig, ax = plt.subplots(figsize=(7, 4))
-        ax.plot(speed, r_ffrf * 1e3, label="reduced body (jeffcott_runup.toml, terms gyroscopic)")
+        ax.plot(speed, r_ffrf * 1e3, label=f"reduced body (jeffcott_runup.toml, terms {terms})")
         ax.plot(speed, r_sdof * 1e3, "--", label="Jeffcott ODE, same run-up")
         ax.axvline(wc, color="k", lw=0.8, ls=":", label=f"sqrt(k/m) = {wc:.1f} rad/s")
         ax.set_xlabel("spin speed [rad/s]")
