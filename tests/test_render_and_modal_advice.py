@@ -41,8 +41,8 @@ def test_render_states_the_scale(tmp_path):
 def test_modal_advice_of_the_runup():
     """The Jeffcott run-up (a rotating unbalance: no full-order reference): modes per superelement = the
     free-free modes below 3 x the spin rate's 54.1 Hz (340 rad/s); step: the period error within the budget
-    at the first kept mode, and at most 0.2 rad of spin per step (the run-up fails Newton at 0.29 rad, holds
-    at 0.17, docs/inertia-terms.md), a step that divides the 10 s."""
+    at the first kept mode, and at most 0.2 rad of spin per step (the run-up fails Newton at 0.29 rad with gyroscopic,
+    0.31 with full W1 + W2, holds at 0.17, docs/inertia-terms.md), a step that divides the 10 s."""
     from ffrf_fmu.model import load_model
     from ffrf_fmu.studies import modal_advice as ma
     from ffrf_fmu.studies.calibration import RESERVE, STEP_ERROR_FACTOR

@@ -11,7 +11,8 @@ Advice (the budget of advise.py: the step gets RESERVE x tolerance, the rest is 
 - step: the integrator's period error (indicators.period_error) times STEP_ERROR_FACTOR within RESERVE x
   tolerance at the highest relevant frequency, the larger of the excitation's and the first kept mode's (the
   body rings in it after a transient), and at most MAX_SPIN_PER_STEP rad of spin per step (Newton
-  robustness: the Jeffcott run-up fails Newton at 0.29 rad per step, completes at 0.17;
+  robustness: the Jeffcott run-up fails Newton at 0.29 rad per step (gyroscopic; 0.31 with full W1 + W2),
+  completes at 0.17;
   docs/inertia-terms.md), rounded down to a step that divides the duration (indicators.nice_step).
 
 Metric (the scene's peak response): the largest |eq. 92 probe| of the scene's first `outputs` entry, else the
@@ -32,7 +33,7 @@ import numpy as np
 from .calibration import MIN_MODES, MODE_BAND, RESERVE, STEP_ERROR_FACTOR
 from .indicators import excitation, largest_step, nice_step
 
-MAX_SPIN_PER_STEP = 0.2  # rad: between the run-up's 0.17 (completes) and 0.29 (fails Newton)
+MAX_SPIN_PER_STEP = 0.2  # rad: between the run-up's 0.17 (completes) and 0.29 / 0.31 (fails Newton)
 CONVERGED_SHARE = 0.1  # the reference is converged when the last refinement moves the metric by < 0.1 x tolerance
 MAX_HALVINGS = 3  # of the reference's step: a metric still moving after three halvings gives no verdict
 
