@@ -182,12 +182,16 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
     const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
     const double (*Bq)[n] = (const double (*)[n])w->Bq, *Nk = w->Nk;
     double (*Kt)[n] = (double (*)[n])w->Kt;
+    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would (the same
+     * bits), the rows of vk_B[k] read contiguously */
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) {
-            double s = 0.0;
-            for (int k = 0; k < r; k++)
-                s += vk_a[k][i] * Bq[k][j] + Bq[k][i] * (vk_a[k][j] + Bq[k][j]) + Nk[k] * vk_B[k][i][j];
-            Kt[i][j] = s;
+        for (int j = 0; j < n; j++)
+            Kt[i][j] = 0.0;
+    for (int k = 0; k < r; k++)
+        for (int i = 0; i < n; i++) {
+            const double ai = vk_a[k][i], bi = Bq[k][i], *a = vk_a[k], *bq = Bq[k], *Bki = vk_B[k][i];
+            for (int j = 0; j < n; j++)
+                Kt[i][j] += ai * bq[j] + bi * (a[j] + bq[j]) + Nk[k] * Bki[j];
         }
 }
 
