@@ -182,12 +182,16 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
     const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
     const double (*Bq)[n] = (const double (*)[n])w->Bq, *Nk = w->Nk;
     double (*Kt)[n] = (double (*)[n])w->Kt;
+    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would (the same
+     * bits), the rows of vk_B[k] read contiguously */
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) {
-            double s = 0.0;
-            for (int k = 0; k < r; k++)
-                s += vk_a[k][i] * Bq[k][j] + Bq[k][i] * (vk_a[k][j] + Bq[k][j]) + Nk[k] * vk_B[k][i][j];
-            Kt[i][j] = s;
+        for (int j = 0; j < n; j++)
+            Kt[i][j] = 0.0;
+    for (int k = 0; k < r; k++)
+        for (int i = 0; i < n; i++) {
+            const double ai = vk_a[k][i], bi = Bq[k][i], *a = vk_a[k], *bq = Bq[k], *Bki = vk_B[k][i];
+            for (int j = 0; j < n; j++)
+                Kt[i][j] += ai * bq[j] + bi * (a[j] + bq[j]) + Nk[k] * Bki[j];
         }
 }
 
@@ -302,13 +306,30 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         Fy[3 + i][cO0 + i] = -1.0;
         Fz[ex0 + i][cv0 + i] = mass[e];
     }
+    /* The stiffness that multiplies Dq in dg/d(configuration): K, or with the stiffening K + Kt [- Kc]
+     * (d(f_vk - f0 [- Kc q])/dq), summed first so that Dq's product is taken once */
+    const double (*Kq)[n] = Ke;
+    if (stiff) {
+        double (*Kt)[n] = (double (*)[n])w->Kt;
+        stiff_tangent(b, e, n, w);
+        if (n2 > 0) {
+            const double (*Kc)[n2] = (const double (*)[n2])w->Kc;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++)
+                    Kt[i][j] -= Kc[i][j];
+        }
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                Kt[i][j] += Ke[i][j];
+        Kq = (const double (*)[n])Kt;
+    }
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
             double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
             NZ_ROWS(j, m) {
                 s1 += Me[i][m] * Dq[m][j];
                 s2 += Me[i][m] * Dqd[m][j];
-                s3 += Ke[i][m] * Dq[m][j];
+                s3 += Kq[i][m] * Dq[m][j];
             }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
@@ -405,26 +426,11 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
         }
     }
-    if (stiff) { /* d(f_vk - f0 [- Kc q]): (Kt [- Kc]) Dq on the configuration, -HQ^T on the Omega0 columns */
-        double (*Kt)[n] = (double (*)[n])w->Kt;
+    if (stiff) { /* d(f_vk - f0 [- Kc q]) on the Omega0 columns: -HQ^T (the configuration's part is Kq's above) */
         const double (*HQ)[n] = (const double (*)[n])w->HQ;
-        stiff_tangent(b, e, n, w);
-        if (n2 > 0) {
-            const double (*Kc)[n2] = (const double (*)[n2])w->Kc;
-            for (int i = 0; i < n; i++)
-                for (int j = 0; j < n; j++)
-                    Kt[i][j] -= Kc[i][j];
-        }
-        for (int i = 0; i < n; i++) {
-            for (int j = 0; j < nc; j++) {
-                double s = 0.0;
-                NZ_ROWS(j, m)
-                    s += Kt[i][m] * Dq[m][j];
-                dgy[i][j] += s;
-            }
+        for (int i = 0; i < n; i++)
             for (int bb = 0; bb < 3; bb++)
                 dgy[i][cO0 + bb] -= HQ[bb][i];
-        }
     }
     for (int i = 0; i < nm; i++)
         for (int j = 0; j < ncv; j++) {
@@ -539,7 +545,9 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                     if (n2 > 0)
                         s += V[j][a][bb] * Omd[bb] + Vd[j][a][bb] * Om[bb];
                 }
-                eq[a][j] = s; /* de/dq: W1_j Omd [+ V_j Omd + Vd_j Om] */
+                for (int bb = 0; bb < 3; bb++)
+                    s += W0x[a][bb] * Z[bb][j];
+                eq[a][j] = s; /* de/dq + W0 x dh/dq: de/dq = W1_j Omd [+ V_j Omd + Vd_j Om] */
             }
         skew(w->hs, S);
         for (int i = 0; i < 3; i++) {
@@ -554,11 +562,8 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             for (int j = 0; j < nc; j++) {
                 double s1 = 0.0, s2 = 0.0;
                 NZ_ROWS(j, m) {
-                    double zw = eq[i][m];
-                    for (int bb = 0; bb < 3; bb++)
-                        zw += W0x[i][bb] * Z[bb][m];
                     s1 += Z[i][m] * Dq[m][j];
-                    s2 += zw * Dq[m][j] + Z[i][m] * Dqd[m][j];
+                    s2 += eq[i][m] * Dq[m][j] + Z[i][m] * Dqd[m][j];
                 }
                 Fz[eT0 + i][j] += s1;
                 Fy[eT0 + i][j] += s2;
