@@ -7,7 +7,7 @@
  *
  * Array shapes are given in brackets with the dimension names of `ffrf_dims`; every array is
  * C-ordered (row-major) and contiguous. Indices are int64 (the image stores them so).
- * The names are those of runtime/equations.py and runtime/integrator.py (docs/equations.md).
+ * The names are those of runtime/equations.py, runtime/integrator.py and runtime/newton.py (docs/equations.md).
  */
 #ifndef FFRF_LAYOUT_H
 #define FFRF_LAYOUT_H
@@ -68,7 +68,7 @@ typedef struct {
     const idx_t *newton_pos;  /* [ny]          global rate -> Newton order (>= nf: not an unknown) */
     int k3;                   /* 3 x the free world triplets that lead the Newton order */
     const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
-    double theta_refresh, keep_contraction, keep_miss; /* the Newton policy (integrator.py) */
+    double theta_refresh, keep_contraction, keep_miss; /* the Newton policy (newton.py) */
     double near_miss, near_contraction;                /* NEAR_MISS, NEAR_CONTRACTION: the KEEPS verdict */
     int refresh_min, refresh_max;                      /* REFRESH_AFTER */
     const idx_t *world_idx;   /* [n_world][3] */

@@ -1,6 +1,5 @@
-/* One generalized-alpha step of a body (the C twin of runtime/integrator.py `_step` and its callees, which
- * are the compiled twins of runtime/integrator.py `_step`, `_newton`, `_solve`, `_commit` and
- * runtime/coupling.py add_springs): the same loops, the same accumulation order and the same Newton
+/* One generalized-alpha step of a body (the C twin of runtime/integrator.py `_step` and `_commit`,
+ * runtime/newton.py `_newton` and `_solve`, and runtime/coupling.py add_springs): the same loops, the same accumulation order and the same Newton
  * decisions, so that the results match the numpy path to round-off.
  *
  * Lie-group generalized-alpha (docs/equations.md, "Integrator"): a_{n+1} = (af/am) ydot + A0, the
@@ -166,8 +165,7 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
     }
 }
 
-/* Newton on the rates ydot_{n+1} of one step (runtime/integrator.py `_newton`, the same decisions;
- * runtime/integrator.py `_newton`).
+/* Newton on the rates ydot_{n+1} of one step (runtime/newton.py `_newton`, the same decisions).
  *
  * In: the stage p = c ydot + P0, R = Rn exp(theta) (theta = p at rot_slots); the loads; yd holds the
  * predictor. Out: yd the accepted rates, p, R their configuration, F the residual of the last
