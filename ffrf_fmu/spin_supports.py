@@ -24,6 +24,11 @@ coupling acts on velocities in the spinning frame, nil in a steady whirl, and on
 the peak by 0.45 % (W1 + W2 against all four switches). The critical speed of
 each set (the undamped synchronous response's pole, by secant on Omega^2 / a(Omega^2), linear in Omega^2
 for one mode) is reported beside it.
+
+A balanced spin under gravity across the axis (jeffcott_rotor.toml, scene spin): the weight, constant in the world,
+turns backward in the spinning frame at the spin rate, a load at the spin frequency as an unbalance is; the terms are
+measured on its steady harmonic response about the undeformed relative equilibrium (gravity_whirl), read at the
+boundary nodes and the CM frames (the supports' reactions carry the weight with every term set).
 """
 from __future__ import annotations
 
@@ -77,14 +82,14 @@ def _support_check(data, axis: np.ndarray, drive: str, length: float) -> str | N
 
 
 def _forces(system, w: np.ndarray, unbalances, damping: bool, drive: str):
-    """(F, J) on the unknowns: the spinning frame's residual and matrix (linear._spin_system) with the
+    """(F, J, F_ydot) on the unknowns: the spinning frame's residual and matrices (linear._spin_system) with the
     compliant supports' spring-dampers and the unbalance forces (module doc)."""
     from .linear import _spin_system
     from .runtime.coupling import spring_force, spring_moment
     from .runtime.rotation import skew
 
-    F, J, _ = _spin_system(system, w)
-    F, J = F.copy(), J.copy()
+    F, J, Fz = _spin_system(system, w)
+    F, J, Fz = F.copy(), J.copy(), Fz.copy()
     pos = np.full(system.layout.ny, -1)
     pos[system.unknowns] = np.arange(len(system.unknowns))
     data = system.data
@@ -96,15 +101,17 @@ def _forces(system, w: np.ndarray, unbalances, damping: bool, drive: str):
             r = pos[i:i + 3]
             F[r] -= f
             J[np.ix_(r, r)] += np.diag(Kt) + np.diag(Ct) @ skew(w)  # d(xdot) = xi' + w x xi
+            Fz[np.ix_(r, r)] += np.diag(Ct)
         if rot:  # the drive spring's far end turns with the spin; another's is fixed (no stiffness about the axis)
             w_in = w if name == drive else np.zeros(3)
             m, dm = spring_moment(Kr, Cr, np.eye(3), w_in, system.RN[k], system.yd[i + 3:i + 6])
             r = pos[i + 3:i + 6]
             F[r] -= m
             J[np.ix_(r, r)] += -dm + np.diag(Cr) @ skew(system.RN[k].T @ w)  # d(W) = dTheta' + W x dTheta
+            Fz[np.ix_(r, r)] += np.diag(Cr)
     for node, f in unbalances:
         F[pos[6 * node:6 * node + 3]] -= f * float(w @ w)
-    return F, J
+    return F, J, Fz
 
 
 def synchronous_whirl(system, rate: float, axis, unbalances, drive: str, damping: bool = True) -> np.ndarray:
@@ -116,7 +123,7 @@ def synchronous_whirl(system, rate: float, axis, unbalances, drive: str, damping
     system.v[:, 0:3] = np.cross(w, system.x0)
     system.v[:, 3:6] = w @ system.R0
     for _ in range(NEWTON_MAX):
-        F, J = _forces(system, w, unbalances, damping, drive)
+        F, J, _ = _forces(system, w, unbalances, damping, drive)
         d = np.zeros(system.layout.ny)
         d[system.unknowns] = np.linalg.solve(J, -F)
         system.move(d)
@@ -124,6 +131,34 @@ def synchronous_whirl(system, rate: float, axis, unbalances, drive: str, damping
             return system.xN - system.data.node_positions
     raise RuntimeError(f"synchronous whirl at {rate:.4g} rad/s: Newton did not converge "
                        f"(last correction {np.abs(d).max():.3g})")
+
+
+def gravity_whirl(system, rate: float, axis, gravity, drive: str) -> np.ndarray:
+    """The complex displacement amplitudes X (N + E, 3; spinning frame, xi = Re(X exp(i Omega t))) of the boundary
+    nodes and then of the superelements' CM frames (the bearings' reactions carry the weight whatever the terms, so
+    the shaft's sag is read at the CM frames)
+    of the steady response of the balanced spin to the gravity across `axis` (module doc, last paragraph):
+    about the undeformed relative equilibrium (synchronous_whirl without unbalance, the gravity along the
+    axis in it), the linearized spinning-frame system F_ydot xi' + J xi + B g_s(t) = 0 with the world's g
+    seen as g_s(t) = R(Omega t)^T g = Re((g + i axis x g) exp(i Omega t)), so (i Omega F_ydot + J) X = -B (g + i axis x g)."""
+    a = np.asarray(axis, dtype=float)
+    g = np.asarray(gravity, dtype=float)
+    g_axis = float(g @ a) * a
+    g_across = g - g_axis
+    w = rate * a
+    system.gravity = g_axis
+    synchronous_whirl(system, rate, a, [], drive)
+    F0, J, Fz = _forces(system, w, [], True, drive)
+    B = []
+    for v in (g_across, np.cross(a, g_across)):
+        system.gravity = g_axis + v
+        B.append(_forces(system, w, [], True, drive)[0] - F0)
+    system.gravity = g_axis
+    X = np.linalg.solve(1j * rate * Fz + J, -(B[0] + 1j * B[1]))
+    d = np.zeros(system.layout.ny, dtype=complex)
+    d[system.unknowns] = X
+    nodes = np.arange(len(system.data.node_positions))
+    return np.vstack([d[(6 * nodes)[:, None] + np.arange(3)], d[system.layout.cfg_map[:, 0:3]]])
 
 
 def critical_speed(system, axis, unbalances, drive: str, top: float) -> float | None:
@@ -162,9 +197,13 @@ def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool =
     from .runtime.body import BodySystem
     spin = scene_spin(scene)
     rate, axis = spin.peak, spin.axis
-    if not scene.unbalances:
-        return {"status": f"spin through the compliant drive spring {spin.port}.rotation without an unbalance: the "
-                          "balanced body spins undeformed, nothing steady to evaluate the terms on"}
+    g = np.asarray(scene.gravity, dtype=float)
+    g_across = g - float(g @ axis) * axis
+    weighed = not scene.unbalances and np.linalg.norm(g_across) > 0.0
+    if not scene.unbalances and not weighed:
+        return {"status": f"spin through the compliant drive spring {spin.port}.rotation without an unbalance or "
+                          "gravity across the axis: the balanced body spins undeformed, nothing steady to evaluate "
+                          "the terms on"}
     data = reduce_body(body, stiffening=stiffening, inertia=True).data
     why = _support_check(data, axis, spin.port, float(np.ptp(data.node_positions, axis=0).max()) or 1.0)
     if why:
@@ -180,6 +219,9 @@ def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool =
     for label, terms, ft in runs:
         system = BodySystem(data, terms=terms, full_terms=ft, backend="numpy")
         try:
+            if weighed:
+                u[label] = gravity_whirl(system, rate, axis, g, spin.port)
+                continue
             u[label] = synchronous_whirl(system, rate, axis, unbalances, spin.port)
             if label == terms:  # the sets (the switches' crossings lie between theirs): reported, not ruled on
                 crit[label] = critical_speed(system, axis, unbalances, spin.port, rate)
@@ -190,8 +232,8 @@ def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool =
     return {
         "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
         "superelements": len(data.superelements), "displacement_m": scale, "scale_of": "linear",
-        "measure": (f"the synchronous whirl of the unbalance at {rate:.3g} rad/s on the compliant supports "
-                    f"(drive spring {spin.port}.rotation; spin_supports.py)"),
+        "measure": (f"the {'steady response to the gravity across the axis' if weighed else 'synchronous whirl of the unbalance'}"
+                    f" at {rate:.3g} rad/s on the compliant supports (drive spring {spin.port}.rotation; spin_supports.py)"),
         "change": {k: rel(v, u["linear"]) for k, v in u.items()},
         "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
         "critical_speed": crit,

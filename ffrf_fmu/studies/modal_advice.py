@@ -1,6 +1,6 @@
 """`advise` and `advise --check` where no full-order reference runs the scene: a solid or shell body (one
-superelement, its FE model the whole truth), or a scene whose loads the full-order beam refuses (a rotating
-unbalance). The reference is then the same scene with all modes up to a cutoff that converges the metric
+superelement, its FE model the whole truth), or a scene whose loads or drives the full-order beam refuses (a rotating
+unbalance, a drive through a compliant drive spring). The reference is then the same scene with all modes up to a cutoff that converges the metric
 (Craig-Bampton-like: the reduced model tends to the FE model as its free-free modes are added, eq. 76), at a
 step that converges it too; both convergences are shown.
 
@@ -19,7 +19,8 @@ Metric (the scene's peak response): the largest |eq. 92 probe| of the scene's fi
 largest displacement of the loaded force-driven port (an unbalance's or a load's; with no load the first
 force-driven port: GenStruct's corner frame): seen from the port whose
 motion-driven rotation spins the scene (eq. 92: its elastic part), else |r_P - X_P| (the Jeffcott rotor's whirl
-on its compliant bearings, in world axes).
+on its compliant bearings, in world axes); with no such port, a compliant support's peak displacement across the
+gravity and the spin axis (_support_across: the balanced Jeffcott rotor's sideways bearing force / k).
 """
 from __future__ import annotations
 
@@ -39,8 +40,12 @@ MAX_HALVINGS = 3  # of the reference's step: a metric still moving after three h
 
 
 def needs_modal_reference(model, scene) -> bool:
-    """A solid/shell body, or a scene with unbalances (the full-order reference refuses them)."""
-    return model.body.solid is not None or bool(scene.unbalances)
+    """A solid/shell body, a scene with unbalances, or a drive of a port whose driven part is not motion-driven (a
+    compliant drive spring): the full-order reference refuses them."""
+    kinds = {p.name: (p.translation, p.rotation) for p in model.body.ports}
+    spring_drive = any((d.translation is not None and kinds[d.port][0] != "motion")
+                       or (d.rotation is not None and kinds[d.port][1] != "motion") for d in scene.drives)
+    return model.body.solid is not None or bool(scene.unbalances) or spring_drive
 
 
 @dataclass
@@ -149,13 +154,30 @@ def scene_metric(model, scene, result) -> float:
     ports = ([u.port for u in scene.unbalances] + [ld.port for ld in scene.loads]
              or [p.name for p in model.body.ports if p.translation == "force"])  # unloaded: the free frame (GenStruct)
     if not ports:
-        raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe, no loaded and no free port to measure")
+        return _support_across(model, scene, result)
     r = result.port(ports[0], "r")
     hub = _motion_spin_port(model, scene)
     if hub is not None:  # seen from the driven port: the elastic part, not the swing of the rigid rotation
         rB = result.port(hub, "r")
         return float(np.linalg.norm(tip_from_hub(result.port(hub, "R"), rB, r, r[0] - rB[0]), axis=1).max())
     return float(np.linalg.norm(r - r[0], axis=1).max())
+
+
+def _support_across(model, scene, result) -> float:
+    """A body held only by compliant supports, spun under gravity (jeffcott_rotor.toml, scene spin): the peak
+    displacement of the first support across the gravity and the spin axis, its spring's sideways force / k. The
+    weight's share is the same with every term set (the reactions carry it); the sideways one is what the disc's
+    gyroscopic coupling with the supports' compliance sets (docs/inertia-terms.md, "The Jeffcott rotor")."""
+    from ..spin import scene_spin
+
+    spin = scene_spin(scene)
+    supports = [p.name for p in model.body.ports if p.translation == "compliant"]
+    across = np.cross(spin.axis, scene.gravity) if spin is not None else np.zeros(3)
+    if not supports or not np.any(across):
+        raise ValueError(f"{model.path}: scene {scene.name}: no outputs probe, no loaded or free port, and no "
+                         "compliant support spun under gravity across the spin axis to measure")
+    r = result.port(supports[0], "r")
+    return float(np.abs((r - r[0]) @ (across / np.linalg.norm(across))).max())
 
 
 def _motion_spin_port(model, scene) -> str | None:
