@@ -30,7 +30,7 @@ import numpy as np
 
 from .coupling import add_springs
 from .input_rule import extrapolate
-from .ports import IterationCapReached, PortValues, StepFailure
+from .ports import IterationCapReached, NotConverged, PortValues, StepFailure
 from .factorization import is_native
 from .layout import Segments
 from .newton import KEEPS, SERVES, ModifiedNewton
@@ -202,19 +202,26 @@ class GeneralizedAlpha(ModifiedNewton):
             if replay is not None and replay.iterations > self.max_iter:
                 raise StepFailure(t1, "the replayed run's first attempt failed")
             F, it = self._newton(yd, beta, t1, stale, trusted, replay)
-        except StepFailure:
+        except StepFailure as exc:
             if not commit_config:
                 raise
-            if 0 < cap <= self.max_iter:  # no iteration left for a retry
+            if 0 < cap <= self.max_iter:  # no iteration left for a retry (step.c: the cap only for not converged)
                 self._lu = None
-                raise IterationCapReached(t1, cap) from None
+                if isinstance(exc, NotConverged):
+                    raise IterationCapReached(t1, cap) from None
+                raise
             # one retry from the last step's rates with a fresh matrix: an extrapolation across a jump
             # (a load switched on, unresolved modes at a large step) can start Newton outside its basin
             # (B2 at h = 0.2 s, rho_inf = 0.8: fails at t = 19.6 s without, completes with it)
             yd[:] = self.yd
             yd[fixed] = zN_p.ravel()[fixed]
             self._lu = None
-            F, it = self._newton(yd, beta, t1, replay=replay and replay.retry(self.max_iter))
+            try:
+                F, it = self._newton(yd, beta, t1, replay=replay and replay.retry(self.max_iter))
+            except NotConverged:
+                if cap:  # the retry ran out within the cap's iterations (step.c FFRF_ITERATION_CAP)
+                    raise IterationCapReached(t1, cap) from None
+                raise
             it += self.max_iter  # the failed attempt's iterations count
         if 0 < cap < it:
             self._lu = None

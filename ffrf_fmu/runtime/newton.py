@@ -15,7 +15,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .ports import StepFailure
+from .ports import NotConverged, StepFailure
 
 # The verdict a step leaves on its factorization (its fifth entry) for the rule REFRESH_AFTER of the next
 # step (`_newton`): 0.0 drop it (rebuild at the predictor), SERVES keep it and trust it, KEEPS keep it.
@@ -147,7 +147,7 @@ class ModifiedNewton:
                     drop = True
             nrm_prev = nrm
         self._lu = None
-        raise StepFailure(t1, f"Newton did not converge in {self.max_iter} iterations "
+        raise NotConverged(t1, f"Newton did not converge in {self.max_iter} iterations "
                               f"(last increment {nrm_prev:.3g} of the tolerance)")
 
     def _replay_verdict(self, t1, it, decision, own, replayed):

@@ -31,6 +31,11 @@ class StepFailure(RuntimeError):
         self.cause = cause
 
 
+class NotConverged(StepFailure):
+    """Newton ran out of iterations without converging (step.c FFRF_NOT_CONVERGED): the one failure that an
+    iteration cap turns into IterationCapReached; a NaN or an unfactorable matrix stays what it is."""
+
+
 class IterationCapReached(StepFailure):
     """A step that needs more Newton iterations than its cap (BodySystem.iteration_cap: a scene's
     max_newton_iterations, an FMU's solver.max_newton_iterations, the hard real-time bound of docs/fmu.md): it
