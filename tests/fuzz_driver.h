@@ -106,8 +106,8 @@ static const char *fuzz_location, *fuzz_token; /* the FMU under test: main's arg
         return fuzz_main(&api, argc, argv);                                                                     \
     }
 
-#define N_SHARED 7 /* the calls of every version: doStep (3 ways), get, set and serialize states, the end of
-                    * initialization, the rest */
+#define N_SHARED 8 /* the calls of every version: doStep (3 ways), get, set and serialize states, the end of
+                    * initialization, the rest (reset, terminate, logging: the default arm) */
 
 /* one of the shared calls k (0 .. N_SHARED - 1) on slot i: its status */
 static int shared_call(const fuzz_api *api, fuzz_run *r, int i, int k, int sane)

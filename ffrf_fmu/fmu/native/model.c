@@ -699,6 +699,10 @@ static int initialize(fmu_instance *m)
         snprintf(m->failure, sizeof m->failure, "initialization failed at t = %.6g s: %s", m->start_time, why);
         return 1;
     }
+    /* the cap bounds the communication steps only, as on the numpy path (its micro-step and static starts are
+     * not committed steps: integrator `_step` commit_config): off until the initial state stands */
+    const int cap = m->body->iteration_cap;
+    m->body->iteration_cap = 0;
     double v0[3], w0[3], *disp = m->deriv_values; /* work: [n_ports][3] displacements */
     int displaced = 0;
     for (int i = 0; i < 3; i++) {
@@ -727,6 +731,7 @@ static int initialize(fmu_instance *m)
         snprintf(m->failure, sizeof m->failure, "initialization failed at t = %.6g s: %s", m->start_time, why);
         return 1;
     }
+    m->body->iteration_cap = cap;
     ffrf_body_record(m->body, m->row);
     write_outputs(m, 0);
     memcpy(m->initialized_with, m->values, sizeof(double) * (size_t)d->n_vars);

@@ -77,7 +77,7 @@ static int parse(const unsigned char *image, size_t size, unsigned char **copy, 
     if (payload != size - HEADER_BYTES || payload % 8 != 0)
         return fail(err, len, "%sbody image truncated or padded: %lld payload bytes announced, %lld present", "",
                     (long long)payload, (long long)(size - HEADER_BYTES));
-    if (ffrf_fnv1a_words(image + HEADER_BYTES, (size_t)payload) != check)
+    if (ffrf_image_checksum(image + HEADER_BYTES, payload) != check)
         return fail(err, len, "%sbody image damaged: checksum mismatch%lld%lld", "", 0, 0);
     if (count > MAX_ENTRIES)
         return fail(err, len, "%sbody image has %lld entries, at most %lld are read", "", count, MAX_ENTRIES);

@@ -183,6 +183,9 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
             }
         }
 #undef OUTER
+        /* (the LU takes a NaN pivot for nonzero: a non-finite J[Z, Z], J[Z, B] or J[B, Z] is refused here, -1) */
+        if (!all_finite(A, (size_t)nz * nz) || !all_finite(R, (size_t)m * nz) || !all_finite(W, (size_t)m * nz))
+            return -1;
         if (ffrf_lu_factor(A, piv + (size_t)e * ni, nz) != 0)
             return -1;
         for (int j = nz; j < ni; j++) /* (unused: the pivots keep the layout of E blocks of n_int, body.c's state check) */
