@@ -302,9 +302,7 @@ def advise(args) -> int:
     if args.json:
         json.dump(out, sys.stdout, indent=2, default=float)
         print()
-    if args.check and out["check"]["within_tolerance"] is None:
-        return 3  # no verdict: the reference does not resolve the metric at a tenth of the tolerance
-    return 0 if not args.check or out["check"]["within_tolerance"] else 1
+    return ma.exit_code(out["check"] if args.check else None)
 
 
 @command(

@@ -41,8 +41,9 @@ from ..runtime.steps import divides
 from ..runtime.terms import FULL_TERMS
 from ..term_rule import SWITCH_ALONE, TERM_SETS_BY_COST, TERM_SHARE, choose_full_terms
 from .calibration import MIN_MODES, MODE_BAND, RESERVE, STEP_ERROR_FACTOR
-from .indicators import largest_step, nice_step
-from .modal_advice import CONVERGED_SHARE, MAX_HALVINGS, ModalAdvice
+from .indicators import nice_step
+from .modal_advice import (CONVERGED_SHARE, VERDICT, ModalAdvice, converge, dump_json, exit_code, modes_and_step,
+                           reference_cutoffs, switch_suffix)
 
 DURATION = 7.5e-3  # s: the drive's run-up (one revolution in 2.5 ms) and four revolutions at speed, four firings
 
@@ -60,8 +61,7 @@ class CrankRunMetric:
 
     @property
     def label(self) -> str:
-        sw = f"[{'+'.join(s.replace('inertia_', '') for s in self.full_terms)}]" if self.terms == "full" else ""
-        return f"{self.modes}m/{self.terms}{sw}/{self.step * 1e6:g}us"
+        return f"{self.modes}m/{self.terms}{switch_suffix(self.terms, self.full_terms)}/{self.step * 1e6:g}us"
 
 
 class Runs:
@@ -114,12 +114,10 @@ def advise_crank(runs: Runs, tolerance: float, rho_inf: float, max_modes: int = 
     drive = runs.drive
     f_exc, what = excitation(drive)
     freqs = np.sort(runs.frequencies(max_modes))
-    n = min(max(MIN_MODES, int(np.sum(freqs < MODE_BAND * f_exc))), max_modes)
+    n, f_rel, h_max = modes_and_step(freqs, f_exc, max_modes, rho_inf, tolerance)
     reasons["modes"] = (f"highest excitation {f_exc:.4g} Hz ({what}; the crank at {drive.omega / 2 / math.pi:.1f} Hz); "
                         f"free-free modes {freqs[0]:.4g} .. {freqs[-1]:.4g} Hz; {n} below {MODE_BAND:g} x {f_exc:.4g} = "
                         f"{MODE_BAND * f_exc:.4g} Hz (at least {MIN_MODES})")
-    f_rel = max(f_exc, float(freqs[0]))
-    h_max = largest_step(2 * math.pi * f_rel, rho_inf, RESERVE * tolerance / STEP_ERROR_FACTOR)
     step = nice_step(h_max, runs.duration)
     reasons["step"] = (f"{STEP_ERROR_FACTOR:g} x the period error at {f_rel:.4g} Hz within {RESERVE:g} x tolerance: "
                        f"h <= {h_max:.3g} s -> h = {step:g} s")
@@ -147,30 +145,15 @@ def advise_crank(runs: Runs, tolerance: float, rho_inf: float, max_modes: int = 
 
 def check_crank(runs: Runs, advice: ModalAdvice, cutoffs) -> dict:
     """The advised configuration against the converged monolithic reference (module doc)."""
-    share = CONVERGED_SHARE * advice.tolerance
-    table, converged, moves = [], None, []
-    for n in cutoffs:
-        table.append(runs.run(n, "full", FULL_TERMS, advice.step))
-        if len(table) > 1:
-            moves.append(moved(table[-2], table[-1]))
-            if moves[-1] < share:
-                converged = table[-1]
-                break
-    steps, step_moves, prev = [], [], table[-1]
-    for _ in range(MAX_HALVINGS):
-        steps.append(runs.run(prev.modes, "full", FULL_TERMS, prev.step / 2))
-        step_moves.append(moved(prev, steps[-1]))
-        prev = steps[-1]
-        if step_moves[-1] < share:
-            break
-    ref = steps[-1]
+    c = converge(lambda n, h: runs.run(n, "full", FULL_TERMS, h), cutoffs, advice.step, moved,
+                 CONVERGED_SHARE * advice.tolerance)
+    ref = c.reference
     run = runs.run(advice.modes, advice.terms, advice.full_terms if advice.terms == "full" else FULL_TERMS, advice.step)
     dev = cd.deviation(run.run, ref.run)
-    resolved = converged is not None and step_moves[-1] < share
     err = max(dev.axial, dev.bending)
-    return {"run": run, "reference": ref, "modes_table": table, "mode_moves": moves, "step_table": steps,
-            "step_moves": step_moves, "resolved": resolved, "axial": dev.axial, "bending": dev.bending, "error": err,
-            "within_tolerance": (err <= advice.tolerance) if resolved else None}
+    return {"run": run, "reference": ref, "modes_table": c.table, "mode_moves": c.mode_moves, "step_table": c.steps,
+            "step_moves": c.step_moves, "resolved": c.resolved, "axial": dev.axial, "bending": dev.bending, "error": err,
+            "within_tolerance": (err <= advice.tolerance) if c.resolved else None}
 
 
 def format_crank(advice: ModalAdvice, res: dict | None, drive: cd.CrankDrive, duration: float) -> str:
@@ -186,8 +169,7 @@ def format_crank(advice: ModalAdvice, res: dict | None, drive: cd.CrankDrive, du
             lines.append(f"    {r.modes:4d} modes{mv}  [{r.wall:.1f} s]")
         for r, mv in zip(res["step_table"], res["step_moves"]):
             lines.append(f"    {r.modes:4d} modes at h = {r.step:g} s (the halving moves it {mv:.2e})  [{r.wall:.1f} s]")
-        verdict = {True: "within", False: "NOT within", None: "no verdict (reference not converged), against"}[
-            res["within_tolerance"]]
+        verdict = VERDICT[res["within_tolerance"]]
         lines.append(f"  check: {res['run'].label} against {res['reference'].label}: axial {res['axial']:.3%}, bending "
                      f"{res['bending']:.3%} of the reference's peaks ({verdict} {advice.tolerance:.1%}), wall "
                      f"{res['run'].wall:.1f} s against the reference's {res['reference'].wall:.1f} s")
@@ -201,7 +183,8 @@ def advise_command(args) -> int:
 
     from ..model import load_model
 
-    ports = {p.name for p in load_model(args.model, args.overrides).body.ports}
+    model = load_model(args.model, args.overrides)
+    ports = {p.name for p in model.body.ports}
     if not {"big_eye", "small_eye", "mid_shank"} <= ports:
         print(f"ffrf-fmu advise: error: {args.model}: --system crank advises the conrod of the crank drive, whose "
               f"partners drive the ports big_eye, small_eye and mid_shank (models/conrod_crank.toml); this body has "
@@ -210,24 +193,13 @@ def advise_command(args) -> int:
     drive = cd.CrankDrive()
     duration = args.duration or DURATION
     runs = Runs(drive, duration, args.model, args.overrides)
-    advice = advise_crank(runs, args.tolerance, load_model(args.model, args.overrides).scene("crank").rho_inf)
+    advice = advise_crank(runs, args.tolerance, model.scene("crank").rho_inf)
     res = None
     if args.check:
-        if args.cutoffs:
-            cutoffs = [int(x) for x in args.cutoffs.split(",")]
-        else:
-            cutoffs = sorted({max(advice.modes, round(advice.modes * f)) for f in (1, 1.5, 2, 3)})
-        res = check_crank(runs, advice, cutoffs)
+        res = check_crank(runs, advice, reference_cutoffs(args, advice.modes, (1, 1.5, 2, 3)))
     if args.json:
-        out = {"advice": {**advice.__dict__, "label": advice.label}}
-        if res:
-            conf = lambda r: {"modes": r.modes, "terms": r.terms, "full_terms": r.full_terms, "step": r.step, "wall": r.wall}
-            out["check"] = {k: (conf(v) if isinstance(v, CrankRunMetric) else [conf(r) for r in v]
-                                if k in ("modes_table", "step_table") else v) for k, v in res.items()}
-        json.dump(out, sys.stdout, indent=2, default=float)
-        print()
+        dump_json(advice, res, CrankRunMetric, lambda r: {"modes": r.modes, "terms": r.terms, "full_terms": r.full_terms,
+                                                          "step": r.step, "wall": r.wall})
     else:
         print(format_crank(advice, res, drive, duration))
-    if res is None:
-        return 0
-    return 3 if res["within_tolerance"] is None else 0 if res["within_tolerance"] else 1
+    return exit_code(res)

@@ -37,6 +37,12 @@ from .indicators import excitation, largest_step, nice_step
 MAX_SPIN_PER_STEP = 0.2  # rad: between the run-up's 0.17 (completes) and 0.29 / 0.31 (fails Newton)
 CONVERGED_SHARE = 0.1  # the reference is converged when the last refinement moves the metric by < 0.1 x tolerance
 MAX_HALVINGS = 3  # of the reference's step: a metric still moving after three halvings gives no verdict
+VERDICT = {True: "within", False: "NOT within", None: "no verdict (reference not converged), against"}  # by within_tolerance
+
+
+def switch_suffix(terms: str, full_terms) -> str:
+    """A label's [W1+W2] of full's switches ("" with another set)."""
+    return f"[{'+'.join(s.replace('inertia_', '') for s in full_terms)}]" if terms == "full" else ""
 
 
 def needs_modal_reference(model, scene) -> bool:
@@ -69,8 +75,7 @@ class ModalAdvice:
 
     @property
     def label(self) -> str:
-        sw = f"[{'+'.join(s.replace('inertia_', '') for s in self.full_terms)}]" if self.terms == "full" else ""
-        return f"{self.superelements}SE/{self.modes}m/{self.terms}{sw}/{self.step * 1e3:g}ms"
+        return f"{self.superelements}SE/{self.modes}m/{self.terms}{switch_suffix(self.terms, self.full_terms)}/{self.step * 1e3:g}ms"
 
 
 def _frequencies(model, scene, modes: int) -> np.ndarray:
@@ -118,13 +123,10 @@ def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -
     f_exc, parts = excitation(scene, tolerance)
     n_avail = max_modes or model.body.modes  # reduce with this many to see the modes below the band
     freqs = np.sort(_frequencies(model, scene, n_avail))
-    n = max(MIN_MODES, int(np.sum(freqs < MODE_BAND * f_exc)))
-    n = min(n, n_avail)
+    n, f_rel, h = modes_and_step(freqs, f_exc, n_avail, scene.rho_inf, tolerance)
     reasons["modes"] = (f"highest excitation {f_exc:.3g} Hz ({parts[0]}); free-free modes {freqs[0]:.3g} .. "
                         f"{freqs[min(len(freqs), n_avail) - 1]:.3g} Hz; {n} below {MODE_BAND:g} x {f_exc:.3g} = "
                         f"{MODE_BAND * f_exc:.3g} Hz (at least {MIN_MODES})")
-    f_rel = max(f_exc, float(freqs[0]))
-    h = largest_step(2 * math.pi * f_rel, scene.rho_inf, RESERVE * tolerance / STEP_ERROR_FACTOR)
     why = (f"{STEP_ERROR_FACTOR:g} x the period error at {f_rel:.3g} Hz (the larger of the excitation and the first "
            f"mode) within {RESERVE:g} x tolerance: h <= {h:.3g} s")
     spin = scene_spin(scene)
@@ -136,6 +138,16 @@ def advise_modal(model, scene, tolerance: float, max_modes: int | None = None) -
     reasons["step"] = why + f" -> h = {step:g} s"
     supers = len(scene_body_superelements(model))
     return ModalAdvice(terms, n, step, tolerance, supers, reasons, tuple(full_terms))
+
+
+def modes_and_step(freqs, f_exc: float, n_avail: int, rho_inf: float, tolerance: float) -> tuple[int, float, float]:
+    """The rule of the module doc at the highest excitation frequency f_exc [Hz] and free-free frequencies freqs
+    [Hz] of a body reduced with n_avail modes: the mode count, the relevant frequency f_rel [Hz] (the larger of
+    f_exc and the first mode) and the largest step [s] whose period error at f_rel, times STEP_ERROR_FACTOR,
+    is within RESERVE x tolerance (before the caller's other caps and nice_step)."""
+    n = min(max(MIN_MODES, int(np.sum(np.asarray(freqs) < MODE_BAND * f_exc))), n_avail)
+    f_rel = max(f_exc, float(np.min(freqs)))
+    return n, f_rel, largest_step(2 * math.pi * f_rel, rho_inf, RESERVE * tolerance / STEP_ERROR_FACTOR)
 
 
 def scene_body_superelements(model) -> list:
@@ -213,6 +225,43 @@ def run_metric(model_path, scene_name: str, modes: int, terms: str, step: float,
                      time.perf_counter() - t0, bool(res.summary["completed"]))
 
 
+@dataclass
+class Convergence:
+    """A reference converged over mode cutoffs, then over halvings of the step (converge)."""
+
+    table: list  # the runs over the cutoffs
+    mode_moves: list  # moved(previous cutoff, next)
+    steps: list  # the runs at the step halved
+    step_moves: list  # moved(previous step, its half)
+    resolved: bool  # a cutoff and a halving each moved it by < share
+
+    @property
+    def reference(self):
+        return self.steps[-1]
+
+
+def converge(run, cutoffs, step: float, moved, share: float) -> Convergence:
+    """run(modes, step) over the cutoffs (ascending) at `step` until a cutoff moves the response by < share
+    (moved(previous, next)), then that cutoff's run at the step halved until a halving moves it by < share (at
+    most MAX_HALVINGS times; the reference is the last run)."""
+    table, mode_moves, converged = [], [], False
+    for n in cutoffs:
+        table.append(run(n, step))
+        if len(table) > 1:
+            mode_moves.append(moved(table[-2], table[-1]))
+            if mode_moves[-1] < share:
+                converged = True
+                break
+    steps, step_moves, prev = [], [], table[-1]
+    for _ in range(MAX_HALVINGS):
+        steps.append(run(prev.modes, prev.step / 2))
+        step_moves.append(moved(prev, steps[-1]))
+        prev = steps[-1]
+        if step_moves[-1] < share:
+            break
+    return Convergence(table, mode_moves, steps, step_moves, converged and step_moves[-1] < share)
+
+
 def check_modal(model_path, scene_name: str, advice: ModalAdvice, cutoffs, reference_terms: str = "full",
                 overrides=()) -> dict:
     """The advised run against the converged reference: the scene at `reference_terms` and the advised step
@@ -221,30 +270,17 @@ def check_modal(model_path, scene_name: str, advice: ModalAdvice, cutoffs, refer
     most MAX_HALVINGS times; the reference is the last run)."""
     from ..runtime.terms import FULL_TERMS
 
-    h_ref = advice.step
     share = CONVERGED_SHARE * advice.tolerance
     ref_overrides = [*overrides, f"full_terms={json.dumps(list(FULL_TERMS))}"] if reference_terms == "full" else overrides
     advised = [*overrides, *advice.switches]
-    table, converged = [], None
-    for n in cutoffs:
-        table.append(run_metric(model_path, scene_name, n, reference_terms, h_ref, ref_overrides))
-        if len(table) > 1 and abs(table[-1].metric - table[-2].metric) < share * abs(table[-1].metric):
-            converged = table[-1]
-            break
-    steps, prev = [], table[-1]
-    for _ in range(MAX_HALVINGS):
-        steps.append(run_metric(model_path, scene_name, prev.modes, reference_terms, prev.step / 2, ref_overrides))
-        step_moves = abs(steps[-1].metric - prev.metric) / abs(steps[-1].metric)
-        prev = steps[-1]
-        if step_moves < share:
-            break
-    ref = steps[-1]
+    c = converge(lambda n, h: run_metric(model_path, scene_name, n, reference_terms, h, ref_overrides), cutoffs,
+                 advice.step, lambda a, b: abs(b.metric - a.metric) / abs(b.metric), share)
+    ref = c.reference
     run = run_metric(model_path, scene_name, advice.modes, advice.terms, advice.step, advised)
     err = abs(run.metric - ref.metric) / abs(ref.metric)
-    resolved = converged is not None and step_moves < share
-    return {"run": run, "reference": ref, "modes_table": table, "step_table": steps, "step_check": ref,
-            "step_moves": step_moves, "resolved": resolved, "error": err,
-            "within_tolerance": (err <= advice.tolerance) if resolved else None}
+    return {"run": run, "reference": ref, "modes_table": c.table, "step_table": c.steps,
+            "step_moves": c.step_moves[-1], "resolved": c.resolved, "error": err,
+            "within_tolerance": (err <= advice.tolerance) if c.resolved else None}
 
 
 def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -> str:
@@ -265,7 +301,7 @@ def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -
                          f"{abs(sc.metric - prev) / abs(sc.metric):.2e})  [{sc.wall:.1f} s]")
             prev = sc.metric
         r = res["run"]
-        verdict = {True: "within", False: "NOT within", None: "no verdict (reference not converged), against"}[res["within_tolerance"]]
+        verdict = VERDICT[res["within_tolerance"]]
         lines.append(f"  check: {r.label} metric {r.metric:.6g} vs {res['reference'].metric:.6g}: error {res['error']:.3%} "
                      f"({verdict} {advice.tolerance:.1%}), wall {r.wall:.1f} s against the reference's {res['reference'].wall:.1f} s")
     return "\n".join(lines)
@@ -274,26 +310,41 @@ def format_modal(advice: ModalAdvice, res: dict | None = None, name: str = "") -
 def advise_command(args, model, scene) -> int:
     """`ffrf-fmu advise` on a scene of this module: the advice, and with --check its check (exit 0 within the
     tolerance, 1 not within, 3 no verdict: the reference did not converge)."""
-    import sys
-
     advice = advise_modal(model, scene, args.tolerance, max_modes=2 * model.body.modes)
     name = f"{model.body.name}/{scene.name}"
     res = None
     if args.check:
-        if args.cutoffs:
-            cutoffs = [int(x) for x in args.cutoffs.split(",")]
-        else:
-            cutoffs = sorted({max(advice.modes, round(advice.modes * f)) for f in (1, 1.5, 2, 3, 4)})
-        res = check_modal(args.model, scene.name, advice, cutoffs, overrides=args.overrides)
+        res = check_modal(args.model, scene.name, advice, reference_cutoffs(args, advice.modes, (1, 1.5, 2, 3, 4)),
+                          overrides=args.overrides)
     if args.json:
-        out = {"advice": {**advice.__dict__, "label": advice.label}}
-        if res:
-            out["check"] = {k: (v.__dict__ if isinstance(v, MetricRun) else [r.__dict__ for r in v] if k in ("modes_table", "step_table")
-                                else v) for k, v in res.items()}
-        json.dump(out, sys.stdout, indent=2, default=float)
-        print()
+        dump_json(advice, res, MetricRun, lambda r: r.__dict__)
     else:
         print(format_modal(advice, res, name))
+    return exit_code(res)
+
+
+def reference_cutoffs(args, modes: int, factors) -> list[int]:
+    """The reference's mode cutoffs: --cutoffs, else the advised modes times the factors."""
+    if args.cutoffs:
+        return [int(x) for x in args.cutoffs.split(",")]
+    return sorted({max(modes, round(modes * f)) for f in factors})
+
+
+def dump_json(advice: ModalAdvice, res: dict | None, run_type, conf) -> None:
+    """--json: the advice and the check, each run (a run_type) as conf(run)."""
+    import sys
+
+    out = {"advice": {**advice.__dict__, "label": advice.label}}
+    if res:
+        out["check"] = {k: (conf(v) if isinstance(v, run_type) else [conf(r) for r in v]
+                            if k in ("modes_table", "step_table") else v) for k, v in res.items()}
+    json.dump(out, sys.stdout, indent=2, default=float)
+    print()
+
+
+def exit_code(res: dict | None) -> int:
+    """0 without a check or within the tolerance, 1 not within, 3 no verdict (the reference does not resolve the
+    metric at CONVERGED_SHARE x tolerance)."""
     if res is None:
         return 0
     return 3 if res["within_tolerance"] is None else 0 if res["within_tolerance"] else 1
