@@ -65,3 +65,12 @@ def scene_spin(scene) -> SpinHistory | None:
         best = SpinHistory(t, np.full_like(t, np.linalg.norm(w)), np.zeros_like(t), w / np.linalg.norm(w), None,
                            "initial angular_velocity")
     return best
+
+
+def spin_drive_rotation(body, scene) -> tuple[SpinHistory, str] | None:
+    """The scene's spin (scene_spin) and how `body` holds the rotation of the port that drives it ("motion",
+    "compliant" for a drive spring, "force"), else None (nothing spins, or an initial angular velocity: no port)."""
+    spin = scene_spin(scene)
+    if spin is None or spin.port is None:
+        return None
+    return spin, body.port(spin.port).rotation

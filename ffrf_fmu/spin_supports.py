@@ -45,19 +45,6 @@ NEWTON_MAX = 40
 APPROACH = 0.97
 
 
-def supported_spin(body: Body, scene: Scene) -> str | None:
-    """None when the scene's spin is driven through a compliant rotation (a drive spring) of `body`, so that
-    this module measures the terms, else why not (the caller's rule then applies). Supports without a steady
-    whirl in the spinning frame are named by supported_term_effects (its status)."""
-    spin = scene_spin(scene)
-    if spin is None or spin.port is None:
-        return "no driven spin"
-    drive = body.port(spin.port)
-    if drive.rotation != "compliant":
-        return f"drive {spin.port}.rotation is {drive.rotation}, not a compliant drive spring"
-    return None
-
-
 def _support_check(data, axis: np.ndarray, drive: str, length: float) -> str | None:
     """Why the compliant supports of `data` have no relative equilibrium spinning about `axis`, or None."""
     if np.count_nonzero(np.abs(axis) > 1e-12) != 1:
@@ -188,13 +175,15 @@ def critical_speed(system, axis, unbalances, drive: str, top: float) -> float | 
     return None if zero is None else float(np.sqrt(zero))
 
 
-def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool = False) -> dict:
-    """term_rule.steady_term_effects for a spin through a compliant drive spring (supported_spin is None), over
-    its `runs` (term_rule.term_runs: label, term set, full_terms): the same keys, measured on the synchronous whirl at the scene's top rate (module doc), plus
-    `critical_speed` per term set [rad/s] and `measure`. A status other than "ok" says why nothing
-    was measured."""
+def supported_measure(body: Body, scene: Scene, *, stiffening: bool = False) -> dict:
+    """What term_rule.steady_term_effects measures the terms on for a spin through a compliant drive spring
+    (spin.spin_drive_rotation "compliant"): the keyword arguments of term_rule.measured_term_effects but
+    `stiffening` (the reduced data, displacements(system), its text, ...). On the synchronous whirl at the scene's
+    top rate (module doc), with the critical speed per term set [rad/s] for an unbalance; or on the steady response
+    to the gravity across the axis (gravity_whirl) of a balanced spin. {"status": why} when there is nothing to
+    measure."""
     from .reduction import reduce_body
-    from .runtime.body import BodySystem
+
     spin = scene_spin(scene)
     rate, axis = spin.peak, spin.axis
     g = np.asarray(scene.gravity, dtype=float)
@@ -215,26 +204,12 @@ def supported_term_effects(body: Body, scene: Scene, runs, *, stiffening: bool =
         e1 /= np.linalg.norm(e1)
         rho = np.cos(ub.phase) * e1 + np.sin(ub.phase) * np.cross(axis, e1)
         unbalances.append((data.port(ub.port).node, ub.mass_eccentricity * rho))
-    u, crit = {}, {}
-    for label, terms, ft in runs:
-        system = BodySystem(data, terms=terms, full_terms=ft, backend="numpy")
-        try:
-            if weighed:
-                u[label] = gravity_whirl(system, rate, axis, g, spin.port)
-                continue
-            u[label] = synchronous_whirl(system, rate, axis, unbalances, spin.port)
-            if label == terms:  # the sets (the switches' crossings lie between theirs): reported, not ruled on
-                crit[label] = critical_speed(system, axis, unbalances, spin.port, rate)
-        except (RuntimeError, np.linalg.LinAlgError) as e:
-            return {"status": f"no synchronous whirl at {rate:.3g} rad/s with {label} ({e})"}
-    scale = float(np.linalg.norm(u["linear"], axis=1).max())
-    rel = lambda a, b: float(np.linalg.norm(a - b, axis=1).max() / scale)  # noqa: E731
-    return {
-        "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
-        "superelements": len(data.superelements), "displacement_m": scale, "scale_of": "linear",
-        "measure": (f"the {'steady response to the gravity across the axis' if weighed else 'synchronous whirl of the unbalance'}"
-                    f" at {rate:.3g} rad/s on the compliant supports (drive spring {spin.port}.rotation; spin_supports.py)"),
-        "change": {k: rel(v, u["linear"]) for k, v in u.items()},
-        "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
-        "critical_speed": crit,
-    }
+    if weighed:  # no unbalance to find a critical speed by
+        whirl, critical = lambda system: gravity_whirl(system, rate, axis, g, spin.port), None  # noqa: E731
+    else:
+        whirl = lambda system: synchronous_whirl(system, rate, axis, unbalances, spin.port)  # noqa: E731
+        critical = lambda system: critical_speed(system, axis, unbalances, spin.port, rate)  # noqa: E731
+    return {"data": data, "displacements": whirl, "rate": rate, "axis": axis, "critical": critical,
+            "failure": "synchronous whirl", "backend": "numpy",
+            "measure": (f"the {'steady response to the gravity across the axis' if weighed else 'synchronous whirl of the unbalance'}"
+                        f" at {rate:.3g} rad/s on the compliant supports (drive spring {spin.port}.rotation; spin_supports.py)")}

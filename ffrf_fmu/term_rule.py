@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .model import Body, Scene
-from .spin import scene_spin
+from .spin import spin_drive_rotation
 
 INFO_TOLERANCE = 0.01  # `info` states the rule's pick at this tolerance (advise takes the user's)
 TERM_SHARE = 0.5  # a term set may leave at most this share of the tolerance to the terms it lacks
@@ -36,17 +36,16 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     port; no steady state: the spin is beyond what the superelements hold)."""
     from .linear import steady_spin
     from .reduction import reduce_body
-    from .runtime.body import BodySystem
-    from .runtime.terms import FULL_TERMS
+    from .spin_supports import supported_measure
 
-    from .spin_supports import supported_spin, supported_term_effects
-
-    if supported_spin(body, scene) is None:  # spun through a drive spring on compliant supports: the whirl
-        return supported_term_effects(body, scene, term_runs(), stiffening=stiffening)
-    spin = scene_spin(scene)
-    if spin is None or spin.port is None:
+    driven = spin_drive_rotation(body, scene)
+    if driven is not None and driven[1] == "compliant":  # spun through a drive spring on compliant supports: the whirl
+        how = supported_measure(body, scene, stiffening=stiffening)
+        return how if "status" in how else measured_term_effects(**how, stiffening=stiffening)
+    if driven is None:
         return {"status": "no driven spin in the scene: nothing steady to evaluate the terms on",
                 "free_axial_rotation": free_axial_rotation(body, scene)}
+    spin = driven[0]
     rate, axis, port = spin.peak, spin.axis, spin.port
     data = reduce_body(body, stiffening=stiffening, inertia=True).data
     node = data.port(port).node
@@ -57,13 +56,30 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
         return {"status": f"drive {port}.rotation on a free translation: no relative equilibrium"}
     g = np.asarray(scene.gravity, dtype=float)
     g_axis = float(g @ axis) * axis  # the steady part of gravity in the spinning frame (module doc)
-    u = {}
+    return measured_term_effects(
+        data, lambda system: steady_spin(system, rate, axis).xN - data.node_positions, rate=rate, axis=axis,
+        stiffening=stiffening, measure=f"steady spin at {rate:.3g} rad/s", failure="steady state", gravity=g_axis)
+
+
+def measured_term_effects(data, displacements, *, rate: float, axis, stiffening: bool, measure: str, failure: str,
+                          critical=None, **system) -> dict:
+    """steady_term_effects' result from `displacements(system)`, the boundary nodes' displacements u (rows) of the
+    steady state it measures on a runtime.body.BodySystem(data, terms, full_terms, **system) of each of term_runs():
+    status "ok" with change and to_full (relative to linear's largest |u|, or full's when linear's is at most
+    LINEAR_AT_REST of it) and `measure` (the text naming what was measured); else status names the run with no
+    `failure` ("steady state") or a body the steady state does not deform. critical(system), when given, is
+    evaluated after each term set's own run (not the switches') and reported as `critical_speed` per set."""
+    from .runtime.body import BodySystem
+
+    u, crit = {}, {}
     for label, terms, ft in term_runs():
+        s = BodySystem(data, terms=terms, full_terms=ft, **system)
         try:
-            s = steady_spin(BodySystem(data, terms=terms, full_terms=ft, gravity=g_axis), rate, axis)
+            u[label] = displacements(s)
+            if critical is not None and label == terms:  # the sets (the switches' lie between theirs): reported, not ruled on
+                crit[label] = critical(s)
         except (RuntimeError, np.linalg.LinAlgError) as e:
-            return {"status": f"no steady state at {rate:.3g} rad/s with {label} ({e})"}
-        u[label] = s.xN - data.node_positions
+            return {"status": f"no {failure} at {rate:.3g} rad/s with {label} ({e})"}
     scale = np.linalg.norm(u["linear"], axis=1).max()
     scale_of = "linear"
     full_scale = np.linalg.norm(u["full"], axis=1).max()
@@ -72,13 +88,16 @@ def steady_term_effects(body: Body, scene: Scene, *, stiffening: bool = False) -
     if scale == 0.0:
         return {"status": "the steady spin does not deform the body"}
     rel = lambda a, b: float(np.linalg.norm(a - b, axis=1).max() / scale)  # noqa: E731
-    return {
+    out = {
         "status": "ok", "spin_rate": float(rate), "spin_axis": [float(x) for x in axis], "stiffening": stiffening,
         "superelements": len(data.superelements), "displacement_m": float(scale), "scale_of": scale_of,
-        "measure": f"steady spin at {rate:.3g} rad/s",
+        "measure": measure,
         "change": {k: rel(v, u["linear"]) for k, v in u.items()},
         "to_full": {k: rel(v, u["full"]) for k, v in u.items()},
     }
+    if critical is not None:
+        out["critical_speed"] = crit
+    return out
 
 
 def term_runs() -> list[tuple[str, str, tuple[str, ...]]]:

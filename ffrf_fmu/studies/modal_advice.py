@@ -194,12 +194,10 @@ def _support_across(model, scene, result) -> float:
 
 def _motion_spin_port(model, scene) -> str | None:
     """The port whose motion-driven rotation spins the scene (spin.scene_spin), else None."""
-    from ..spin import scene_spin
+    from ..spin import spin_drive_rotation
 
-    spin = scene_spin(scene)
-    if spin is None or spin.port is None or model.body.port(spin.port).rotation != "motion":
-        return None
-    return spin.port
+    driven = spin_drive_rotation(model.body, scene)
+    return driven[0].port if driven is not None and driven[1] == "motion" else None
 
 
 @dataclass
