@@ -22,6 +22,7 @@ if not os.environ.get("FFRF_FMU_CACHE_DIR"):
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from ffrf_fmu.checked_toml import toml_key, toml_value
 from ffrf_fmu.model import Section
 
 _E, _NU, _A, _I, _RHO = 2.1e6, 0.3, 9.0, 6.75, 7.8e-3
@@ -181,19 +182,16 @@ def small_fmu(small):
 
 
 def toml_table(name: str, **keys) -> str:
-    """The model file's table [NAME] with its keys; each value a str, number or list of numbers, written as
-    JSON (which is TOML for these)."""
-    import json
-
-    return "\n".join([f"[{name}]"] + [f"{k} = {json.dumps(v)}" for k, v in keys.items()])
+    """The model file's table [NAME] (a dotted path) with its keys, written by checked_toml's writer."""
+    return "\n".join([f"[{'.'.join(toml_key(p) for p in name.split('.'))}]"]
+                     + [f"{toml_key(k)} = {toml_value(v)}" for k, v in keys.items()])
 
 
 def end_face_port(name: str, x: float, **keys) -> str:
     """A solid bar's port [body.ports.NAME] on its end face, the nodes of the plane x = const normal to X
     (docs/model-format.md, solids), with its further keys (toml_table)."""
-    select = f"select = {{ plane = {{ point = [{x!r}, 0.0, 0.0], normal = [1.0, 0.0, 0.0] }} }}"
-    table = toml_table(f"body.ports.{name}", **keys).split("\n")
-    return "\n".join([table[0], select] + table[1:])
+    plane = {"point": [float(x), 0.0, 0.0], "normal": [1.0, 0.0, 0.0]}
+    return toml_table(f"body.ports.{name}", select={"plane": plane}, **keys)
 
 
 # A small solid bar (steel, 1 x 0.1 x 0.1 m, 4 quadratic serendipity hexahedra) on two end-face frames:

@@ -68,11 +68,14 @@ def test_runup_peak_against_the_jeffcott_equation():
     critical speed by about 2.16 sqrt(alpha) (the first maximum of the Fresnel integral), here 28 rad/s = 17 %: the
     reduced body's peak must be above sqrt(k/m) by more than half of that. Its speed is the equation's moved by the
     difference of the crossings: the body's synchronous crossing with W1 + W2 is the rule's steady whirl pole,
-    169.10 rad/s, 7.5e-4 of it the secant's bias high (docs/inertia-terms.md, "Which terms the run-up needs"; a
-    steady measure, not fitted on a run-up), against sqrt(k/m) = 169.79. The bundled run-up (68 rad/s^2) is 0.10 %
-    below that prediction (186.56 against 187.57 - 0.82 rad/s, the peak flat-topped): 4e-3, which gyroscopic's
-    crossing (171.84 rad/s: +1.2 %) does not meet. The amplitude A ~ e_eff w_c / sqrt(alpha): the bundled run-up's
-    is 0.93 % below the equation's (the crossings differ by 0.4 %, the modal unbalance the rest): 3 %."""
+    169.10 rad/s (term_rule.steady_term_effects(...)["critical_speed"]["full"] on the scene runup, asserted in
+    test_term_rule_on_the_run_up_measures_the_whirl_and_picks_w1_w2; written out, as it takes 3.5 s to measure),
+    7.5e-4 of it the secant's bias high (its points 3 % below the pole; docs/inertia-terms.md, "Which terms the
+    run-up needs"; a steady measure, not fitted on a run-up), against sqrt(k/m) = 169.79. This run's peak is 0.14 %
+    below that prediction (196.72 against 197.81 - 0.82 rad/s), the bundled run-up's (68 rad/s^2) 0.10 % (186.56
+    against 187.57 - 0.82 rad/s, the peak flat-topped): 4e-3, which gyroscopic's crossing (171.84 rad/s: +1.2 %)
+    does not meet. The amplitude A ~ e_eff w_c / sqrt(alpha): this run's is 1.2 % below the equation's, the bundled
+    run-up's 0.93 % (the crossings differ by 0.4 %, the modal unbalance the rest): 3 %."""
     from ffrf_fmu.simulate import run_scene
 
     T = 4.0
@@ -90,7 +93,7 @@ def test_runup_peak_against_the_jeffcott_equation():
     alpha = 2 * 340.0 / T
     assert speed[j] - wc == pytest.approx(2.16 * np.sqrt(alpha), rel=0.25)  # the ODE against the Fresnel estimate
     assert speed[i] - wc > 0.5 * 2.16 * np.sqrt(alpha)
-    crossing = 169.10 / (1 + 7.5e-4)
+    crossing = 169.10 / (1 + 7.5e-4)  # the rule's full-terms whirl pole less the secant's bias (above)
     assert speed[i] == pytest.approx(speed[j] + crossing - wc, rel=4e-3)
     assert r[i] == pytest.approx(r_ode[j], rel=3e-2)  # peak amplitude (mm): the same resonance
 
