@@ -107,9 +107,7 @@ const char *fmi3GetVersion(void)
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[])
 {
-    (void)nCategories;
-    (void)categories;
-    return status3(model_set_logging(M(instance), "fmi3SetDebugLogging", loggingOn != fmi3False));
+    return status3(model_set_logging(M(instance), "fmi3SetDebugLogging", loggingOn != fmi3False, nCategories, categories));
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
@@ -133,7 +131,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     m->sink = sink;
     x->log = logMessage;
     x->env = instanceEnvironment;
-    m->logging = loggingOn != fmi3False;
+    m->log_categories = model_log_categories(loggingOn != fmi3False);
     if (model_instantiate(m, "fmi3InstantiateCoSimulation", instanceName, resourcePath, instantiationToken,
                           "instantiation token",
                           eventModeUsed ? "this FMU has no event mode (hasEventMode=false): eventModeUsed must be false"

@@ -18,22 +18,36 @@
 
 static const char *const TERM_NAMES[FMU_TERM_SETS] = {"linear", "gyroscopic", "full"};
 
+const char *const fmu_log_category[FMU_LOG_CATEGORIES] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
+                                                          "logStatusFatal", "logAll"};
+enum { LOG_ALL = FMU_LOG_CATEGORIES - 1 };
+
+/* the category of a message of this status: fmi2Warning .. fmi2Fatal their own, OK (and Pending) logAll */
+static int log_category(fmi2Status status)
+{
+    return status >= fmi2Warning && status <= fmi2Fatal ? (int)status - (int)fmi2Warning : LOG_ALL;
+}
+
+unsigned model_log_categories(int logging_on)
+{
+    unsigned all = (1u << FMU_LOG_CATEGORIES) - 1u;
+    return logging_on ? all : all & ~(1u << LOG_ALL);
+}
+
 void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
 {
-    if ((!m->cb.logger && !m->sink) || (status == fmi2OK && !m->logging))
+    int category = log_category(status);
+    if ((!m->cb.logger && !m->sink) || !(m->log_categories & (1u << category)))
         return;
     char text[4 * FMU_MESSAGE];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
-    static const char *const categories[] = {"logAll", "logStatusWarning", "logStatusDiscard", "logStatusError",
-                                             "logStatusFatal", "logAll"};
-    const char *category = categories[status <= fmi2Pending ? status : 0];
     if (m->sink)
-        m->sink(m, (int)status, category, text);
+        m->sink(m, (int)status, fmu_log_category[category], text);
     else
-        m->cb.logger(m->cb.componentEnvironment, m->name, status, category, "%s", text);
+        m->cb.logger(m->cb.componentEnvironment, m->name, status, fmu_log_category[category], "%s", text);
 }
 
 const char *py_repr(double x, char *buf, size_t len)
@@ -164,11 +178,31 @@ fmi2Status model_refused(fmu_instance *m, const char *call, const char *why)
     return fmi2Error;
 }
 
-fmi2Status model_set_logging(fmu_instance *m, const char *call, int on)
+fmi2Status model_set_logging(fmu_instance *m, const char *call, int on, size_t n_categories,
+                             const char *const categories[])
 {
     if (!model_allowed(m, call, MODES_ANY))
         return fmi2Error;
-    m->logging = on;
+    if (n_categories && !categories) {
+        fmu_log(m, fmi2Error, "%s: NULL categories for nCategories = %zu", call, n_categories);
+        return fmi2Error;
+    }
+    unsigned named = n_categories ? 0u : (1u << FMU_LOG_CATEGORIES) - 1u;
+    for (size_t i = 0; i < n_categories; i++) {
+        int k = 0;
+        while (k < FMU_LOG_CATEGORIES && !(categories[i] && strcmp(categories[i], fmu_log_category[k]) == 0))
+            k++;
+        if (k == FMU_LOG_CATEGORIES) {
+            char known[160] = "";
+            for (int j = 0; j < FMU_LOG_CATEGORIES; j++)
+                snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", j ? ", " : "", fmu_log_category[j]);
+            fmu_log(m, fmi2Error, "%s: unknown log category \"%s\" (this FMU declares %s); nothing changed", call,
+                    categories[i] ? categories[i] : "(NULL)", known);
+            return fmi2Error;
+        }
+        named |= 1u << k;
+    }
+    m->log_categories = on ? m->log_categories | named : m->log_categories & ~named;
     return fmi2OK;
 }
 
