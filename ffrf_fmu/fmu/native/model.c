@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <limits.h>
 #include <string.h>
 
 #include "body.h"
@@ -441,8 +442,8 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
         return 1;
     }
     double cap = v[d->vr_max_iterations];
-    if (!(cap >= 0.0 && cap == floor(cap))) {
-        snprintf(why, len, "parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got %s",
+    if (!(cap >= 0.0 && cap <= (double)INT_MAX && cap == floor(cap))) { /* the runtime's cap is an int */
+        snprintf(why, len, "parameter solver.max_newton_iterations must be an integer in 0 .. 2^31 - 1 (0: no cap), got %s",
                  py_repr(cap, a, sizeof a));
         return 1;
     }
