@@ -207,7 +207,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     (void)noSetFMUStatePriorToCurrentPoint;
-    return model_do_step(M(c), currentCommunicationPoint, communicationStepSize);
+    return model_do_step(M(c), "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)

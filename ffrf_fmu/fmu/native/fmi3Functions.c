@@ -750,7 +750,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         *earlyReturn = fmi3False;
     if (!x)
         return fmi3Error;
-    fmi2Status s = model_do_step(&x->m, currentCommunicationPoint, communicationStepSize);
+    fmi2Status s = model_do_step(&x->m, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
     if (lastSuccessfulTime) /* the body's time: t_c + H, or t_c after a discard */
         *lastSuccessfulTime = x->m.body ? model_time(&x->m) : currentCommunicationPoint;
     return status3(s);

@@ -911,15 +911,13 @@ static int finite_outputs(const fmu_instance *m)
     return 1;
 }
 
-fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
+fmi2Status model_do_step(fmu_instance *m, const char *call, double t_c, double H)
 {
     if (m && m->mode == MODE_TERMINATED) {
         fmu_log(m, fmi2Error, "t = %.6g s: %sDoStep after %sTerminate (reset or free the instance)", t_c, FMU_API(m),
                 FMU_API(m));
         return fmi2Error;
     }
-    char call[16];
-    snprintf(call, sizeof call, "%sDoStep", m ? FMU_API(m) : "");
     if (!model_allowed(m, call, MODE_STEP))
         return fmi2Error;
     m->have_last = 0;

@@ -122,8 +122,8 @@ fmi2Status model_set_values(fmu_instance *m, const char *call, int type, const f
 fmi2Status model_get_scalars(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int as, void *value);
 fmi2Status model_set_scalars(fmu_instance *m, const char *call, const fmi2ValueReference vr[], size_t n, int as,
                              const void *value);
-/* doStep from t_c over H, in step mode only (named in the messages with the FMI prefix) */
-fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
+/* doStep from t_c over H, in step mode only (refused and logged under `call` otherwise) */
+fmi2Status model_do_step(fmu_instance *m, const char *call, double t_c, double H);
 /* The two meanings of a directional derivative (docs/fmu.md, "Directional derivatives"):
  * DERIV_FMI  FMI 2.0's and 3.0's: the partial derivatives of the outputs with respect to the inputs at the current
  *            communication point (v_unknown = h(v_known, v_rest)); zero here, no output depends directly on an input
