@@ -39,14 +39,10 @@ if not any(v in _os.environ for v in _BLAS_VARS):
 
 # The public API, imported on first use (importing ffrf_fmu stays cheap and sets the BLAS threads
 # above before numpy loads). `simulate` names the submodule ffrf_fmu.simulate, so the standalone run
-# is `run_scene`.
-_API = {
-    "load_model": ("ffrf_fmu.model", "load_model"),
-    "build_body": ("ffrf_fmu.reduction", "build_body"),
-    "run_scene": ("ffrf_fmu.simulate", "run_scene"),
-    "build_fmu": ("ffrf_fmu.fmu.builder", "build_fmu"),
-    "validate_fmu": ("ffrf_fmu.validate", "validate"),
-}
+# is `run_scene`. Each name's object in the entry-point notation of the packaging specifications (module:attr).
+_API = {"load_model": "ffrf_fmu.model:load_model", "build_body": "ffrf_fmu.reduction:build_body",
+        "run_scene": "ffrf_fmu.simulate:run_scene", "build_fmu": "ffrf_fmu.fmu.builder:build_fmu",
+        "validate_fmu": "ffrf_fmu.validate:validate"}
 __all__ = ["__version__", *_API]
 
 
@@ -54,7 +50,7 @@ def __getattr__(name):
     if name in _API:
         import importlib
 
-        module, attr = _API[name]
+        module, attr = _API[name].split(":")
         value = getattr(importlib.import_module(module), attr)
         globals()[name] = value
         return value

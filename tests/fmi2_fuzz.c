@@ -17,6 +17,9 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#define FMI_(name) fmi2##name
+#define FMI_STATE_(verb, tail) fmi2##verb##FMUstate##tail
+#define FMI_DESERIALIZE fmi2DeSerializeFMUstate
 #include "fuzz_driver.h"
 
 /* the body FMU's derivatives of its last step (fmi2Functions.c, not an FMI function) */
@@ -58,25 +61,8 @@ static void *instantiate(void) /* mostly right, sometimes a wrong GUID or locati
     return fmi2Instantiate("fuzz", fmi2CoSimulation, g, u, &cb, fmi2False, (fmi2Boolean)pick(2));
 }
 
-/* the calls of every version (tests/fuzz_driver.h shared_call) */
-static void free_instance(void *c) { fmi2FreeInstance(c); }
+/* the calls of every version (tests/fuzz_driver.h shared_call): its doStep; the rest are the driver's */
 static int do_step(void *c, double t, double H) { return (int)fmi2DoStep(c, t, H, fmi2True); }
-static int get_state(void *c, void **state) { return (int)fmi2GetFMUstate(c, state); }
-static int set_state(void *c, void *state) { return (int)fmi2SetFMUstate(c, state); }
-static void free_state(void *c, void **state) { fmi2FreeFMUstate(c, state); }
-static int state_size(void *c, void *state, size_t *size) { return (int)fmi2SerializedFMUstateSize(c, state, size); }
-static int serialize(void *c, void *state, unsigned char *out, size_t size)
-{
-    return (int)fmi2SerializeFMUstate(c, state, (fmi2Byte *)out, size);
-}
-static int deserialize(void *c, const unsigned char *in, size_t size, void **state)
-{
-    return (int)fmi2DeSerializeFMUstate(c, (const fmi2Byte *)in, size, state);
-}
-static int exit_initialization(void *c) { return (int)fmi2ExitInitializationMode(c); }
-static int reset(void *c) { return (int)fmi2Reset(c); }
-static int terminate(void *c) { return (int)fmi2Terminate(c); }
-static int logging(void *c, int on) { return (int)fmi2SetDebugLogging(c, (fmi2Boolean)on, 0, NULL); }
 
 static int call(fuzz_run *r, int i, int op, int sane)
 {

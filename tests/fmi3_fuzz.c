@@ -19,6 +19,9 @@
 
 #include "fmi3_types.h"
 #include "fmi3Functions.h"
+#define FMI_(name) fmi3##name
+#define FMI_STATE_(verb, tail) fmi3##verb##FMUState##tail
+#define FMI_DESERIALIZE fmi3DeserializeFMUState
 #include "fuzz_driver.h"
 
 /* the body FMU's derivatives of its last step (fmi3Functions.c, not FMI functions) */
@@ -83,30 +86,13 @@ static void *instantiate(void) /* mostly right, sometimes a wrong token, path or
                                        NULL, 0, NULL, log_message, NULL);
 }
 
-/* the calls of every version (tests/fuzz_driver.h shared_call) */
-static void free_instance(void *c) { fmi3FreeInstance(c); }
+/* the calls of every version (tests/fuzz_driver.h shared_call): its doStep; the rest are the driver's */
 static int do_step(void *c, double t, double H)
 {
     fmi3Boolean event, stop, early;
     fmi3Float64 last;
     return (int)fmi3DoStep(c, t, H, fmi3True, &event, &stop, &early, &last);
 }
-static int get_state(void *c, void **state) { return (int)fmi3GetFMUState(c, state); }
-static int set_state(void *c, void *state) { return (int)fmi3SetFMUState(c, state); }
-static void free_state(void *c, void **state) { fmi3FreeFMUState(c, state); }
-static int state_size(void *c, void *state, size_t *size) { return (int)fmi3SerializedFMUStateSize(c, state, size); }
-static int serialize(void *c, void *state, unsigned char *out, size_t size)
-{
-    return (int)fmi3SerializeFMUState(c, state, out, size);
-}
-static int deserialize(void *c, const unsigned char *in, size_t size, void **state)
-{
-    return (int)fmi3DeserializeFMUState(c, in, size, state);
-}
-static int exit_initialization(void *c) { return (int)fmi3ExitInitializationMode(c); }
-static int reset(void *c) { return (int)fmi3Reset(c); }
-static int terminate(void *c) { return (int)fmi3Terminate(c); }
-static int logging(void *c, int on) { return (int)fmi3SetDebugLogging(c, (fmi3Boolean)on, 0, NULL); }
 
 static int call(fuzz_run *r, int i, int op, int sane)
 {

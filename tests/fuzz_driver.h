@@ -84,6 +84,31 @@ typedef struct {
     int (*setup)(const char *inputs, const char *outputs); /* main's lists of inputs and outputs taken: 0, or -1 */
 } fuzz_api;
 
+/* The calls every version has, written once from the version's names: a fuzzer defines, before it includes
+ * this header, FMI_(name) (its prefix: fmi2##name), FMI_STATE_(verb, tail) (fmi2##verb##FMUstate##tail: FMI 3.0
+ * spells FMUState) and FMI_DESERIALIZE (fmi2DeSerializeFMUstate, fmi3DeserializeFMUState); its own do_step
+ * (fmi3DoStep has more out-arguments). The casts are those of the standard's types (fmi2Byte is char, fmi3Byte
+ * uint8_t; fmi2Boolean int, fmi3Boolean bool). */
+#ifdef FMI_
+static void free_instance(void *c) { FMI_(FreeInstance)(c); }
+static int get_state(void *c, void **state) { return (int)FMI_STATE_(Get, )(c, state); }
+static int set_state(void *c, void *state) { return (int)FMI_STATE_(Set, )(c, state); }
+static void free_state(void *c, void **state) { FMI_STATE_(Free, )(c, state); }
+static int state_size(void *c, void *state, size_t *size) { return (int)FMI_STATE_(Serialized, Size)(c, state, size); }
+static int serialize(void *c, void *state, unsigned char *out, size_t size)
+{
+    return (int)FMI_STATE_(Serialize, )(c, state, (FMI_(Byte) *)out, size);
+}
+static int deserialize(void *c, const unsigned char *in, size_t size, void **state)
+{
+    return (int)FMI_DESERIALIZE(c, (const FMI_(Byte) *)in, size, state);
+}
+static int exit_initialization(void *c) { return (int)FMI_(ExitInitializationMode)(c); }
+static int reset(void *c) { return (int)FMI_(Reset)(c); }
+static int terminate(void *c) { return (int)FMI_(Terminate)(c); }
+static int logging(void *c, int on) { return (int)FMI_(SetDebugLogging)(c, (FMI_(Boolean))on, 0, NULL); }
+#endif
+
 /* a fuzzer's fuzz_api from its functions of these names */
 #define FUZZ_API(n_own, error, adjoints)                                                                         \
     {(n_own),     (error),     (adjoints), instantiate, free_instance,       call,  do_step,   get_state, \

@@ -260,6 +260,42 @@ def test_calls_in_the_wrong_state_are_errors(fmu, call):
         L.fmi2FreeInstance(c)
 
 
+def test_debug_logging_switches_the_declared_categories_by_name(fmu):
+    """fmi2SetDebugLogging (FMI 2.0.4 section 2.1.5): the categories named, all of them for none; an undeclared
+    name is an error naming it and changes nothing. The names are those modelDescription.xml declares."""
+    from ffrf_fmu.fmu.native import LOG_CATEGORIES
+
+    assert [c.name for c in fmu.md.logCategories] == list(LOG_CATEGORIES)
+    L = fmu.lib
+    L.fmi2SetDebugLogging.argtypes = [C.c_void_p, C.c_int, C.c_size_t, C.POINTER(C.c_char_p)]
+
+    def switch(c, on, names):
+        return L.fmi2SetDebugLogging(c, on, len(names), (C.c_char_p * max(len(names), 1))(*[n.encode() for n in names]))
+
+    def refused_call_logs(c):  # a call in the wrong state: fmi2Error, logged under logStatusError if that is on
+        fmu.log.clear()
+        assert L.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == ERROR
+        return [m for m in fmu.log if m[0] == ERROR]
+
+    c = fmu.instantiate()
+    try:
+        assert fmu.start(c) == OK
+        assert refused_call_logs(c)  # at instantiation the status categories are on
+        assert switch(c, 0, ["logStatusError"]) == OK
+        assert refused_call_logs(c) == []
+        assert switch(c, 0, ["logAll", "logStatusWarning"]) == OK and refused_call_logs(c) == []
+        assert switch(c, 1, []) == OK  # no names: every category
+        assert refused_call_logs(c)[0][1] == "logStatusError"
+        fmu.log.clear()
+        assert switch(c, 0, ["logStatusError", "logStatusNonsense"]) == ERROR
+        assert 'unknown log category "logStatusNonsense"' in fmu.log[-1][2]
+        assert all(name in fmu.log[-1][2] for name in LOG_CATEGORIES)
+        assert refused_call_logs(c)  # nothing changed: errors still logged
+        assert switch(c, 0, []) == OK and refused_call_logs(c) == []
+    finally:
+        L.fmi2FreeInstance(c)
+
+
 def test_two_instances_reset_and_state_round_trips_are_bit_identical(fmu):
     """Two instances stepped in turn give one instance's numbers; fmi2Reset gives a fresh run; a state
     saved at 0.05 s and set after 0.1 s (directly, and through its serialized bytes into another instance)

@@ -61,8 +61,8 @@ class Parameters:
         if terms not in range(len(TERM_SETS)):
             return f"parameter solver.terms must be 0 (linear), 1 (gyroscopic) or 2 (full), got {terms!r}"
         cap = p["max_newton_iterations"]
-        if not (cap >= 0.0 and cap == int(cap)):
-            return f"parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got {cap!r}"
+        if not (0.0 <= cap <= 2**31 - 1 and cap == int(cap)):  # the runtime's cap is a C int
+            return f"parameter solver.max_newton_iterations must be an integer in 0 .. 2^31 - 1 (0: no cap), got {cap!r}"
         if TERM_SETS[int(terms)] == "full" and any(se.W2 is None for se in self.data.superelements):
             return ("parameter solver.terms = 2 (full) needs the inertia data W1, W2, which this FMU was built "
                     "without: build it from a scene with terms = \"full\"")

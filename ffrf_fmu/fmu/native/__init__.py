@@ -65,6 +65,13 @@ def _start(v) -> str:
     return str(int(v.start)) if v.type == "Integer" else repr(float(v.start))
 
 
+# The log categories of the C layer (model.h FMU_LOG_CATEGORIES, model.c fmu_log_category: the same names in the
+# same order; tests/test_native_fmu.py switches each by name).
+LOG_CATEGORIES = {"logStatusWarning": "warnings", "logStatusDiscard": "discarded steps and why",
+                  "logStatusError": "errors and their causes", "logStatusFatal": "fatal errors",
+                  "logAll": "everything else"}
+
+
 def _shared_sections(root, variables, experiment) -> None:
     """The sections FMI 2.0 and 3.0 model descriptions write alike, in the order both schemas want them
     after the interface element: UnitDefinitions (the units the variables use), LogCategories and the
@@ -74,9 +81,7 @@ def _shared_sections(root, variables, experiment) -> None:
     for u in used:
         SubElement(SubElement(units, "Unit", {"name": u}), "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
     cats = SubElement(root, "LogCategories")
-    for cat, text in (("logStatusWarning", "warnings"), ("logStatusDiscard", "discarded steps and why"),
-                      ("logStatusError", "errors and their causes"), ("logStatusFatal", "fatal errors"),
-                      ("logAll", "everything else")):
+    for cat, text in LOG_CATEGORIES.items():
         SubElement(cats, "Category", {"name": cat, "description": text})
     if experiment:
         SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": repr(experiment["stop_time"]),

@@ -23,9 +23,7 @@ const char *fmi2GetVersion(void)
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[])
 {
-    (void)nCategories;
-    (void)categories;
-    return model_set_logging(M(c), "fmi2SetDebugLogging", loggingOn != fmi2False);
+    return model_set_logging(M(c), "fmi2SetDebugLogging", loggingOn != fmi2False, nCategories, categories);
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -38,7 +36,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     if (functions)
         m->cb = *functions;
-    m->logging = loggingOn != fmi2False;
+    m->log_categories = model_log_categories(loggingOn != fmi2False);
     if (model_instantiate(m, "fmi2Instantiate", instanceName, fmuResourceLocation, fmuGUID, "GUID",
                           fmuType != fmi2CoSimulation ? "this FMU supports co-simulation only (fmuType fmi2CoSimulation)"
                                                       : NULL) == fmi2OK)
@@ -209,7 +207,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     (void)noSetFMUStatePriorToCurrentPoint;
-    return model_do_step(M(c), currentCommunicationPoint, communicationStepSize);
+    return model_do_step(M(c), "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)

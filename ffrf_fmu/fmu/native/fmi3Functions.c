@@ -107,9 +107,7 @@ const char *fmi3GetVersion(void)
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[])
 {
-    (void)nCategories;
-    (void)categories;
-    return status3(model_set_logging(M(instance), "fmi3SetDebugLogging", loggingOn != fmi3False));
+    return status3(model_set_logging(M(instance), "fmi3SetDebugLogging", loggingOn != fmi3False, nCategories, categories));
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
@@ -133,7 +131,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     m->sink = sink;
     x->log = logMessage;
     x->env = instanceEnvironment;
-    m->logging = loggingOn != fmi3False;
+    m->log_categories = model_log_categories(loggingOn != fmi3False);
     if (model_instantiate(m, "fmi3InstantiateCoSimulation", instanceName, resourcePath, instantiationToken,
                           "instantiation token",
                           eventModeUsed ? "this FMU has no event mode (hasEventMode=false): eventModeUsed must be false"
@@ -752,7 +750,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         *earlyReturn = fmi3False;
     if (!x)
         return fmi3Error;
-    fmi2Status s = model_do_step(&x->m, currentCommunicationPoint, communicationStepSize);
+    fmi2Status s = model_do_step(&x->m, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
     if (lastSuccessfulTime) /* the body's time: t_c + H, or t_c after a discard */
         *lastSuccessfulTime = x->m.body ? model_time(&x->m) : currentCommunicationPoint;
     return status3(s);

@@ -14,6 +14,7 @@
 
 #include "body.h"
 #include "initialize.h"
+#include "lu.h"
 #include "resource.h" /* PART_MOTION, PART_FORCE: the port modes */
 
 #define MICRO_STEP 1e-6 /* BodySystem.initialize's backward-Euler micro-step */
@@ -36,41 +37,13 @@ static void stage_of_state(const ffrf_body *b, double *p, double *R)
     memcpy(R + 9 * d->N, st->R0, sizeof(double) * 9 * (size_t)d->E);
 }
 
-/* A x = rhs by Gaussian elimination with partial pivoting (A n x n row-major, destroyed); 0 or -1 singular */
-static int solve_dense(double *A, double *x, int n)
+/* A x = rhs with the runtime's LU (lu.c, LAPACK dgetf2's order; A n x n stored transposed, destroyed): 0, or -1
+ * for a singular A or a non-finite x */
+static int solve_dense(double *AT, int *piv, double *x, int n)
 {
-    for (int c = 0; c < n; c++) {
-        int piv = c;
-        for (int r = c + 1; r < n; r++)
-            if (fabs(A[r * n + c]) > fabs(A[piv * n + c]))
-                piv = r;
-        if (!(fabs(A[piv * n + c]) > 0.0))
-            return -1;
-        if (piv != c) {
-            for (int j = 0; j < n; j++) {
-                double t = A[c * n + j];
-                A[c * n + j] = A[piv * n + j];
-                A[piv * n + j] = t;
-            }
-            double t = x[c];
-            x[c] = x[piv];
-            x[piv] = t;
-        }
-        for (int r = c + 1; r < n; r++) {
-            double f = A[r * n + c] / A[c * n + c];
-            if (f == 0.0)
-                continue;
-            for (int j = c; j < n; j++)
-                A[r * n + j] -= f * A[c * n + j];
-            x[r] -= f * x[c];
-        }
-    }
-    for (int c = n - 1; c >= 0; c--) {
-        double s = x[c];
-        for (int j = c + 1; j < n; j++)
-            s -= A[c * n + j] * x[j];
-        x[c] = s / A[c * n + c];
-    }
+    if (ffrf_lu_factor(AT, piv, n) != 0)
+        return -1;
+    ffrf_lu_solve(AT, piv, x, n);
     for (int i = 0; i < n; i++)
         if (!isfinite(x[i]))
             return -1;
@@ -118,11 +91,12 @@ static int relax(ffrf_body *b, const double *disp, const char *const *port_names
     double *zero = calloc(3 * (size_t)N, sizeof(double)), *delta = calloc((size_t)ny, sizeof(double));
     size_t nA = (size_t)ny + (size_t)n_ports;
     double *A = malloc(sizeof(double) * nA * nA), *x = malloc(sizeof(double) * nA);
+    int *piv = malloc(sizeof(int) * nA);
     double *v_saved = malloc(sizeof(double) * (size_t)(E * d->nv) + 8);
     int status = -1;
     char names[512] = "";
     if (!free_slot || !idx || !dirs || !p || !yd0 || !R || !theta || !F || !Fy || !zero || !delta || !A || !x ||
-        !v_saved) {
+        !piv || !v_saved) {
         snprintf(err, len, "out of memory");
         goto done;
     }
@@ -173,12 +147,12 @@ static int relax(ffrf_body *b, const double *disp, const char *const *port_names
                 } else if (c < n_idx) {
                     v = dirs[(size_t)(r - n_idx) * ny + idx[c]];
                 }
-                A[(size_t)r * n + c] = v;
+                A[(size_t)c * n + r] = v; /* transposed, as lu.c stores it */
             }
         for (int r = 0; r < n; r++)
             x[r] = r < n_idx ? -F[idx[r]] : 0.0;
         memset(delta, 0, sizeof(double) * (size_t)ny);
-        if (solve_dense(A, x, n) != 0) { /* the fixed parts leave the body a mechanism: no unique shape */
+        if (solve_dense(A, piv, x, n) != 0) { /* the fixed parts leave the body a mechanism: no unique shape */
             last = INFINITY;
             break;
         }
@@ -256,6 +230,7 @@ done:
     free(delta);
     free(A);
     free(x);
+    free(piv);
     free(v_saved);
     return status;
 }

@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <limits.h>
 #include <string.h>
 
 #include "body.h"
@@ -18,22 +19,36 @@
 
 static const char *const TERM_NAMES[FMU_TERM_SETS] = {"linear", "gyroscopic", "full"};
 
+const char *const fmu_log_category[FMU_LOG_CATEGORIES] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
+                                                          "logStatusFatal", "logAll"};
+enum { LOG_ALL = FMU_LOG_CATEGORIES - 1 };
+
+/* the category of a message of this status: fmi2Warning .. fmi2Fatal their own, OK (and Pending) logAll */
+static int log_category(fmi2Status status)
+{
+    return status >= fmi2Warning && status <= fmi2Fatal ? (int)status - (int)fmi2Warning : LOG_ALL;
+}
+
+unsigned model_log_categories(int logging_on)
+{
+    unsigned all = (1u << FMU_LOG_CATEGORIES) - 1u;
+    return logging_on ? all : all & ~(1u << LOG_ALL);
+}
+
 void fmu_log(fmu_instance *m, fmi2Status status, const char *fmt, ...)
 {
-    if ((!m->cb.logger && !m->sink) || (status == fmi2OK && !m->logging))
+    int category = log_category(status);
+    if ((!m->cb.logger && !m->sink) || !(m->log_categories & (1u << category)))
         return;
     char text[4 * FMU_MESSAGE];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
-    static const char *const categories[] = {"logAll", "logStatusWarning", "logStatusDiscard", "logStatusError",
-                                             "logStatusFatal", "logAll"};
-    const char *category = categories[status <= fmi2Pending ? status : 0];
     if (m->sink)
-        m->sink(m, (int)status, category, text);
+        m->sink(m, (int)status, fmu_log_category[category], text);
     else
-        m->cb.logger(m->cb.componentEnvironment, m->name, status, category, "%s", text);
+        m->cb.logger(m->cb.componentEnvironment, m->name, status, fmu_log_category[category], "%s", text);
 }
 
 const char *py_repr(double x, char *buf, size_t len)
@@ -164,11 +179,31 @@ fmi2Status model_refused(fmu_instance *m, const char *call, const char *why)
     return fmi2Error;
 }
 
-fmi2Status model_set_logging(fmu_instance *m, const char *call, int on)
+fmi2Status model_set_logging(fmu_instance *m, const char *call, int on, size_t n_categories,
+                             const char *const categories[])
 {
     if (!model_allowed(m, call, MODES_ANY))
         return fmi2Error;
-    m->logging = on;
+    if (n_categories && !categories) {
+        fmu_log(m, fmi2Error, "%s: NULL categories for nCategories = %zu", call, n_categories);
+        return fmi2Error;
+    }
+    unsigned named = n_categories ? 0u : (1u << FMU_LOG_CATEGORIES) - 1u;
+    for (size_t i = 0; i < n_categories; i++) {
+        int k = 0;
+        while (k < FMU_LOG_CATEGORIES && !(categories[i] && strcmp(categories[i], fmu_log_category[k]) == 0))
+            k++;
+        if (k == FMU_LOG_CATEGORIES) {
+            char known[160] = "";
+            for (int j = 0; j < FMU_LOG_CATEGORIES; j++)
+                snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", j ? ", " : "", fmu_log_category[j]);
+            fmu_log(m, fmi2Error, "%s: unknown log category \"%s\" (this FMU declares %s); nothing changed", call,
+                    categories[i] ? categories[i] : "(NULL)", known);
+            return fmi2Error;
+        }
+        named |= 1u << k;
+    }
+    m->log_categories = on ? m->log_categories | named : m->log_categories & ~named;
     return fmi2OK;
 }
 
@@ -407,8 +442,8 @@ static int check_parameters(fmu_instance *m, char *why, size_t len)
         return 1;
     }
     double cap = v[d->vr_max_iterations];
-    if (!(cap >= 0.0 && cap == floor(cap))) {
-        snprintf(why, len, "parameter solver.max_newton_iterations must be an integer >= 0 (0: no cap), got %s",
+    if (!(cap >= 0.0 && cap <= (double)INT_MAX && cap == floor(cap))) { /* the runtime's cap is an int */
+        snprintf(why, len, "parameter solver.max_newton_iterations must be an integer in 0 .. 2^31 - 1 (0: no cap), got %s",
                  py_repr(cap, a, sizeof a));
         return 1;
     }
@@ -876,15 +911,13 @@ static int finite_outputs(const fmu_instance *m)
     return 1;
 }
 
-fmi2Status model_do_step(fmu_instance *m, double t_c, double H)
+fmi2Status model_do_step(fmu_instance *m, const char *call, double t_c, double H)
 {
     if (m && m->mode == MODE_TERMINATED) {
         fmu_log(m, fmi2Error, "t = %.6g s: %sDoStep after %sTerminate (reset or free the instance)", t_c, FMU_API(m),
                 FMU_API(m));
         return fmi2Error;
     }
-    char call[16];
-    snprintf(call, sizeof call, "%sDoStep", m ? FMU_API(m) : "");
     if (!model_allowed(m, call, MODE_STEP))
         return fmi2Error;
     m->have_last = 0;

@@ -29,6 +29,14 @@ typedef enum {
     MODE_INSTANTIATED = 1, MODE_INITIALIZATION = 2, MODE_STEP = 4, MODE_TERMINATED = 8, MODE_ERROR = 16
 } fmu_mode;
 
+/* The log categories modelDescription.xml declares (fmu/native/__init__.py `LOG_CATEGORIES`, the same names in
+ * the same order): one per status a message can have, logStatusWarning .. logStatusFatal, and logAll for the
+ * rest (OK: what a step did). fmi2/3SetDebugLogging switches them by name, all of them for no names (FMI 2.0.4
+ * section 2.1.5, FMI 3.0 section 2.3.1); at instantiation the status categories are on and logAll is loggingOn. */
+#define FMU_LOG_CATEGORIES 5
+extern const char *const fmu_log_category[FMU_LOG_CATEGORIES];
+unsigned model_log_categories(int logging_on);
+
 typedef struct {
     char *name;                   /* instance name */
     fmi2CallbackFunctions cb;
@@ -36,7 +44,7 @@ typedef struct {
      * sink that hands them to its logMessage callback (fmi2's logger is then unused) */
     const char *fmi;
     void (*sink)(void *m, int status, const char *category, const char *message);
-    int logging;
+    unsigned log_categories;      /* a bit per FMU_LOG_CATEGORIES entry: its messages are logged */
     fmu_description desc;
     fmu_mode mode;
     double *values;               /* [n_vars] every variable by value reference (Integers as doubles) */
@@ -95,7 +103,8 @@ fmi2Status model_refused(fmu_instance *m, const char *call, const char *why);
  * logged under `call` if not): logging on or off; the experiment's start and stop time, then initialization mode
  * (FMI 3.0's fmi3EnterInitializationMode is both); its end, which initializes the body; terminate; reset to the
  * instantiated mode and the start values. */
-fmi2Status model_set_logging(fmu_instance *m, const char *call, int on);
+fmi2Status model_set_logging(fmu_instance *m, const char *call, int on, size_t n_categories,
+                             const char *const categories[]);
 fmi2Status model_setup_experiment(fmu_instance *m, const char *call, double start_time, int has_stop, double stop_time);
 fmi2Status model_enter_initialization(fmu_instance *m, const char *call);
 fmi2Status model_exit_initialization(fmu_instance *m, const char *call);
@@ -113,8 +122,8 @@ fmi2Status model_set_values(fmu_instance *m, const char *call, int type, const f
 fmi2Status model_get_scalars(fmu_instance *m, const fmi2ValueReference vr[], size_t n, int as, void *value);
 fmi2Status model_set_scalars(fmu_instance *m, const char *call, const fmi2ValueReference vr[], size_t n, int as,
                              const void *value);
-/* doStep from t_c over H, in step mode only (named in the messages with the FMI prefix) */
-fmi2Status model_do_step(fmu_instance *m, double t_c, double H);
+/* doStep from t_c over H, in step mode only (refused and logged under `call` otherwise) */
+fmi2Status model_do_step(fmu_instance *m, const char *call, double t_c, double H);
 /* The two meanings of a directional derivative (docs/fmu.md, "Directional derivatives"):
  * DERIV_FMI  FMI 2.0's and 3.0's: the partial derivatives of the outputs with respect to the inputs at the current
  *            communication point (v_unknown = h(v_known, v_rest)); zero here, no output depends directly on an input

@@ -9,7 +9,7 @@
 
 #include "ffrf_runtime.h"
 
-#define FMU_FORMAT_VERSION 2      /* of resources/body.bin (resource.py FORMAT_VERSION) */
+#define FMU_FORMAT_VERSION 3      /* of resources/body.bin (resource.py FORMAT_VERSION) */
 #define FMU_TERM_SETS 3           /* linear, gyroscopic, full (runtime/terms.py TERM_SETS) */
 
 enum { CAUS_INPUT = 0, CAUS_OUTPUT = 1, CAUS_PARAMETER = 2 };

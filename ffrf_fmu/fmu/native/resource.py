@@ -35,7 +35,7 @@ from ...runtime.outputs import output_sources
 from ..variables import Variable
 
 MAGIC = b"FFRFFMU\0"
-FORMAT_VERSION = 2  # resource.h FMU_FORMAT_VERSION (2: the modal outputs)
+FORMAT_VERSION = 3  # resource.h FMU_FORMAT_VERSION (2: the modal outputs; 3: solver.max_newton_iterations)
 HEADER = struct.Struct("<8sIIQQQ")
 PART_CODES = input_rule.PART_CODES
 # what a unit change of an input moves over a communication step (model.h DKIND_*, derivatives.py)
