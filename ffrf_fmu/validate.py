@@ -148,7 +148,7 @@ def fmu_backend(fmu_path) -> str:
     return backend if backend == "native" else "numpy"
 
 
-def input_sampling(body, scene, H: float, sampled, continuous, names, model) -> dict:
+def input_sampling(scene, H: float, sampled, continuous, names, model) -> dict:
     """What the FMU's input rule itself costs, reported beside the validation (never part of its verdict): the
     standalone run under the FMU's rule (`sampled`, simulate.run_input_rule) against the one with the exact inputs
     at every step's end (`continuous`, simulate.run), per output group, and per driven part the bound of the
@@ -238,7 +238,7 @@ def validate(source, *, scene: str | None = None, model=None, overrides=(), comm
     ref_ok = bool(ref.summary.get("completed", True))
     compared = [n for n in outputs if n in ref.columns]
     groups = compare(t_fmu, fmu_cols, ref.t, ref.columns, compared, rtol, atol)
-    sampling = input_sampling(body, sc, H, ref, continuous, compared, mdl)
+    sampling = input_sampling(sc, H, ref, continuous, compared, mdl)
 
     # benchmark metrics of both runs (from port signals: the FMU side uses its own port values)
     fmu_result = run.result(body)

@@ -97,7 +97,7 @@ def test_input_sampling_is_second_order_within_its_bound():
         sc = m.scene("bump")
         body = scene_body_data(m.body, sc)
         sampled, continuous = run_input_rule(body, sc, h, origin=m.body.origin), run(body, sc, progress=False)
-        rep = input_sampling(body, sc, h, sampled, continuous, list(sampled.columns), m)
+        rep = input_sampling(sc, h, sampled, continuous, list(sampled.columns), m)
         d, bound = rep["groups"]["front_left.f"], rep["drives"]["front_left.translation"]
         assert d["max_rel_diff"] < bound["force_error_bound_rel"], (d, bound)
         assert bound["rate_error"] <= bound["rate_error_bound"] * (1 + 1e-2), bound

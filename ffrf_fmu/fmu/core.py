@@ -29,6 +29,7 @@ import numpy as np
 from ..runtime import input_rule
 from ..runtime.data import BodyData
 from ..runtime.ports import IterationCapReached, StepFailure
+from ..runtime.steps import whole_steps
 from ..runtime.terms import TERM_SETS
 from ..runtime.body import BodySystem
 from .derivatives import LastStep, directional_derivative
@@ -319,12 +320,7 @@ class BodyCoSim(Parameters, Signals, FmuState):
         if msg:
             return StepReport(False, msg, status="discard")
         saved = system.snapshot()  # the factorization shared, not copied
-        # n equal internal steps of at most solver.step (up to round-off in H / h). Never a sliver: a
-        # step of 1e-11 s makes the iteration matrix nearly the singular F_ydot of the DAE and leaves
-        # a lasting high-frequency error in the reactions.
-        ratio = H / h
-        n = max(1, round(ratio)) if abs(ratio - round(ratio)) < 1e-6 * max(1.0, ratio) else math.ceil(ratio)
-        hh = H / n
+        n, hh = whole_steps(H, h)  # n equal internal steps of at most solver.step, never a sliver
         try:
             with self.one_blas_thread():
                 worst = system.run_extrapolated(hh, n, t_c, point, self._row)  # one call of the C runtime on backend native

@@ -955,7 +955,8 @@ fmi2Status model_do_step(fmu_instance *m, const char *call, double t_c, double H
         fmu_log(m, fmi2Discard, "%s", why);
         return fmi2Discard;
     }
-    /* n equal internal steps of at most solver.step (variables.INTERNAL_STEPS): never a sliver */
+    /* n equal internal steps of at most solver.step (variables.INTERNAL_STEPS; runtime/steps.py whole_steps, its
+     * tolerance 1e-6): never a sliver */
     double ratio = H / h, near = nearbyint(ratio);
     int n = fabs(ratio - near) < 1e-6 * fmax(1.0, ratio) ? (near < 1.0 ? 1 : (int)near) : (int)ceil(ratio);
     save_start(m);
