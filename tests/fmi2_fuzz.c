@@ -76,9 +76,11 @@ static int call(fuzz_run *r, int i, int op, int sane)
         x[j] = input_value(sane);
     }
     switch (op) {
-    case 1:
-        s = fmi2SetupExperiment(c, fmi2False, 0.0, pick(4) ? 0.0 : value(), (fmi2Boolean)pick(2), value());
+    case 1: {
+        fuzz_experiment e = experiment();
+        s = fmi2SetupExperiment(c, fmi2False, 0.0, e.start, (fmi2Boolean)e.has_stop, e.stop);
         break;
+    }
     case 2:
         s = fmi2EnterInitializationMode(c);
         break;

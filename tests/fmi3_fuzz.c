@@ -105,9 +105,11 @@ static int call(fuzz_run *r, int i, int op, int sane)
     for (size_t j = 0; j < MAX_VALUES; j++)
         x[j] = input_value(sane);
     switch (op) {
-    case 1:
-        s = fmi3EnterInitializationMode(c, fmi3False, 0.0, pick(4) ? 0.0 : value(), (fmi3Boolean)pick(2), value());
+    case 1: {
+        fuzz_experiment e = experiment();
+        s = fmi3EnterInitializationMode(c, fmi3False, 0.0, e.start, (fmi3Boolean)e.has_stop, e.stop);
         break;
+    }
     case 2:
     case 3:
         s = fmi3SetFloat64(c, vr, n_vr, x, nx);

@@ -44,6 +44,23 @@ static double value(void)
     }
 }
 
+/* the experiment of a start-up call (fmi2SetupExperiment, fmi3EnterInitializationMode; no tolerance): the start
+ * mostly 0, else anything; a stop time or none, anything. Drawn in this order (a call's arguments are not). */
+typedef struct {
+    double start;
+    int has_stop;
+    double stop;
+} fuzz_experiment;
+
+static fuzz_experiment experiment(void)
+{
+    fuzz_experiment e;
+    e.start = pick(4) ? 0.0 : value();
+    e.has_stop = pick(2);
+    e.stop = value();
+    return e;
+}
+
 /* an input's value: for a sane call mostly a moderate one */
 static double input_value(int sane)
 {
