@@ -32,7 +32,6 @@ from .coupling import add_springs
 from .input_rule import extrapolate
 from .ports import IterationCapReached, NotConverged, PortValues, StepFailure
 from .factorization import is_native
-from .layout import Segments
 from .newton import KEEPS, SERVES, ModifiedNewton
 from .rotation import expm, skew, tangent
 
@@ -109,8 +108,6 @@ class GeneralizedAlpha(ModifiedNewton):
         # the stage of a Newton iteration (`_stage_at`): the configuration p in the ydot layout (rotation
         # slots: the increments h Delta), and the rates the Newton iteration updates in place (`_step`)
         self._stage_p, self._newton_yd = np.zeros(L.ny), np.zeros(L.ny)
-        lin = Segments(xN=(L.n_nodes, 3), x0=(L.n_se, 3), eta=(L.n_se, L.nm), v=(L.n_se, L.nv))  # p[L.lin_slots]
-        self._lin_views = [(lin[k], lin.shapes[k]) for k in ("xN", "x0", "eta", "v")]
         self._lu = None
         self._torque_rows = [(k, newton_pos[6 * k + 3 : 6 * k + 6]) for k in range(L.n_nodes) if L.free[6 * k + 3]]
 
@@ -263,8 +260,7 @@ class GeneralizedAlpha(ModifiedNewton):
         """The configuration of the last residual evaluation and the rates yd become the state."""
         L, R = self.layout, self._R
         _, _, _, af_am, A0 = self._stage
-        lin = self._stage_p[L.lin_slots]
-        self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self._lin_views)
+        self.xN, self.x0, self.eta, self.v = L.linear(self._stage_p)
         Q = R[L.n_nodes] @ self.R0[0].T  # rotation of the first CM frame over the step
         self.RN, self.R0 = R[: L.n_nodes], R[L.n_nodes :]
         # the history of the rates, world triplets carried along with the body (predictor, `_step`)

@@ -79,6 +79,15 @@ class Layout:
         p[self.lin_slots] = np.concatenate([np.ravel(xN), np.ravel(x0), np.ravel(eta), np.ravel(v)])
         return p
 
+    def linear(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """xN (N, 3), x0 (E, 3), eta (E, nm), v (E, nv) of a stage vector p (views of one copy of its
+        lin_slots): the configuration `stage` puts there."""
+        lin = p[self.lin_slots]
+        N, E = self.n_nodes, self.n_se
+        a, b = 3 * N, 3 * (N + E)
+        c = b + E * self.nm
+        return lin[:a].reshape(N, 3), lin[a:b].reshape(E, 3), lin[b:c].reshape(E, self.nm), lin[c:].reshape(E, self.nv)
+
 
 @dataclass(frozen=True, eq=False)
 class SuperelementStack:

@@ -39,6 +39,7 @@ _SIGNATURES = {
     "ffrf_body_get_state": (None, [_p, _p]),
     "ffrf_body_set_state": (_i, [_p, _p, _sz]),
     "ffrf_body_residual": (_i, [_p, _p, _p, _p, _i, _p, _p, _p]),
+    "ffrf_status_text": (C.c_char_p, [_i]),
 }
 
 
@@ -139,21 +140,18 @@ class NativeBody:
             raise ValueError("state refused: its pivots or iteration count are not those of a factorization")
 
 
-def failure(status: int, t1: float, max_iter: int, last_increment: float) -> StepFailure | None:
-    """The StepFailure of a step's status, with the numpy path's messages (integrator.py)."""
-    if status == NOT_FINITE:
-        return StepFailure(t1, "the residual is not finite (NaN or overflow)")
+def failure(lib, status: int, t1: float, max_iter: int, iteration_cap: int, last_increment: float) -> StepFailure | None:
+    """The StepFailure of a step's status (None for OK): the C runtime's words (ffrf_status_text, the numpy
+    path's messages), with the iterations and the last increment of a Newton that did not converge; the
+    IterationCapReached of a step over the body's iteration cap."""
+    if status == OK:
+        return None
+    if status == ITERATION_CAP:
+        return IterationCapReached(t1, iteration_cap)
+    text = lib.ffrf_status_text(status).decode()
     if status == NOT_CONVERGED:
-        return StepFailure(t1, f"Newton did not converge in {max_iter} iterations "
-                               f"(last increment {last_increment:.3g} of the tolerance)")
-    if status == ROTATION_ALIAS:
-        return StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
-                               "or an absurd input)")
-    if status == NOT_FACTORED:
-        return StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
-    if status == BAD_STEP:
-        return StepFailure(t1, "step size must be positive and finite")
-    return None
+        text += f" in {max_iter} iterations (last increment {last_increment:.3g} of the tolerance)"
+    return StepFailure(t1, text)
 
 
 class NativeStep:
@@ -183,6 +181,7 @@ class NativeStep:
         self._lu_out, self._piv_out, self._lu_version = None, None, -1.0
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
+        self._settings = None  # the integrator's settings last set in the C body (`_prepare`)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
 
     # views that only some bodies or one way to step use: made on first use (a step of a body with compliant
@@ -219,17 +218,18 @@ class NativeStep:
             self._lu_out, self._piv_out, self._lu_version = lu[0], lu[1], self.body.get("lu_version")
         m[0], m[1], m[11] = 1.0, lu[2], lu[4]
 
+    _SETTINGS = ("am", "af", "gamma", "tol", "max_iter", "iteration_cap")  # (`_prepare`: set when they change)
+
     def _prepare(self, system, am, af, gamma):
         self._adopt(system)
         B = self.body
         B.set("t", system.t)
         B.set("iterations", system.iterations)
-        B.set("am", am)
-        B.set("af", af)
-        B.set("gamma", gamma)
-        B.set("tol", system.tol)
-        B.set("max_iter", system.max_iter)
-        B.set("iteration_cap", system.iteration_cap)
+        settings = (am, af, gamma, system.tol, system.max_iter, system.iteration_cap)
+        if settings != self._settings:
+            for name, value in zip(self._SETTINGS, settings):
+                B.set(name, value)
+            self._settings = settings
         for i, name in enumerate(self.spring_ports):
             self.KC[i] = system.compliance[name]
         self.energy[0], self.energy[1] = system.work, system.power
@@ -247,9 +247,7 @@ class NativeStep:
             system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), float(m[11]))
         else:
             system._lu = None
-        if status == ITERATION_CAP:
-            return IterationCapReached(system.t + self._h, system.iteration_cap)
-        return failure(status, system.t + self._h, system.max_iter, float(m[1]))
+        return failure(B.lib, status, system.t + self._h, system.max_iter, system.iteration_cap, float(m[1]))
 
     # ---------------------------------------------------------------- the three ways to step
     def step(self, system, h, inputs, am, af, gamma) -> int:

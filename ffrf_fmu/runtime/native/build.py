@@ -80,31 +80,38 @@ def remembered_digest(paths, extra: tuple[str, ...] = ()) -> str:
     hashing them, about 0.7 ms for the runtime's). An edited file changes its signature and is read
     afresh; without a writable cache the digest is computed each time. (Plain strings and os: pathlib's
     first calls in a process cost more than the memo saves.)"""
+    return remembered(paths, extra, lambda names: file_digest([Path(q) for q in names], extra))
+
+
+def remembered(paths, extra: tuple[str, ...], compute) -> str:
+    """compute(names) (a short ASCII word, the names the paths' strings), remembered in <cache>/digests/
+    under the files' stat signature and the words of `extra` (remembered_digest); computed each time
+    when a file cannot be stat'ed or the cache cannot be written."""
     names = [os.fspath(q) for q in paths]
     try:
         words = [f"{q}\0{st.st_size}\0{st.st_mtime_ns}" for q, st in ((q, os.stat(q)) for q in names)]
     except OSError:
-        return file_digest([Path(q) for q in names], extra)
+        return compute(names)
     signature = hashlib.sha256("\0\0".join([*words, *extra]).encode()).hexdigest()[:32]
     folder = os.path.join(cache_dir(), "digests")
     memo = os.path.join(folder, signature)
     try:
         with open(memo, "rb") as fh:
-            digest = fh.read(17).decode("ascii")
-        if len(digest) == 16:
-            return digest
+            value = fh.read(65).decode("ascii")
+        if 0 < len(value) <= 64:
+            return value
     except (OSError, UnicodeDecodeError):
         pass
-    digest = file_digest([Path(q) for q in names], extra)
+    value = compute(names)
     try:
         os.makedirs(folder, exist_ok=True)
         tmp = os.path.join(folder, f".{signature}.{os.getpid()}.tmp")
         with open(tmp, "w", encoding="ascii") as fh:
-            fh.write(digest)
+            fh.write(value)
         os.replace(tmp, memo)
     except OSError:  # a read-only cache: computed again next time
         pass
-    return digest
+    return value
 
 
 def extra_cflags() -> tuple[str, ...]:
@@ -192,10 +199,18 @@ def library(sanitize: bool = False) -> Path:
     if not sanitize and not extra_cflags() and os.path.exists(shipped):  # extra flags: built here, never the shipped one
         return Path(shipped)
     extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
+    suffix = "-sanitize" if sanitize else ""
+    # the folder of the last process with these sources and the same compiler request ($FFRF_FMU_CC, $PATH),
+    # remembered (`remembered`): a run that finds its library neither scans $PATH for the compiler nor hashes
+    # the key; a missing library (or a cache without the memo) computes the key afresh
+    request = ("library", os.environ.get("FFRF_FMU_CC", ""), os.environ.get("PATH", os.defpath), *FLAGS, *extra, suffix)
+    folder = remembered(_KEYED, request, lambda _: library_key(compiler(), extra) + suffix)
+    if os.path.exists(found := os.path.join(cache_dir(), "native", folder, name)):  # (one stat: the usual case)
+        return Path(found)
     cc = compiler()
-    folder = library_key(cc, extra) + ("-sanitize" if sanitize else "")
+    folder = library_key(cc, extra) + suffix
     for root in _cache_roots():
-        if os.path.exists(found := os.path.join(root, "native", folder, name)):  # (one stat: the usual case)
+        if os.path.exists(found := os.path.join(root, "native", folder, name)):
             return Path(found)
         d = Path(root, "native", folder)
         lib = d / name
