@@ -25,11 +25,13 @@ import numpy as np
 
 from .model import Body, reduction_options, scene_body
 from .runtime.data import BodyData
+from .runtime.layout import Layout
 from .runtime.native.build import cache_root, remembered_digest
 
 HERE = Path(__file__).resolve().parent
 HERE_STR = str(HERE)
-REDUCING_CODE = ("reduction.py", "invariants.py", "runtime/data.py", "fe")
+# the code of what a file holds: the reduction, and the layout and Newton maps stored beside it (runtime/layout.py)
+REDUCING_CODE = ("reduction.py", "invariants.py", "runtime/data.py", "runtime/layout.py", "fe")
 
 
 def _code_files() -> list[str]:
@@ -72,14 +74,16 @@ def key(body: Body, options: dict) -> str:
     return h.hexdigest()[:24]
 
 
-MAGIC = b"FFRF-BODY-CACHE1"  # 16 bytes (the last the format version), then u64 index bytes, the JSON index, the values (8-aligned)
+MAGIC = b"FFRF-BODY-CACHE2"  # 16 bytes (the last the format version), then u64 index bytes, the JSON index, the values (8-aligned)
 HEAD = struct.Struct("<16sQ")
 
 
 def write(data: BodyData, path: Path) -> None:
-    """BodyData's arrays (BodyData.arrays) in one file: MAGIC, the JSON index {"meta", "arrays": [name,
-    dtype, shape, offset]}, then each array's bytes (C order) at its offset."""
+    """BodyData's arrays (BodyData.arrays) and its layout's (runtime/layout.py Layout.arrays: the index maps
+    a BodySystem of it would compute, under "layout.") in one file: MAGIC, the JSON index {"meta", "arrays":
+    [name, dtype, shape, offset]}, then each array's bytes (C order) at its offset."""
     arrays, meta = data.arrays()
+    arrays |= {f"layout.{k}": v for k, v in Layout.compute(data).arrays().items()}
     index, blobs, offset = [], [], 0
     for name, value in arrays.items():
         a = np.ascontiguousarray(value)
@@ -96,7 +100,8 @@ def write(data: BodyData, path: Path) -> None:
 
 
 def read(path: Path) -> BodyData:
-    """The BodyData of a file `write` wrote; ValueError when it is not one (or is cut short)."""
+    """The BodyData of a file `write` wrote, its layout remembered (Layout.of gives it, not computed
+    afresh); ValueError when it is not one (or is cut short), KeyError when a part is missing."""
     with open(path, "rb") as fh:
         raw = bytearray(fh.read())  # writable: the arrays are views of it, as np.load's are their own
     if len(raw) < HEAD.size:
@@ -112,7 +117,10 @@ def read(path: Path) -> BodyData:
         if base + offset + count * dt.itemsize > len(raw):
             raise ValueError(f"{path}: cut short (array {name!r})")
         arrays[name] = np.frombuffer(raw, dtype=dt, count=count, offset=base + offset).reshape(shape)
-    return BodyData.from_arrays(arrays, index["meta"])
+    layout = {k[7:]: arrays.pop(k) for k in [k for k in arrays if k.startswith("layout.")]}
+    data = BodyData.from_arrays(arrays, index["meta"])
+    Layout.from_arrays(layout).remember(data)
+    return data
 
 
 def scene_body_data(body: Body, scene) -> BodyData:

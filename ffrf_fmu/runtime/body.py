@@ -134,8 +134,7 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
             self.vk_a = np.stack([se.vk_a for se in ses])
             self.vk_B = np.stack([se.vk_B for se in ses])
         self.D = damping_matrices(self.damping, self.damping_basis) if is_damped(self.damping) else None  # (E, n, n)
-        self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
-        self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
+        self._motion_x, self._motion_R = L.maps["motion_x"], L.maps["motion_R"]  # motion-driven nodes (translation, rotation)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
         self.compliant = {p.name: (p.node, p.translation == "compliant", p.rotation == "compliant")
                           for p in data.ports if "compliant" in (p.translation, p.rotation)}
