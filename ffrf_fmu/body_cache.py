@@ -110,14 +110,19 @@ def read(path: Path) -> BodyData:
     if magic != MAGIC or len(raw) < HEAD.size + n:
         raise ValueError(f"{path}: not a cached body of this version")
     index = json.loads(bytes(raw[HEAD.size: HEAD.size + n]))
-    base, arrays = HEAD.size + n, {}
+    base, size, arrays, layout, dtypes = HEAD.size + n, len(raw), {}, {}, {}
     for name, dtype, shape, offset in index["arrays"]:
-        dt = np.dtype(dtype)
-        count = math.prod(shape)
-        if base + offset + count * dt.itemsize > len(raw):
+        dt = dtypes.get(dtype)
+        if dt is None:
+            dt = dtypes[dtype] = np.dtype(dtype)
+        count, start = math.prod(shape), base + offset
+        if start + count * dt.itemsize > size:
             raise ValueError(f"{path}: cut short (array {name!r})")
-        arrays[name] = np.frombuffer(raw, dtype=dt, count=count, offset=base + offset).reshape(shape)
-    layout = {k[7:]: arrays.pop(k) for k in [k for k in arrays if k.startswith("layout.")]}
+        a = np.frombuffer(raw, dt, count, start).reshape(shape)
+        if name.startswith("layout."):
+            layout[name[7:]] = a
+        else:
+            arrays[name] = a
     data = BodyData.from_arrays(arrays, index["meta"])
     Layout.from_arrays(layout).remember(data)
     return data

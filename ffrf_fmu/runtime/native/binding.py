@@ -24,16 +24,17 @@ OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP, ITERATION
 
 _LIB: dict[bool, C.CDLL] = {}
 
+# out-arguments are void pointers (C.byref of a scalar): POINTER types cost 10 us each to make in a process
 _p, _d, _i, _sz = C.c_void_p, C.c_double, C.c_int, C.c_size_t
 _SIGNATURES = {
-    "ffrf_body_create": (_p, [C.c_char_p, _sz, C.c_char_p, _sz]),
+    "ffrf_body_create": (_p, [C.c_char_p, _sz, _p, _sz]),
     "ffrf_image_checksum": (C.c_uint64, [C.c_char_p, C.c_uint64]),
     "ffrf_body_free": (None, [_p]),
-    "ffrf_body_array": (_p, [_p, C.c_char_p, C.POINTER(_sz), C.c_char_p]),
-    "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, C.POINTER(_d)]),
+    "ffrf_body_array": (_p, [_p, C.c_char_p, _p, _p]),
+    "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, _p]),
     "ffrf_body_set_scalar": (_i, [_p, C.c_char_p, _d]),
     "ffrf_body_set_schedule": (None, [_p, _p, _p, _p, _p, _p, _p, _p, _i]),
-    "ffrf_body_advance": (_i, [_p, _i, _i, _d, _d, _p, _p, C.POINTER(_i), C.POINTER(_i)]),
+    "ffrf_body_advance": (_i, [_p, _i, _i, _d, _d, _p, _p, _p, _p]),
     "ffrf_body_record": (None, [_p, _p]),
     "ffrf_body_state_size": (_sz, [_p]),
     "ffrf_body_get_state": (None, [_p, _p]),
@@ -46,7 +47,7 @@ _SIGNATURES = {
 def load(sanitize: bool = False) -> C.CDLL:
     """The runtime library, compiled into the cache on first use (runtime/native/build.py)."""
     if sanitize not in _LIB:
-        lib = C.CDLL(str(build.library(sanitize)))
+        lib = C.CDLL(build.library_path(sanitize))
         for name, (res, args) in _SIGNATURES.items():
             fn = getattr(lib, name)
             fn.restype, fn.argtypes = res, args
@@ -71,12 +72,14 @@ class NativeBody:
 
     def __init__(self, image: bytes, sanitize: bool = False):
         self.lib = lib = load(sanitize)
-        err = C.create_string_buffer(512)
+        err = np.zeros(512, dtype=np.uint8)  # (a ctypes string buffer's type costs 10 us to make)
         self._image = image
-        self._count, self._kind = _sz(), C.create_string_buffer(1)  # (`array`'s out-arguments)
-        self.ptr = lib.ffrf_body_create(image, len(image), err, len(err))
+        self._count, self._kind = _sz(), C.c_char()  # (`array`'s out-arguments)
+        self._out = C.byref(self._count), C.byref(self._kind)
+        self.ptr = lib.ffrf_body_create(image, len(image), err.ctypes.data, err.size)
         if not self.ptr:
-            raise ValueError(f"C runtime refused the body image: {err.value.decode(errors='replace')}")
+            why = err.tobytes().partition(b"\0")[0].decode(errors="replace")
+            raise ValueError(f"C runtime refused the body image: {why}")
 
     def __del__(self):
         if getattr(self, "ptr", None):
@@ -85,11 +88,11 @@ class NativeBody:
 
     def array(self, name: str, shape=None) -> np.ndarray:
         """The body's array `name` as a writable numpy view (reshaped to shape)."""
-        count, kind = self._count, self._kind
-        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), count, kind)
+        count = self._count
+        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), *self._out)
         if addr is None and count.value:
             raise KeyError(f"the C body has no array {name!r}")
-        dtype = _KINDS[kind.raw]
+        dtype = _KINDS[self._kind.value]
         if count.value == 0:
             a = np.zeros(0, dtype=dtype)
         else:  # the memory by its address (numpy's array interface: a third of a ctypes buffer's cost)

@@ -194,11 +194,17 @@ def library(sanitize: bool = False) -> Path:
     process that loses a race uses the winner's file). sanitize: the address and undefined-behaviour
     sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`). A copy of this
     package shipped in a pythonfmu FMU carries its library in prebuilt/ (`ship`): no compiler on the host."""
+    return Path(library_path(sanitize))
+
+
+def library_path(sanitize: bool = False) -> str:
+    """`library` as a plain string (what ctypes loads; a Path costs more than the lookup's stat)."""
     name = _library_name()
+    flags = extra_cflags()
     shipped = os.path.join(HERE_STR, PREBUILT, name)
-    if not sanitize and not extra_cflags() and os.path.exists(shipped):  # extra flags: built here, never the shipped one
-        return Path(shipped)
-    extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
+    if not sanitize and not flags and os.path.exists(shipped):  # extra flags: built here, never the shipped one
+        return shipped
+    extra = (*flags, *(SANITIZE if sanitize else ()))
     suffix = "-sanitize" if sanitize else ""
     # the folder of the last process with these sources and the same compiler request ($FFRF_FMU_CC, $PATH),
     # remembered (`remembered`): a run that finds its library neither scans $PATH for the compiler nor hashes
@@ -206,12 +212,12 @@ def library(sanitize: bool = False) -> Path:
     request = ("library", os.environ.get("FFRF_FMU_CC", ""), os.environ.get("PATH", os.defpath), *FLAGS, *extra, suffix)
     folder = remembered(_KEYED, request, lambda _: library_key(compiler(), extra) + suffix)
     if os.path.exists(found := os.path.join(cache_dir(), "native", folder, name)):  # (one stat: the usual case)
-        return Path(found)
+        return found
     cc = compiler()
     folder = library_key(cc, extra) + suffix
     for root in _cache_roots():
         if os.path.exists(found := os.path.join(root, "native", folder, name)):
-            return Path(found)
+            return found
         d = Path(root, "native", folder)
         lib = d / name
         try:
@@ -223,7 +229,7 @@ def library(sanitize: bool = False) -> Path:
                 tmp = d / f".{lib.name}.{os.getpid()}.tmp"
                 compile_library(tmp, cc, extra)
                 os.replace(tmp, lib)
-        return lib
+        return str(lib)
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
 
 
