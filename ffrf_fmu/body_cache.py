@@ -79,11 +79,11 @@ HEAD = struct.Struct("<16sQ")
 
 
 def write(data: BodyData, path: Path) -> None:
-    """BodyData's arrays (BodyData.arrays) and its layout's (runtime/layout.py Layout.arrays: the index maps
-    a BodySystem of it would compute, under "layout.") in one file: MAGIC, the JSON index {"meta", "arrays":
-    [name, dtype, shape, offset]}, then each array's bytes (C order) at its offset."""
+    """BodyData's arrays (BodyData.arrays) and its layout (runtime/layout.py Layout.packed: the index maps a
+    BodySystem of it would compute; the array "layout", its spec in the meta) in one file: MAGIC, the JSON
+    index {"meta", "arrays": [name, dtype, shape, offset]}, then each array's bytes (C order) at its offset."""
     arrays, meta = data.arrays()
-    arrays |= {f"layout.{k}": v for k, v in Layout.compute(data).arrays().items()}
+    meta["layout"], arrays["layout"] = Layout.compute(data).packed()
     index, blobs, offset = [], [], 0
     for name, value in arrays.items():
         a = np.ascontiguousarray(value)
@@ -110,7 +110,7 @@ def read(path: Path) -> BodyData:
     if magic != MAGIC or len(raw) < HEAD.size + n:
         raise ValueError(f"{path}: not a cached body of this version")
     index = json.loads(bytes(raw[HEAD.size: HEAD.size + n]))
-    base, size, arrays, layout, dtypes = HEAD.size + n, len(raw), {}, {}, {}
+    base, size, arrays, dtypes = HEAD.size + n, len(raw), {}, {}
     for name, dtype, shape, offset in index["arrays"]:
         dt = dtypes.get(dtype)
         if dt is None:
@@ -118,13 +118,11 @@ def read(path: Path) -> BodyData:
         count, start = math.prod(shape), base + offset
         if start + count * dt.itemsize > size:
             raise ValueError(f"{path}: cut short (array {name!r})")
-        a = np.frombuffer(raw, dt, count, start).reshape(shape)
-        if name.startswith("layout."):
-            layout[name[7:]] = a
-        else:
-            arrays[name] = a
-    data = BodyData.from_arrays(arrays, index["meta"])
-    Layout.from_arrays(layout).remember(data)
+        arrays[name] = np.frombuffer(raw, dt, count, start).reshape(shape)
+    meta = index["meta"]
+    layout = Layout.unpacked(meta.pop("layout"), arrays.pop("layout"))
+    data = BodyData.from_arrays(arrays, meta)
+    layout.remember(data)
     return data
 
 

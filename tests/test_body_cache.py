@@ -110,6 +110,7 @@ def test_the_remembered_layout_is_the_computed_one(model, sets, tmp_path):
     assert remembered is Layout.of(back) and Layout.of(data) is not Layout.of(data)
     same_layout(remembered, Layout.compute(data))
     same_layout(remembered, Layout.compute(back))
+    assert all(getattr(remembered, k) == getattr(Layout.compute(data), k) for k in Layout._DIMS)
     s = BodySystem(back, backend="numpy")
     assert s.layout is remembered and not s._newton_flat.flags.writeable
     other = BodySystem(data, backend="numpy")

@@ -86,19 +86,43 @@ class Layout:
     _ARRAYS = ("cfg_map", "vel_map", "free", "rot_cols", "lin_slots")
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The layout as named arrays (the body cache's file, body_cache.py): `from_arrays` gives it back."""
-        return {"dims": np.array([getattr(self, k) for k in self._DIMS], dtype=np.int64),
-                **{k: getattr(self, k) for k in self._ARRAYS}, **{f"maps.{k}": v for k, v in self.maps.items()}}
+        """The layout's arrays by name (its fields, then the maps as "maps.NAME")."""
+        return {**{k: getattr(self, k) for k in self._ARRAYS}, **{f"maps.{k}": v for k, v in self.maps.items()}}
+
+    def packed(self) -> tuple[dict, np.ndarray]:
+        """The layout as (spec, words): its sizes and, per array, [dtype, shape, offset] in words, one int64
+        array of every array's 8-byte values (booleans as 0/1, floats by their bits); `unpacked` gives it back
+        (the body cache's file, body_cache.py: one array to read, not one per map)."""
+        spec, parts, offset = {"dims": [getattr(self, k) for k in self._DIMS]}, [], 0
+        for name, a in self.arrays().items():
+            a = np.ascontiguousarray(a)
+            spec[name] = [a.dtype.str, list(a.shape), offset]
+            parts.append((a.astype(np.int64) if a.dtype == bool else a.view(np.int64)).ravel())
+            offset += a.size
+        return spec, np.concatenate(parts)
 
     @classmethod
-    def from_arrays(cls, z: dict) -> "Layout":
-        """The layout of `arrays` (read-only: a remembered layout is shared by the bodies made from its data)."""
-        for a in z.values():
-            a.setflags(write=False)
-        maps = {k[5:]: v for k, v in z.items() if k.startswith("maps.")}
-        if set(maps) != set(NEWTON_MAPS):
+    def unpacked(cls, spec: dict, words: np.ndarray) -> "Layout":
+        """The layout of `packed`'s (spec, words), read-only (a remembered layout is shared by the bodies
+        made from its data)."""
+        words = words.view()
+        words.setflags(write=False)  # (its slices are read-only too)
+        arrays = {}
+        for name, entry in spec.items():
+            if name == "dims":
+                continue
+            dtype, shape, offset = entry
+            a = words[offset : offset + math.prod(shape)]
+            if dtype == "|b1":
+                a = a.astype(bool)
+                a.setflags(write=False)
+            elif dtype != a.dtype.str:
+                a = a.view(dtype)
+            arrays[name] = a.reshape(shape)
+        maps = {k[5:]: v for k, v in arrays.items() if k.startswith("maps.")}
+        if len(maps) != len(NEWTON_MAPS) or any(k not in maps for k in NEWTON_MAPS):
             raise KeyError(f"layout maps {sorted(maps)}, not {sorted(NEWTON_MAPS)}")
-        return cls(*(int(d) for d in z["dims"]), *(z[k] for k in cls._ARRAYS), maps)
+        return cls(*spec["dims"], *(arrays[k] for k in cls._ARRAYS), maps)
 
     def remember(self, data: BodyData) -> None:
         """`of(data)` gives this layout from now on (for as long as data lives)."""
