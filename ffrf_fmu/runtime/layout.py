@@ -90,15 +90,21 @@ class Layout:
         return {**{k: getattr(self, k) for k in self._ARRAYS}, **{f"maps.{k}": v for k, v in self.maps.items()}}
 
     def packed(self) -> tuple[dict, np.ndarray]:
-        """The layout as (spec, words): its sizes and, per array, [dtype, shape, offset] in words, one int64
-        array of every array's 8-byte values (booleans as 0/1, floats by their bits); `unpacked` gives it back
-        (the body cache's file, body_cache.py: one array to read, not one per map)."""
+        """The layout as (spec, words): its sizes and, per array, [dtype, shape, start, end] in words, one
+        int64 array of every array's bytes (integers, floats by their bits, booleans a byte each, padded);
+        `unpacked` views it back (the body cache's file, body_cache.py: one array to read, not one per map)."""
         spec, parts, offset = {"dims": [getattr(self, k) for k in self._DIMS]}, [], 0
         for name, a in self.arrays().items():
             a = np.ascontiguousarray(a)
-            spec[name] = [a.dtype.str, list(a.shape), offset]
-            parts.append((a.astype(np.int64) if a.dtype == bool else a.view(np.int64)).ravel())
-            offset += a.size
+            dtype, shape = a.dtype.str, list(a.shape)
+            if dtype not in _WORDS:
+                raise ValueError(f"layout array {name!r} of dtype {a.dtype}: not one of {sorted(_WORDS)}")
+            if dtype == "|b1":  # its bytes, padded to whole words (`unpacked` views them)
+                a = np.concatenate([a.ravel().view(np.uint8), np.zeros(-a.size % 8, dtype=np.uint8)])
+            words = a.view(np.int64).ravel()
+            spec[name] = [dtype, shape, offset, offset + words.size]
+            parts.append(words)
+            offset += words.size
         return spec, np.concatenate(parts)
 
     @classmethod
@@ -111,13 +117,12 @@ class Layout:
         for name, entry in spec.items():
             if name == "dims":
                 continue
-            dtype, shape, offset = entry
-            a = words[offset : offset + math.prod(shape)]
-            if dtype == "|b1":
-                a = a.astype(bool)
-                a.setflags(write=False)
-            elif dtype != a.dtype.str:
-                a = a.view(dtype)
+            dtype, shape, start, end = entry
+            a = words[start:end]
+            if dtype != "<i8":
+                a = a.view(_WORDS[dtype])
+                if dtype == "|b1":
+                    a = a[: math.prod(shape)]
             arrays[name] = a.reshape(shape)
         maps = {k[5:]: v for k, v in arrays.items() if k.startswith("maps.")}
         if len(maps) != len(NEWTON_MAPS) or any(k not in maps for k in NEWTON_MAPS):
@@ -146,6 +151,7 @@ class Layout:
 
 
 _KNOWN: "weakref.WeakKeyDictionary[BodyData, Layout]" = weakref.WeakKeyDictionary()  # (`Layout.remember`)
+_WORDS = {"<i8": np.dtype(np.int64), "<f8": np.dtype(np.float64), "|b1": np.dtype(bool)}  # (`Layout.packed`)
 
 NEWTON_MAPS = ("rows", "cols", "flat_idx", "free_idx", "fixed_idx", "world_free", "world_idx", "newton_order",
                "newton_idx", "newton_flat", "newton_pos", "field_of", "field_perm", "field_starts", "motion_x",
