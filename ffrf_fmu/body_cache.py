@@ -5,8 +5,9 @@ The key is the body as the scene runs it (model.scene_body: every value of the [
 scene's causality), the reduction's options, the sources of the code that reduces (reduction.py, fe/,
 invariants.py, runtime/data.py) and the numpy and scipy versions: any change reduces afresh. The
 sources' digest is remembered under their stat signature (runtime/native/build.py remembered_digest).
-Entries are BodyData's arrays in one raw file (`write`, `read`: a JSON index, then the values, read
-with one system call and no zip or .npy header to parse), written atomically under <cache>/bodies/ (the
+Entries are BodyData's arrays and its layout (runtime/layout.py: the Newton index maps a BodySystem of it
+takes, `Layout.remember`) in one raw file (`write`, `read`: a JSON index, then the values, read with one
+system call and no zip or .npy header to parse), written atomically under <cache>/bodies/ (the
 cache of runtime/native/build.py); the cached path imports neither scipy nor the reduction. Only beam
 bodies: a solid's mesh or export lives in files the key would have to read whole (a solid is reduced
 afresh every time).

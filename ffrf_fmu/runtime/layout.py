@@ -1,5 +1,6 @@
-"""Where the unknowns of a body live: the global vector, each superelement's local slots, the
-superelement matrices stacked, and small helpers for named blocks of flat buffers.
+"""Where the unknowns of a body live: the global vector, each superelement's local slots, the Newton
+system's index maps (`newton_maps`), the superelement matrices stacked, and small helpers for named blocks
+of flat buffers. A body read from the body cache brings its layout along (`Layout.remember`).
 
 Unknowns (docs/background.md; geradin section 8.3, spatial coordinates)
     per boundary node P:   frame w_P = (x_P, R_P) (world position, rotation)
