@@ -114,6 +114,8 @@ def test_the_remembered_layout_is_the_computed_one(model, sets, tmp_path):
     s = BodySystem(back, backend="numpy")
     assert s.layout is remembered and not s._newton_flat.flags.writeable
     other = BodySystem(data, backend="numpy")
-    for k in ("_newton_idx", "_newton_flat", "_field_perm", "_stage_mask", "_motion_x", "_world_free"):
+    for k in ("_newton_idx", "_newton_flat", "_field_perm", "_stage_mask", "_motion_x", "_world_free", "_motion_parts",
+              "_port_nodes"):
         assert np.array_equal(getattr(s, k), getattr(other, k)) and getattr(s, k).dtype == getattr(other, k).dtype, k
     assert [(k, p.tolist()) for k, p in s._torque_rows] == [(k, p.tolist()) for k, p in other._torque_rows]
+    assert all(np.array_equal(a, b) for a, b in zip(s._port_codes, other._port_codes))

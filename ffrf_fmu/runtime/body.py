@@ -22,7 +22,6 @@ from .damping import Damping, body_basis, damping_matrices, is_damped
 from .data import BodyData
 from . import outputs, stiffening
 from .initial_conditions import InitialConditions
-from .input_rule import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients
 from .newton import zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
@@ -150,9 +149,9 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         N, E, n, nv, ny = L.n_nodes, L.n_se, L.n, L.nv, L.ny
         self._zeros_ny = np.zeros(ny)
         self._assembly = None  # (`_oracle`)
-        self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
-        self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
-        self._port_codes = port_codes(data.ports)  # (node, mode, spring) of `run_extrapolated`
+        self._motion_parts = L.maps["motion_parts"]  # 1 on motion-driven node dofs
+        self._port_nodes = L.maps["port_node"]
+        self._port_codes = L.maps["port_node"], L.maps["port_mode"], L.maps["port_spring"]  # (of `run_extrapolated`)
         # energies: [v0, Omega0, r, q] of each SE with blockdiag(m I, J0, M, K), then 1/2 the sums per part
         self._energy_op = np.zeros((E, nv + n, nv + n))
         for e in range(E):

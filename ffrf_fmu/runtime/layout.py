@@ -44,7 +44,7 @@ class Layout:
     free: np.ndarray  # (ny,) bool: unknown (not prescribed by a motion input)
     rot_cols: np.ndarray  # (N + E, 3) global columns of every rotation rate (nodes then SEs)
     lin_slots: np.ndarray  # (3N + 3E + E nm + E nv,) the slots of the linear configuration xN, x0, eta, v, in that order
-    maps: dict  # the Newton system's index maps by name (`newton_maps`; integrator.py `_build_newton`)
+    maps: dict  # NEWTON_MAPS by name: the Newton system's (`newton_maps`; integrator.py `_build_newton`), the ports' codes
 
     @classmethod
     def of(cls, data: BodyData) -> "Layout":
@@ -81,6 +81,10 @@ class Layout:
         motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
         motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
         maps = newton_maps(N, E, nm, ny, cfg_map, vel_map, free, motion_x, motion_R)
+        from .input_rule import port_codes  # (its modules import nothing of the body's)
+
+        maps["port_node"], maps["port_mode"], maps["port_spring"] = port_codes(data.ports)
+        maps["motion_parts"] = (~free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
         return cls(N, E, nb, nm, n, nc, nv, ny, cfg_map, vel_map, free, rot_cols, lin_slots, maps)
 
     _DIMS = ("n_nodes", "n_se", "nb", "nm", "n", "nc", "nv", "ny")
@@ -156,7 +160,9 @@ _WORDS = {"<i8": np.dtype(np.int64), "<f8": np.dtype(np.float64), "|b1": np.dtyp
 
 NEWTON_MAPS = ("rows", "cols", "flat_idx", "free_idx", "fixed_idx", "world_free", "world_idx", "newton_order",
                "newton_idx", "newton_flat", "newton_pos", "field_of", "field_perm", "field_starts", "motion_x",
-               "motion_R", "motion_x_slots", "motion_T_slots", "stage_mask", "torque_nodes", "torque_pos")
+               "motion_R", "motion_x_slots", "motion_T_slots", "stage_mask", "torque_nodes", "torque_pos",
+               # the ports' (node, mode, spring) codes (input_rule.port_codes) and the motion-driven node dofs
+               "port_node", "port_mode", "port_spring", "motion_parts")
 
 
 def newton_maps(N, E, nm, ny, cfg_map, vel_map, free, motion_x, motion_R) -> dict[str, np.ndarray]:
