@@ -17,7 +17,7 @@ prints the ratio of its best times over this checkout's, per configuration.
 --phases runs the same command with the pieces of its run timed (PHASES: the functions of the run
 wrapped in the child process, before the CLI is imported; any checkout), and prints their best of N:
 the body from the cache (body_cache.scene_body_data), BodySystem(), of it the C body (NativeStep) and of
-that the library's lookup (build.library), its load (ctypes.CDLL), the image (body_image) and the array
+that the library's lookup (build.library_path, or build.library where there is none), its load (ctypes.CDLL), the image (body_image) and the array
 views (NativeBody.array), the damping's modal basis (damping.body_basis; 0 where not computed),
 initialize, the steps (run_schedule, all chunks), the metrics, of them the dominant frequency's grid
 (TrendFit.grid_scores), and wall_time_s less the steps (what the summary counts outside the steps).
@@ -66,7 +66,8 @@ from ffrf_fmu.runtime.body import BodySystem
 from ffrf_fmu.runtime.native import binding, build
 from ffrf_fmu.simulate import frequency, loop
 for owner, name, key in ((body_cache, "scene_body_data", "load"), (BodySystem, "__init__", "BodySystem()"),
-                         (binding.NativeStep, "__init__", "C body"), (build, "library", "library lookup"),
+                         (binding.NativeStep, "__init__", "C body"),
+                         (build, "library_path" if hasattr(build, "library_path") else "library", "library lookup"),
                          (ctypes.CDLL, "__init__", "ctypes.CDLL"), (binding, "body_image", "image"),
                          (binding.NativeBody, "array", "array views"), (body, "body_basis", "damping basis"),
                          (BodySystem, "initialize", "initialize"), (BodySystem, "run_schedule", "steps"),

@@ -83,3 +83,39 @@ def test_cached_path_imports_neither_scipy_nor_the_reduction(b1, tmp_path):
             for _ in range(2)]
     assert runs[1].stdout.strip() == "[]", runs[1].stdout + runs[1].stderr
     assert "ffrf_fmu.reduction" in runs[0].stdout  # the first run reduced: the check can see an import
+
+
+def same_layout(a, b) -> None:
+    arrays_a, arrays_b = a.arrays(), b.arrays()
+    assert arrays_a.keys() == arrays_b.keys()
+    for k in arrays_a:
+        assert arrays_a[k].dtype == arrays_b[k].dtype and np.array_equal(arrays_a[k], arrays_b[k]), k
+
+
+@pytest.mark.parametrize("model, sets", [("haug_beam.toml", B1), ("free_beam.toml", ["superelements=3"]),
+                                         ("jeffcott_rotor.toml", [])])
+def test_the_remembered_layout_is_the_computed_one(model, sets, tmp_path):
+    """The layout and Newton maps read with a cached body (runtime/layout.py Layout.remember) are those
+    Layout.compute gives, array by array and dtype; a BodySystem of the body read back takes them
+    (read-only: they are shared), one of another BodyData computes its own."""
+    from ffrf_fmu.runtime.body import BodySystem
+    from ffrf_fmu.runtime.layout import Layout
+
+    m = load_model(ROOT / "models" / model, sets)
+    data = reduce_scene_body(m.body, m.scene()).data
+    path = tmp_path / "b.body"
+    body_cache.write(data, path)
+    back = body_cache.read(path)
+    remembered = Layout.of(back)
+    assert remembered is Layout.of(back) and Layout.of(data) is not Layout.of(data)
+    same_layout(remembered, Layout.compute(data))
+    same_layout(remembered, Layout.compute(back))
+    assert all(getattr(remembered, k) == getattr(Layout.compute(data), k) for k in Layout._DIMS)
+    s = BodySystem(back, backend="numpy")
+    assert s.layout is remembered and not s._newton_flat.flags.writeable
+    other = BodySystem(data, backend="numpy")
+    for k in ("_newton_idx", "_newton_flat", "_field_perm", "_stage_mask", "_motion_x", "_world_free", "_motion_parts",
+              "_port_nodes"):
+        assert np.array_equal(getattr(s, k), getattr(other, k)) and getattr(s, k).dtype == getattr(other, k).dtype, k
+    assert [(k, p.tolist()) for k, p in s._torque_rows] == [(k, p.tolist()) for k, p in other._torque_rows]
+    assert all(np.array_equal(a, b) for a, b in zip(s._port_codes, other._port_codes))

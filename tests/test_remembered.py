@@ -53,6 +53,13 @@ def test_library_key_follows_sources_flags_and_compiler(tmp_path, monkeypatch):
     first = build.library()
     assert compiled and first.parent.name == key and first.read_bytes() == b"lib"
     assert build.library() == first and len(compiled) == 1  # found: not compiled again
+    real_compiler = build.compiler
+    monkeypatch.setattr(build, "compiler", lambda: pytest.fail("the compiler looked up for a library in the cache"))
+    assert build.library() == first  # the remembered folder: no scan of $PATH, no key hashed
+    monkeypatch.setattr(build, "compiler", real_compiler)
+    first.unlink()  # a library gone from its folder: the key computed afresh, compiled again
+    assert build.library() == first and len(compiled) == 2 and first.read_bytes() == b"lib"
+    compiled.pop()
     st = os.stat(src / "step.c")
     (src / "step.c").write_text((src / "step.c").read_text() + "\n")  # an edit the key must see
     os.utime(src / "step.c", ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))

@@ -22,7 +22,6 @@ from .damping import Damping, body_basis, damping_matrices, is_damped
 from .data import BodyData
 from . import outputs, stiffening
 from .initial_conditions import InitialConditions
-from .input_rule import port_codes
 from .integrator import GeneralizedAlpha, alpha_coefficients
 from .newton import zero_or_nan
 from .layout import Layout, Segments, SuperelementStack
@@ -33,6 +32,10 @@ from .rotation import ROTATION_TOL, cross, is_rotation, vect, vect_tangent
 from .terms import FULL_TERMS, TERM_SETS
 
 BACKENDS = ("native", "numpy")
+# (np.array of a list, not np.stack, and this constant, not np.eye: their Python layers are most of a set-up's
+# small steps)
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
 # backends that were replaced, and by what (a request for one is refused with this message)
 RETIRED_BACKENDS = {"numba": "the numba backend was replaced by the C runtime: use backend 'native' (the default)"}
 
@@ -125,17 +128,16 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
             raise ValueError("term set 'full' needs the inertia data W1, W2 in the reduced body "
                              "(reduction.reduce_body(..., inertia=True))")
         if use_W1 or use_W2:
-            self.W1 = np.stack([se.W1 for se in ses]) * (1.0 if use_W1 else 0.0)
+            self.W1 = np.array([se.W1 for se in ses]) * (1.0 if use_W1 else 0.0)
         if use_W2:
-            self.W2 = np.stack([se.W2 for se in ses])
+            self.W2 = np.array([se.W2 for se in ses])
             if self.coriolis:  # G(W0) in (79) holds G^T M^-1 G of the softening already
                 self.W2 = self.W2 - stiffening.gyroscopic_part_of_W2(self.G, self.M)
         if self.stiffening:
-            self.vk_a = np.stack([se.vk_a for se in ses])
-            self.vk_B = np.stack([se.vk_B for se in ses])
+            self.vk_a = np.array([se.vk_a for se in ses])
+            self.vk_B = np.array([se.vk_B for se in ses])
         self.D = damping_matrices(self.damping, self.damping_basis) if is_damped(self.damping) else None  # (E, n, n)
-        self._motion_x = np.array([p.node for p in data.ports if p.translation == "motion"], dtype=int)
-        self._motion_R = np.array([p.node for p in data.ports if p.rotation == "motion"], dtype=int)
+        self._motion_x, self._motion_R = L.maps["motion_x"], L.maps["motion_R"]  # motion-driven nodes (translation, rotation)
         # compliant port parts (runtime/coupling.py): free nodes loaded by a spring-damper to the input
         self.compliant = {p.name: (p.node, p.translation == "compliant", p.rotation == "compliant")
                           for p in data.ports if "compliant" in (p.translation, p.rotation)}
@@ -147,13 +149,13 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         N, E, n, nv, ny = L.n_nodes, L.n_se, L.n, L.nv, L.ny
         self._zeros_ny = np.zeros(ny)
         self._assembly = None  # (`_oracle`)
-        self._motion_parts = (~L.free[: 6 * N]).reshape(N, 2, 3).astype(float)  # 1 on motion-driven node dofs
-        self._port_nodes = np.array([p.node for p in self.data.ports], dtype=int)
-        self._port_codes = port_codes(data.ports)  # (node, mode, spring) of `run_extrapolated`
+        self._motion_parts = L.maps["motion_parts"]  # 1 on motion-driven node dofs
+        self._port_nodes = L.maps["port_node"]
+        self._port_codes = L.maps["port_node"], L.maps["port_mode"], L.maps["port_spring"]  # (of `run_extrapolated`)
         # energies: [v0, Omega0, r, q] of each SE with blockdiag(m I, J0, M, K), then 1/2 the sums per part
         self._energy_op = np.zeros((E, nv + n, nv + n))
         for e in range(E):
-            self._energy_op[e, 0:3, 0:3] = self.mass[e] * np.eye(3)
+            self._energy_op[e, 0:3, 0:3] = self.mass[e] * _EYE3
             self._energy_op[e, 3:6, 3:6] = self.J0[e]
             self._energy_op[e, 6:nv, 6:nv] = self.M[e]
             self._energy_op[e, nv:, nv:] = self.K[e]
@@ -189,9 +191,9 @@ class BodySystem(InitialConditions, GeneralizedAlpha):
         """The reference state: undeformed, at rest, motion-driven parts at their reference frames, t kept."""
         L, d = self.layout, self.data
         self.xN = np.array(d.node_positions, dtype=float)
-        self.RN = np.repeat(np.eye(3)[None], L.n_nodes, axis=0)
-        self.x0 = np.stack([se.x_cm for se in d.superelements]).astype(float)
-        self.R0 = np.repeat(np.eye(3)[None], L.n_se, axis=0)
+        self.RN = np.repeat(_EYE3[None], L.n_nodes, axis=0)
+        self.x0 = np.array([se.x_cm for se in d.superelements], dtype=float)
+        self.R0 = np.repeat(_EYE3[None], L.n_se, axis=0)
         self.eta = np.zeros((L.n_se, L.nm))
         self.v = np.zeros((L.n_se, L.nv))
         self.yd = np.zeros(L.ny)

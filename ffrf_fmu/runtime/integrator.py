@@ -32,7 +32,6 @@ from .coupling import add_springs
 from .input_rule import extrapolate
 from .ports import IterationCapReached, NotConverged, PortValues, StepFailure
 from .factorization import is_native
-from .layout import Segments
 from .newton import KEEPS, SERVES, ModifiedNewton
 from .rotation import expm, skew, tangent
 
@@ -50,69 +49,24 @@ class GeneralizedAlpha(ModifiedNewton):
     """Stepping of a body (see the module docstring); the state lives on the body."""
 
     def _build_newton(self):
-        """Index maps of the Newton system: the unknowns (free rates), their order in the stored
-        factorization, and where every local Jacobian entry lands in the iteration matrix."""
-        L = self.layout
-        # global (row, col) index pairs of every local Jacobian entry, for one scatter-add
-        rows = np.concatenate([L.vel_map, L.cfg_map], axis=1)
-        cols = np.concatenate([L.cfg_map, L.vel_map], axis=1)
-        self._rows, self._cols = rows, cols
-        self._flat_idx = (rows[:, :, None] * L.ny + cols[:, None, :]).ravel()
-        self._free_idx = np.flatnonzero(L.free)
-        self._fixed_idx = np.flatnonzero(~L.free)  # rates prescribed by motion inputs (node rows only)
-        # world-axes triplets among the unknowns: node positions, CM positions, CM velocities
-        world = np.zeros(L.ny, dtype=bool)
-        world[(6 * np.arange(L.n_nodes)[:, None] + np.arange(3)).ravel()] = True
-        world[L.cfg_map[:, 0:3].ravel()] = True
-        world[L.vel_map[:, 0:3].ravel()] = True
-        pos = np.cumsum(L.free) - 1  # index of each unknown among the free ones
-        trip = pos[np.flatnonzero(world & L.free)].reshape(-1, 3)
-        self._world_free = trip
-        self._world_idx = np.flatnonzero(world).reshape(-1, 3)  # every world triplet of ydot (predictor)
-        # Newton unknowns ordered world triplets first, so that the frame rotation of `_solve` acts on
-        # one contiguous block; the stored factorization uses this order
-        in_trip = np.zeros(self._free_idx.size, dtype=bool)  # (a mask, not np.setdiff1d: np.unique imports numpy.ma,
-        in_trip[trip.ravel()] = True  # 20 ms of a CLI run's set-up)
-        rest = np.flatnonzero(~in_trip)
-        self._newton_order = np.concatenate([trip.ravel(), rest])
-        self._newton_idx = self._free_idx[self._newton_order]
-        # every local Jacobian entry -> flat position in the Newton-ordered matrix (nf * nf: not an unknown)
-        nf = self._newton_idx.size
-        newton_pos = np.full(L.ny + 1, nf)
-        newton_pos[self._newton_idx] = np.arange(nf)
-        r, c = newton_pos[rows][:, :, None], newton_pos[cols][:, None, :]
-        self._newton_flat = np.where((r < nf) & (c < nf), r * nf + c, nf * nf).ravel()
-        self._newton_pos = newton_pos[: L.ny]
-        # fields of the unknowns (`_field_scale`): translation rates, rotation rates, modal rates, CM
-        # accelerations, angular accelerations, elastic velocity rates; Newton order
-        field = np.zeros(L.ny, dtype=int)
-        field[(6 * np.arange(L.n_nodes)[:, None] + 3 + np.arange(3)).ravel()] = 1
-        field[L.cfg_map[:, 3:6].ravel()] = 1
-        field[L.cfg_map[:, 6 : 6 + L.nm].ravel()] = 2
-        field[L.vel_map[:, 0:3].ravel()] = 3
-        field[L.vel_map[:, 3:6].ravel()] = 4
-        field[L.vel_map[:, 6:].ravel()] = 5
-        f_newton = field[self._newton_idx]
-        present = np.flatnonzero(np.bincount(f_newton, minlength=6))  # the fields that have unknowns (a field may have
-        # none, e.g. no modes), sorted; as np.unique, without its import of numpy.ma
-        self._field_of = np.searchsorted(present, f_newton)
-        self._field_perm = self._newton_idx[np.argsort(self._field_of, kind="stable")]
-        self._field_starts = np.searchsorted(np.sort(self._field_of), np.arange(len(present)))
-        node_x = 6 * np.arange(L.n_nodes)[:, None] + np.arange(3)
+        """Index maps of the Newton system (runtime/layout.py `newton_maps`, the body's layout's) as the body's
+        attributes, and the buffers of a Newton iteration's stage."""
+        L, m = self.layout, self.layout.maps
+        self._rows, self._cols, self._flat_idx = m["rows"], m["cols"], m["flat_idx"]
+        self._free_idx, self._fixed_idx = m["free_idx"], m["fixed_idx"]
+        self._world_free, self._world_idx = m["world_free"], m["world_idx"]
+        self._newton_order, self._newton_idx, self._newton_flat = m["newton_order"], m["newton_idx"], m["newton_flat"]
+        self._newton_pos = m["newton_pos"]
+        self._field_of, self._field_perm, self._field_starts = m["field_of"], m["field_perm"], m["field_starts"]
+        self._motion_x_slots, self._motion_T_slots = m["motion_x_slots"], m["motion_T_slots"]
         # stage: p = c * ydot + P0 with c = beta except on configuration slots set by motion inputs
-        self._motion_x_slots = node_x[self._motion_x].ravel()
-        self._motion_T_slots = (node_x + 3)[self._motion_R].ravel()
-        self._stage_mask = np.ones(L.ny)
-        self._stage_mask[self._motion_x_slots] = 0.0
-        self._stage_mask[self._motion_T_slots] = 0.0
+        self._stage_mask = m["stage_mask"]
         self._stage_beta = None
         # the stage of a Newton iteration (`_stage_at`): the configuration p in the ydot layout (rotation
         # slots: the increments h Delta), and the rates the Newton iteration updates in place (`_step`)
         self._stage_p, self._newton_yd = np.zeros(L.ny), np.zeros(L.ny)
-        lin = Segments(xN=(L.n_nodes, 3), x0=(L.n_se, 3), eta=(L.n_se, L.nm), v=(L.n_se, L.nv))  # p[L.lin_slots]
-        self._lin_views = [(lin[k], lin.shapes[k]) for k in ("xN", "x0", "eta", "v")]
         self._lu = None
-        self._torque_rows = [(k, newton_pos[6 * k + 3 : 6 * k + 6]) for k in range(L.n_nodes) if L.free[6 * k + 3]]
+        self._torque_rows = [(int(k), pos) for k, pos in zip(m["torque_nodes"], m["torque_pos"])]
 
     def step(self, h: float, inputs: Callable[[float], dict[str, PortValues]]) -> int:
         """Advance by one step h; returns the Newton iterations; raises StepFailure."""
@@ -263,8 +217,7 @@ class GeneralizedAlpha(ModifiedNewton):
         """The configuration of the last residual evaluation and the rates yd become the state."""
         L, R = self.layout, self._R
         _, _, _, af_am, A0 = self._stage
-        lin = self._stage_p[L.lin_slots]
-        self.xN, self.x0, self.eta, self.v = (lin[sl].reshape(shape) for sl, shape in self._lin_views)
+        self.xN, self.x0, self.eta, self.v = L.linear(self._stage_p)
         Q = R[L.n_nodes] @ self.R0[0].T  # rotation of the first CM frame over the step
         self.RN, self.R0 = R[: L.n_nodes], R[L.n_nodes :]
         # the history of the rates, world triplets carried along with the body (predictor, `_step`)

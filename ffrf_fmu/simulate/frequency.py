@@ -31,7 +31,8 @@ A(w) = [sin(w tau), cos(w tau), 1, u] (N x 4), and the estimate is its minimum:
    sign there (the minimum on the band's edge, or r not unimodal in the bracket), a golden-section
    search of r in the whole bracket decides.
 
-numpy only: scipy costs more to import than a run.
+numpy only: scipy costs more to import than a run (and np.array of a list of rows, not np.stack, whose
+Python layer costs more than the small products here).
 """
 from __future__ import annotations
 
@@ -76,11 +77,11 @@ class TrendFit:
         n = self.tau.size
         u = self.tau / self.tau[-1]
         v = u - u.mean()
-        self.Q = np.stack([np.full(n, 1.0 / np.sqrt(n)), v / np.linalg.norm(v)])  # (2, N), orthonormal rows
+        self.Q = np.array([np.full(n, 1.0 / np.sqrt(n)), v / np.linalg.norm(v)])  # (2, N), orthonormal rows
         self.u, self.n = u, n
         self.Py = y - (self.Q @ y) @ self.Q
         self.Py2 = float(self.Py @ self.Py)
-        self._F = np.ascontiguousarray(np.stack([self.Q[0], self.Q[1], self.Py]).T)  # (N, 3)
+        self._F = np.ascontiguousarray(np.array([self.Q[0], self.Q[1], self.Py]).T)  # (N, 3)
         self._X = np.empty((5, n))  # sin, cos, tau sin, tau cos of the fit's frequency; w tau
 
     def grid_scores(self, grid: np.ndarray) -> np.ndarray:
@@ -90,10 +91,10 @@ class TrendFit:
         dt = tau[-1] / (n - 1)
         if np.max(np.abs(tau - dt * np.arange(n))) <= EVEN_REL * tau[-1]:
             sums = grid_sums if n <= DIRECT_SUMS_MAX else chirp_z_pair
-            s1, s2 = sums(np.stack([self.Py, self.Q[0], self.Q[1]]), w0 * dt, dw * dt, grid.size)
+            s1, s2 = sums(np.array([self.Py, self.Q[0], self.Q[1]]), w0 * dt, dw * dt, grid.size)
         else:  # uneven samples: the sums themselves
             e = np.exp(1j * np.outer(2 * np.pi * grid, tau))
-            s1, s2 = np.stack([self.Py, self.Q[0], self.Q[1]]) @ e.T, (e * e).sum(axis=1)
+            s1, s2 = np.array([self.Py, self.Q[0], self.Q[1]]) @ e.T, (e * e).sum(axis=1)
         b, q1, q2 = s1
         Gss = 0.5 * (n - s2.real) - q1.imag**2 - q2.imag**2
         Gcc = 0.5 * (n + s2.real) - q1.real**2 - q2.real**2
@@ -185,7 +186,7 @@ def grid_sums(x: np.ndarray, a0: float, da: float, m: int) -> tuple[np.ndarray, 
     outer = _powers(q * da * n, -(-m // q)) * _unit(a0 * n)  # (p, N)
     inner = _powers(da * n, q).T  # (N, q)
     # one product per row (a single one of all rows would go to threaded BLAS)
-    s1 = np.stack([(outer * row) @ inner for row in x.astype(complex)]).reshape(x.shape[0], -1)[:, :m]
+    s1 = np.array([(outer * row) @ inner for row in x.astype(complex)]).reshape(x.shape[0], -1)[:, :m]
     s2 = ((outer * outer) @ (inner * inner)).reshape(-1)[:m]
     return s1, s2
 

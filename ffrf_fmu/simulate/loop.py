@@ -71,9 +71,10 @@ def build_system(body: BodyData, scene: Scene, origin=(0.0, 0.0, 0.0), backend: 
             port_displacements=dict(init.port_displacements),
             origin=origin,
         )
-        from ..initial_state import settle  # static equilibrium or steady spin ([scenes.NAME.initial] state)
+        if init.state != "rest":  # (a body at rest is settled as it is: no import)
+            from ..initial_state import settle  # static equilibrium or steady spin ([scenes.NAME.initial] state)
 
-        settle(system, scene, inputs)
+            settle(system, scene, inputs)
     except StepFailure as e:
         raise InitializationFailure(f"scene {scene.name!r} cannot start: {e.cause}") from e
     return system, inputs

@@ -32,7 +32,7 @@ class SimulationResult:
 
     def port(self, name: str, fld: str) -> np.ndarray:
         """(nt, 3) or (nt, 3, 3) series of one port field."""
-        series = np.stack([self.columns[n] for n in port_variables(name, fld)], -1)
+        series = np.ascontiguousarray(np.array([self.columns[n] for n in port_variables(name, fld)]).T)  # (np.stack(.., -1))
         return series.reshape(series.shape[:-1] + field_shape(fld))
 
     def write_csv(self, path) -> None:
@@ -76,4 +76,4 @@ def free_body_series(result: SimulationResult, name: str) -> np.ndarray:
     if any(k not in result.columns for k in keys):
         raise KeyError(f"the free-body metrics need body.{name}, which this run did not record (standalone runs "
                        "of scenes with metrics kind 'momentum' and the reference record it; an FMU does not)")
-    return np.stack([result.columns[k] for k in keys], -1).reshape((len(result.t),) + FREE_BODY_FIELDS[name])
+    return np.ascontiguousarray(np.array([result.columns[k] for k in keys]).T).reshape((len(result.t),) + FREE_BODY_FIELDS[name])

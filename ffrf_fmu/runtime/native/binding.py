@@ -24,28 +24,30 @@ OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP, ITERATION
 
 _LIB: dict[bool, C.CDLL] = {}
 
+# out-arguments are void pointers (C.byref of a scalar): POINTER types cost 10 us each to make in a process
 _p, _d, _i, _sz = C.c_void_p, C.c_double, C.c_int, C.c_size_t
 _SIGNATURES = {
-    "ffrf_body_create": (_p, [C.c_char_p, _sz, C.c_char_p, _sz]),
+    "ffrf_body_create": (_p, [C.c_char_p, _sz, _p, _sz]),
     "ffrf_image_checksum": (C.c_uint64, [C.c_char_p, C.c_uint64]),
     "ffrf_body_free": (None, [_p]),
-    "ffrf_body_array": (_p, [_p, C.c_char_p, C.POINTER(_sz), C.c_char_p]),
-    "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, C.POINTER(_d)]),
+    "ffrf_body_array": (_p, [_p, C.c_char_p, _p, _p]),
+    "ffrf_body_get_scalar": (_i, [_p, C.c_char_p, _p]),
     "ffrf_body_set_scalar": (_i, [_p, C.c_char_p, _d]),
     "ffrf_body_set_schedule": (None, [_p, _p, _p, _p, _p, _p, _p, _p, _i]),
-    "ffrf_body_advance": (_i, [_p, _i, _i, _d, _d, _p, _p, C.POINTER(_i), C.POINTER(_i)]),
+    "ffrf_body_advance": (_i, [_p, _i, _i, _d, _d, _p, _p, _p, _p]),
     "ffrf_body_record": (None, [_p, _p]),
     "ffrf_body_state_size": (_sz, [_p]),
     "ffrf_body_get_state": (None, [_p, _p]),
     "ffrf_body_set_state": (_i, [_p, _p, _sz]),
     "ffrf_body_residual": (_i, [_p, _p, _p, _p, _i, _p, _p, _p]),
+    "ffrf_status_text": (C.c_char_p, [_i]),
 }
 
 
 def load(sanitize: bool = False) -> C.CDLL:
     """The runtime library, compiled into the cache on first use (runtime/native/build.py)."""
     if sanitize not in _LIB:
-        lib = C.CDLL(str(build.library(sanitize)))
+        lib = C.CDLL(build.library_path(sanitize))
         for name, (res, args) in _SIGNATURES.items():
             fn = getattr(lib, name)
             fn.restype, fn.argtypes = res, args
@@ -70,12 +72,14 @@ class NativeBody:
 
     def __init__(self, image: bytes, sanitize: bool = False):
         self.lib = lib = load(sanitize)
-        err = C.create_string_buffer(512)
+        err = np.zeros(512, dtype=np.uint8)  # (a ctypes string buffer's type costs 10 us to make)
         self._image = image
-        self._count, self._kind = _sz(), C.create_string_buffer(1)  # (`array`'s out-arguments)
-        self.ptr = lib.ffrf_body_create(image, len(image), err, len(err))
+        self._count, self._kind = _sz(), C.c_char()  # (`array`'s out-arguments)
+        self._out = C.byref(self._count), C.byref(self._kind)
+        self.ptr = lib.ffrf_body_create(image, len(image), err.ctypes.data, err.size)
         if not self.ptr:
-            raise ValueError(f"C runtime refused the body image: {err.value.decode(errors='replace')}")
+            why = err.tobytes().partition(b"\0")[0].decode(errors="replace")
+            raise ValueError(f"C runtime refused the body image: {why}")
 
     def __del__(self):
         if getattr(self, "ptr", None):
@@ -84,11 +88,11 @@ class NativeBody:
 
     def array(self, name: str, shape=None) -> np.ndarray:
         """The body's array `name` as a writable numpy view (reshaped to shape)."""
-        count, kind = self._count, self._kind
-        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), count, kind)
+        count = self._count
+        addr = self.lib.ffrf_body_array(self.ptr, name.encode(), *self._out)
         if addr is None and count.value:
             raise KeyError(f"the C body has no array {name!r}")
-        dtype = _KINDS[kind.raw]
+        dtype = _KINDS[self._kind.value]
         if count.value == 0:
             a = np.zeros(0, dtype=dtype)
         else:  # the memory by its address (numpy's array interface: a third of a ctypes buffer's cost)
@@ -139,21 +143,18 @@ class NativeBody:
             raise ValueError("state refused: its pivots or iteration count are not those of a factorization")
 
 
-def failure(status: int, t1: float, max_iter: int, last_increment: float) -> StepFailure | None:
-    """The StepFailure of a step's status, with the numpy path's messages (integrator.py)."""
-    if status == NOT_FINITE:
-        return StepFailure(t1, "the residual is not finite (NaN or overflow)")
+def failure(lib, status: int, t1: float, max_iter: int, iteration_cap: int, last_increment: float) -> StepFailure | None:
+    """The StepFailure of a step's status (None for OK): the C runtime's words (ffrf_status_text, the numpy
+    path's messages), with the iterations and the last increment of a Newton that did not converge; the
+    IterationCapReached of a step over the body's iteration cap."""
+    if status == OK:
+        return None
+    if status == ITERATION_CAP:
+        return IterationCapReached(t1, iteration_cap)
+    text = lib.ffrf_status_text(status).decode()
     if status == NOT_CONVERGED:
-        return StepFailure(t1, f"Newton did not converge in {max_iter} iterations "
-                               f"(last increment {last_increment:.3g} of the tolerance)")
-    if status == ROTATION_ALIAS:
-        return StepFailure(t1, "a rotation increment over the step exceeds pi (step too large for the motion, "
-                               "or an absurd input)")
-    if status == NOT_FACTORED:
-        return StepFailure(t1, "iteration matrix cannot be factored (not finite or singular)")
-    if status == BAD_STEP:
-        return StepFailure(t1, "step size must be positive and finite")
-    return None
+        text += f" in {max_iter} iterations (last increment {last_increment:.3g} of the tolerance)"
+    return StepFailure(t1, text)
 
 
 class NativeStep:
@@ -183,6 +184,7 @@ class NativeStep:
         self._lu_out, self._piv_out, self._lu_version = None, None, -1.0
         self.row_size = system.OUTPUT_WIDTH * len(system.data.ports) + len(system.ENERGY_FIELDS) + 1
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
+        self._settings = None  # the integrator's settings last set in the C body (`_prepare`)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
 
     # views that only some bodies or one way to step use: made on first use (a step of a body with compliant
@@ -219,17 +221,18 @@ class NativeStep:
             self._lu_out, self._piv_out, self._lu_version = lu[0], lu[1], self.body.get("lu_version")
         m[0], m[1], m[11] = 1.0, lu[2], lu[4]
 
+    _SETTINGS = ("am", "af", "gamma", "tol", "max_iter", "iteration_cap")  # (`_prepare`: set when they change)
+
     def _prepare(self, system, am, af, gamma):
         self._adopt(system)
         B = self.body
         B.set("t", system.t)
         B.set("iterations", system.iterations)
-        B.set("am", am)
-        B.set("af", af)
-        B.set("gamma", gamma)
-        B.set("tol", system.tol)
-        B.set("max_iter", system.max_iter)
-        B.set("iteration_cap", system.iteration_cap)
+        settings = (am, af, gamma, system.tol, system.max_iter, system.iteration_cap)
+        if settings != self._settings:
+            for name, value in zip(self._SETTINGS, settings):
+                B.set(name, value)
+            self._settings = settings
         for i, name in enumerate(self.spring_ports):
             self.KC[i] = system.compliance[name]
         self.energy[0], self.energy[1] = system.work, system.power
@@ -247,9 +250,7 @@ class NativeStep:
             system._lu = (self._lu_out, self._piv_out, float(m[1]), m[2:11].reshape(3, 3).copy(), float(m[11]))
         else:
             system._lu = None
-        if status == ITERATION_CAP:
-            return IterationCapReached(system.t + self._h, system.iteration_cap)
-        return failure(status, system.t + self._h, system.max_iter, float(m[1]))
+        return failure(B.lib, status, system.t + self._h, system.max_iter, system.iteration_cap, float(m[1]))
 
     # ---------------------------------------------------------------- the three ways to step
     def step(self, system, h, inputs, am, af, gamma) -> int:

@@ -80,31 +80,38 @@ def remembered_digest(paths, extra: tuple[str, ...] = ()) -> str:
     hashing them, about 0.7 ms for the runtime's). An edited file changes its signature and is read
     afresh; without a writable cache the digest is computed each time. (Plain strings and os: pathlib's
     first calls in a process cost more than the memo saves.)"""
+    return remembered(paths, extra, lambda names: file_digest([Path(q) for q in names], extra))
+
+
+def remembered(paths, extra: tuple[str, ...], compute) -> str:
+    """compute(names) (a short ASCII word, the names the paths' strings), remembered in <cache>/digests/
+    under the files' stat signature and the words of `extra` (remembered_digest); computed each time
+    when a file cannot be stat'ed or the cache cannot be written."""
     names = [os.fspath(q) for q in paths]
     try:
         words = [f"{q}\0{st.st_size}\0{st.st_mtime_ns}" for q, st in ((q, os.stat(q)) for q in names)]
     except OSError:
-        return file_digest([Path(q) for q in names], extra)
+        return compute(names)
     signature = hashlib.sha256("\0\0".join([*words, *extra]).encode()).hexdigest()[:32]
     folder = os.path.join(cache_dir(), "digests")
     memo = os.path.join(folder, signature)
     try:
         with open(memo, "rb") as fh:
-            digest = fh.read(17).decode("ascii")
-        if len(digest) == 16:
-            return digest
+            value = fh.read(65).decode("ascii")
+        if 0 < len(value) <= 64:
+            return value
     except (OSError, UnicodeDecodeError):
         pass
-    digest = file_digest([Path(q) for q in names], extra)
+    value = compute(names)
     try:
         os.makedirs(folder, exist_ok=True)
         tmp = os.path.join(folder, f".{signature}.{os.getpid()}.tmp")
         with open(tmp, "w", encoding="ascii") as fh:
-            fh.write(digest)
+            fh.write(value)
         os.replace(tmp, memo)
     except OSError:  # a read-only cache: computed again next time
         pass
-    return digest
+    return value
 
 
 def extra_cflags() -> tuple[str, ...]:
@@ -187,16 +194,30 @@ def library(sanitize: bool = False) -> Path:
     process that loses a race uses the winner's file). sanitize: the address and undefined-behaviour
     sanitizer build (tests; its process needs libasan preloaded: `sanitizer_preload`). A copy of this
     package shipped in a pythonfmu FMU carries its library in prebuilt/ (`ship`): no compiler on the host."""
+    return Path(library_path(sanitize))
+
+
+def library_path(sanitize: bool = False) -> str:
+    """`library` as a plain string (what ctypes loads; a Path costs more than the lookup's stat)."""
     name = _library_name()
+    flags = extra_cflags()
     shipped = os.path.join(HERE_STR, PREBUILT, name)
-    if not sanitize and not extra_cflags() and os.path.exists(shipped):  # extra flags: built here, never the shipped one
-        return Path(shipped)
-    extra = (*extra_cflags(), *(SANITIZE if sanitize else ()))
+    if not sanitize and not flags and os.path.exists(shipped):  # extra flags: built here, never the shipped one
+        return shipped
+    extra = (*flags, *(SANITIZE if sanitize else ()))
+    suffix = "-sanitize" if sanitize else ""
+    # the folder of the last process with these sources and the same compiler request ($FFRF_FMU_CC, $PATH),
+    # remembered (`remembered`): a run that finds its library neither scans $PATH for the compiler nor hashes
+    # the key; a missing library (or a cache without the memo) computes the key afresh
+    request = ("library", os.environ.get("FFRF_FMU_CC", ""), os.environ.get("PATH", os.defpath), *FLAGS, *extra, suffix)
+    folder = remembered(_KEYED, request, lambda _: library_key(compiler(), extra) + suffix)
+    if os.path.exists(found := os.path.join(cache_dir(), "native", folder, name)):  # (one stat: the usual case)
+        return found
     cc = compiler()
-    folder = library_key(cc, extra) + ("-sanitize" if sanitize else "")
+    folder = library_key(cc, extra) + suffix
     for root in _cache_roots():
-        if os.path.exists(found := os.path.join(root, "native", folder, name)):  # (one stat: the usual case)
-            return Path(found)
+        if os.path.exists(found := os.path.join(root, "native", folder, name)):
+            return found
         d = Path(root, "native", folder)
         lib = d / name
         try:
@@ -208,7 +229,7 @@ def library(sanitize: bool = False) -> Path:
                 tmp = d / f".{lib.name}.{os.getpid()}.tmp"
                 compile_library(tmp, cc, extra)
                 os.replace(tmp, lib)
-        return lib
+        return str(lib)
     raise BuildError("no writable cache directory for the compiled runtime (set FFRF_FMU_CACHE_DIR)")
 
 

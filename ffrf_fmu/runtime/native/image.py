@@ -141,7 +141,7 @@ def body_entries(system, basis: bool = True) -> dict[str, np.ndarray]:
         "tol": system.tol, "max_iter": int(system.max_iter), "rho_inf": system.rho_inf,
         "am": am, "af": af, "gamma": gamma,
         # the reference state (BodySystem.reset_reference)
-        "xN": system.data.node_positions, "x0": np.stack([se.x_cm for se in system.data.superelements]),
+        "xN": system.data.node_positions, "x0": np.array([se.x_cm for se in system.data.superelements]),
     }
     return e
 
