@@ -160,16 +160,17 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
         }
         if (!all_finite(X, 2 * (size_t)no * nv))
             return -1;
-        for (int o = 0; o < no; o++)
-            velocity_solve(b, e, c, X + (size_t)o * nv);
+        for (size_t i = 0; i < (size_t)no * nv; i++) /* A_vv^-1 X: the k_q rows come solved by M_bar (ffrf_evaluate) */
+            X[i] *= c;
         /* J'[O, O] = J[O, O] - J[O, V] X column by column: A_e (Z, Z), R_e (B, Z), C_e (Z, B: into W), S (B, B) */
         for (int o2 = 0; o2 < no; o2++) {
             const idx_t O2 = OUTER(o2);
             const double *x = X + (size_t)o2 * nv;
             for (int o = 0; o < no; o++) /* (S's entries start from 0: they hold D and the other superelements' part) */
                 col[o] = o < nz || o2 < nz ? J(OUTER(o), O2) : 0.0;
-            for (int i = 0; i < nv; i++)
-                ffrf_axmy(no, x[i], PT + (size_t)i * no, col);
+            for (int i = 0; i < nv; i++) /* (X is sparse: Dq + beta Dqd's nonzeros; PT is finite, a zero adds nothing) */
+                if (x[i] != 0.0)
+                    ffrf_axmy(no, x[i], PT + (size_t)i * no, col);
             if (o2 < nz) {
                 for (int i = 0; i < nz; i++)
                     A[(size_t)o2 * nz + i] = col[i];

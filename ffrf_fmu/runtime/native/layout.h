@@ -188,6 +188,7 @@ typedef struct {
     double *M_luT;                    /* [E][n][n] LU factors of each M_bar (transposed), made at creation: accel.c */
     int *M_piv;                       /* [E][n] */
     double *M_inv;                    /* [E][n][n] each M_bar^-1 (column j in row j), made at creation: accel.c; factor.c */
+    double *MG;                       /* [E][3][n_g][n_g] M_bar^-1 G_k, made at creation (body.c): superelement.c's k_q rows */
     double *acc;                      /* [3][n] q_bar, q_bar', q_bar'' of accel.c */
     ffrf_se_work *se;                 /* superelement.c */
 } ffrf_work;

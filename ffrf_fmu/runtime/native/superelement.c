@@ -50,6 +50,7 @@ struct ffrf_se_work {
     double *V, *Vd;                             /* [n2][3][3] */
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
+    double *MGW, *MGq;                          /* [n][n], [3][n]  M_bar^-1 G(W0), M_bar^-1 G_k q (the refresh's k_q rows) */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
     int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
 };
@@ -91,6 +92,7 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(eq, 3 * n);
     SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
     SE_ARRAY(HQ, 3 * n);
+    SE_ARRAY(MGW, n * n); SE_ARRAY(MGq, 3 * n);
 #undef SE_ARRAY
     if (w) w->nz = (int *)(void *)(mem + off);
     off += se_round(n * nc * sizeof(int));
@@ -196,8 +198,12 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
- * (runtime/equations.py residual_and_jacobian, same algebra). */
-static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, double *Fz_, double *Fy_)
+ * (runtime/equations.py residual_and_jacobian, same algebra). solved (a refresh, ffrf_evaluate): the k_q rows
+ * (79) premultiplied by M_bar^-1, as factor.c's velocity elimination wants them: M_bar^-1 k_q's blocks are
+ * Dq [+ M_bar^-1 G_k q on W0] (F_ydot) and Dqd [+ M_bar^-1 G(W0) Dq] and -I on r (F_y), M_bar^-1 G_k made at
+ * creation (work.MG): the products with M_bar and M_bar^-1 are not formed. */
+static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, int solved, double *Fz_,
+                     double *Fy_)
 {
     const int gyro = b->data.gyro, stiff = b->data.stiff;
     const int nb = b->dims.nb, nm = b->dims.nm, n = b->dims.n, nc = b->dims.nc, nv = b->dims.nv;
@@ -326,11 +332,17 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
             double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
-            NZ_ROWS(j, m) {
-                s1 += Me[i][m] * Dq[m][j];
-                s2 += Me[i][m] * Dqd[m][j];
-                s3 += Kq[i][m] * Dq[m][j];
-            }
+            if (solved) {
+                s1 = Dq[i][j];
+                s2 = Dqd[i][j];
+                NZ_ROWS(j, m)
+                    s3 += Kq[i][m] * Dq[m][j];
+            } else
+                NZ_ROWS(j, m) {
+                    s1 += Me[i][m] * Dq[m][j];
+                    s2 += Me[i][m] * Dqd[m][j];
+                    s3 += Kq[i][m] * Dq[m][j];
+                }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
                     s4 += De[i][m] * Dq[m][j];
@@ -342,7 +354,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             dgz[i][j] = s4;
         }
         for (int j = 0; j < n; j++) {
-            Fy[kq + i][cr + j] = -Me[i][j];
+            Fy[kq + i][cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
             dgz[i][cr + j] = Me[i][j];
         }
     }
@@ -360,7 +372,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         for (int j = 0; j < 3; j++)
             Fz[eT0 + i][3 + j] -= S[i][j];
     if (gyro) {
-        double (*GW)[n] = (double (*)[n])w->GW, (*Gq)[n] = (double (*)[n])w->Gq;
+        double (*GW)[n] = (double (*)[n])w->GW;
         double (*Gr)[n] = (double (*)[n])w->Gr, (*Grd)[n] = (double (*)[n])w->Grd;
         double (*dsdq)[n] = (double (*)[n])w->dsdq;
         for (int kk = 0; kk < 3; kk++)
@@ -375,15 +387,34 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 dsdq[kk][i] = s2;
                 Grd[kk][i] = s3;
             }
+        /* the k_q rows' G(W0) q: G(W0) and G_k q, or with solved M_bar^-1 G(W0) and M_bar^-1 G_k q */
+        const double (*KW)[n] = (const double (*)[n])GW, (*KWq)[n] = (const double (*)[n])w->Gq;
+        if (solved && (gyro & FFRF_CORIOLIS)) {
+            const double (*MG)[n][n] = (const double (*)[n][n])b->work.MG + (size_t)e * 3;
+            double (*MGW)[n] = (double (*)[n])w->MGW, (*MGq)[n] = (double (*)[n])w->MGq;
+            const double *q = w->q;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++)
+                    MGW[i][j] = W0[0] * MG[0][i][j] + W0[1] * MG[1][i][j] + W0[2] * MG[2][i][j];
+            for (int kk = 0; kk < 3; kk++)
+                for (int i = 0; i < n; i++) {
+                    double s = 0.0;
+                    for (int j = 0; j < n; j++)
+                        s += MG[kk][i][j] * q[j];
+                    MGq[kk][i] = s;
+                }
+            KW = (const double (*)[n])MGW;
+            KWq = (const double (*)[n])MGq;
+        }
         for (int i = 0; i < ((gyro & FFRF_CORIOLIS) ? n : 0); i++) {
             for (int kk = 0; kk < 3; kk++) {
-                Fz[kq + i][3 + kk] += Gq[kk][i]; /* d(G(W0) q)/dW0 */
+                Fz[kq + i][3 + kk] += KWq[kk][i]; /* d(G(W0) q)/dW0 */
                 dgz[i][3 + kk] += Gr[kk][i];
             }
             for (int j = 0; j < nc; j++) {
                 double s = 0.0;
                 NZ_ROWS(j, m)
-                    s += GW[i][m] * Dq[m][j];
+                    s += KW[i][m] * Dq[m][j];
                 Fy[kq + i][j] += s;
             }
             for (int j = 0; j < n; j++)
@@ -812,7 +843,7 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
         }
     }
     if (jac)
-        jacobian(b, e, R0, w, Fz, Fy);
+        jacobian(b, e, R0, w, jac == 2, Fz, Fy);
 }
 
 void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, const double *t_load_,
@@ -837,7 +868,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     }
     double *tmp = w->v3b;
     for (int e = 0; e < E; e++) {
-        ffrf_superelement(b, e, p, yd, R_, jac, Fl, Fz_, Fy_, w);
+        ffrf_superelement(b, e, p, yd, R_, jac ? 2 : 0, Fl, Fz_, Fy_, w); /* 2: k_q rows solved by M_bar */
         for (int i = 0; i < nv; i++)
             F[vel[e][i]] += Fl[i];
         for (int i = 0; i < nc; i++)
@@ -905,7 +936,7 @@ int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *y
 {
     if (!b || !b->work.se || e < 0 || e >= b->dims.E || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
         return -1;
-    ffrf_superelement(b, e, p, yd, R, jac, F, Fz, Fy, b->work.se);
+    ffrf_superelement(b, e, p, yd, R, jac != 0, F, Fz, Fy, b->work.se);
     return 0;
 }
 
@@ -919,7 +950,7 @@ int ffrf_body_residual(ffrf_body *b, const double *p, const double *yd, const do
     double *Fl = b->work.Fl;
     memset(F, 0, sizeof(double) * (size_t)b->dims.ny);
     for (int e = 0; e < E; e++) {
-        ffrf_superelement(b, e, p, yd, R, jac, Fl, jac ? Fz + e * block : NULL, jac ? Fy + e * block : NULL, b->work.se);
+        ffrf_superelement(b, e, p, yd, R, jac != 0, Fl, jac ? Fz + e * block : NULL, jac ? Fy + e * block : NULL, b->work.se);
         const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *vel = b->data.vel_map + (size_t)e * nv;
         for (int i = 0; i < nv; i++)
             F[vel[i]] += Fl[i];
