@@ -293,11 +293,13 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         Dq[6 * nb + i][6 + i] = 1.0;
     /* The nonzero rows of each column of Dq and Dqd: both are sparse (a boundary row holds the CM
      * frame's and its node's columns, a modal row one), and the products with them below run over these
-     * rows only. They skip exact zeros, so every sum is the full loop's to the bit. */
+     * rows only. They skip exact zeros, so every sum is the full loop's to the bit. solved (a refresh): a column
+     * that is not a Newton unknown (a motion-driven node's) gets none, its products are never read. */
     int *nzm = w->nz, *nzc = w->nz_count;
+    const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *newton_pos = b->data.newton_pos;
     for (int j = 0; j < nc; j++) {
         int cnt = 0;
-        for (int m = 0; m < n; m++)
+        for (int m = 0; m < (solved && newton_pos[cfg[j]] >= b->dims.nf ? 0 : n); m++)
             if (Dq[m][j] != 0.0 || Dqd[m][j] != 0.0)
                 nzm[(size_t)j * n + cnt++] = m;
         nzc[j] = cnt;
