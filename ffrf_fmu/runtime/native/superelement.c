@@ -877,20 +877,6 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             F[cfg[e][i]] += Fl[nv + i];
         if (!jac)
             continue;
-        /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T */
-        for (int i = 0; i < nv + nc; i++)
-            for (int blk = 0; blk < nb + 1; blk++) {
-                const int col = blk == 0 ? 3 : 9 + nm + 6 * (blk - 1);
-                double (*Tr)[3] = blk == 0 ? T[N + e] : T[nodes[e][blk - 1]];
-                for (int j = 0; j < 3; j++) {
-                    double s = 0.0;
-                    for (int m = 0; m < 3; m++)
-                        s += Fy[i][col + m] * Tr[m][j];
-                    tmp[j] = s;
-                }
-                for (int j = 0; j < 3; j++)
-                    Fy[i][col + j] = tmp[j];
-            }
         /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
         int *cols = w->cols, *locs = w->cols + ncv, nk = 0;
         for (int j = 0; j < ncv; j++) {
@@ -904,7 +890,24 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             const idx_t gr = i < nv ? newton_pos[vel[e][i]] : newton_pos[cfg[e][i - nv]];
             if (gr >= nf)
                 continue;
-            const double *fy = Fy[i], *fz = Fz[i];
+            double *fy = Fy[i];
+            const double *fz = Fz[i];
+            /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T
+             * (those of unknowns: the others are not read; a zero block stays zero) */
+            for (int blk = 0; blk < nb + 1; blk++) {
+                const int col = blk == 0 ? 3 : 9 + nm + 6 * (blk - 1);
+                if (newton_pos[cfg[e][col]] >= nf || (fy[col] == 0.0 && fy[col + 1] == 0.0 && fy[col + 2] == 0.0))
+                    continue;
+                double (*Tr)[3] = blk == 0 ? T[N + e] : T[nodes[e][blk - 1]];
+                for (int j = 0; j < 3; j++) {
+                    double s = 0.0;
+                    for (int m = 0; m < 3; m++)
+                        s += fy[col + m] * Tr[m][j];
+                    tmp[j] = s;
+                }
+                for (int j = 0; j < 3; j++)
+                    fy[col + j] = tmp[j];
+            }
             for (int t = 0; t < nk; t++)
                 JT[cols[t]][gr] += beta * fy[locs[t]] + fz[locs[t]];
         }
