@@ -20,6 +20,7 @@
 #include <string.h>
 
 #include "superelement.h"
+#include "lu.h"
 #include "so3.h"
 
 /* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
@@ -51,8 +52,10 @@ struct ffrf_se_work {
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
     double *MGW, *MGq;                          /* [n][n], [3][n]  M_bar^-1 G(W0), M_bar^-1 G_k q (the refresh's k_q rows) */
+    double *KqT, *kcol;                         /* [n][n], [n]  the stiffness that multiplies Dq, transposed; a column of Kq Dq */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
     int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
+    int *rows;                                  /* [2][nv + nc]: the same of the local rows */
 };
 
 #define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
@@ -93,12 +96,15 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
     SE_ARRAY(HQ, 3 * n);
     SE_ARRAY(MGW, n * n); SE_ARRAY(MGq, 3 * n);
+    SE_ARRAY(KqT, n * n); SE_ARRAY(kcol, n);
 #undef SE_ARRAY
     if (w) w->nz = (int *)(void *)(mem + off);
     off += se_round(n * nc * sizeof(int));
     if (w) w->nz_count = (int *)(void *)(mem + off);
     off += se_round(nc * sizeof(int));
     if (w) w->cols = (int *)(void *)(mem + off);
+    off += se_round(2 * ncv * sizeof(int));
+    if (w) w->rows = (int *)(void *)(mem + off);
     off += se_round(2 * ncv * sizeof(int));
     if (w) {
         w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
@@ -331,19 +337,33 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 Kt[i][j] += Ke[i][j];
         Kq = (const double (*)[n])Kt;
     }
+    /* dgy's configuration columns start as Kq Dq, a column at a time: kcol = sum over Dq's nonzero rows m (in
+     * order) of Dq[m][j] Kq[:, m], Kq's columns read as KqT's rows (each entry the sum of the row loop, the same
+     * bits: (0 + a_0) + a_1 ..., ffrf_axpy's y + x a) */
+    {
+        double (*KqT)[n] = (double (*)[n])w->KqT, *kcol = w->kcol;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                KqT[j][i] = Kq[i][j];
+        for (int j = 0; j < nc; j++) {
+            for (int i = 0; i < n; i++)
+                kcol[i] = 0.0;
+            NZ_ROWS(j, m)
+                ffrf_axpy(n, Dq[m][j], KqT[m], kcol);
+            for (int i = 0; i < n; i++)
+                dgy[i][j] = kcol[i];
+        }
+    }
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+            double s1 = 0.0, s2 = 0.0, s4 = 0.0, s5 = 0.0;
             if (solved) {
                 s1 = Dq[i][j];
                 s2 = Dqd[i][j];
-                NZ_ROWS(j, m)
-                    s3 += Kq[i][m] * Dq[m][j];
             } else
                 NZ_ROWS(j, m) {
                     s1 += Me[i][m] * Dq[m][j];
                     s2 += Me[i][m] * Dqd[m][j];
-                    s3 += Kq[i][m] * Dq[m][j];
                 }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
@@ -352,7 +372,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 }
             Fz[kq + i][j] = s1;
             Fy[kq + i][j] = s2;
-            dgy[i][j] = s3 + s5;
+            dgy[i][j] += s5; /* Kq Dq + s5 */
             dgz[i][j] = s4;
         }
         for (int j = 0; j < n; j++) {
@@ -878,7 +898,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
         if (!jac)
             continue;
         /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
-        int *cols = w->cols, *locs = w->cols + ncv, nk = 0;
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0;
         for (int j = 0; j < ncv; j++) {
             const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
             if (gc < nf) {
@@ -891,7 +911,6 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             if (gr >= nf)
                 continue;
             double *fy = Fy[i];
-            const double *fz = Fz[i];
             /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T
              * (those of unknowns: the others are not read; a zero block stays zero) */
             for (int blk = 0; blk < nb + 1; blk++) {
@@ -908,8 +927,14 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
                 for (int j = 0; j < 3; j++)
                     fy[col + j] = tmp[j];
             }
-            for (int t = 0; t < nk; t++)
-                JT[cols[t]][gr] += beta * fy[locs[t]] + fz[locs[t]];
+            rows[nr] = (int)gr;
+            rlocs[nr++] = i;
+        }
+        for (int t = 0; t < nk; t++) { /* JT's column by column: its stores close together, F_y and F_ydot read by columns */
+            double *jt = JT[cols[t]];
+            const int l = locs[t];
+            for (int r = 0; r < nr; r++)
+                jt[rows[r]] += beta * Fy[rlocs[r]][l] + Fz[rlocs[r]][l];
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
