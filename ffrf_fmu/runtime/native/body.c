@@ -256,6 +256,8 @@ static const array_spec OWN[] = {
     {"se_unknowns", 'q', AT(part.se_unknowns), S(d_E, d_int)},
     {"se_bnd", 'q', AT(part.se_bnd), S(d_E, d_be)},
     {"node_unknowns", 'q', AT(part.node_unknowns), S(d_bnd)},
+    {"se_fb", 'q', AT(part.se_fb), S(d_E, d_be)},
+    {"se_m", 'q', AT(part.se_m), S(d_E)},
     {"factor_y", 'd', AT(part.y), S(d_int)},
     {"factor_xB", 'd', AT(part.xB), S(d_bnd)},
     {"factor_u", 'd', AT(part.u), S(d_n)},
@@ -581,6 +583,7 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     b->work.se = ffrf_se_work_bind(at, d);
     if (partition(b, err, err_len))
         goto failed;
+    ffrf_factor_prepare(b); /* factor.c: each superelement's free boundary dofs, the store's size */
     if (ffrf_mass_factors(b)) {
         fail(err, err_len, "%sbody image: a superelement's mass matrix M_bar is singular%lld%lld", "", 0, 0);
         goto failed;
