@@ -69,30 +69,16 @@ void ffrf_factor_prepare(ffrf_body *b)
 
 size_t ffrf_factor_entries(const ffrf_body *b) { return b->part.entries; }
 
-/* Zero the entries of JT that the structure allows (those ffrf_factor reads: J[I_e, I_e], J[I_e, B_e],
- * J[B_e, I_e], J[B, B]); every other entry is zero by the structure and never written, so this is the
- * memset of the whole nf x nf matrix at the cost of its blocks. */
+/* Zero J[B, B], the boundary nodes' block, the one that several parts add into (the superelements sharing a
+ * node, the springs, the loads); ffrf_evaluate sets every other entry that ffrf_factor reads (J[I_e, I_e],
+ * J[I_e, B_e], J[B_e, I_e]: superelement e's alone), and no other entry is written. */
 void ffrf_factor_clear(const ffrf_body *b, double *JT)
 {
-    const ffrf_dims *d = &b->dims;
-    const int nf = d->nf, ni = d->n_int, nB = d->n_bnd;
-    const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
-    const idx_t *fb;
+    const int nf = b->dims.nf, nB = b->dims.n_bnd;
+    const idx_t *B = b->part.node_unknowns;
     for (int j = 0; j < nB; j++)
         for (int i = 0; i < nB; i++)
             J(B[i], B[j]) = 0.0;
-    for (int e = 0; e < d->E; e++) {
-        const idx_t *Ie = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, &fb);
-        for (int j = 0; j < ni; j++)
-            for (int i = 0; i < ni; i++)
-                J(Ie[i], Ie[j]) = 0.0;
-        for (int k = 0; k < m; k++)
-            for (int i = 0; i < ni; i++) {
-                J(Ie[i], B[fb[k]]) = 0.0;
-                J(B[fb[k]], Ie[i]) = 0.0;
-            }
-    }
 }
 
 /* 1 when every value is finite: x - x is 0 for a finite x, NaN for an infinite or NaN one. */

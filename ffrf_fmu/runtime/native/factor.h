@@ -13,8 +13,8 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
 void ffrf_factor_prepare(ffrf_body *b);
 /* The entries of store that ffrf_factor fills (its leading part; the rest is never read). */
 size_t ffrf_factor_entries(const ffrf_body *b);
-/* JT's structural entries (all that ffrf_factor reads) set to zero: a refresh's start, before ffrf_evaluate
- * (superelement.c) adds the blocks into them. */
+/* JT's boundary-node block J[B, B] set to zero: a refresh's start, before ffrf_evaluate (superelement.c) adds the
+ * superelements' parts into it (and sets their own blocks, the other entries ffrf_factor reads). */
 void ffrf_factor_clear(const ffrf_body *b, double *JT);
 /* x <- J^-1 x in the Newton order, from ffrf_factor's store and piv. */
 void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, double *x);

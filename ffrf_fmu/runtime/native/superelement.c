@@ -898,7 +898,8 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
         if (!jac)
             continue;
         /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
-        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0;
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0, nr_own = 0;
+        const int node_col = 6 + nm, node_row = nv + 6 + nm; /* the first local column, row of the boundary nodes */
         for (int j = 0; j < ncv; j++) {
             const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
             if (gc < nf) {
@@ -929,12 +930,22 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             }
             rows[nr] = (int)gr;
             rlocs[nr++] = i;
+            nr_own += i < node_row;
         }
-        for (int t = 0; t < nk; t++) { /* JT's column by column: its stores close together, F_y and F_ydot read by columns */
+        /* JT column by column (its stores close together, F_y and F_ydot read by columns). Superelement e alone
+         * writes the entries of its own rows or its own columns: set; the boundary nodes' block J[B, B] (shared
+         * with the neighbours, the springs and the loads; zeroed by ffrf_factor_clear): added into. The local
+         * order puts the own rows first (velocity, x0, Theta0, eta, then the nodes'). */
+        for (int t = 0; t < nk; t++) {
             double *jt = JT[cols[t]];
-            const int l = locs[t];
-            for (int r = 0; r < nr; r++)
-                jt[rows[r]] += beta * Fy[rlocs[r]][l] + Fz[rlocs[r]][l];
+            const int l = locs[t], own = l < node_col || l >= nc;
+            for (int r = 0; r < nr; r++) {
+                const double v = beta * Fy[rlocs[r]][l] + Fz[rlocs[r]][l];
+                if (own || r < nr_own)
+                    jt[rows[r]] = v;
+                else
+                    jt[rows[r]] += v;
+            }
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
