@@ -882,7 +882,6 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     double (*T)[3][3] = (double (*)[3][3])T_;
     double (*JT)[nf] = (double (*)[nf])JT_;
     double (*Fy)[ncv] = (double (*)[ncv])Fy_;
-    const double (*Fz)[ncv] = (const double (*)[ncv])Fz_;
     memset(F, 0, sizeof(double) * (size_t)ny);
     if (jac) {
         for (int r = 0; r < N + E; r++)
@@ -929,7 +928,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
                     fy[col + j] = tmp[j];
             }
             rows[nr] = (int)gr;
-            rlocs[nr++] = i;
+            rlocs[nr++] = i * ncv; /* (the row's offset in F_y, F_ydot) */
             nr_own += i < node_row;
         }
         /* JT column by column (its stores close together, F_y and F_ydot read by columns). Superelement e alone
@@ -939,13 +938,11 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
         for (int t = 0; t < nk; t++) {
             double *jt = JT[cols[t]];
             const int l = locs[t], own = l < node_col || l >= nc;
-            for (int r = 0; r < nr; r++) {
-                const double v = beta * Fy[rlocs[r]][l] + Fz[rlocs[r]][l];
-                if (own || r < nr_own)
-                    jt[rows[r]] = v;
-                else
-                    jt[rows[r]] += v;
-            }
+            const double *fy = Fy_ + l, *fz = Fz_ + l;
+            for (int r = 0; r < (own ? nr : nr_own); r++)
+                jt[rows[r]] = beta * fy[rlocs[r]] + fz[rlocs[r]];
+            for (int r = own ? nr : nr_own; r < nr; r++)
+                jt[rows[r]] += beta * fy[rlocs[r]] + fz[rlocs[r]];
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
