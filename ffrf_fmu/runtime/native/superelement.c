@@ -20,7 +20,6 @@
 #include <string.h>
 
 #include "superelement.h"
-#include "lu.h"
 #include "so3.h"
 
 /* Work arrays of `ffrf_superelement` and its Jacobian: the same names and shapes as the numpy path's
@@ -52,7 +51,6 @@ struct ffrf_se_work {
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
     double *MGW, *MGq;                          /* [n][n], [3][n]  M_bar^-1 G(W0), M_bar^-1 G_k q (the refresh's k_q rows) */
-    double *KqT, *kcol;                         /* [n][n], [n]  the stiffness that multiplies Dq, transposed; a column of Kq Dq */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
     int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
     int *rows;                                  /* [2][nv + nc]: the same of the local rows */
@@ -96,7 +94,6 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
     SE_ARRAY(HQ, 3 * n);
     SE_ARRAY(MGW, n * n); SE_ARRAY(MGq, 3 * n);
-    SE_ARRAY(KqT, n * n); SE_ARRAY(kcol, n);
 #undef SE_ARRAY
     if (w) w->nz = (int *)(void *)(mem + off);
     off += se_round(n * nc * sizeof(int));
@@ -337,33 +334,19 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 Kt[i][j] += Ke[i][j];
         Kq = (const double (*)[n])Kt;
     }
-    /* dgy's configuration columns start as Kq Dq, a column at a time: kcol = sum over Dq's nonzero rows m (in
-     * order) of Dq[m][j] Kq[:, m], Kq's columns read as KqT's rows (each entry the sum of the row loop, the same
-     * bits: (0 + a_0) + a_1 ..., ffrf_axpy's y + x a) */
-    {
-        double (*KqT)[n] = (double (*)[n])w->KqT, *kcol = w->kcol;
-        for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++)
-                KqT[j][i] = Kq[i][j];
-        for (int j = 0; j < nc; j++) {
-            for (int i = 0; i < n; i++)
-                kcol[i] = 0.0;
-            NZ_ROWS(j, m)
-                ffrf_axpy(n, Dq[m][j], KqT[m], kcol);
-            for (int i = 0; i < n; i++)
-                dgy[i][j] = kcol[i];
-        }
-    }
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s4 = 0.0, s5 = 0.0;
+            double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
             if (solved) {
                 s1 = Dq[i][j];
                 s2 = Dqd[i][j];
+                NZ_ROWS(j, m)
+                    s3 += Kq[i][m] * Dq[m][j];
             } else
                 NZ_ROWS(j, m) {
                     s1 += Me[i][m] * Dq[m][j];
                     s2 += Me[i][m] * Dqd[m][j];
+                    s3 += Kq[i][m] * Dq[m][j];
                 }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
@@ -372,7 +355,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 }
             Fz[kq + i][j] = s1;
             Fy[kq + i][j] = s2;
-            dgy[i][j] += s5; /* Kq Dq + s5 */
+            dgy[i][j] = s3 + s5;
             dgz[i][j] = s4;
         }
         for (int j = 0; j < n; j++) {
@@ -974,7 +957,7 @@ int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *y
 {
     if (!b || !b->work.se || e < 0 || e >= b->dims.E || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
         return -1;
-    ffrf_superelement(b, e, p, yd, R, jac != 0, F, Fz, Fy, b->work.se);
+    ffrf_superelement(b, e, p, yd, R, jac == 2 ? 2 : jac != 0, F, Fz, Fy, b->work.se);
     return 0;
 }
 
