@@ -880,7 +880,7 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
         if (!jac)
             continue;
         /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
-        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0, nr_own = 0;
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0, nr_own = 0, nr_vel = 0;
         const int node_col = 6 + nm, node_row = nv + 6 + nm; /* the first local column, row of the boundary nodes */
         for (int j = 0; j < ncv; j++) {
             const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
@@ -913,16 +913,18 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             rows[nr] = (int)gr;
             rlocs[nr++] = i * ncv; /* (the row's offset in F_y, F_ydot) */
             nr_own += i < node_row;
+            nr_vel += i < nv;
         }
         /* JT column by column (its stores close together, F_y and F_ydot read by columns). Superelement e alone
          * writes the entries of its own rows or its own columns: set; the boundary nodes' block J[B, B] (shared
          * with the neighbours, the springs and the loads; zeroed by ffrf_factor_clear): added into. The local
-         * order puts the own rows first (velocity, x0, Theta0, eta, then the nodes'). */
+         * order puts the own rows first (velocity, x0, Theta0, eta, then the nodes'). J[V, V], the velocity
+         * rows' velocity columns, is not written: factor.c takes it as -beta diag(I, M_bar) by the structure. */
         for (int t = 0; t < nk; t++) {
             double *jt = JT[cols[t]];
             const int l = locs[t], own = l < node_col || l >= nc;
             const double *fy = Fy_ + l, *fz = Fz_ + l;
-            for (int r = 0; r < (own ? nr : nr_own); r++)
+            for (int r = l >= nc ? nr_vel : 0; r < (own ? nr : nr_own); r++)
                 jt[rows[r]] = beta * fy[rlocs[r]] + fz[rlocs[r]];
             for (int r = own ? nr : nr_own; r < nr; r++)
                 jt[rows[r]] += beta * fy[rlocs[r]] + fz[rlocs[r]];
