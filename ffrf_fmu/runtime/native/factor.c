@@ -17,9 +17,12 @@
  * J[V, V] = -beta diag(I_6, M_bar) for every state, inverted through M_bar's LU made at creation (accel.c
  * `ffrf_mass_factors`). With Z = I_e \ V (x0, Theta0, eta rates: 6 + nm) and O = Z + B_e:
  *     X = J[V, V]^-1 J[V, O],  J'[O, O] = J[O, O] - J[O, V] X,
- * and A_e, C_e, R_e above are those of J' on Z (nz = 6 + nm); back: x_V = J[V, V]^-1 b_V - X x_O. The dense
- * work is the products with J[O, V] (nz + m_e)^2 nv and M_bar's solves (nz + m_e) n^2 in place of an LU of
- * n_int^3 / 3 and the m_e n_int^2 of A_e^-1 C_e: 1.5-2x fewer operations (4 SE x 6 modes: n_int = 36, nz = 12).
+ * and A_e, C_e, R_e above are those of J' on Z (nz = 6 + nm); back: x_V = J[V, V]^-1 b_V - X x_O. The k_q
+ * rows of JT come premultiplied by M_bar^-1 (ffrf_evaluate: M_bar^-1 k_q's blocks are Dq + beta Dqd T [+ the
+ * Coriolis part through M_bar^-1 G_k, made at creation]), so X is J[V, O] times -1/beta, and it is sparse (Dq's
+ * pattern): the dense work is the product with J[O, V] over X's nonzeros, at most (nz + m_e)^2 nv, in place of
+ * an LU of n_int^3 / 3 and the m_e n_int^2 of A_e^-1 C_e (4 SE x 6 modes: n_int = 36, nz = 12). J[V, V] itself
+ * is never read (nor written by ffrf_evaluate); the solve applies J[V, V]^-1 = -1/beta diag(I_6, M_bar^-1) to b.
  * Each A_e (nz^2, partial pivoting within it) and S (n_bnd^2, partial pivoting) is factored densely
  * (`ffrf_lu_factor` of lu.c, LAPACK's dgetf2). The result agrees with the dense LU (scipy's lu_factor on the
  * numpy path) to round-off times the condition number.
