@@ -10,6 +10,13 @@ iterations and the first builds no matrix, their difference is one refresh: the 
 its assembly with the rotation tangents and the factorization by structure (median and quartiles over
 those states). A kept matrix ages fast over a 40 ms step and is mostly rebuilt within the step (it then
 takes a third iteration), so only some states qualify; the script says how many.
+
+    python benchmarks/refresh_cost.py --workload [--every 2]
+
+steps once from each of those states without a matrix (a refresh at the predictor, and what the step
+refreshes after it) and times nothing: the workload for an instruction count, `valgrind --tool=callgrind
+--toggle-collect='ffrf_step*' python benchmarks/refresh_cost.py --workload` (its count is repeatable where
+wall time is not); it prints the refreshes it made.
 """
 from __future__ import annotations
 
@@ -41,6 +48,7 @@ def main(argv=None) -> int:
     ap = b1_arguments(__doc__)
     ap.add_argument("--repeat", type=int, default=20)
     ap.add_argument("--every", type=int, default=2)
+    ap.add_argument("--workload", action="store_true", help="step from each state without a matrix, untimed")
     args = ap.parse_args(argv)
     scene, _, system, inputs = b1_spinup(args.config)
     h, n = scene.step, int(round(scene.duration / scene.step))
@@ -49,6 +57,15 @@ def main(argv=None) -> int:
         if k % args.every == args.every // 2:
             states.append(system.get_state())
         system.step(h, inputs)
+    if args.workload:
+        body, v0 = system._compiled.body, system._compiled.body.get("lu_version")
+        for state in states:
+            system.set_state(state)
+            system._lu = None
+            system.step(h, inputs)
+        print(f"B1 {' '.join(args.config)}: {len(states)} steps without a matrix, "
+              f"{int(body.get('lu_version') - v0)} refreshes (after the spin-up's 500 steps, which refresh at nearly every step)")
+        return 0
     diffs, skipped = [], 0
     for state in states:
         kept, it_k, built_k = timed_step(system, state, h, inputs, False, args.repeat)

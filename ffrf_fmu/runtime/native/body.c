@@ -256,6 +256,8 @@ static const array_spec OWN[] = {
     {"se_unknowns", 'q', AT(part.se_unknowns), S(d_E, d_int)},
     {"se_bnd", 'q', AT(part.se_bnd), S(d_E, d_be)},
     {"node_unknowns", 'q', AT(part.node_unknowns), S(d_bnd)},
+    {"se_fb", 'q', AT(part.se_fb), S(d_E, d_be)},
+    {"se_m", 'q', AT(part.se_m), S(d_E)},
     {"factor_y", 'd', AT(part.y), S(d_int)},
     {"factor_xB", 'd', AT(part.xB), S(d_bnd)},
     {"factor_u", 'd', AT(part.u), S(d_n)},
@@ -282,10 +284,34 @@ static const array_spec OWN[] = {
     {"M_luT", 'd', AT(work.M_luT), S(d_E, d_n, d_n)},
     {"M_piv", 'i', AT(work.M_piv), S(d_E, d_n)},
     {"M_inv", 'd', AT(work.M_inv), S(d_E, d_n, d_n)},
+    {"MG", 'd', AT(work.MG), S(d_E, 3, d_g, d_g)},
     {"acc", 'd', AT(work.acc), S(3, d_n)},
 };
 
 #define COUNT(a) (sizeof(a) / sizeof((a)[0]))
+
+/* work.MG = M_bar^-1 G_k of each superelement (M_inv's columns times G_k's), for the refresh's k_q rows
+ * (superelement.c `jacobian`, solved); with no Coriolis term (n_g < n) unused and left zero. */
+static void mass_solved_coriolis(ffrf_body *b)
+{
+    const int n = b->dims.n, ng = b->dims.n_g;
+    if (ng != n)
+        return;
+    for (int e = 0; e < b->dims.E; e++) {
+        const double *inv = b->work.M_inv + (size_t)e * n * n; /* column m of M_bar^-1 in row m */
+        for (int k = 0; k < 3; k++) {
+            const double *G = b->data.G + ((size_t)e * 3 + k) * n * n;
+            double *MG = b->work.MG + ((size_t)e * 3 + k) * n * n;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++) {
+                    double s = 0.0;
+                    for (int m = 0; m < n; m++)
+                        s += inv[(size_t)m * n + i] * G[(size_t)m * n + j];
+                    MG[(size_t)i * n + j] = s;
+                }
+        }
+    }
+}
 
 static long long spec_count(const ffrf_dims *d, const array_spec *s)
 {
@@ -557,10 +583,12 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     b->work.se = ffrf_se_work_bind(at, d);
     if (partition(b, err, err_len))
         goto failed;
+    ffrf_factor_prepare(b); /* factor.c: each superelement's free boundary dofs, the store's size */
     if (ffrf_mass_factors(b)) {
         fail(err, err_len, "%sbody image: a superelement's mass matrix M_bar is singular%lld%lld", "", 0, 0);
         goto failed;
     }
+    mass_solved_coriolis(b);
     reset_state(b, es);
     memcpy(b->damping.zeta, find(es, "damp_zeta")->values, sizeof(double) * (size_t)d->n_el);
     memcpy(b->damping.ab, find(es, "damp_ab")->values, sizeof(double) * 2);

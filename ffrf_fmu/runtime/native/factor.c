@@ -17,9 +17,12 @@
  * J[V, V] = -beta diag(I_6, M_bar) for every state, inverted through M_bar's LU made at creation (accel.c
  * `ffrf_mass_factors`). With Z = I_e \ V (x0, Theta0, eta rates: 6 + nm) and O = Z + B_e:
  *     X = J[V, V]^-1 J[V, O],  J'[O, O] = J[O, O] - J[O, V] X,
- * and A_e, C_e, R_e above are those of J' on Z (nz = 6 + nm); back: x_V = J[V, V]^-1 b_V - X x_O. The dense
- * work is the products with J[O, V] (nz + m_e)^2 nv and M_bar's solves (nz + m_e) n^2 in place of an LU of
- * n_int^3 / 3 and the m_e n_int^2 of A_e^-1 C_e: 1.5-2x fewer operations (4 SE x 6 modes: n_int = 36, nz = 12).
+ * and A_e, C_e, R_e above are those of J' on Z (nz = 6 + nm); back: x_V = J[V, V]^-1 b_V - X x_O. The k_q
+ * rows of JT come premultiplied by M_bar^-1 (ffrf_evaluate: M_bar^-1 k_q's blocks are Dq + beta Dqd T [+ the
+ * Coriolis part through M_bar^-1 G_k, made at creation]), so X is J[V, O] times -1/beta, and it is sparse (Dq's
+ * pattern): the dense work is the product with J[O, V] over X's nonzeros, at most (nz + m_e)^2 nv, in place of
+ * an LU of n_int^3 / 3 and the m_e n_int^2 of A_e^-1 C_e (4 SE x 6 modes: n_int = 36, nz = 12). J[V, V] itself
+ * is never read (nor written by ffrf_evaluate); the solve applies J[V, V]^-1 = -1/beta diag(I_6, M_bar^-1) to b.
  * Each A_e (nz^2, partial pivoting within it) and S (n_bnd^2, partial pivoting) is factored densely
  * (`ffrf_lu_factor` of lu.c, LAPACK's dgetf2). The result agrees with the dense LU (scipy's lu_factor on the
  * numpy path) to round-off times the condition number.
@@ -42,64 +45,56 @@
 /* J[row][col] from the transposed iteration matrix JT (JT[col][row]), Newton positions */
 #define J(row, col) JT[(size_t)(col) * nf + (size_t)(row)]
 
-/* The free boundary dofs of superelement e (their index among the node unknowns) into fb; their count. */
-static int free_boundary(const ffrf_body *b, int e, idx_t *fb)
+/* The free boundary dofs of superelement e (their index among the node unknowns, part.se_fb) into *fb; their count. */
+static int free_boundary(const ffrf_body *b, int e, const idx_t **fb)
 {
-    const idx_t *be = b->part.se_bnd + (size_t)e * b->dims.n_be;
-    int m = 0;
-    for (int k = 0; k < b->dims.n_be; k++)
-        if (be[k] >= 0)
-            fb[m++] = be[k];
-    return m;
+    *fb = b->part.se_fb + (size_t)e * b->dims.n_be;
+    return (int)b->part.se_m[e];
 }
 
-/* The entries of the factorization store that ffrf_factor fills: the superelements' blocks, S and -1/beta. */
-size_t ffrf_factor_entries(const ffrf_body *b)
+void ffrf_factor_prepare(ffrf_body *b)
 {
     const ffrf_dims *d = &b->dims;
     const size_t nv = (size_t)d->nv, nz = (size_t)(d->n_int - d->nv), nB = (size_t)d->n_bnd;
-    idx_t fb[6 * 64];
-    size_t blocks = 0;
+    size_t blocks = 0; /* the superelements' blocks, then S and -1/beta */
     for (int e = 0; e < d->E; e++) {
-        const size_t m = (size_t)free_boundary(b, e, fb);
-        blocks += nz * nz + 2 * m * nz + 2 * (nz + m) * nv;
+        const idx_t *be = b->part.se_bnd + (size_t)e * d->n_be;
+        idx_t *fb = b->part.se_fb + (size_t)e * d->n_be;
+        int m = 0;
+        for (int k = 0; k < d->n_be; k++)
+            if (be[k] >= 0)
+                fb[m++] = be[k];
+        b->part.se_m[e] = m;
+        blocks += nz * nz + 2 * (size_t)m * nz + 2 * (nz + (size_t)m) * nv;
     }
-    return blocks + nB * nB + 1;
+    b->part.entries = blocks + nB * nB + 1;
 }
 
-/* Zero the entries of JT that the structure allows (those ffrf_factor reads: J[I_e, I_e], J[I_e, B_e],
- * J[B_e, I_e], J[B, B]); every other entry is zero by the structure and never written, so this is the
- * memset of the whole nf x nf matrix at the cost of its blocks. */
+size_t ffrf_factor_entries(const ffrf_body *b) { return b->part.entries; }
+
+/* Zero J[B, B], the boundary nodes' block, the one that several parts add into (the superelements sharing a
+ * node, the springs, the loads); ffrf_evaluate sets every other entry that ffrf_factor reads (J[I_e, I_e],
+ * J[I_e, B_e], J[B_e, I_e]: superelement e's alone), and no other entry is written. */
 void ffrf_factor_clear(const ffrf_body *b, double *JT)
 {
-    const ffrf_dims *d = &b->dims;
-    const int nf = d->nf, ni = d->n_int, nB = d->n_bnd;
-    const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
-    idx_t fb[6 * 64];
+    const int nf = b->dims.nf, nB = b->dims.n_bnd;
+    const idx_t *B = b->part.node_unknowns;
     for (int j = 0; j < nB; j++)
         for (int i = 0; i < nB; i++)
             J(B[i], B[j]) = 0.0;
-    for (int e = 0; e < d->E; e++) {
-        const idx_t *Ie = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, fb);
-        for (int j = 0; j < ni; j++)
-            for (int i = 0; i < ni; i++)
-                J(Ie[i], Ie[j]) = 0.0;
-        for (int k = 0; k < m; k++)
-            for (int i = 0; i < ni; i++) {
-                J(Ie[i], B[fb[k]]) = 0.0;
-                J(B[fb[k]], Ie[i]) = 0.0;
-            }
-    }
 }
 
 /* 1 when every value is finite: x - x is 0 for a finite x, NaN for an infinite or NaN one. */
 static int all_finite(const double *x, size_t n)
 {
-    double s = 0.0;
-    for (size_t i = 0; i < n; i++)
-        s += x[i] - x[i];
-    return s == 0.0;
+    double s[4] = {0.0, 0.0, 0.0, 0.0}; /* four sums: not one chain of additions' latency */
+    size_t i = 0;
+    for (; i + 3 < n; i += 4)
+        for (int k = 0; k < 4; k++)
+            s[k] += x[i + k] - x[i + k];
+    for (; i < n; i++)
+        s[0] += x[i] - x[i];
+    return s[0] + s[1] + s[2] + s[3] == 0.0;
 }
 
 /* u <- A_vv^-1 u for one superelement's velocity unknowns u [nv]: A_vv = -beta diag(I_6, M_bar) (c = -1/beta),
@@ -135,7 +130,7 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
     const double c = -1.0 / beta;
     double *col = b->part.y; /* [nz + m_e] <= [n_int]: a column of J[O, O] - J[O, V] X */
-    idx_t fb[6 * 64];
+    const idx_t *fb;
     double *A = store; /* the blocks of the superelements, one after the other; then S, then c */
     size_t blocks = ffrf_factor_entries(b) - (size_t)nB * nB - 1;
     double *S = store + blocks;
@@ -147,7 +142,7 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
         return -1;
     for (int e = 0; e < d->E; e++) {
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
-        const int m = free_boundary(b, e, fb), no = nz + m;
+        const int m = free_boundary(b, e, &fb), no = nz + m;
         double *W = A + (size_t)nz * nz, *R = W + (size_t)m * nz, *X = R + (size_t)m * nz, *PT = X + (size_t)no * nv;
 #define OUTER(o) ((o) < nz ? Z[o] : B[fb[(o) - nz]])
         for (int o = 0; o < no; o++) { /* X = J[V, O] by columns (then A_vv^-1 X), PT = J[O, V]^T by rows */
@@ -160,16 +155,20 @@ int ffrf_factor(const ffrf_body *b, const double *JT, double beta, double *store
         }
         if (!all_finite(X, 2 * (size_t)no * nv))
             return -1;
-        for (int o = 0; o < no; o++)
-            velocity_solve(b, e, c, X + (size_t)o * nv);
+        for (size_t i = 0; i < (size_t)no * nv; i++) /* A_vv^-1 X: the k_q rows come solved by M_bar (ffrf_evaluate) */
+            X[i] *= c;
         /* J'[O, O] = J[O, O] - J[O, V] X column by column: A_e (Z, Z), R_e (B, Z), C_e (Z, B: into W), S (B, B) */
         for (int o2 = 0; o2 < no; o2++) {
             const idx_t O2 = OUTER(o2);
             const double *x = X + (size_t)o2 * nv;
-            for (int o = 0; o < no; o++) /* (S's entries start from 0: they hold D and the other superelements' part) */
-                col[o] = o < nz || o2 < nz ? J(OUTER(o), O2) : 0.0;
-            for (int i = 0; i < nv; i++)
-                ffrf_axmy(no, x[i], PT + (size_t)i * no, col);
+            const double *Jc = JT + (size_t)O2 * nf; /* column O2 of J */
+            for (int o = 0; o < nz; o++)
+                col[o] = Jc[Z[o]];
+            for (int k = 0; k < m; k++) /* (S's entries start from 0: they hold D and the other superelements' part) */
+                col[nz + k] = o2 < nz ? Jc[B[fb[k]]] : 0.0;
+            for (int i = 0; i < nv; i++) /* (X is sparse: Dq + beta Dqd's nonzeros; PT is finite, a zero adds nothing) */
+                if (x[i] != 0.0)
+                    ffrf_axmy(no, x[i], PT + (size_t)i * no, col);
             if (o2 < nz) {
                 for (int i = 0; i < nz; i++)
                     A[(size_t)o2 * nz + i] = col[i];
@@ -207,11 +206,11 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
     const idx_t *I = b->part.se_unknowns, *B = b->part.node_unknowns;
     double *y = b->part.y, *xB = b->part.xB, *t = b->part.t;
     const double *S = store + ffrf_factor_entries(b) - (size_t)nB * nB - 1, c = S[(size_t)nB * nB];
-    idx_t fb[6 * 64];
+    const idx_t *fb;
     const double *A = store;
     for (int e = 0; e < d->E; e++) { /* y_v = A_vv^-1 b_v kept in x[V]; b_O -= P y_v */
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
-        const int m = free_boundary(b, e, fb), no = nz + m;
+        const int m = free_boundary(b, e, &fb), no = nz + m;
         const double *PT = A + (size_t)nz * nz + 2 * (size_t)m * nz + (size_t)no * nv;
         for (int i = 0; i < nv; i++)
             y[i] = x[V[i]];
@@ -233,7 +232,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
     A = store;
     for (int e = 0; e < d->E; e++) { /* y_e = A_e^-1 b_e kept in x[Z]; b_B -= R_e y_e */
         const idx_t *Z = I + (size_t)e * ni;
-        const int m = free_boundary(b, e, fb), no = nz + m;
+        const int m = free_boundary(b, e, &fb), no = nz + m;
         const double *R = A + (size_t)nz * nz + (size_t)m * nz;
         for (int i = 0; i < nz; i++)
             y[i] = x[Z[i]];
@@ -250,7 +249,7 @@ void ffrf_factor_solve(const ffrf_body *b, const double *store, const int *piv, 
     A = store;
     for (int e = 0; e < d->E; e++) { /* x_Z = y_Z - W_e x_B, then x_V = y_v - X x_O */
         const idx_t *Z = I + (size_t)e * ni, *V = Z + nz;
-        const int m = free_boundary(b, e, fb), no = nz + m;
+        const int m = free_boundary(b, e, &fb), no = nz + m;
         const double *W = A + (size_t)nz * nz, *X = W + 2 * (size_t)m * nz;
         for (int i = 0; i < nz; i++) /* x_O into t */
             t[i] = x[Z[i]];

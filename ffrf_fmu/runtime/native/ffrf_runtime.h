@@ -82,8 +82,9 @@ int ffrf_body_residual(ffrf_body *b, const double *p, const double *yd, const do
 /* ---- for tests ---- */
 /* The local rows F [nv + nc] of superelement e at the stage (p [ny], yd [ny], R [N + E][3][3]) and, if
  * jac, its blocks F_ydot (Fz) and F_y (Fy) [nv + nc][nc + nv] (runtime/equations.py residual_and_jacobian's
- * rows and columns), computed in the body's own work space. Returns 0, or -1 if e is not a
- * superelement of the body or an array is missing. */
+ * rows and columns), computed in the body's own work space; jac = 2: the blocks in a refresh's form (the k_q
+ * rows premultiplied by M_bar^-1, the columns of motion-driven rates not formed: superelement.c `jacobian`).
+ * Returns 0, or -1 if e is not a superelement of the body or an array is missing. */
 int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *yd, const double *R, int jac,
                            double *F, double *Fz, double *Fy);
 

@@ -169,6 +169,9 @@ typedef struct {
     idx_t *se_unknowns;   /* [E][n_int]  Newton positions of each superelement's own rates */
     idx_t *se_bnd;        /* [E][n_be]   its boundary dofs' index among the node unknowns, -1: motion-driven */
     idx_t *node_unknowns; /* [n_bnd]     Newton positions of the free boundary-node rates */
+    idx_t *se_fb;         /* [E][n_be]   its free boundary dofs (index among the node unknowns), the first se_m[e] */
+    idx_t *se_m;          /* [E]         their count m_e (ffrf_factor_prepare) */
+    size_t entries;       /* the entries of the factorization store that ffrf_factor fills (ffrf_factor_prepare) */
     double *y, *xB, *u, *t; /* [n_int], [n_bnd], [n], [n_int] work of the factorization and the solve */
 } ffrf_partition;
 
@@ -188,6 +191,7 @@ typedef struct {
     double *M_luT;                    /* [E][n][n] LU factors of each M_bar (transposed), made at creation: accel.c */
     int *M_piv;                       /* [E][n] */
     double *M_inv;                    /* [E][n][n] each M_bar^-1 (column j in row j), made at creation: accel.c; factor.c */
+    double *MG;                       /* [E][3][n_g][n_g] M_bar^-1 G_k, made at creation (body.c): superelement.c's k_q rows */
     double *acc;                      /* [3][n] q_bar, q_bar', q_bar'' of accel.c */
     ffrf_se_work *se;                 /* superelement.c */
 } ffrf_work;

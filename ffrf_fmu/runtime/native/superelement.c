@@ -50,8 +50,10 @@ struct ffrf_se_work {
     double *V, *Vd;                             /* [n2][3][3] */
     double *Kc;                                 /* [n2][n2] */
     double *HQ;                                 /* [3][n] */
+    double *MGW, *MGq;                          /* [n][n], [3][n]  M_bar^-1 G(W0), M_bar^-1 G_k q (the refresh's k_q rows) */
     int *nz, *nz_count;                         /* [nc][n], [nc]: the nonzero rows of each column of Dq, Dqd */
     int *cols;                                  /* [2][nc + nv]: Newton positions of the local columns that are unknowns, their local index */
+    int *rows;                                  /* [2][nv + nc]: the same of the local rows */
 };
 
 #define SE_ALIGN 16 /* every array starts on a 16-byte boundary of the block */
@@ -91,12 +93,15 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(eq, 3 * n);
     SE_ARRAY(V, n2 * 9); SE_ARRAY(Vd, n2 * 9); SE_ARRAY(Kc, n2 * n2);
     SE_ARRAY(HQ, 3 * n);
+    SE_ARRAY(MGW, n * n); SE_ARRAY(MGq, 3 * n);
 #undef SE_ARRAY
     if (w) w->nz = (int *)(void *)(mem + off);
     off += se_round(n * nc * sizeof(int));
     if (w) w->nz_count = (int *)(void *)(mem + off);
     off += se_round(nc * sizeof(int));
     if (w) w->cols = (int *)(void *)(mem + off);
+    off += se_round(2 * ncv * sizeof(int));
+    if (w) w->rows = (int *)(void *)(mem + off);
     off += se_round(2 * ncv * sizeof(int));
     if (w) {
         w->n = d->n; w->nb = d->nb; w->nc = d->nc; w->nv = d->nv; w->r = d->n_vk; w->n2 = d->n_w2;
@@ -196,8 +201,12 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
- * (runtime/equations.py residual_and_jacobian, same algebra). */
-static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, double *Fz_, double *Fy_)
+ * (runtime/equations.py residual_and_jacobian, same algebra). solved (a refresh, ffrf_evaluate): the k_q rows
+ * (79) premultiplied by M_bar^-1, as factor.c's velocity elimination wants them: M_bar^-1 k_q's blocks are
+ * Dq [+ M_bar^-1 G_k q on W0] (F_ydot) and Dqd [+ M_bar^-1 G(W0) Dq] and -I on r (F_y), M_bar^-1 G_k made at
+ * creation (work.MG): the products with M_bar and M_bar^-1 are not formed. */
+static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_work *w, int solved, double *Fz_,
+                     double *Fy_)
 {
     const int gyro = b->data.gyro, stiff = b->data.stiff;
     const int nb = b->dims.nb, nm = b->dims.nm, n = b->dims.n, nc = b->dims.nc, nv = b->dims.nv;
@@ -287,11 +296,13 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         Dq[6 * nb + i][6 + i] = 1.0;
     /* The nonzero rows of each column of Dq and Dqd: both are sparse (a boundary row holds the CM
      * frame's and its node's columns, a modal row one), and the products with them below run over these
-     * rows only. They skip exact zeros, so every sum is the full loop's to the bit. */
+     * rows only. They skip exact zeros, so every sum is the full loop's to the bit. solved (a refresh): a column
+     * that is not a Newton unknown (a motion-driven node's) gets none, its products are never read. */
     int *nzm = w->nz, *nzc = w->nz_count;
+    const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *newton_pos = b->data.newton_pos;
     for (int j = 0; j < nc; j++) {
         int cnt = 0;
-        for (int m = 0; m < n; m++)
+        for (int m = 0; m < (solved && newton_pos[cfg[j]] >= b->dims.nf ? 0 : n); m++)
             if (Dq[m][j] != 0.0 || Dqd[m][j] != 0.0)
                 nzm[(size_t)j * n + cnt++] = m;
         nzc[j] = cnt;
@@ -326,11 +337,17 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
             double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
-            NZ_ROWS(j, m) {
-                s1 += Me[i][m] * Dq[m][j];
-                s2 += Me[i][m] * Dqd[m][j];
-                s3 += Kq[i][m] * Dq[m][j];
-            }
+            if (solved) {
+                s1 = Dq[i][j];
+                s2 = Dqd[i][j];
+                NZ_ROWS(j, m)
+                    s3 += Kq[i][m] * Dq[m][j];
+            } else
+                NZ_ROWS(j, m) {
+                    s1 += Me[i][m] * Dq[m][j];
+                    s2 += Me[i][m] * Dqd[m][j];
+                    s3 += Kq[i][m] * Dq[m][j];
+                }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
                     s4 += De[i][m] * Dq[m][j];
@@ -342,7 +359,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             dgz[i][j] = s4;
         }
         for (int j = 0; j < n; j++) {
-            Fy[kq + i][cr + j] = -Me[i][j];
+            Fy[kq + i][cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
             dgz[i][cr + j] = Me[i][j];
         }
     }
@@ -360,7 +377,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         for (int j = 0; j < 3; j++)
             Fz[eT0 + i][3 + j] -= S[i][j];
     if (gyro) {
-        double (*GW)[n] = (double (*)[n])w->GW, (*Gq)[n] = (double (*)[n])w->Gq;
+        double (*GW)[n] = (double (*)[n])w->GW;
         double (*Gr)[n] = (double (*)[n])w->Gr, (*Grd)[n] = (double (*)[n])w->Grd;
         double (*dsdq)[n] = (double (*)[n])w->dsdq;
         for (int kk = 0; kk < 3; kk++)
@@ -375,15 +392,34 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 dsdq[kk][i] = s2;
                 Grd[kk][i] = s3;
             }
+        /* the k_q rows' G(W0) q: G(W0) and G_k q, or with solved M_bar^-1 G(W0) and M_bar^-1 G_k q */
+        const double (*KW)[n] = (const double (*)[n])GW, (*KWq)[n] = (const double (*)[n])w->Gq;
+        if (solved && (gyro & FFRF_CORIOLIS)) {
+            const double (*MG)[n][n] = (const double (*)[n][n])b->work.MG + (size_t)e * 3;
+            double (*MGW)[n] = (double (*)[n])w->MGW, (*MGq)[n] = (double (*)[n])w->MGq;
+            const double *q = w->q;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++)
+                    MGW[i][j] = W0[0] * MG[0][i][j] + W0[1] * MG[1][i][j] + W0[2] * MG[2][i][j];
+            for (int kk = 0; kk < 3; kk++)
+                for (int i = 0; i < n; i++) {
+                    double s = 0.0;
+                    for (int j = 0; j < n; j++)
+                        s += MG[kk][i][j] * q[j];
+                    MGq[kk][i] = s;
+                }
+            KW = (const double (*)[n])MGW;
+            KWq = (const double (*)[n])MGq;
+        }
         for (int i = 0; i < ((gyro & FFRF_CORIOLIS) ? n : 0); i++) {
             for (int kk = 0; kk < 3; kk++) {
-                Fz[kq + i][3 + kk] += Gq[kk][i]; /* d(G(W0) q)/dW0 */
+                Fz[kq + i][3 + kk] += KWq[kk][i]; /* d(G(W0) q)/dW0 */
                 dgz[i][3 + kk] += Gr[kk][i];
             }
             for (int j = 0; j < nc; j++) {
                 double s = 0.0;
                 NZ_ROWS(j, m)
-                    s += GW[i][m] * Dq[m][j];
+                    s += KW[i][m] * Dq[m][j];
                 Fy[kq + i][j] += s;
             }
             for (int j = 0; j < n; j++)
@@ -812,7 +848,7 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
         }
     }
     if (jac)
-        jacobian(b, e, R0, w, Fz, Fy);
+        jacobian(b, e, R0, w, jac == 2, Fz, Fy);
 }
 
 void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, const double *t_load_,
@@ -829,7 +865,6 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     double (*T)[3][3] = (double (*)[3][3])T_;
     double (*JT)[nf] = (double (*)[nf])JT_;
     double (*Fy)[ncv] = (double (*)[ncv])Fy_;
-    const double (*Fz)[ncv] = (const double (*)[ncv])Fz_;
     memset(F, 0, sizeof(double) * (size_t)ny);
     if (jac) {
         for (int r = 0; r < N + E; r++)
@@ -837,29 +872,16 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
     }
     double *tmp = w->v3b;
     for (int e = 0; e < E; e++) {
-        ffrf_superelement(b, e, p, yd, R_, jac, Fl, Fz_, Fy_, w);
+        ffrf_superelement(b, e, p, yd, R_, jac ? 2 : 0, Fl, Fz_, Fy_, w); /* 2: k_q rows solved by M_bar */
         for (int i = 0; i < nv; i++)
             F[vel[e][i]] += Fl[i];
         for (int i = 0; i < nc; i++)
             F[cfg[e][i]] += Fl[nv + i];
         if (!jac)
             continue;
-        /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T */
-        for (int i = 0; i < nv + nc; i++)
-            for (int blk = 0; blk < nb + 1; blk++) {
-                const int col = blk == 0 ? 3 : 9 + nm + 6 * (blk - 1);
-                double (*Tr)[3] = blk == 0 ? T[N + e] : T[nodes[e][blk - 1]];
-                for (int j = 0; j < 3; j++) {
-                    double s = 0.0;
-                    for (int m = 0; m < 3; m++)
-                        s += Fy[i][col + m] * Tr[m][j];
-                    tmp[j] = s;
-                }
-                for (int j = 0; j < 3; j++)
-                    Fy[i][col + j] = tmp[j];
-            }
         /* the local columns' Newton positions, the unknowns among them first (the same additions, in column order) */
-        int *cols = w->cols, *locs = w->cols + ncv, nk = 0;
+        int *cols = w->cols, *locs = w->cols + ncv, nk = 0, *rows = w->rows, *rlocs = w->rows + ncv, nr = 0, nr_own = 0, nr_vel = 0;
+        const int node_col = 6 + nm, node_row = nv + 6 + nm; /* the first local column, row of the boundary nodes */
         for (int j = 0; j < ncv; j++) {
             const idx_t gc = j < nc ? newton_pos[cfg[e][j]] : newton_pos[vel[e][j - nc]];
             if (gc < nf) {
@@ -871,9 +893,41 @@ void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load_, c
             const idx_t gr = i < nv ? newton_pos[vel[e][i]] : newton_pos[cfg[e][i - nv]];
             if (gr >= nf)
                 continue;
-            const double *fy = Fy[i], *fz = Fz[i];
-            for (int t = 0; t < nk; t++)
-                JT[cols[t]][gr] += beta * fy[locs[t]] + fz[locs[t]];
+            double *fy = Fy[i];
+            /* d(configuration) = beta T(h Delta) d(zdot) on rotations: the Theta0 and Theta_P columns times T
+             * (those of unknowns: the others are not read; a zero block stays zero) */
+            for (int blk = 0; blk < nb + 1; blk++) {
+                const int col = blk == 0 ? 3 : 9 + nm + 6 * (blk - 1);
+                if (newton_pos[cfg[e][col]] >= nf || (fy[col] == 0.0 && fy[col + 1] == 0.0 && fy[col + 2] == 0.0))
+                    continue;
+                double (*Tr)[3] = blk == 0 ? T[N + e] : T[nodes[e][blk - 1]];
+                for (int j = 0; j < 3; j++) {
+                    double s = 0.0;
+                    for (int m = 0; m < 3; m++)
+                        s += fy[col + m] * Tr[m][j];
+                    tmp[j] = s;
+                }
+                for (int j = 0; j < 3; j++)
+                    fy[col + j] = tmp[j];
+            }
+            rows[nr] = (int)gr;
+            rlocs[nr++] = i * ncv; /* (the row's offset in F_y, F_ydot) */
+            nr_own += i < node_row;
+            nr_vel += i < nv;
+        }
+        /* JT column by column (its stores close together, F_y and F_ydot read by columns). Superelement e alone
+         * writes the entries of its own rows or its own columns: set; the boundary nodes' block J[B, B] (shared
+         * with the neighbours, the springs and the loads; zeroed by ffrf_factor_clear): added into. The local
+         * order puts the own rows first (velocity, x0, Theta0, eta, then the nodes'). J[V, V], the velocity
+         * rows' velocity columns, is not written: factor.c takes it as -beta diag(I, M_bar) by the structure. */
+        for (int t = 0; t < nk; t++) {
+            double *jt = JT[cols[t]];
+            const int l = locs[t], own = l < node_col || l >= nc;
+            const double *fy = Fy_ + l, *fz = Fz_ + l;
+            for (int r = l >= nc ? nr_vel : 0; r < (own ? nr : nr_own); r++)
+                jt[rows[r]] = beta * fy[rlocs[r]] + fz[rlocs[r]];
+            for (int r = own ? nr : nr_own; r < nr; r++)
+                jt[rows[r]] += beta * fy[rlocs[r]] + fz[rlocs[r]];
         }
     }
     /* loads: -f on node translation rows, -R^T t on node rotation rows; d(-R^T t) = -skew(R^T t) dTheta */
@@ -905,7 +959,7 @@ int ffrf_body_superelement(ffrf_body *b, int e, const double *p, const double *y
 {
     if (!b || !b->work.se || e < 0 || e >= b->dims.E || !p || !yd || !R || !F || (jac && (!Fz || !Fy)))
         return -1;
-    ffrf_superelement(b, e, p, yd, R, jac, F, Fz, Fy, b->work.se);
+    ffrf_superelement(b, e, p, yd, R, jac == 2 ? 2 : jac != 0, F, Fz, Fy, b->work.se);
     return 0;
 }
 
@@ -919,7 +973,7 @@ int ffrf_body_residual(ffrf_body *b, const double *p, const double *yd, const do
     double *Fl = b->work.Fl;
     memset(F, 0, sizeof(double) * (size_t)b->dims.ny);
     for (int e = 0; e < E; e++) {
-        ffrf_superelement(b, e, p, yd, R, jac, Fl, jac ? Fz + e * block : NULL, jac ? Fy + e * block : NULL, b->work.se);
+        ffrf_superelement(b, e, p, yd, R, jac != 0, Fl, jac ? Fz + e * block : NULL, jac ? Fy + e * block : NULL, b->work.se);
         const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *vel = b->data.vel_map + (size_t)e * nv;
         for (int i = 0; i < nv; i++)
             F[vel[i]] += Fl[i];

@@ -11,8 +11,11 @@ size_t ffrf_se_work_bytes(const ffrf_dims *d);
 ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d);
 /* The numpy path's `_iteration_matrix` (integrator.py): the assembled residual F [ny] with the loads f_load, t_load [N][3] at the
  * stage (p, yd, R [N+E][3][3], theta [N+E][3]) and, if jac, the transposed iteration matrix JT
- * [nf][nf] = (F_ydot + beta [F_y T, F_v])^T on the Newton unknowns (T [N+E][3][3] filled here), added into
- * JT's structural entries, which the caller has zeroed (ffrf_factor_clear: the others are zero and never written). */
+ * [nf][nf] = (F_ydot + beta [F_y T, F_v])^T on the Newton unknowns (T [N+E][3][3] filled here) in the form factor.c
+ * takes: the rows k_q (79) of each superelement premultiplied by M_bar^-1 (its velocity elimination needs them so),
+ * each superelement's own blocks set but for J[V, V] (its velocity rows and columns: not read, -beta diag(I, M_bar)
+ * by the structure), the boundary nodes' block J[B, B] added into (the caller has zeroed it: ffrf_factor_clear;
+ * the entries outside the structure are zero and never written). */
 void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load, const double *t_load,
                    const double *p, const double *yd, const double *R, const double *theta, int jac,
                    double beta, double *F, double *JT, double *Fl, double *Fz, double *Fy, double *T);
