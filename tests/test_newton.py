@@ -82,14 +82,14 @@ def test_b1_20ms_deflection_is_the_tightly_converged_one():
 def test_b1_50ms_runs_through():
     """h = 50 ms on B1 (4 SE, 6 modes, the 20 s spin-up; the chart of docs/accuracy.md section 2 saw
     Newton give up there) completes, on matrices kept across steps (the predictor misses by more than
-    KEEP_MISS, so the matrix serves): measured 4.20 iterations and 0.58 factorizations per step, where
+    KEEP_MISS, so the matrix serves): measured 3.92 iterations and 0.69 factorizations per step, where
     a matrix built at every step's predictor took 2.00 and 0.98 (a refresh of 4 x 6 costs some 15
     iterations on the C runtime; 585668d's solver: 5.52 evaluations), with 585668d's deflection to 1e-6
     and within 1 % of the 2 ms run (0.536620 m: the step's own error)."""
     fac = [0.0]
     evals, _, d, n = _b1(0.05, 4, 6, factorizations=fac)
     # n: the step count of 20 s at 50 ms, fixed by the scene; the bounds leave a tenth for another CPU's round-off
-    assert n == 400 and evals <= 4.6 and fac[0] <= 0.65
+    assert n == 400 and evals <= 4.3 and fac[0] <= 0.76
     assert d == pytest.approx(BASELINE_50MS_4x6, rel=1e-6)
     assert d == pytest.approx(0.536620, rel=1e-2)
 
@@ -100,14 +100,14 @@ def test_b1_40ms_stiffened_keeps_its_matrices():
     one step old is good in the spectral sense (its error propagator's spectral radius ~0.01) but its
     error is one stiff direction, a nilpotent-like transient that makes the second increment as large as
     the first, and the third lands within the tolerance. Kept through that transient (runtime/newton.py
-    `_newton`) the run takes 3.38 iterations and 0.27 factorizations per step (measured; a matrix built
+    `_newton`) the run takes 3.35 iterations and 0.32 factorizations per step (measured; a matrix built
     at every step's predictor: 2.00 and 0.98; a refresh costs ~4 iterations on the C runtime), and the
     iterates on kept matrices are accepted at KEPT_ACCEPT of the tolerance, so the deflection stays at
     the tightly converged one: measured +1.4e-8 of itself against tol = 1e-11 (1 SE x 2 modes without
     stiffening, the same regime)."""
     fac = [0.0]
     evals, _, _, n = _b1(0.04, 1, 2, settings=["stiffening=true"], factorizations=fac)
-    assert n == 500 and evals <= 3.7 and fac[0] <= 0.35
+    assert n == 500 and evals <= 3.7 and fac[0] <= 0.4
     _, _, d, _ = _b1(0.04, 1, 2)
     _, _, d_tight, _ = _b1(0.04, 1, 2, tol=1e-11)
     assert d == pytest.approx(d_tight, rel=5e-8)

@@ -505,6 +505,7 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     SCALAR("k3", b->data.k3);
     SCALAR("theta_refresh", b->data.theta_refresh);
     SCALAR("kept_accept", b->data.kept_accept);
+    SCALAR("kept_radius", b->data.kept_radius);
     SCALAR("keep_miss", b->data.keep_miss);
     SCALAR("near_miss", b->data.near_miss);
     SCALAR("near_contraction", b->data.near_contraction);

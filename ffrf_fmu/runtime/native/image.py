@@ -22,8 +22,8 @@ import numpy as np
 from ..damping import is_damped, per_mode_ratios
 
 MAGIC = b"FFRFBODY"
-VERSION = 3  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction; 3: kept_accept in
-# place of keep_contraction)
+VERSION = 3  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction; 3: kept_accept and
+# kept_radius in place of keep_contraction)
 NAME_BYTES = 24
 HEADER = struct.Struct("<8sIIQQ")
 ENTRY = struct.Struct("<24sBB6x5Q")
@@ -126,6 +126,7 @@ def body_entries(system, basis: bool = True) -> dict[str, np.ndarray]:
         "rot_slots": L.rot_cols, "newton_idx": system._newton_idx, "newton_pos": system._newton_pos,
         "k3": 3 * len(system._world_free), "field_of": system._field_of,
         "theta_refresh": system.THETA_REFRESH, "kept_accept": system.KEPT_ACCEPT,
+        "kept_radius": system.KEPT_RADIUS,
         "keep_miss": system.KEEP_MISS, "near_miss": system.NEAR_MISS,
         "near_contraction": system.NEAR_CONTRACTION, "refresh_min": int(system.REFRESH_AFTER[0]),
         "refresh_max": int(system.REFRESH_AFTER[1]), "world_idx": system._world_idx.reshape(-1, 3),

@@ -68,7 +68,7 @@ typedef struct {
     const idx_t *newton_pos;  /* [ny]          global rate -> Newton order (>= nf: not an unknown) */
     int k3;                   /* 3 x the free world triplets that lead the Newton order */
     const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
-    double theta_refresh, kept_accept, keep_miss;      /* the Newton policy (newton.py) */
+    double theta_refresh, kept_accept, kept_radius, keep_miss; /* the Newton policy (newton.py) */
     double near_miss, near_contraction;                /* NEAR_MISS, NEAR_CONTRACTION: the KEEPS verdict */
     int refresh_min, refresh_max;                      /* REFRESH_AFTER */
     const idx_t *world_idx;   /* [n_world][3] */

@@ -192,7 +192,7 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
     const idx_t *newton_idx = D->newton_idx, *field_of = D->field_of;
     const double keep_miss = D->keep_miss, theta_refresh = D->theta_refresh;
     double *theta = w->theta, *T = w->T, *bx = w->b, *S = w->S;
-    int kept = 1, far = 0, near = 0; /* kept: no matrix built in this step (yet) */
+    int kept = 1, far = 0, near = 0, late = 0; /* kept: no matrix built in this step (yet); late: one built after the first */
     double nrm_prev = INFINITY, nrm = 0.0, rate;
     int converged = 0;
     int it = 0;
@@ -214,6 +214,7 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
         }
         if (refresh) {
             kept = 0;
+            late = it > 1;
             /* the new matrix replaces the factorization: the version tells a caller holding a copy of
              * the old one (a rollback snapshot) that it is not this one any more */
             L->version++;
@@ -259,10 +260,10 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
             break;
         }
         /* slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh; not on the second
-         * increment of a kept matrix after a far miss (the transient of its error), nor on a new matrix's first
-         * (integrator `_newton`) */
-        double r2 = rate * rate;
-        if (it > 1 && !refresh && !(it == 2 && kept && far) &&
+         * increment of a kept matrix after a far miss while kept_radius^3 of it is within kept_accept (the transient
+         * of its error; integrator `_newton`) */
+        double r2 = rate * rate, kr = D->kept_radius;
+        if (it > 1 && !(it == 2 && kept && far && kr * kr * kr * nrm <= D->kept_accept) &&
             (rate > theta_refresh || r2 * r2 / (1.0 - rate) * nrm > lim || (trusted && kept)))
             lu_meta[0] = 0.0;
         nrm_prev = nrm;
@@ -286,7 +287,7 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
     }
     info[0] = FFRF_OK;
     info[1] = it;
-    lu_meta[11] = far ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
+    lu_meta[11] = far && !late ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
 }
 
 /* ------------------------------------------------------------------ one step */
