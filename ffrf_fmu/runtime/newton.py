@@ -202,7 +202,9 @@ class ModifiedNewton:
     # within KEPT_ACCEPT (three more increments would reach the tolerance), i.e. below 3e4 tolerances. Larger
     # second increments come from a miss the problem is not linear over (B1 stiffened at 80 ms from t = 16 s,
     # 1e7-1e9 tolerances: the unstable elastic velocity mode, docs/benchmarks.md), where waiting a third
-    # increment before the refresh cost iterations and failed Newton (2 and 4 SE x 2 modes at 80 ms, numpy)
+    # increment before the refresh failed Newton without this bound (C runtime: 2 and 4 SE x 2 modes at 80
+    # ms, 1 SE at 90-100 ms, which complete with it and with the rule before). 2e-2 and 3e-2 (bounds of 3.8e3
+    # and 1.1e3 tolerances) gave 2.93 / 0.53 and 2.62 / 0.78 iterations / factorizations per step at 40 ms
     KEPT_RADIUS = 1e-2
     # a matrix serves the next step (SERVES) after a first increment of more than KEEP_MISS in the per-field
     # scale (KEEP_MISS/tol tolerances, 1e3 at tol = 1e-9; a bound of its own, so that a tighter tolerance keeps
