@@ -36,18 +36,20 @@ sys.path.insert(0, str(HERE.parent))
 
 from ffrf_fmu import simulate as sim  # noqa: E402
 from ffrf_fmu.model import load_model  # noqa: E402
+from ffrf_fmu.model.scene import reduction_options  # noqa: E402
 from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime import input_rule  # noqa: E402
 from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
+SETTINGS: list[str] = []  # --set KEY=VALUE (model settings for every run, e.g. stiffening=true)
 
 
 def run(h: float, n_se: int, modes: int, theta: float, refresh_after: tuple[int, int], duration: float, point_n: int = 0):
-    model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}"])
+    model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={duration}", *SETTINGS])
     scene = model.scene("spinup")
-    body = reduce_body(model.body).data
-    system, inputs = sim.build_system(body, scene)
+    body = reduce_body(model.body, **reduction_options(scene)).data
+    system, inputs = sim.build_system(body, scene, backend="numpy")  # (the counters below wrap the numpy path)
     system.THETA_REFRESH = theta  # instance attributes: this body only (the numpy path reads them per step)
     system.REFRESH_AFTER = refresh_after
     factorizations = [0]
@@ -92,7 +94,10 @@ def main(argv=None) -> int:
     ap.add_argument("--point-steps", default="", help="internal steps per communication step of the FMU's input rule")
     ap.add_argument("--tolerances", default="", help="Newton tolerances to compare (native backend)")
     ap.add_argument("--held", help=argparse.SUPPRESS)  # the old spelling, refused below
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a model setting for every run (repeatable), e.g. stiffening=true")
     args = ap.parse_args(argv)
+    SETTINGS[:] = args.set
     if args.held is not None:
         ap.error("--held is now --point-steps (internal steps per communication step from the point values; "
                  "'held' names inputs kept constant over a step)")

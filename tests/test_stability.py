@@ -303,7 +303,10 @@ def test_b1_newton_fails_between_100_and_200_ms():
     convergence, refresh when 3 more iterations would not do), max deflection 0.96 % above the
     converged run (bound 1.5 %: the error is the step's, second order); h = 100 ms runs through
     (co-rotated predictor, matrix rebuilt at the predictor), max deflection 4.0 % above (bound 5 %);
-    h = 200 ms loses Newton convergence at t = 5 s (docs/stability.md, section 2)."""
+    h = 200 ms loses Newton convergence (docs/stability.md, section 2). When is marginal: from t = 0.8 s
+    every step's first increment is 1e7-1e9 tolerances and takes 5-25 iterations on the numpy path
+    whatever the reuse rule; the C runtime gave up at t = 5 s with the rule before runtime/newton.py's
+    KEPT_RADIUS transient allowance, at t = 1.4 s with it (measured 2026-12-08)."""
     s = st.IntegratorSettings(**st.INTEGRATOR_DEFAULTS[("haug_beam", "spinup")])
     ok, _ = st.integrator_run(HAUG, "spinup", 0.02, 0.8, s)
     assert ok.completed and ok.t[-1] == pytest.approx(10.0)
@@ -313,7 +316,7 @@ def test_b1_newton_fails_between_100_and_200_ms():
     coarser, _ = st.integrator_run(HAUG, "spinup", 0.1, 0.8, s)
     assert coarser.completed and coarser.max_deflection == pytest.approx(1.1014, rel=5e-2)
     bad, _ = st.integrator_run(HAUG, "spinup", 0.2, 0.8, s)
-    assert bad.unstable and "Newton" in bad.failure and 4.0 < bad.t[-1] < 6.0
+    assert bad.unstable and "Newton" in bad.failure and bad.t[-1] < 6.0
 
 
 def test_b2_runs_through_at_200_ms_and_500_ms():

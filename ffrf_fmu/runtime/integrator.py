@@ -10,8 +10,8 @@ equations enforced at t_{n+1}:
 am = (3 - rho)/(2 (1 + rho)), af = 1/(1 + rho), gamma = 1/2 + am - af. Newton on ydot_{n+1} with
 the analytic iteration matrix F_ydot + beta [F_y T, F_v], beta = h gamma af / am, T the SO(3)
 tangent operator; the factorization is kept across iterations and steps while Newton contracts and
-the predictor hits, and rebuilt at the predictor after a step that needed two or three iterations
-(runtime/newton.py: the iteration, its convergence test and that policy).
+the predictor hits or misses by far, and rebuilt at the predictor after a step that needed two or
+three iterations on a near miss (runtime/newton.py: the iteration, its convergence test and that policy).
 The predictor extrapolates the rates with their world-axes triplets carried along with the body.
 
 Within a step, a_{n+1} and the configuration are affine in ydot_{n+1}: p = beta ydot + P0 for
@@ -137,7 +137,7 @@ class GeneralizedAlpha(ModifiedNewton):
             yd[:] = self.yd
         fixed = self._fixed_idx
         yd[fixed] = zN_p.ravel()[fixed]
-        stale, trusted = None, False  # (REFRESH_AFTER)
+        dropped, trusted = False, False  # (REFRESH_AFTER)
         if is_native(self._lu):  # the C runtime's factors are not LAPACK's: a fresh matrix
             self._lu = None
         replay = next(self.newton_replay.decisions) if commit_config and self.newton_replay is not None else None
@@ -146,7 +146,7 @@ class GeneralizedAlpha(ModifiedNewton):
             if self._lu[4] == SERVES:
                 trusted = True
             else:
-                stale = self._lu
+                dropped = True
                 if replay is None:  # (a replay decides the refresh: `_newton`)
                     self._lu = None
         # the cap (iteration_cap): step.c bounds its loops by it; here a step fails when it needed more, which is
@@ -155,7 +155,7 @@ class GeneralizedAlpha(ModifiedNewton):
         try:
             if replay is not None and replay.iterations > self.max_iter:
                 raise StepFailure(t1, "the replayed run's first attempt failed")
-            F, it = self._newton(yd, beta, t1, stale, trusted, replay)
+            F, it = self._newton(yd, beta, t1, dropped, trusted, replay)
         except StepFailure as exc:
             if not commit_config:
                 raise

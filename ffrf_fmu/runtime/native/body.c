@@ -249,8 +249,6 @@ static const array_spec OWN[] = {
     {"luT", 'd', AT(lu.luT), S(d_nf, d_nf)},
     {"piv", 'i', AT(lu.piv), S(d_nf)},
     {"lu_meta", 'd', AT(lu.meta), S(12)},
-    {"luT_stale", 'd', AT(lu.luT_stale), S(d_nf, d_nf)},
-    {"piv_stale", 'i', AT(lu.piv_stale), S(d_nf)},
     {"JT", 'd', AT(lu.JT), S(d_nf, d_nf)},
     /* the partition of the Newton unknowns (factor.c) */
     {"se_unknowns", 'q', AT(part.se_unknowns), S(d_E, d_int)},
@@ -277,7 +275,6 @@ static const array_spec OWN[] = {
     {"Fz", 'd', AT(work.Fz), S(d_ncv, d_ncv)},
     {"Fy", 'd', AT(work.Fy), S(d_ncv, d_ncv)},
     {"b", 'd', AT(work.b), S(d_nf)},
-    {"b_stale", 'd', AT(work.b_stale), S(d_nf)},
     {"S", 'd', AT(work.S), S(d_fields)},
     {"row", 'd', AT(work.row), S(d_row)},
     {"q_rec", 'd', AT(work.q_rec), S(d_n)},
@@ -533,7 +530,8 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     SCALAR("stiff", b->data.stiff);
     SCALAR("k3", b->data.k3);
     SCALAR("theta_refresh", b->data.theta_refresh);
-    SCALAR("keep_contraction", b->data.keep_contraction);
+    SCALAR("kept_accept", b->data.kept_accept);
+    SCALAR("kept_radius", b->data.kept_radius);
     SCALAR("keep_miss", b->data.keep_miss);
     SCALAR("near_miss", b->data.near_miss);
     SCALAR("near_contraction", b->data.near_contraction);

@@ -22,7 +22,8 @@ import numpy as np
 from ..damping import is_damped, per_mode_ratios
 
 MAGIC = b"FFRFBODY"
-VERSION = 2  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction)
+VERSION = 3  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction; 3: kept_accept and
+# kept_radius in place of keep_contraction)
 NAME_BYTES = 24
 HEADER = struct.Struct("<8sIIQQ")
 ENTRY = struct.Struct("<24sBB6x5Q")
@@ -124,7 +125,8 @@ def body_entries(system, basis: bool = True) -> dict[str, np.ndarray]:
         "cfg_map": L.cfg_map, "vel_map": L.vel_map, "gravity": system.gravity,
         "rot_slots": L.rot_cols, "newton_idx": system._newton_idx, "newton_pos": system._newton_pos,
         "k3": 3 * len(system._world_free), "field_of": system._field_of,
-        "theta_refresh": system.THETA_REFRESH, "keep_contraction": system.KEEP_CONTRACTION,
+        "theta_refresh": system.THETA_REFRESH, "kept_accept": system.KEPT_ACCEPT,
+        "kept_radius": system.KEPT_RADIUS,
         "keep_miss": system.KEEP_MISS, "near_miss": system.NEAR_MISS,
         "near_contraction": system.NEAR_CONTRACTION, "refresh_min": int(system.REFRESH_AFTER[0]),
         "refresh_max": int(system.REFRESH_AFTER[1]), "world_idx": system._world_idx.reshape(-1, 3),

@@ -68,7 +68,7 @@ typedef struct {
     const idx_t *newton_pos;  /* [ny]          global rate -> Newton order (>= nf: not an unknown) */
     int k3;                   /* 3 x the free world triplets that lead the Newton order */
     const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
-    double theta_refresh, keep_contraction, keep_miss; /* the Newton policy (newton.py) */
+    double theta_refresh, kept_accept, kept_radius, keep_miss; /* the Newton policy (newton.py) */
     double near_miss, near_contraction;                /* NEAR_MISS, NEAR_CONTRACTION: the KEEPS verdict */
     int refresh_min, refresh_max;                      /* REFRESH_AFTER */
     const idx_t *world_idx;   /* [n_world][3] */
@@ -155,8 +155,6 @@ typedef struct {
     double *luT;       /* [nf][nf] LU factors, transposed (luT^T is LAPACK's/scipy's LU) */
     int *piv;          /* [nf]     0-based row interchanges */
     double *meta;      /* [12]     valid, beta, R_ref (9, row-major), verdict (0 drop, 1 serves, 2 keeps: integrator SERVES, KEEPS) */
-    double *luT_stale; /* [nf][nf] the matrix REFRESH_AFTER dropped, compared at the next refresh */
-    int *piv_stale;    /* [nf] */
     double *JT;        /* [nf][nf] the iteration matrix being built (transposed) */
     uint64_t version;  /* incremented at every refresh: a caller's copy is stale when it differs */
     uint64_t refreshed; /* the last ffrf_step's refreshes: bit i - 1 set when Newton built the matrix at iteration i
@@ -184,7 +182,7 @@ typedef struct {
     double *Rn;                       /* [N + E][3][3] */
     double *theta, *T;                /* [N + E][3], [N + E][3][3] */
     double *Fl, *Fz, *Fy;             /* [nv + nc], [nv + nc][nc + nv] x 2 */
-    double *b, *b_stale;              /* [nf] */
+    double *b;                        /* [nf] */
     double *S;                        /* [n_fields] */
     double *row;                      /* [OUTPUT row]: FFRF_OUTPUT_WIDTH n_ports + 5 */
     double *q_rec;                    /* [n] */

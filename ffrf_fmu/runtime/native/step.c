@@ -176,10 +176,10 @@ static void stage_at(const ffrf_body *b, const double *c, const double *P0, cons
  * increments lu.version. On failure meta[0] = 0 and a status != OK, with the last increment in meta[1]
  * for NOT_CONVERGED.
  * Convergence and refresh as integrator `_newton`: increments scaled per field (field_of), accepted on
- * the contraction estimate theta/(1 - theta) |dx|; serves as there (keep = KEEP_CONTRACTION, keep_miss =
- * KEEP_MISS; stale: lu holds the matrix REFRESH_AFTER dropped, which the first refresh compares (copied
- * to lu.luT_stale before the new one replaces it); trusted: REFRESH_AFTER kept it on its serves verdict). */
-static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, const double *P0, const double *Rn,
+ * the contraction estimate theta/(1 - theta) |dx|; serves as there (keep_miss = KEEP_MISS: a first increment
+ * beyond it serves, a kept matrix's second increment then does not decide a refresh and its later ones are
+ * accepted at kept_accept = KEPT_ACCEPT of the tolerance; trusted: REFRESH_AFTER kept it on its serves verdict). */
+static void newton_step(ffrf_body *b, int trusted, const double *c, const double *P0, const double *Rn,
                         const double *f_load, const double *t_load, double beta, double tol, int max_iter, double *yd,
                         double *p, double *R, double *F, int offset, int info[2])
 {
@@ -190,10 +190,9 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
     const int N = b->dims.N, NR = b->dims.N + b->dims.E, ny = b->dims.ny, nf = b->dims.nf;
     const int n_fields = b->dims.n_fields;
     const idx_t *newton_idx = D->newton_idx, *field_of = D->field_of;
-    const double keep = D->keep_contraction, keep_miss = D->keep_miss, theta_refresh = D->theta_refresh;
-    double *theta = w->theta, *T = w->T, *bx = w->b, *b_stale = w->b_stale, *S = w->S;
-    double ref_stale[9] = {0.0};
-    int kept = 1, serves = 0, use_stale = 0, far = 0, near = 0; /* kept: no matrix built in this step (yet) */
+    const double keep_miss = D->keep_miss, theta_refresh = D->theta_refresh;
+    double *theta = w->theta, *T = w->T, *bx = w->b, *S = w->S;
+    int kept = 1, far = 0, near = 0, late = 0; /* kept: no matrix built in this step (yet); late: one built after the first */
     double nrm_prev = INFINITY, nrm = 0.0, rate;
     int converged = 0;
     int it = 0;
@@ -215,13 +214,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
         }
         if (refresh) {
             kept = 0;
-            use_stale = stale && it == 1 && fabs(lu_meta[1] - beta) <= 1e-6 * beta;
-            if (use_stale) { /* the dropped matrix, compared with the new one after the solve */
-                memcpy(L->luT_stale, L->luT, ffrf_factor_entries(b) * sizeof(double)); /* the store's filled part */
-                memcpy(L->piv_stale, L->piv, (size_t)nf * sizeof(int));
-                for (int i = 0; i < 9; i++)
-                    ref_stale[i] = lu_meta[2 + i];
-            }
+            late = it > 1;
             /* the new matrix replaces the factorization: the version tells a caller holding a copy of
              * the old one (a rollback snapshot) that it is not this one any more */
             L->version++;
@@ -240,8 +233,6 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
                 lu_meta[2 + i] = R[9 * N + i];
         }
         corotated_solve(b, L->luT, L->piv, lu_meta + 2, R + 9 * N, F, newton_idx, D->k3, nf, bx);
-        if (use_stale)
-            corotated_solve(b, L->luT_stale, L->piv_stale, ref_stale, R + 9 * N, F, newton_idx, D->k3, nf, b_stale);
         for (int i = 0; i < nf; i++)
             yd[newton_idx[i]] -= bx[i];
         for (int f = 0; f < n_fields; f++) /* the largest rate of each field, at the new iterate */
@@ -262,29 +253,19 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
             far = nrm * tol > keep_miss;
             near = nrm <= D->near_miss;
         }
-        if (use_stale && far) { /* the dropped matrix's first increment against the new one's (integrator `_newton`) */
-            double dev = 0.0;
-            for (int i = 0; i < nf; i++) {
-                double e = fabs(b_stale[i] - bx[i]) / (tol / beta + tol * S[field_of[i]]);
-                if (e > dev)
-                    dev = e;
-            }
-            serves = dev <= keep * nrm;
-        }
-        use_stale = 0;
-        if (it == 1 ? nrm <= 1.0 : (nrm <= 0.1 || (rate < 1.0 && rate / (1.0 - rate) * nrm <= 1.0))) {
+        double lim = kept && far && it > 2 ? D->kept_accept : 1.0; /* the error an iterate on an older matrix may leave (KEPT_ACCEPT) */
+        if (it == 1 ? nrm <= 1.0 : (nrm <= 0.1 * lim || (rate < 1.0 && rate / (1.0 - rate) * nrm <= lim))) {
             converged = 1; /* the accepted iterate's configuration, not evaluated again */
             stage_at(b, c, P0, Rn, yd, p, theta, R);
-            if (kept)
-                serves = it == 2 && far && rate <= keep;
             break;
         }
-        /* slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh */
-        double r2 = rate * rate;
-        if (it > 1 && (rate > theta_refresh || r2 * r2 / (1.0 - rate) * nrm > 1.0 || (trusted && kept))) {
+        /* slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh; not on the second
+         * increment of a kept matrix after a far miss while kept_radius^3 of it is within kept_accept (the transient
+         * of its error; integrator `_newton`) */
+        double r2 = rate * rate, kr = D->kept_radius;
+        if (it > 1 && !(it == 2 && kept && far && kr * kr * kr * nrm <= D->kept_accept) &&
+            (rate > theta_refresh || r2 * r2 / (1.0 - rate) * nrm > lim || (trusted && kept)))
             lu_meta[0] = 0.0;
-            serves = 0;
-        }
         nrm_prev = nrm;
     }
     if (!converged) {
@@ -306,7 +287,7 @@ static void newton_step(ffrf_body *b, int stale, int trusted, const double *c, c
     }
     info[0] = FFRF_OK;
     info[1] = it;
-    lu_meta[11] = serves ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
+    lu_meta[11] = far && !late ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
 }
 
 /* ------------------------------------------------------------------ one step */
@@ -381,7 +362,7 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
     const int cap = b->iteration_cap > 0 && b->iteration_cap < 2 * b->max_iter ? b->iteration_cap : 2 * b->max_iter;
     for (int attempt = 0; attempt < 2 && cap > attempt * b->max_iter; attempt++) {
         int n_it = cap - attempt * b->max_iter < b->max_iter ? cap - attempt * b->max_iter : b->max_iter;
-        newton_step(b, stale, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, n_it, ydw, p, R, F, attempt * b->max_iter, info);
+        newton_step(b, trusted, c, P0, Rn, f_in, t_in, beta, b->tol, n_it, ydw, p, R, F, attempt * b->max_iter, info);
         if (attempt == 1)
             info[1] += b->max_iter; /* the failed attempt's iterations count */
         if (info[0] == FFRF_OK || info[0] == FFRF_ROTATION_ALIAS || attempt == 1)
@@ -392,7 +373,6 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
         for (int i = 0; i < d->n_fixed; i++)
             ydw[D->fixed_idx[i]] = zN_p[D->fixed_idx[i]];
         lu_meta[0] = 0.0;
-        stale = 0;
         trusted = 0;
     }
     if (info[0] == FFRF_NOT_CONVERGED && cap < 2 * b->max_iter)
