@@ -32,13 +32,13 @@ class InitialConditions:
         v + w x (x - origin) (or the motion inputs' velocities), optional port offsets (an initial
         elastic deformation), then consistent rates ydot_0 from a backward-Euler micro-step."""
         fn = inputs if callable(inputs) else (lambda t, _v=inputs: _v)
+        if self._compiled is not None:  # the whole of it in one call of the C runtime (runtime/native/initial.c)
+            self._compiled.initialize(self, float(t0), fn, velocity, angular_velocity, origin, port_displacements)
+            return
         self.reset_reference()
         self.t = float(t0)
         values = fn(t0)
-        read = xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t0, values)
-        if self._compiled is not None:  # the whole of it in one call of the C runtime (runtime/native/initial.c)
-            self._compiled.initialize(self, t0, read, fn, velocity, angular_velocity, origin, port_displacements)
-            return
+        xN_p, RN_p, zN_p, f_in, t_in = self._read_inputs(t0, values)
         # rigid placement on the first motion-driven rotation (then translation) input
         R_rig, c_ref, c_new = np.eye(3), np.zeros(3), np.zeros(3)
         v_lin, w = np.asarray(velocity, float), np.asarray(angular_velocity, float)
