@@ -2,7 +2,7 @@
 
 The body's state arrays ARE the C body's memory (numpy views of it), as BodySystem's attributes: a step
 writes them in place and Python reads them without a copy. What BodySystem replaces (set_state,
-reset_reference, a step of the numpy path) is copied in before the next call (`_adopt`). The factorization
+a step of the numpy path) is copied in before the next call (`_adopt`). The factorization
 of the iteration matrix lives in the C body; BodySystem's `_lu` gets a copy of it after a refresh only
 (its version changes), so a rollback snapshot keeps the matrix it was taken with.
 """
