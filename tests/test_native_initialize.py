@@ -34,7 +34,7 @@ def _pair(model, overrides, scene):
     data = reduce_body(scene_body(m.body, sc)).data
     make = lambda backend: BodySystem(data, terms=sc.terms, rho_inf=sc.rho_inf, gravity=sc.gravity,  # noqa: E731
                                       backend=backend)
-    return make("native"), make("numpy"), scene_inputs(data, sc)
+    return make("native"), make("numpy"), scene_inputs(data, sc), make
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
@@ -42,7 +42,7 @@ def test_native_initialize_is_the_numpy_paths(case):
     """Every state field, the port loads and the power at t0 within 1e-9 of the field's scale (the C runtime's
     equations against the oracle's: 1e-12 per block, the micro-step's rates divided by its 1 us)."""
     model, overrides, scene, t0, kw = CASES[case]
-    native, oracle, inputs = _pair(model, overrides, scene)
+    native, oracle, inputs, make = _pair(model, overrides, scene)
     assert native.backend == "native"
     for s in (native, oracle):
         s.initialize(t0, inputs, **kw)
@@ -52,18 +52,25 @@ def test_native_initialize_is_the_numpy_paths(case):
     assert native.t == oracle.t == t0 and native.work == oracle.work == 0.0 and native._lu is None
     assert native.power == pytest.approx(oracle.power, rel=1e-9, abs=1e-9)
     assert native._springs is not None and len(native._springs) == len(oracle._springs)
-    # and it steps on from there as the numpy path does
+    # it steps on from there as the numpy path does, and starts again from the reference state after a step
     h = 0.002
-    native.step(h, inputs)
-    oracle.step(h, inputs)
+    for s in (native, oracle):
+        s.step(h, inputs)
     assert np.abs(native.xN - oracle.xN).max() < 1e-10
+    fresh = make("native")
+    for s in (native, oracle, fresh):
+        s.initialize(t0 + h, inputs, **kw)
+    for k in BodySystem._STATE_FIELDS:
+        a, b = np.asarray(getattr(native, k)), np.asarray(getattr(oracle, k))
+        assert np.abs(a - b).max() <= 1e-9 * max(np.abs(b).max(), 1.0), k
+        assert np.array_equal(a, getattr(fresh, k)), k  # the same bits as a body initialized as created
 
 
 def test_native_relaxation_fails_as_the_numpy_path():
     """Both ends of a free beam displaced (each held along its u only, free across it): no static shape found in
     30 iterations; both backends raise the same StepFailure, up to the last correction (a Newton that does not
     converge leaves different last corrections from round-off)."""
-    native, oracle, inputs = _pair("free_beam.toml", [], "tumble")
+    native, oracle, inputs, _ = _pair("free_beam.toml", [], "tumble")
     disp = {"b": np.array([0.0, 0.05, 0.0]), "a": np.array([0.0, 0.0, 0.03])}
     words = []
     for s in (native, oracle):

@@ -189,7 +189,7 @@ class NativeStep:
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
         self._settings = None  # the integrator's settings last set in the C body (`_prepare`)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
-        self._reference = B.get_state()  # the reference state (BodySystem.reset_reference's): `initialize`'s start
+        self._pristine = True  # the C body's state as created, BodySystem.reset_reference's (until `_adopt`)
 
     # views that only some bodies or one way to step use: made on first use (a step of a body with compliant
     # ports, `run_extrapolated`)
@@ -205,7 +205,8 @@ class NativeStep:
 
     # ---------------------------------------------------------------- state in, results out
     def _adopt(self, system):
-        """The body's state in the C body's memory (after set_state, initialize or a numpy step)."""
+        """The body's state in the C body's memory (after set_state, reset_reference or a numpy step)."""
+        self._pristine = False
         for k, buf in self.state.items():
             arr = getattr(system, k)
             if arr is not buf:
@@ -292,13 +293,16 @@ class NativeStep:
 
     def initialize(self, system, t0, inputs, velocity, angular_velocity, origin, port_displacements) -> None:
         """BodySystem.initialize in ONE call of the C runtime (ffrf_body_initialize, FFRF_GIVEN) from the body's
-        reference state (BodySystem.reset_reference: the C body's state as created, `_reference`): the inputs at
-        t0 and those of the micro-step at t0 + delta read by `_read_inputs` from inputs(t), as the numpy path
-        reads them. The state is the C body's memory after it (system's arrays its views)."""
-        self.body.set_state(self._reference)
-        for k, buf in self.state.items():
-            setattr(system, k, buf)
-        system.t, system.work, system.power, system._lu = t0, 0.0, 0.0, None
+        reference state (BodySystem.reset_reference's: a C body as created holds it, its views become system's
+        arrays): the inputs at t0 and those of the micro-step at t0 + delta read by `_read_inputs` from
+        inputs(t), as the numpy path reads them. The state is the C body's memory after it."""
+        if self._pristine:
+            for k, buf in self.state.items():
+                setattr(system, k, buf)
+            system.work, system.power = 0.0, 0.0
+        else:
+            system.reset_reference()
+        system.t, system._lu = t0, None
         read = system._read_inputs(t0, inputs(t0))
         ends0, springs0 = self._spring_ends(system), system._springs
         for dst, src in zip(self.inputs, read):
