@@ -68,7 +68,7 @@ int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, doubl
  * those of the micro-step in next, the same arrays one after the other (xN_p, RN_p, zN_p, f_in, t_in, r_in,
  * v_in, R_in, w_in; a standalone run's scene functions at t0 + FFRF_MICRO_STEP); FFRF_EXTRAPOLATED: both from
  * the point values at t0 (an FMU; next unused). Returns 0; a step status (> 0) of the micro-step, *last its
- * last increment (lu_meta[1]), the state back at the reference placed; FFRF_INIT_NO_EQUILIBRIUM, *last the
+ * last increment (lu_meta[1]), the state that before the micro-step; FFRF_INIT_NO_EQUILIBRIUM, *last the
  * relaxation's last correction; FFRF_INIT_NO_MEMORY. */
 #define FFRF_MICRO_STEP 1e-6
 enum { FFRF_INIT_NO_EQUILIBRIUM = -1, FFRF_INIT_NO_MEMORY = -2 };
