@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1] / "ffrf_fmu"
 # the layers bottom up (docs/architecture.md, "The C runtime in layers"); files of one layer call each other not
 LAYERS = {
     "runtime/native": [["so3.c"], ["lu.c"], ["superelement.c"], ["factor.c"], ["step.c"], ["accel.c"], ["advance.c"],
-                       ["body.c"]],
+                       ["body.c"], ["initial.c"]],
     "fmu/native": [["resource.c"], ["initialize.c"], ["model.c"], ["fmi2Functions.c", "fmi3Functions.c"]],
 }
 INCLUDE = re.compile(r'^#include "(\w+)\.h"', re.M)

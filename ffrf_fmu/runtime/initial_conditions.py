@@ -1,7 +1,9 @@
 """A body's initial state (BodySystem.initialize): the reference configuration moved rigidly onto the
 motion inputs, a rigid velocity field, optional port displacements relaxed to a static shape (a bordered
 Newton system), and consistent rates ydot_0 from a backward-Euler micro-step. A mixin of
-runtime/body.py's BodySystem, whose arrays (xN, RN, x0, R0, eta, v, yd) it sets.
+runtime/body.py's BodySystem, whose arrays (xN, RN, x0, R0, eta, v, yd) it sets. On the C runtime the
+whole of it is one call (runtime/native/initial.c `ffrf_body_initialize`, the FMU's too) after the
+inputs are read here; the steps below are the numpy path's, the oracle.
 """
 from __future__ import annotations
 
@@ -30,6 +32,9 @@ class InitialConditions:
         v + w x (x - origin) (or the motion inputs' velocities), optional port offsets (an initial
         elastic deformation), then consistent rates ydot_0 from a backward-Euler micro-step."""
         fn = inputs if callable(inputs) else (lambda t, _v=inputs: _v)
+        if self._compiled is not None:  # the whole of it in one call of the C runtime (runtime/native/initial.c)
+            self._compiled.initialize(self, float(t0), fn, velocity, angular_velocity, origin, port_displacements)
+            return
         self.reset_reference()
         self.t = float(t0)
         values = fn(t0)
@@ -76,10 +81,7 @@ class InitialConditions:
         # consistent ydot_0: a backward-Euler micro-step (am = af = gamma = 1) from the initial state
         delta = 1e-6
         saved = self.get_state()
-        if self._compiled is not None:  # in the C runtime (the numpy path's LU would import scipy for it)
-            yd0 = self._compiled.initial_rates(self, delta, fn)
-        else:
-            yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
+        yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
         self.set_state(saved)
         # the micro-step's configuration rates are the velocities at t0 + delta, off by delta times the
         # acceleration (a body at rest under an initial tip load seemed to move, 1.76e-4 m/s per N on

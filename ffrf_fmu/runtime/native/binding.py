@@ -2,7 +2,7 @@
 
 The body's state arrays ARE the C body's memory (numpy views of it), as BodySystem's attributes: a step
 writes them in place and Python reads them without a copy. What BodySystem replaces (set_state,
-initialize, a step of the numpy path) is copied in before the next call (`_adopt`). The factorization
+a step of the numpy path) is copied in before the next call (`_adopt`). The factorization
 of the iteration matrix lives in the C body; BodySystem's `_lu` gets a copy of it after a refresh only
 (its version changes), so a rollback snapshot keeps the matrix it was taken with.
 """
@@ -21,6 +21,8 @@ from .image import body_image
 
 GIVEN, SCHEDULED, EXTRAPOLATED = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
 OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP, ITERATION_CAP = range(7)
+NO_EQUILIBRIUM, NO_MEMORY = -1, -2  # ffrf_body_initialize's own failures
+MICRO_STEP, RELAX_MAX_ITER = 1e-6, 30  # ffrf_runtime.h FFRF_MICRO_STEP, initial.h FFRF_RELAX_MAX_ITER
 
 _LIB: dict[bool, C.CDLL] = {}
 
@@ -41,6 +43,7 @@ _SIGNATURES = {
     "ffrf_body_set_state": (_i, [_p, _p, _sz]),
     "ffrf_body_residual": (_i, [_p, _p, _p, _p, _i, _p, _p, _p]),
     "ffrf_status_text": (C.c_char_p, [_i]),
+    "ffrf_body_initialize": (_i, [_p, _d, _p, _p, _p, _p, _i, _p, _p]),
 }
 
 
@@ -186,6 +189,7 @@ class NativeStep:
         self._schedule = None  # the arrays of the schedule set in the C body (kept alive while it may read them)
         self._settings = None  # the integrator's settings last set in the C body (`_prepare`)
         self.ny, self.block = L.ny, (L.n_se, L.nv + L.nc, L.nc + L.nv)  # (`local`)
+        self._pristine = True  # the C body's state as created, BodySystem.reset_reference's (until `_adopt`)
 
     # views that only some bodies or one way to step use: made on first use (a step of a body with compliant
     # ports, `run_extrapolated`)
@@ -201,7 +205,8 @@ class NativeStep:
 
     # ---------------------------------------------------------------- state in, results out
     def _adopt(self, system):
-        """The body's state in the C body's memory (after set_state, initialize or a numpy step)."""
+        """The body's state in the C body's memory (after set_state, reset_reference or a numpy step)."""
+        self._pristine = False
         for k, buf in self.state.items():
             arr = getattr(system, k)
             if arr is not buf:
@@ -276,15 +281,61 @@ class NativeStep:
             raise exc
         return system.iterations
 
-    def initial_rates(self, system, h, inputs) -> np.ndarray:
-        """The rates of BodySystem.initialize's backward-Euler micro-step (am = af = gamma = 1) of h from
-        the body's state, as the numpy path's `_step(commit_config=False)` takes it: the current rates as
-        the predictor (the history set to them: (yd - yd_prev) 3 + yd_prev2 = yd), a fresh matrix, no
-        REFRESH_AFTER (iterations 0). The body's state then is the step's: the caller restores its own."""
-        system.yd_prev, system.yd_prev2 = system.yd.copy(), system.yd.copy()
-        system._lu, system.iterations = None, 0
-        self.step(system, h, inputs, 1.0, 1.0, 1.0)
-        return system.yd.copy()
+    def _spring_ends(self, system) -> list[np.ndarray]:
+        """The compliant ports' far ends r_in, v_in, R_in, w_in as system._springs (last `_read_inputs`) has
+        them, the C body's where it has none (BodySystem.step's copy-in, as copies)."""
+        ends = [a.copy() for a in self.spring_inputs] if system._springs else []
+        for i, (_, _, _, _, values) in enumerate(system._springs):
+            for a, value in zip(ends, values):
+                if value is not None:
+                    a[i] = value
+        return ends
+
+    def initialize(self, system, t0, inputs, velocity, angular_velocity, origin, port_displacements) -> None:
+        """BodySystem.initialize in ONE call of the C runtime (ffrf_body_initialize, FFRF_GIVEN) from the body's
+        reference state (BodySystem.reset_reference's: a C body as created holds it, its views become system's
+        arrays): the inputs at t0 and those of the micro-step at t0 + delta read by `_read_inputs` from
+        inputs(t), as the numpy path reads them. The state is the C body's memory after it."""
+        if self._pristine:
+            for k, buf in self.state.items():
+                setattr(system, k, buf)
+            system.work, system.power = 0.0, 0.0
+        else:
+            system.reset_reference()
+        system.t, system._lu = t0, None
+        read = system._read_inputs(t0, inputs(t0))
+        ends0, springs0 = self._spring_ends(system), system._springs
+        for dst, src in zip(self.inputs, read):
+            dst[...] = src
+        for dst, src in zip(self.spring_inputs if ends0 else (), ends0):
+            dst[...] = src
+        t1 = system.t + MICRO_STEP  # (the numpy path's micro-step time, as `step` makes it)
+        nxt = system._read_inputs(t1, inputs(t1))
+        ends1 = self._spring_ends(system)
+        system._springs = springs0  # (the springs' ends at t0, as the numpy path leaves them)
+        nxt = np.concatenate([a.ravel() for a in (*nxt, *ends1)])
+        disp = None
+        if port_displacements:
+            names = [p.name for p in system.data.ports]
+            disp = np.zeros((len(names), 3))
+            for name, u in port_displacements.items():
+                disp[names.index(system.data.port(name).name)] += np.asarray(u, float)
+        self._prepare(system, 1.0, 1.0, 1.0)
+        args = np.array([*velocity, *angular_velocity, *origin], dtype=float)
+        last, a = _d(), args.ctypes.data
+        B = self.body
+        status = B.lib.ffrf_body_initialize(B.ptr, float(t0), a, a + 24, a + 48, None if disp is None else disp.ctypes.data,
+                                            GIVEN, nxt.ctypes.data, C.byref(last))
+        if status == NO_EQUILIBRIUM:
+            raise StepFailure(system.t, f"initial port displacements {sorted(port_displacements)}: no static "
+                                        f"equilibrium of the deformed body found ({RELAX_MAX_ITER} Newton iterations, "
+                                        f"last correction {last.value:.3g}); smaller displacements, or ports whose "
+                                        "displacements the body can hold")
+        if status == NO_MEMORY:
+            raise MemoryError("the C runtime's initialization: out of memory")
+        if status != OK:
+            raise failure(B.lib, status, t1, system.max_iter, system.iteration_cap, last.value)
+        system.work, system.power = 0.0, float(self.energy[1])
 
     def run(self, system, h, schedule, rows, times, am, af, gamma):
         """len(rows) steps of h in ONE call, the inputs from the scene's schedule (simulate.scene_schedule;

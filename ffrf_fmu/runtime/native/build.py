@@ -23,8 +23,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 HERE_STR = str(HERE)
-SOURCES = ("so3.c", "lu.c", "superelement.c", "factor.c", "step.c", "accel.c", "advance.c", "body.c")
-HEADERS = ("ffrf_runtime.h", "layout.h", "bytes.h", "so3.h", "lu.h", "superelement.h", "factor.h", "step.h", "accel.h", "advance.h", "body.h")
+SOURCES = ("so3.c", "lu.c", "superelement.c", "factor.c", "step.c", "accel.c", "advance.c", "body.c", "initial.c")
+HEADERS = ("ffrf_runtime.h", "layout.h", "bytes.h", "so3.h", "lu.h", "superelement.h", "factor.h", "step.h", "accel.h", "advance.h", "body.h", "initial.h")
 # -ffp-contract=off: the operations as written on every compiler (gcc contracts in GNU mode, clang/zig
 # within expressions); -fvisibility=hidden with the public API marked by FFRF_API (ffrf_runtime.h)
 FLAGS = ("-std=c11", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra", "-Werror", "-pedantic")

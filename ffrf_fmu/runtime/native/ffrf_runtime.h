@@ -60,6 +60,22 @@ void ffrf_body_set_schedule(ffrf_body *b, double *r0, int64_t *kind, double *prm
 int ffrf_body_advance(ffrf_body *b, int kind, int n, double h, double t_c, double *rows,
                       double *times, int *status, int *worst);
 
+/* The consistent initial state at t0 (BodySystem.initialize) of a body at its reference state: placed rigidly
+ * on the motion inputs at t0, port_displacements ([n_ports][3], model order; NULL: none) added and relaxed to a
+ * static shape, the rigid velocity field of velocity, angular_velocity about origin (or the motion inputs' rates),
+ * consistent rates from a backward-Euler micro-step of FFRF_MICRO_STEP, the port loads and power at t0. Inputs
+ * by kind: FFRF_GIVEN: those at t0 as set in the inputs arrays and the springs' r_in, v_in, R_in, w_in on entry,
+ * those of the micro-step in next, the same arrays one after the other (xN_p, RN_p, zN_p, f_in, t_in, r_in,
+ * v_in, R_in, w_in; a standalone run's scene functions at t0 + FFRF_MICRO_STEP); FFRF_EXTRAPOLATED: both from
+ * the point values at t0 (an FMU; next unused). Returns 0; a step status (> 0) of the micro-step, *last its
+ * last increment (lu_meta[1]), the state that before the micro-step; FFRF_INIT_NO_EQUILIBRIUM, *last the
+ * relaxation's last correction; FFRF_INIT_NO_MEMORY. */
+#define FFRF_MICRO_STEP 1e-6
+enum { FFRF_INIT_NO_EQUILIBRIUM = -1, FFRF_INIT_NO_MEMORY = -2 };
+int ffrf_body_initialize(ffrf_body *b, double t0, const double velocity[3], const double angular_velocity[3],
+                         const double origin[3], const double *port_displacements, int kind, const double *next,
+                         double *last);
+
 /* The output row at the current state (FFRF_OUTPUT_WIDTH n_ports + FFRF_N_ENERGIES + 1 doubles). */
 void ffrf_body_record(const ffrf_body *b, double *row);
 
