@@ -228,12 +228,22 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     double (*W0x)[3] = (double (*)[3])w->W0x;
     double (*u)[3] = (double (*)[3])w->u, (*cc)[3] = (double (*)[3])w->c;
     double (*Fz)[ncv] = (double (*)[ncv])Fz_, (*Fy)[ncv] = (double (*)[ncv])Fy_;
-    memset(Fz_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
-    memset(Fy_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
-    memset(w->Dq, 0, sizeof(double) * (size_t)n * (size_t)nc);
-    memset(w->Dqd, 0, sizeof(double) * (size_t)n * (size_t)nc);
-    memset(w->dgz, 0, sizeof(double) * (size_t)n * (size_t)ncv);
-    memset(w->dgy, 0, sizeof(double) * (size_t)n * (size_t)ncv);
+    /* The blocks' zeros. Dq, Dqd, dgz, dgy: every entry this function writes it sets (=) before it adds
+     * into it, on the same pattern at every call (the term set is the body's), and the others stay the zeros
+     * of ffrf_se_work_bind. Fz, Fy: the caller's arrays are zeroed whole; the body's own (work.Fz, work.Fy, a
+     * refresh's: kept by the runtime alone, zero at creation) only on the rows that are added into, x0, Theta0
+     * and the boundary nodes' (nv .. nv + 6, nv + 6 + nm .. nv + nc): the other rows' entries are set at every
+     * call or never written (ffrf_evaluate's tangent products overwrite only entries that are set here). */
+    const size_t row_bytes = sizeof(double) * (size_t)ncv;
+    if (Fz_ == b->work.Fz && Fy_ == b->work.Fy) {
+        memset(Fz[nv], 0, 6 * row_bytes);
+        memset(Fy[nv], 0, 6 * row_bytes);
+        memset(Fz[nv + 6 + nm], 0, (size_t)(nc - 6 - nm) * row_bytes);
+        memset(Fy[nv + 6 + nm], 0, (size_t)(nc - 6 - nm) * row_bytes);
+    } else {
+        memset(Fz_, 0, (size_t)(nv + nc) * row_bytes);
+        memset(Fy_, 0, (size_t)(nv + nc) * row_bytes);
+    }
     skew(W0, W0x);
     for (int k = 0; k < nb; k++) {
         const int XP = 6 + nm + 6 * k, TP = 9 + nm + 6 * k;
@@ -358,6 +368,8 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             dgy[i][j] = s3 + s5;
             dgz[i][j] = s4;
         }
+        for (int j = nc; j < ncv; j++) /* (dgy's velocity columns are added into below: the gyroscopic and stiffening terms) */
+            dgy[i][j] = 0.0;
         for (int j = 0; j < n; j++) {
             Fy[kq + i][cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
             dgz[i][cr + j] = Me[i][j];
