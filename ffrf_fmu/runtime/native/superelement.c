@@ -507,19 +507,23 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                     cols[ncols++] = j;
             for (int t = 0; t < ncols; t++) {
                 const int j = cols[t];
+                const double gdj[3] = {dg[d][j], dg[d + 1][j], dg[d + 2][j]}, gaj[3] = {dg[a][j], dg[a + 1][j], dg[a + 2][j]};
                 for (int i = 0; i < 3; i++) {
                     double s1 = 0.0, s2 = 0.0;
                     for (int m = 0; m < 3; m++) {
-                        s1 += R0[i][m] * dg[d + m][j];
-                        s2 += H[k][m][i] * dg[a + m][j];
+                        s1 += R0[i][m] * gdj[m];
+                        s2 += H[k][m][i] * gaj[m];
                     }
                     D[exP + i][j] += s1; /* R0 dg_d */
                     D[ex0 + i][j] -= s1;
                     D[eTP + i][j] += s2; /* H^T dg_a */
                     ya[i] = s2;
                 }
+                const double *rk = rho[k]; /* rho x dg_d, written out (so3.c's ffrf_cross is a call from here) */
+                const double rx[3] = {rk[1] * gdj[2] - rk[2] * gdj[1], rk[2] * gdj[0] - rk[0] * gdj[2],
+                                      rk[0] * gdj[1] - rk[1] * gdj[0]};
                 for (int i = 0; i < 3; i++) { /* -(rho x dg_d + Q H^T dg_a) */
-                    double s = rho[k][(i + 1) % 3] * dg[d + (i + 2) % 3][j] - rho[k][(i + 2) % 3] * dg[d + (i + 1) % 3][j];
+                    double s = rx[i];
                     for (int m = 0; m < 3; m++)
                         s += Q[k][i][m] * ya[m];
                     D[eT0 + i][j] -= s;
