@@ -187,17 +187,21 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
     const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
     const double (*Bq)[n] = (const double (*)[n])w->Bq, *Nk = w->Nk;
     double (*Kt)[n] = (double (*)[n])w->Kt;
-    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would (the same
-     * bits), the rows of vk_B[k] read contiguously */
+    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would, the rows of
+     * vk_B[k] read contiguously. Kt is symmetric (each B_k is: runtime/stiffening.py): the upper triangle is
+     * summed, the lower one copied from it. */
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++)
+        for (int j = i; j < n; j++)
             Kt[i][j] = 0.0;
     for (int k = 0; k < r; k++)
         for (int i = 0; i < n; i++) {
             const double ai = vk_a[k][i], bi = Bq[k][i], *a = vk_a[k], *bq = Bq[k], *Bki = vk_B[k][i];
-            for (int j = 0; j < n; j++)
+            for (int j = i; j < n; j++)
                 Kt[i][j] += ai * bq[j] + bi * (a[j] + bq[j]) + Nk[k] * Bki[j];
         }
+    for (int i = 1; i < n; i++)
+        for (int j = 0; j < i; j++)
+            Kt[i][j] = Kt[j][i];
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
@@ -333,15 +337,10 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     if (stiff) {
         double (*Kt)[n] = (double (*)[n])w->Kt;
         stiff_tangent(b, e, n, w);
-        if (n2 > 0) {
-            const double (*Kc)[n2] = (const double (*)[n2])w->Kc;
-            for (int i = 0; i < n; i++)
-                for (int j = 0; j < n; j++)
-                    Kt[i][j] -= Kc[i][j];
-        }
-        for (int i = 0; i < n; i++)
+        const double (*Kc)[n2 > 0 ? n2 : 1] = (const double (*)[n2 > 0 ? n2 : 1])w->Kc;
+        for (int i = 0; i < n; i++) /* (Kt - Kc) + K, one pass */
             for (int j = 0; j < n; j++)
-                Kt[i][j] += Ke[i][j];
+                Kt[i][j] = (n2 > 0 ? Kt[i][j] - Kc[i][j] : Kt[i][j]) + Ke[i][j];
         Kq = (const double (*)[n])Kt;
     }
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
