@@ -204,6 +204,21 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
             Kt[i][j] = Kt[j][i];
 }
 
+/* C[i][0..2] += A[i][0..2] B (i < n; A n x 3, B 3 x 3, C n x 3 within matrices of leading sizes lda, ldb,
+ * ldc), each entry's sum in m's order from C's value. */
+static void block_product(int n, const double *A, int lda, const double *B, int ldb, double *C, int ldc)
+{
+    const double b00 = B[0], b01 = B[1], b02 = B[2];
+    const double b10 = B[ldb], b11 = B[ldb + 1], b12 = B[ldb + 2];
+    const double b20 = B[2 * ldb], b21 = B[2 * ldb + 1], b22 = B[2 * ldb + 2];
+    for (int i = 0; i < n; i++, A += lda, C += ldc) {
+        const double a0 = A[0], a1 = A[1], a2 = A[2];
+        C[0] = ((C[0] + a0 * b00) + a1 * b10) + a2 * b20;
+        C[1] = ((C[1] + a0 * b01) + a1 * b11) + a2 * b21;
+        C[2] = ((C[2] + a0 * b02) + a1 * b12) + a2 * b22;
+    }
+}
+
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
  * (runtime/equations.py residual_and_jacobian, same algebra). solved (a refresh, ffrf_evaluate): the k_q rows
  * (79) premultiplied by M_bar^-1, as factor.c's velocity elimination wants them: M_bar^-1 k_q's blocks are
@@ -343,19 +358,42 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 Kt[i][j] = (n2 > 0 ? Kt[i][j] - Kc[i][j] : Kt[i][j]) + Ke[i][j];
         Kq = (const double (*)[n])Kt;
     }
+    /* Kq Dq into dgy's configuration columns by Dq's blocks (block_product; Dq's pattern is the same at every
+     * state): each sum runs over the rows of Dq's nonzero list in their order, and the structural zeros it adds
+     * beside them add nothing, so the sums are those of the list's loop to the bit. solved: the columns that are
+     * not Newton unknowns stay zero (as with the lists: not read). */
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < nc; j++)
+            dgy[i][j] = 0.0;
+#define UNKNOWN(j) (!solved || newton_pos[cfg[j]] < b->dims.nf)
+    for (int k = 0; k < nb; k++) {
+        const int d = 6 * k, a = d + 3, XP = 6 + nm + d, TP = XP + 3;
+        if (UNKNOWN(0)) /* x0: -R0^T on the node's translation rows */
+            block_product(n, &Kq[0][d], n, &Dq[d][0], nc, &dgy[0][0], ncv);
+        if (UNKNOWN(3)) { /* Theta0: skew(rho) on the translation rows, -H Q^T on the rotation rows */
+            block_product(n, &Kq[0][d], n, &Dq[d][3], nc, &dgy[0][3], ncv);
+            block_product(n, &Kq[0][a], n, &Dq[a][3], nc, &dgy[0][3], ncv);
+        }
+        if (UNKNOWN(XP)) /* the node's translation: R0^T; its rotation: H */
+            block_product(n, &Kq[0][d], n, &Dq[d][XP], nc, &dgy[0][XP], ncv);
+        if (UNKNOWN(TP))
+            block_product(n, &Kq[0][a], n, &Dq[a][TP], nc, &dgy[0][TP], ncv);
+    }
+    for (int l = 0; l < nm; l++) /* eta: 1 on the modal row */
+        if (UNKNOWN(6 + l))
+            for (int i = 0; i < n; i++)
+                dgy[i][6 + l] = 0.0 + Kq[i][6 * nb + l] * Dq[6 * nb + l][6 + l];
+#undef UNKNOWN
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
         for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+            double s1 = 0.0, s2 = 0.0, s4 = 0.0, s5 = 0.0;
             if (solved) {
                 s1 = Dq[i][j];
                 s2 = Dqd[i][j];
-                NZ_ROWS(j, m)
-                    s3 += Kq[i][m] * Dq[m][j];
             } else
                 NZ_ROWS(j, m) {
                     s1 += Me[i][m] * Dq[m][j];
                     s2 += Me[i][m] * Dqd[m][j];
-                    s3 += Kq[i][m] * Dq[m][j];
                 }
             if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
                 NZ_ROWS(j, m) {
@@ -364,7 +402,7 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 }
             Fz[kq + i][j] = s1;
             Fy[kq + i][j] = s2;
-            dgy[i][j] = s3 + s5;
+            dgy[i][j] += s5; /* Kq Dq + D Dqd */
             dgz[i][j] = s4;
         }
         for (int j = nc; j < ncv; j++) /* (dgy's velocity columns are added into below: the gyroscopic and stiffening terms) */
