@@ -530,8 +530,17 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         const int TP = 9 + nm + 6 * k;
         const int d = 6 * k, a = 6 * k + 3;
         const double *gd = g + d, *ga = g + a;
-        double *ya = w->v3;
-        for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy) */
+        /* R0, H, Q and rho in locals: the stores into the blocks below cannot change them (no reloads) */
+        double r0[9], hk[9], qk[9], rk[3];
+        for (int i = 0; i < 3; i++) {
+            rk[i] = rho[k][i];
+            for (int m = 0; m < 3; m++) {
+                r0[3 * i + m] = R0[i][m];
+                hk[3 * i + m] = H[k][i][m];
+                qk[3 * i + m] = Q[k][i][m];
+            }
+        }
+        for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy): -(rho x dg_d + Q H^T dg_a) on Theta0 */
             double (*D)[ncv] = pass == 0 ? Fz : Fy;
             double (*dg)[ncv] = pass == 0 ? dgz : dgy;
             /* the columns where this node's rows of dg are not all zero (dgz: the r columns, without damping or
@@ -545,25 +554,18 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             for (int t = 0; t < ncols; t++) {
                 const int j = cols[t];
                 const double gdj[3] = {dg[d][j], dg[d + 1][j], dg[d + 2][j]}, gaj[3] = {dg[a][j], dg[a + 1][j], dg[a + 2][j]};
-                for (int i = 0; i < 3; i++) {
-                    double s1 = 0.0, s2 = 0.0;
-                    for (int m = 0; m < 3; m++) {
-                        s1 += R0[i][m] * gdj[m];
-                        s2 += H[k][m][i] * gaj[m];
-                    }
-                    D[exP + i][j] += s1; /* R0 dg_d */
-                    D[ex0 + i][j] -= s1;
-                    D[eTP + i][j] += s2; /* H^T dg_a */
-                    ya[i] = s2;
+                double s1[3], ya[3];
+                for (int i = 0; i < 3; i++) { /* R0 dg_d, H^T dg_a */
+                    s1[i] = ((0.0 + r0[3 * i] * gdj[0]) + r0[3 * i + 1] * gdj[1]) + r0[3 * i + 2] * gdj[2];
+                    ya[i] = ((0.0 + hk[i] * gaj[0]) + hk[3 + i] * gaj[1]) + hk[6 + i] * gaj[2];
                 }
-                const double *rk = rho[k]; /* rho x dg_d, written out (so3.c's ffrf_cross is a call from here) */
                 const double rx[3] = {rk[1] * gdj[2] - rk[2] * gdj[1], rk[2] * gdj[0] - rk[0] * gdj[2],
-                                      rk[0] * gdj[1] - rk[1] * gdj[0]};
-                for (int i = 0; i < 3; i++) { /* -(rho x dg_d + Q H^T dg_a) */
-                    double s = rx[i];
-                    for (int m = 0; m < 3; m++)
-                        s += Q[k][i][m] * ya[m];
-                    D[eT0 + i][j] -= s;
+                                      rk[0] * gdj[1] - rk[1] * gdj[0]}; /* rho x dg_d */
+                for (int i = 0; i < 3; i++) {
+                    D[exP + i][j] += s1[i];
+                    D[ex0 + i][j] -= s1[i];
+                    D[eTP + i][j] += ya[i];
+                    D[eT0 + i][j] -= ((rx[i] + qk[3 * i] * ya[0]) + qk[3 * i + 1] * ya[1]) + qk[3 * i + 2] * ya[2];
                 }
             }
         }
