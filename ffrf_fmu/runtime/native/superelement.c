@@ -413,30 +413,37 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             dgy[i][j] = 0.0;
     dq_product(b, e, solved, n, &Kq[0][0], NULL, n, &Dq[0][0], &Dqd[0][0], &dgy[0][0], ncv);
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
-        for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s4 = 0.0, s5 = 0.0;
-            if (solved) {
-                s1 = Dq[i][j];
-                s2 = Dqd[i][j];
-            } else
+        double *fz = Fz[kq + i], *fy = Fy[kq + i];
+        if (solved) /* M_bar^-1 k_q: Dq, Dqd and -I on r */
+            for (int j = 0; j < nc; j++) {
+                fz[j] = Dq[i][j];
+                fy[j] = Dqd[i][j];
+            }
+        else
+            for (int j = 0; j < nc; j++) {
+                double s1 = 0.0, s2 = 0.0;
                 NZ_ROWS(j, m) {
                     s1 += Me[i][m] * Dq[m][j];
                     s2 += Me[i][m] * Dqd[m][j];
                 }
-            if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
+                fz[j] = s1;
+                fy[j] = s2;
+            }
+        for (int j = 0; j < nc; j++) { /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
+            double s4 = 0.0, s5 = 0.0;
+            if (damped) {
                 NZ_ROWS(j, m) {
                     s4 += De[i][m] * Dq[m][j];
                     s5 += De[i][m] * Dqd[m][j];
                 }
-            Fz[kq + i][j] = s1;
-            Fy[kq + i][j] = s2;
-            dgy[i][j] += s5; /* Kq Dq + D Dqd */
+                dgy[i][j] += s5; /* Kq Dq + D Dqd (undamped: + 0, nothing) */
+            }
             dgz[i][j] = s4;
         }
         for (int j = nc; j < ncv; j++) /* (dgy's velocity columns are added into below: the gyroscopic and stiffening terms) */
             dgy[i][j] = 0.0;
         for (int j = 0; j < n; j++) {
-            Fy[kq + i][cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
+            fy[cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
             dgz[i][cr + j] = Me[i][j];
         }
     }
