@@ -39,7 +39,7 @@ struct ffrf_se_work {
     double *Dq, *Dqd;                           /* [n][nc] */
     double *dgz, *dgy;                          /* [n][nc + nv] */
     double *S, *S2, *B, *W0x, *C, *QC;          /* [3][3] */
-    double *T1;                                 /* [3][nc] */
+    double *T1, *T2;                            /* [3][nc] */
     double *Bq;                                 /* [r][n] */
     double *Nk;                                 /* [r] */
     double *Z;                                  /* [3][n] */
@@ -85,7 +85,7 @@ static size_t se_layout(ffrf_se_work *w, char *mem, const ffrf_dims *d)
     SE_ARRAY(Dq, n * nc); SE_ARRAY(Dqd, n * nc);
     SE_ARRAY(dgz, n * ncv); SE_ARRAY(dgy, n * ncv);
     SE_ARRAY(S, 9); SE_ARRAY(S2, 9); SE_ARRAY(B, 9); SE_ARRAY(W0x, 9); SE_ARRAY(C, 9); SE_ARRAY(QC, 9);
-    SE_ARRAY(T1, 3 * nc);
+    SE_ARRAY(T1, 3 * nc); SE_ARRAY(T2, 3 * nc);
     SE_ARRAY(Bq, r * n); SE_ARRAY(Nk, r);
     SE_ARRAY(Z, 3 * n);
     SE_ARRAY(Jq, 9); SE_ARRAY(Jqd, 9); SE_ARRAY(hs, 3);
@@ -187,17 +187,83 @@ static void stiff_tangent(const ffrf_body *b, int e, int n, ffrf_se_work *w)
     const double (*vk_B)[n][n] = (const double (*)[n][n])b->data.vk_B + (size_t)e * r;
     const double (*Bq)[n] = (const double (*)[n])w->Bq, *Nk = w->Nk;
     double (*Kt)[n] = (double (*)[n])w->Kt;
-    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would (the same
-     * bits), the rows of vk_B[k] read contiguously */
+    /* k outermost: each entry sums its terms in k's order from 0.0 as a k-innermost loop would, the rows of
+     * vk_B[k] read contiguously. Kt is symmetric (each B_k is: runtime/stiffening.py): the upper triangle is
+     * summed, the lower one copied from it. */
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++)
+        for (int j = i; j < n; j++)
             Kt[i][j] = 0.0;
     for (int k = 0; k < r; k++)
         for (int i = 0; i < n; i++) {
             const double ai = vk_a[k][i], bi = Bq[k][i], *a = vk_a[k], *bq = Bq[k], *Bki = vk_B[k][i];
-            for (int j = 0; j < n; j++)
+            for (int j = i; j < n; j++)
                 Kt[i][j] += ai * bq[j] + bi * (a[j] + bq[j]) + Nk[k] * Bki[j];
         }
+    for (int i = 1; i < n; i++)
+        for (int j = 0; j < i; j++)
+            Kt[i][j] = Kt[j][i];
+}
+
+/* C[i][0..2] += A[i][0..2] B [+ A2[i][0..2] B2] (i < n; A, A2 n x 3, B, B2 3 x 3, C n x 3 within matrices of
+ * leading sizes lda, ldb, ldc), each entry's sum in m's order from C's value (with A2: the pairs
+ * A[i][m] B[m][j] + A2[i][m] B2[m][j] summed). */
+static void block_product(int n, const double *A, const double *A2, int lda, const double *B, const double *B2,
+                          int ldb, double *C, int ldc)
+{
+    const double b00 = B[0], b01 = B[1], b02 = B[2];
+    const double b10 = B[ldb], b11 = B[ldb + 1], b12 = B[ldb + 2];
+    const double b20 = B[2 * ldb], b21 = B[2 * ldb + 1], b22 = B[2 * ldb + 2];
+    if (!A2) {
+        for (int i = 0; i < n; i++, A += lda, C += ldc) {
+            const double a0 = A[0], a1 = A[1], a2 = A[2];
+            C[0] = ((C[0] + a0 * b00) + a1 * b10) + a2 * b20;
+            C[1] = ((C[1] + a0 * b01) + a1 * b11) + a2 * b21;
+            C[2] = ((C[2] + a0 * b02) + a1 * b12) + a2 * b22;
+        }
+        return;
+    }
+    const double c00 = B2[0], c01 = B2[1], c02 = B2[2];
+    const double c10 = B2[ldb], c11 = B2[ldb + 1], c12 = B2[ldb + 2];
+    const double c20 = B2[2 * ldb], c21 = B2[2 * ldb + 1], c22 = B2[2 * ldb + 2];
+    for (int i = 0; i < n; i++, A += lda, A2 += lda, C += ldc) {
+        const double a0 = A[0], a1 = A[1], a2 = A[2], e0 = A2[0], e1 = A2[1], e2 = A2[2];
+        C[0] = ((C[0] + (a0 * b00 + e0 * c00)) + (a1 * b10 + e1 * c10)) + (a2 * b20 + e2 * c20);
+        C[1] = ((C[1] + (a0 * b01 + e0 * c01)) + (a1 * b11 + e1 * c11)) + (a2 * b21 + e2 * c21);
+        C[2] = ((C[2] + (a0 * b02 + e0 * c02)) + (a1 * b12 + e1 * c12)) + (a2 * b22 + e2 * c22);
+    }
+}
+
+/* C [rows][nc] (leading size ldc) += A Dq [+ A2 Dqd] (A, A2 [rows][n], leading size lda; Dq, Dqd [n][nc]) by Dq's
+ * blocks, whose pattern is the same at every state (jacobian below; Dqd's nonzeros lie in them too): per node
+ * -R0^T (x0) and skew(rho) (Theta0) on its translation rows, -H Q^T (Theta0) on its rotation rows, R0^T and H on
+ * its own columns, and 1 on each modal row. Each sum runs over the rows of the column's nonzero list in their
+ * order; the structural zeros beside them add nothing, so the sums are those of the list's loop to the bit.
+ * solved: the columns that are not Newton unknowns are left alone (as with the lists: not read). */
+static void dq_product(const ffrf_body *b, int e, int solved, int rows, const double *A, const double *A2, int lda,
+                       const double *Dq, const double *Dqd, double *C, int ldc)
+{
+    const int nb = b->dims.nb, nm = b->dims.nm, nc = b->dims.nc;
+    const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *pos = b->data.newton_pos;
+#define UNKNOWN(j) (!solved || pos[cfg[j]] < b->dims.nf)
+    for (int k = 0; k < nb; k++) {
+        const int d = 6 * k, a = d + 3, XP = 6 + nm + d;
+        const int blk[5][2] = {{d, 0}, {d, 3}, {a, 3}, {d, XP}, {a, XP + 3}}; /* (first row, first column) */
+        for (int t = 0; t < 5; t++) {
+            const size_t m0 = (size_t)blk[t][0], j0 = (size_t)blk[t][1];
+            if (UNKNOWN(j0))
+                block_product(rows, A + m0, A2 ? A2 + m0 : NULL, lda, Dq + m0 * nc + j0, Dqd + m0 * nc + j0, nc, C + j0, ldc);
+        }
+    }
+    for (int l = 0; l < nm; l++) {
+        const size_t m = (size_t)(6 * nb + l), j = (size_t)(6 + l);
+        if (UNKNOWN(j))
+            for (int i = 0; i < rows; i++) {
+                double *c = C + (size_t)i * ldc + j;
+                const double *ai = A + (size_t)i * lda + m;
+                *c = A2 ? *c + (ai[0] * Dq[m * nc + j] + A2[(size_t)i * lda + m] * Dqd[m * nc + j]) : *c + ai[0] * Dq[m * nc + j];
+            }
+    }
+#undef UNKNOWN
 }
 
 /* The local Jacobian blocks of `ffrf_superelement`: Fz = F_ydot, Fy = F_y [nv + nc][nc + nv]
@@ -228,12 +294,22 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     double (*W0x)[3] = (double (*)[3])w->W0x;
     double (*u)[3] = (double (*)[3])w->u, (*cc)[3] = (double (*)[3])w->c;
     double (*Fz)[ncv] = (double (*)[ncv])Fz_, (*Fy)[ncv] = (double (*)[ncv])Fy_;
-    memset(Fz_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
-    memset(Fy_, 0, sizeof(double) * (size_t)(nv + nc) * (size_t)ncv);
-    memset(w->Dq, 0, sizeof(double) * (size_t)n * (size_t)nc);
-    memset(w->Dqd, 0, sizeof(double) * (size_t)n * (size_t)nc);
-    memset(w->dgz, 0, sizeof(double) * (size_t)n * (size_t)ncv);
-    memset(w->dgy, 0, sizeof(double) * (size_t)n * (size_t)ncv);
+    /* The blocks' zeros. Dq, Dqd, dgz, dgy: every entry this function writes it sets (=) before it adds
+     * into it, on the same pattern at every call (the term set is the body's), and the others stay the zeros
+     * of ffrf_se_work_bind. Fz, Fy: the caller's arrays are zeroed whole; the body's own (work.Fz, work.Fy, a
+     * refresh's: kept by the runtime alone, zero at creation) only on the rows that are added into, x0, Theta0
+     * and the boundary nodes' (nv .. nv + 6, nv + 6 + nm .. nv + nc): the other rows' entries are set at every
+     * call or never written (ffrf_evaluate's tangent products overwrite only entries that are set here). */
+    const size_t row_bytes = sizeof(double) * (size_t)ncv;
+    if (Fz_ == b->work.Fz && Fy_ == b->work.Fy) {
+        memset(Fz[nv], 0, 6 * row_bytes);
+        memset(Fy[nv], 0, 6 * row_bytes);
+        memset(Fz[nv + 6 + nm], 0, (size_t)(nc - 6 - nm) * row_bytes);
+        memset(Fy[nv + 6 + nm], 0, (size_t)(nc - 6 - nm) * row_bytes);
+    } else {
+        memset(Fz_, 0, (size_t)(nv + nc) * row_bytes);
+        memset(Fy_, 0, (size_t)(nv + nc) * row_bytes);
+    }
     skew(W0, W0x);
     for (int k = 0; k < nb; k++) {
         const int XP = 6 + nm + 6 * k, TP = 9 + nm + 6 * k;
@@ -252,8 +328,9 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
         /* d(d_Pdot) = skew(u) dTheta0 - skew(W0) d(d_P) */
         skew(u[k], S);
-        for (int i = 0; i < 3; i++) {
-            for (int j = 0; j < nc; j++) {
+        for (int i = 0; i < 3; i++) { /* (on Dq's nonzero columns of these rows, x0, Theta0 and the node's x_P: the others stay 0) */
+            for (int t = 0; t < 9; t++) {
+                const int j = t < 6 ? t : XP + t - 6;
                 double s = 0.0;
                 for (int m = 0; m < 3; m++)
                     s -= W0x[i][m] * Dq[d + m][j];
@@ -300,7 +377,8 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
      * that is not a Newton unknown (a motion-driven node's) gets none, its products are never read. */
     int *nzm = w->nz, *nzc = w->nz_count;
     const idx_t *cfg = b->data.cfg_map + (size_t)e * nc, *newton_pos = b->data.newton_pos;
-    for (int j = 0; j < nc; j++) {
+    const int lists = !solved || damped || gyro; /* (the products that run over them: the others go by Dq's blocks) */
+    for (int j = 0; j < (lists ? nc : 0); j++) {
         int cnt = 0;
         for (int m = 0; m < (solved && newton_pos[cfg[j]] >= b->dims.nf ? 0 : n); m++)
             if (Dq[m][j] != 0.0 || Dqd[m][j] != 0.0)
@@ -323,43 +401,49 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
     if (stiff) {
         double (*Kt)[n] = (double (*)[n])w->Kt;
         stiff_tangent(b, e, n, w);
-        if (n2 > 0) {
-            const double (*Kc)[n2] = (const double (*)[n2])w->Kc;
-            for (int i = 0; i < n; i++)
-                for (int j = 0; j < n; j++)
-                    Kt[i][j] -= Kc[i][j];
-        }
-        for (int i = 0; i < n; i++)
+        const double (*Kc)[n2 > 0 ? n2 : 1] = (const double (*)[n2 > 0 ? n2 : 1])w->Kc;
+        for (int i = 0; i < n; i++) /* (Kt - Kc) + K, one pass */
             for (int j = 0; j < n; j++)
-                Kt[i][j] += Ke[i][j];
+                Kt[i][j] = (n2 > 0 ? Kt[i][j] - Kc[i][j] : Kt[i][j]) + Ke[i][j];
         Kq = (const double (*)[n])Kt;
     }
+    /* Kq Dq into dgy's configuration columns, by Dq's blocks */
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < nc; j++)
+            dgy[i][j] = 0.0;
+    dq_product(b, e, solved, n, &Kq[0][0], NULL, n, &Dq[0][0], &Dqd[0][0], &dgy[0][0], ncv);
     for (int i = 0; i < n; i++) { /* k_q = M (qdot - r) [+ G(W0) q]; g = K q + M rdot [+ G(W0) r] [+ D qdot] */
-        for (int j = 0; j < nc; j++) {
-            double s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
-            if (solved) {
-                s1 = Dq[i][j];
-                s2 = Dqd[i][j];
-                NZ_ROWS(j, m)
-                    s3 += Kq[i][m] * Dq[m][j];
-            } else
+        double *fz = Fz[kq + i], *fy = Fy[kq + i];
+        if (solved) /* M_bar^-1 k_q: Dq, Dqd and -I on r */
+            for (int j = 0; j < nc; j++) {
+                fz[j] = Dq[i][j];
+                fy[j] = Dqd[i][j];
+            }
+        else
+            for (int j = 0; j < nc; j++) {
+                double s1 = 0.0, s2 = 0.0;
                 NZ_ROWS(j, m) {
                     s1 += Me[i][m] * Dq[m][j];
                     s2 += Me[i][m] * Dqd[m][j];
-                    s3 += Kq[i][m] * Dq[m][j];
                 }
-            if (damped) /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
+                fz[j] = s1;
+                fy[j] = s2;
+            }
+        for (int j = 0; j < nc; j++) { /* d(D qdot) = D Dq d(rates) + D Dqd d(configuration): qdot of (91) depends on both */
+            double s4 = 0.0, s5 = 0.0;
+            if (damped) {
                 NZ_ROWS(j, m) {
                     s4 += De[i][m] * Dq[m][j];
                     s5 += De[i][m] * Dqd[m][j];
                 }
-            Fz[kq + i][j] = s1;
-            Fy[kq + i][j] = s2;
-            dgy[i][j] = s3 + s5;
+                dgy[i][j] += s5; /* Kq Dq + D Dqd (undamped: + 0, nothing) */
+            }
             dgz[i][j] = s4;
         }
+        for (int j = nc; j < ncv; j++) /* (dgy's velocity columns are added into below: the gyroscopic and stiffening terms) */
+            dgy[i][j] = 0.0;
         for (int j = 0; j < n; j++) {
-            Fy[kq + i][cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
+            fy[cr + j] = solved ? (i == j ? -1.0 : 0.0) : -Me[i][j];
             dgz[i][cr + j] = Me[i][j];
         }
     }
@@ -481,8 +565,17 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         const int TP = 9 + nm + 6 * k;
         const int d = 6 * k, a = 6 * k + 3;
         const double *gd = g + d, *ga = g + a;
-        double *ya = w->v3;
-        for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy) */
+        /* R0, H, Q and rho in locals: the stores into the blocks below cannot change them (no reloads) */
+        double r0[9], hk[9], qk[9], rk[3];
+        for (int i = 0; i < 3; i++) {
+            rk[i] = rho[k][i];
+            for (int m = 0; m < 3; m++) {
+                r0[3 * i + m] = R0[i][m];
+                hk[3 * i + m] = H[k][i][m];
+                qk[3 * i + m] = Q[k][i][m];
+            }
+        }
+        for (int pass = 0; pass < 2; pass++) { /* (Fz, dgz), then (Fy, dgy): -(rho x dg_d + Q H^T dg_a) on Theta0 */
             double (*D)[ncv] = pass == 0 ? Fz : Fy;
             double (*dg)[ncv] = pass == 0 ? dgz : dgy;
             /* the columns where this node's rows of dg are not all zero (dgz: the r columns, without damping or
@@ -495,22 +588,19 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                     cols[ncols++] = j;
             for (int t = 0; t < ncols; t++) {
                 const int j = cols[t];
-                for (int i = 0; i < 3; i++) {
-                    double s1 = 0.0, s2 = 0.0;
-                    for (int m = 0; m < 3; m++) {
-                        s1 += R0[i][m] * dg[d + m][j];
-                        s2 += H[k][m][i] * dg[a + m][j];
-                    }
-                    D[exP + i][j] += s1; /* R0 dg_d */
-                    D[ex0 + i][j] -= s1;
-                    D[eTP + i][j] += s2; /* H^T dg_a */
-                    ya[i] = s2;
+                const double gdj[3] = {dg[d][j], dg[d + 1][j], dg[d + 2][j]}, gaj[3] = {dg[a][j], dg[a + 1][j], dg[a + 2][j]};
+                double s1[3], ya[3];
+                for (int i = 0; i < 3; i++) { /* R0 dg_d, H^T dg_a */
+                    s1[i] = ((0.0 + r0[3 * i] * gdj[0]) + r0[3 * i + 1] * gdj[1]) + r0[3 * i + 2] * gdj[2];
+                    ya[i] = ((0.0 + hk[i] * gaj[0]) + hk[3 + i] * gaj[1]) + hk[6 + i] * gaj[2];
                 }
-                for (int i = 0; i < 3; i++) { /* -(rho x dg_d + Q H^T dg_a) */
-                    double s = rho[k][(i + 1) % 3] * dg[d + (i + 2) % 3][j] - rho[k][(i + 2) % 3] * dg[d + (i + 1) % 3][j];
-                    for (int m = 0; m < 3; m++)
-                        s += Q[k][i][m] * ya[m];
-                    D[eT0 + i][j] -= s;
+                const double rx[3] = {rk[1] * gdj[2] - rk[2] * gdj[1], rk[2] * gdj[0] - rk[0] * gdj[2],
+                                      rk[0] * gdj[1] - rk[1] * gdj[0]}; /* rho x dg_d */
+                for (int i = 0; i < 3; i++) {
+                    D[exP + i][j] += s1[i];
+                    D[ex0 + i][j] -= s1[i];
+                    D[eTP + i][j] += ya[i];
+                    D[eT0 + i][j] -= ((rx[i] + qk[3 * i] * ya[0]) + qk[3 * i + 1] * ya[1]) + qk[3 * i + 2] * ya[2];
                 }
             }
         }
@@ -541,8 +631,9 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                 Fy[eTP + i][3 + j] -= s;
             }
         /* CM rotation rows: + skew(g_d) Dq_d, and -Q (C - skew(f_a)) eps */
-        for (int i = 0; i < 3; i++)
-            for (int j = 0; j < nc; j++) {
+        for (int i = 0; i < 3; i++) /* (Dq_d's nonzero columns: x0, Theta0, the node's x_P) */
+            for (int t = 0; t < 9; t++) {
+                const int j = t < 6 ? t : 6 + nm + d + t - 6;
                 double s = 0.0;
                 for (int m = 0; m < 3; m++)
                     s += S[i][m] * Dq[d + m][j];
@@ -595,16 +686,19 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
                     s += W0x[i][m] * Jq[m][j];
                 Fy[eT0 + i][cO0 + j] += s; /* W0 x (W1 q) + W1 qdot on Omega0 */
             }
-            for (int j = 0; j < nc; j++) {
-                double s1 = 0.0, s2 = 0.0;
-                NZ_ROWS(j, m) {
-                    s1 += Z[i][m] * Dq[m][j];
-                    s2 += eq[i][m] * Dq[m][j] + Z[i][m] * Dqd[m][j];
-                }
-                Fz[eT0 + i][j] += s1;
-                Fy[eT0 + i][j] += s2;
-            }
         }
+        /* Z Dq on F_ydot, eq Dq + Z Dqd on F_y (sums from 0, then added: as over the nonzero lists) */
+        double (*Tz)[nc] = (double (*)[nc])w->T1, (*Ty)[nc] = (double (*)[nc])w->T2;
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < nc; j++)
+                Tz[i][j] = Ty[i][j] = 0.0;
+        dq_product(b, e, solved, 3, &Z[0][0], NULL, n, &Dq[0][0], &Dqd[0][0], &Tz[0][0], nc);
+        dq_product(b, e, solved, 3, &eq[0][0], &Z[0][0], n, &Dq[0][0], &Dqd[0][0], &Ty[0][0], nc);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < nc; j++) {
+                Fz[eT0 + i][j] += Tz[i][j];
+                Fy[eT0 + i][j] += Ty[i][j];
+            }
     }
 #undef NZ_ROWS
 }

@@ -15,7 +15,8 @@ ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d);
  * takes: the rows k_q (79) of each superelement premultiplied by M_bar^-1 (its velocity elimination needs them so),
  * each superelement's own blocks set but for J[V, V] (its velocity rows and columns: not read, -beta diag(I, M_bar)
  * by the structure), the boundary nodes' block J[B, B] added into (the caller has zeroed it: ffrf_factor_clear;
- * the entries outside the structure are zero and never written). */
+ * the entries outside the structure are zero and never written). Fz, Fy: the local blocks, the body's work.Fz,
+ * work.Fy (kept by the runtime: cleared only on the rows added into; any other pair is cleared whole). */
 void ffrf_evaluate(const ffrf_body *b, ffrf_se_work *w, const double *f_load, const double *t_load,
                    const double *p, const double *yd, const double *R, const double *theta, int jac,
                    double beta, double *F, double *JT, double *Fl, double *Fz, double *Fy, double *T);
