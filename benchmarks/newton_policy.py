@@ -18,6 +18,8 @@ only).
 --tolerances T1,T2,...: the Newton tolerance instead (BodySystem tol, default 1e-9): per configuration and
 tolerance, the whole scene on the native backend (simulate.run): Newton iterations per step, the maximum tip
 deflection and its change against the default tolerance's run.
+--policy NAME=VALUE: a constant of runtime/newton.py's policy (KEEP_MISS, KEPT_ACCEPT, ...) for every run of
+this process, on both backends (the C runtime reads the policy from the body's image).
 """
 from __future__ import annotations
 
@@ -39,6 +41,7 @@ from ffrf_fmu.model import load_model  # noqa: E402
 from ffrf_fmu.model.scene import reduction_options  # noqa: E402
 from ffrf_fmu.reduction import reduce_body  # noqa: E402
 from ffrf_fmu.runtime import input_rule  # noqa: E402
+from ffrf_fmu.runtime.newton import ModifiedNewton  # noqa: E402
 from ffrf_fmu.runtime.ports import StepFailure  # noqa: E402
 
 MODEL = HERE.parent / "models" / "haug_beam.toml"
@@ -96,8 +99,15 @@ def main(argv=None) -> int:
     ap.add_argument("--held", help=argparse.SUPPRESS)  # the old spelling, refused below
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a model setting for every run (repeatable), e.g. stiffening=true")
+    ap.add_argument("--policy", action="append", default=[], metavar="NAME=VALUE",
+                    help="a constant of runtime/newton.py's policy for every run (repeatable), e.g. KEEP_MISS=1e-8")
     args = ap.parse_args(argv)
     SETTINGS[:] = args.set
+    for item in args.policy:
+        name, _, value = item.partition("=")
+        if not (name.isupper() and isinstance(getattr(ModifiedNewton, name, None), float)):
+            ap.error(f"--policy {item}: not a numeric constant of runtime/newton.py's ModifiedNewton")
+        setattr(ModifiedNewton, name, float(value))  # (the class: the numpy path and the C image read it)
     if args.held is not None:
         ap.error("--held is now --point-steps (internal steps per communication step from the point values; "
                  "'held' names inputs kept constant over a step)")
@@ -156,9 +166,10 @@ def tolerance_table(args) -> int:
     for h in (float(x) for x in args.steps.split(",")):
         for cfg in args.configs.split(","):
             n_se, modes = (int(v) for v in cfg.split("x"))
-            model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={args.duration}"])
+            model = load_model(MODEL, [f"superelements={n_se}", f"modes={modes}", f"step={h}", f"duration={args.duration}",
+                                       *SETTINGS])
             scene = model.scene("spinup")
-            body = reduce_body(model.body).data
+            body = reduce_body(model.body, **reduction_options(scene)).data
             out = {}
             for tol in tols:
                 loop.BodySystem = functools.partial(BodySystem, tol=tol)

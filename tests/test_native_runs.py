@@ -180,7 +180,11 @@ def test_replay_reproduces_a_runs_own_decisions_bit_for_bit():
     s.newton_replay = NewtonReplay(iter(other))
     its = [s.step(sc.step, inputs) for _ in range(60)]
     assert its == [d.iterations for d in other[:60]]
-    assert len(s.newton_replay.disagreements) == 1 and "accept False replayed, True" in s.newton_replay.disagreements[0]
+    # logged: that accept and, where the step ran on a kept matrix that served, the refresh its own rule then takes at
+    # the extra iteration (runtime/newton.py `_newton`: a trusted matrix not accepted serves no more), in that step only
+    log = s.newton_replay.disagreements
+    assert 1 <= len(log) <= 2 and "accept False replayed, True" in log[0], log
+    assert all(entry.split(",")[0] == log[0].split(",")[0] for entry in log) and all("refresh False replayed, True" in e for e in log[1:]), log
     s, inputs = sim.build_system(body, sc, model.body.origin, "numpy")
     s.newton_replay = NewtonReplay(iter([NewtonDecisions(2, frozenset())]))  # the first step has no matrix to keep
     with pytest.raises(ValueError, match="kept a matrix"):

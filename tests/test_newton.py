@@ -1,5 +1,6 @@
-"""Newton of the integrator on B1 (runtime/integrator.py `_step`, runtime/newton.py `_newton`): iterations per step at
-B1's 20 ms step, the accuracy they buy, a 50 ms step and the 40 ms stiffened run, whose matrices are kept.
+"""Newton of the integrator on B1 (runtime/integrator.py `_step`, runtime/newton.py `_newton`): iterations and
+factorizations per step at B1's 20 ms step, the accuracy they buy, a 50 ms step and the 40 ms stiffened run,
+whose matrices are kept.
 
 An iteration is one residual evaluation followed by one solve; the counts here are the calls of
 `_residual_at` themselves (wrapped), so they hold whatever `step` reports. Counts, not times.
@@ -55,22 +56,25 @@ def _b1(h, n_se, modes, duration=20.0, tol=None, settings=(), factorizations=Non
 
 
 @pytest.mark.parametrize("n_se, modes", [(1, 2), (4, 6)])
-def test_b1_20ms_takes_at_most_two_iterations_per_step(n_se, modes):
-    """At most 2 Newton iterations per step on average on B1 at h = 20 ms (measured 2.00 for both; the
-    solver of 585668d took 3.94 and 3.95 evaluations: 2.94 and 2.95 solves and one evaluation of the
-    accepted iterate).
-    The co-rotated predictor misses by 1e-7..1e-6 of each field's scale, the iteration matrix built at
-    the predictor takes it to the tolerance in one increment, the second increment confirms it.
-    Two is also the floor (an increment and its confirmation), so the measured 2.00 can only move up on
-    another CPU: the bound 2.2 lets one step in five take a third iteration, as at 50 ms below."""
-    evals, reported, _, _ = _b1(0.02, n_se, modes)
+def test_b1_20ms_keeps_its_matrices_for_a_few_steps(n_se, modes):
+    """B1 at h = 20 ms: the co-rotated predictor misses by 10-1e3 tolerances, so a second iteration follows
+    whatever the matrix; one built at the predictor takes it to the tolerance in one increment (2.00
+    iterations and a factorization per step, where the solver of 585668d took 3.94 and 3.95 evaluations),
+    one kept from the steps before in two more (its second increment the transient of its error, not
+    accepted: runtime/newton.py WIDE_MISS). The matrix serves the next step while that second increment
+    is within KEPT_AGE tolerances: measured 2.60 / 2.57 iterations and 0.39 / 0.43 factorizations per step
+    (1 x 2, 4 x 6; a refresh costs ~4 and ~15 iterations on the C runtime). The bounds leave a tenth for
+    another CPU's round-off."""
+    fac = [0.0]
+    evals, reported, _, _ = _b1(0.02, n_se, modes, factorizations=fac)
     assert evals == pytest.approx(reported, abs=1e-12)  # the reported count is the evaluations
-    assert evals <= 2.2
+    assert evals <= 2.9 and fac[0] <= 0.5
 
 
 def test_b1_20ms_deflection_is_the_tightly_converged_one():
-    """The fewer iterations cost no accuracy: B1's max tip deflection at h = 20 ms equals the run with
-    the Newton tolerance 100x tighter (1e-11) to 1e-10 relative (measured: identical, 0.602011238154 m)
+    """The kept matrices cost no accuracy: B1's max tip deflection at h = 20 ms equals the run with
+    the Newton tolerance 100x tighter (1e-11) to 1e-10 relative (measured: 0.6020112381545 and 0.6020112381540 m;
+    with fresh matrices at every step both 0.602011238154)
     and the value of the solver of 585668d (0.602011240 m) to 1e-8 (measured -2.9e-9, the baseline's
     own Newton error)."""
     _, _, d, _ = _b1(0.02, 1, 2)

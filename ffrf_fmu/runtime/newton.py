@@ -82,7 +82,9 @@ class ModifiedNewton:
         more increments at KEPT_RADIUS would reach KEPT_ACCEPT: a matrix some steps old is good in the
         spectral sense, but its error is a stiff direction that the second increment brings out (as large
         as the first, on B1 at 40 ms) and the third has left (1e-2 of it): that ratio is the transient of
-        the matrix's error, not its contraction. From that third
+        the matrix's error, not its contraction. So that second iterate is accepted on the tolerance only
+        after a first increment beyond WIDE_MISS/tol tolerances (`wide`), not after a smaller far one (its
+        estimate is of the transient, and the error it left added up: KEPT_AGE). From the third
         increment on, such an iterate is accepted at KEPT_ACCEPT of the tolerance (estimate and the 10x
         rule alike; the refresh rule aims there too): a kept matrix converges linearly to its estimate,
         not far below it as a fresh one, and the runs' Newton error would add up. `_step` drops the matrix
@@ -91,7 +93,8 @@ class ModifiedNewton:
         The step also records on the factorization whether it serves the next step as it is (its fifth
         entry, read by REFRESH_AFTER): SERVES after a far first increment, whatever built the matrix (a
         second iteration follows whatever the matrix, and one more on an older matrix costs less than a
-        refresh: ~4 iterations on the C runtime for 1 SE x 2 modes, ~15 for 4 x 6). A matrix that
+        refresh: ~4 iterations on the C runtime for 1 SE x 2 modes, ~15 for 4 x 6); after one not wide,
+        only while the second increment was within KEPT_AGE tolerances (the matrix's age). A matrix that
         REFRESH_AFTER kept on that verdict (`trusted`) and that the step does not accept after its second
         increment (after a far miss: its third) serves no more: it is rebuilt there (an FMU's matrix kept
         950 steps took 5-6 iterations otherwise). Or that REFRESH_AFTER keeps it without trust (KEEPS): a
@@ -103,6 +106,7 @@ class ModifiedNewton:
         order = self._newton_idx
         nrm_prev = np.inf
         kept, far, late = True, False, False  # kept: no matrix built in this step (yet); late: one built after the first
+        second = 0.0  # (the second increment: on a kept matrix, its age, KEPT_AGE)
         drop = replay is not None and dropped  # (a replay's own verdict: `_step` dropped the matrix)
         for it in range(1, self.max_iter + 1):
             # a matrix built for a step within 1e-6 of this one serves as well (modified Newton); an FMU's
@@ -133,8 +137,12 @@ class ModifiedNewton:
             theta = nrm / nrm_prev
             if it == 1:
                 far = nrm * self.tol > self.KEEP_MISS  # (the predictor's miss: only then may a matrix serve)
+                wide = nrm * self.tol > self.WIDE_MISS  # (beyond it a kept matrix's iterates go by KEPT_ACCEPT)
                 near = nrm <= self.NEAR_MISS
-            lim = self.KEPT_ACCEPT if kept and far and it > 2 else 1.0  # (the error an iterate on an older matrix may leave: see KEPT_ACCEPT)
+            elif it == 2:
+                second = nrm
+            # the error an iterate on an older matrix may leave (see KEPT_ACCEPT, WIDE_MISS; 0: not accepted)
+            lim = 1.0 if not (kept and far) or it == 1 else self.KEPT_ACCEPT if it > 2 else 1.0 if wide else 0.0
             accept = nrm <= 1.0 if it == 1 else nrm <= 0.1 * lim or (theta < 1.0 and theta / (1.0 - theta) * nrm <= lim)
             if replay is not None:
                 self._replay_verdict(t1, it, "accept", accept, it == replay.iterations)
@@ -142,7 +150,8 @@ class ModifiedNewton:
             if accept:
                 self._stage_at(yd)
                 keeps = it == 2 and near and theta <= self.NEAR_CONTRACTION
-                self._lu = (*self._lu[:4], SERVES if far and not late else KEEPS if keeps else 0.0)
+                serves = far and not late and (wide or second <= self.KEPT_AGE)
+                self._lu = (*self._lu[:4], SERVES if serves else KEEPS if keeps else 0.0)
                 return F, it
             # slow contraction, or too slow to reach the tolerance in 3 more iterations: refresh; not on the second
             # increment of a kept matrix after a far miss (the transient of its error, see the docstring)
@@ -212,11 +221,22 @@ class ModifiedNewton:
     # tolerances; B1's standalone run at 20 ms: ~130). Near the tolerance the iteration count hinges on the
     # matrix: without this bound B1 at 2 ms (1 SE x 2 modes, 20 s) fell into a run of 2-iteration steps on
     # kept matrices from t = 10 s (1.42 iterations per step against 1.03), and a 1e-11 tolerance at 20 ms moved
-    # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it). 1e-7 and
-    # 1e-8 (100 and 10 tolerances) would keep B1's matrices at 10-20 ms too (10 ms, stiffened: 2.82 iterations
-    # and 0.03 factorizations per step against 2.01 and 0.96), but moved tests/test_native_runs.py's disk rotor
-    # apart from its numpy twin by 1.8e-10-5e-10 of its tip speed (bound 1e-10: round-off through kept matrices)
-    KEEP_MISS = 1e-6
+    # the tip deflection by 1.8e-10 (kept matrices converge to the tolerance, fresh ones far below it). 1e-8 (10
+    # tolerances; 1e-6 before) takes in B1 at 10-20 ms (first increments of 15-800 tolerances), with WIDE_MISS
+    # and KEPT_AGE; B1 at 2 ms keeps its counts (1.04 iterations and 0.006 factorizations per step)
+    KEEP_MISS = 1e-8
+    # WIDE_MISS, KEPT_AGE: after a first increment of KEEP_MISS to WIDE_MISS (the old KEEP_MISS, 1e3 tolerances)
+    # a kept matrix's second iterate is not accepted: accepted on its estimate (the transient's) it moved the
+    # unstiffened 20 ms run's deflection by +9.5e-9 of itself, not accepted by 1e-12. And the matrix serves the
+    # next step only while its second increment is within KEPT_AGE tolerances: a kept matrix ages (on B1 at
+    # 15 ms and the disk rotor the second increment grows by 1-10 tolerances a step, the third with it), and
+    # an old one's third increments are of a size whose acceptance the round-off of tests/test_native_runs.py's
+    # disk rotor tips between the C runtime and numpy (8-13 of its 400 steps, against none here; its increments
+    # carry ~1e-2 tolerances of round-off). B1 1 SE x 2 modes stiffened, iterations / factorizations per step:
+    # 10 ms 2.01 / 0.96 -> 2.81 / 0.21, 15 ms 2.00 / 1.00 -> 2.64 / 0.37, 20 ms 2.00 / 0.99 -> 2.56 / 0.44, 40 ms
+    # 3.35 / 0.32 -> 3.40 / 0.29 (docs/benchmarks.md, "Kept matrices at 10-20 ms")
+    WIDE_MISS = 1e-6
+    KEPT_AGE = 10.0
     # A step of two iterations whose first increment was within NEAR_MISS tolerances (the per-field scale) and
     # whose second contracted by NEAR_CONTRACTION or better keeps its matrix for the next step (KEEPS): the
     # matrix still contracts, the second iteration was the predictor's near miss. On the C runtime a refresh of

@@ -533,6 +533,8 @@ ffrf_body *ffrf_body_create(const void *image, size_t size, char *err, size_t er
     SCALAR("kept_accept", b->data.kept_accept);
     SCALAR("kept_radius", b->data.kept_radius);
     SCALAR("keep_miss", b->data.keep_miss);
+    SCALAR("wide_miss", b->data.wide_miss);
+    SCALAR("kept_age", b->data.kept_age);
     SCALAR("near_miss", b->data.near_miss);
     SCALAR("near_contraction", b->data.near_contraction);
     SCALAR("refresh_min", b->data.refresh_min);

@@ -7,7 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define FFRF_RUNTIME_VERSION 3        /* of this interface and of the body image format */
+#define FFRF_RUNTIME_VERSION 4        /* of this interface and of the body image format */
 
 /* statuses of a step (the numpy path's StepFailure causes) */
 enum { FFRF_OK = 0, FFRF_NOT_FINITE = 1, FFRF_NOT_CONVERGED = 2, FFRF_NOT_FACTORED = 3, FFRF_ROTATION_ALIAS = 4,

@@ -22,8 +22,8 @@ import numpy as np
 from ..damping import is_damped, per_mode_ratios
 
 MAGIC = b"FFRFBODY"
-VERSION = 3  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction; 3: kept_accept and
-# kept_radius in place of keep_contraction)
+VERSION = 4  # ffrf_runtime.h FFRF_RUNTIME_VERSION (2: the Newton keep rule's near_miss, near_contraction; 3: kept_accept and
+# kept_radius in place of keep_contraction; 4: wide_miss, kept_age)
 NAME_BYTES = 24
 HEADER = struct.Struct("<8sIIQQ")
 ENTRY = struct.Struct("<24sBB6x5Q")
@@ -127,7 +127,7 @@ def body_entries(system, basis: bool = True) -> dict[str, np.ndarray]:
         "k3": 3 * len(system._world_free), "field_of": system._field_of,
         "theta_refresh": system.THETA_REFRESH, "kept_accept": system.KEPT_ACCEPT,
         "kept_radius": system.KEPT_RADIUS,
-        "keep_miss": system.KEEP_MISS, "near_miss": system.NEAR_MISS,
+        "keep_miss": system.KEEP_MISS, "wide_miss": system.WIDE_MISS, "kept_age": system.KEPT_AGE, "near_miss": system.NEAR_MISS,
         "near_contraction": system.NEAR_CONTRACTION, "refresh_min": int(system.REFRESH_AFTER[0]),
         "refresh_max": int(system.REFRESH_AFTER[1]), "world_idx": system._world_idx.reshape(-1, 3),
         "lin_slots": L.lin_slots, "fixed_idx": system._fixed_idx, "motion_x": system._motion_x,

@@ -70,6 +70,7 @@ typedef struct {
     const idx_t *field_of;    /* [nf]          scaling field of each Newton unknown */
     double theta_refresh, kept_accept, kept_radius, keep_miss; /* the Newton policy (newton.py) */
     double near_miss, near_contraction;                /* NEAR_MISS, NEAR_CONTRACTION: the KEEPS verdict */
+    double wide_miss, kept_age;                        /* WIDE_MISS, KEPT_AGE: a kept matrix after a miss below WIDE_MISS */
     int refresh_min, refresh_max;                      /* REFRESH_AFTER */
     const idx_t *world_idx;   /* [n_world][3] */
     const idx_t *lin_slots;   /* [n_lin]       stage slots of xN, x0, eta, v (in that order) */

@@ -192,8 +192,8 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
     const idx_t *newton_idx = D->newton_idx, *field_of = D->field_of;
     const double keep_miss = D->keep_miss, theta_refresh = D->theta_refresh;
     double *theta = w->theta, *T = w->T, *bx = w->b, *S = w->S;
-    int kept = 1, far = 0, near = 0, late = 0; /* kept: no matrix built in this step (yet); late: one built after the first */
-    double nrm_prev = INFINITY, nrm = 0.0, rate;
+    int kept = 1, far = 0, wide = 0, near = 0, late = 0; /* kept: no matrix built in this step (yet); late: one built after the first */
+    double nrm_prev = INFINITY, nrm = 0.0, rate, second = 0.0; /* second: the second increment (KEPT_AGE) */
     int converged = 0;
     int it = 0;
     for (it = 1; it <= max_iter; it++) {
@@ -251,9 +251,13 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
         rate = nrm / nrm_prev; /* the contraction theta of integrator `_newton` */
         if (it == 1) {
             far = nrm * tol > keep_miss;
+            wide = nrm * tol > D->wide_miss;
             near = nrm <= D->near_miss;
+        } else if (it == 2) {
+            second = nrm;
         }
-        double lim = kept && far && it > 2 ? D->kept_accept : 1.0; /* the error an iterate on an older matrix may leave (KEPT_ACCEPT) */
+        /* the error an iterate on an older matrix may leave (KEPT_ACCEPT, WIDE_MISS; 0: not accepted) */
+        double lim = !(kept && far) || it == 1 ? 1.0 : it > 2 ? D->kept_accept : wide ? 1.0 : 0.0;
         if (it == 1 ? nrm <= 1.0 : (nrm <= 0.1 * lim || (rate < 1.0 && rate / (1.0 - rate) * nrm <= lim))) {
             converged = 1; /* the accepted iterate's configuration, not evaluated again */
             stage_at(b, c, P0, Rn, yd, p, theta, R);
@@ -287,7 +291,7 @@ static void newton_step(ffrf_body *b, int trusted, const double *c, const double
     }
     info[0] = FFRF_OK;
     info[1] = it;
-    lu_meta[11] = far && !late ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
+    lu_meta[11] = far && !late && (wide || second <= D->kept_age) ? 1.0 : (it == 2 && near && rate <= D->near_contraction) ? 2.0 : 0.0; /* SERVES, KEEPS */
 }
 
 /* ------------------------------------------------------------------ one step */
