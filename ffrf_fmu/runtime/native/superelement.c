@@ -124,6 +124,35 @@ ffrf_se_work *ffrf_se_work_bind(void *mem, const ffrf_dims *d)
 
 static void skew(const double *a, double (*out)[3]) { ffrf_skew(a, &out[0][0]); }
 
+/* out = A B, or A B^T when bt (3 x 3), each entry summed from 0.0 over m in order (the plain loops' bits) */
+static void mul33(const double (*A)[3], const double (*B)[3], int bt, double (*out)[3])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double s = 0.0;
+            for (int m = 0; m < 3; m++)
+                s += A[i][m] * (bt ? B[j][m] : B[m][j]);
+            out[i][j] = s;
+        }
+}
+
+/* X = sum_j q_j T_j and Y = sum_j qd_j T_j over the n 3 x 3 matrices T_j, each entry summed from 0.0 over j
+ * in order (the plain loops' bits) */
+static void weighted_sums(int n, const double *q, const double *qd, const double (*T)[3][3], double (*X)[3],
+                          double (*Y)[3])
+{
+    for (int a = 0; a < 3; a++)
+        for (int bb = 0; bb < 3; bb++) {
+            double s1 = 0.0, s2 = 0.0;
+            for (int j = 0; j < n; j++) {
+                s1 += q[j] * T[j][a][bb];
+                s2 += qd[j] * T[j][a][bb];
+            }
+            X[a][bb] = s1;
+            Y[a][bb] = s2;
+        }
+}
+
 /* g += f_vk(q) - f0(Omega0) [- Kc(Omega0) q] (stiffening.von_karman, deformed_inertia); keeps Bq,
  * N = a q + sigma, Z(Omega0) (Z[:, j] = W1_j Omega0) [and Kc] in w for the Jacobian and the rotation
  * rows. W2 absent: n_w2 = 0. */
@@ -315,16 +344,15 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         const int XP = 6 + nm + 6 * k, TP = 9 + nm + 6 * k;
         const int d = 6 * k, a = 6 * k + 3;
         skew(rho[k], S);
+        double HQ[3][3];
+        mul33((const double (*)[3])H[k], (const double (*)[3])Q[k], 1, HQ);
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++) {
                 Dq[d + i][j] = -R0[j][i]; /* d d_P = -R0^T dx0 + skew(rho) dTheta0 + R0^T dx_P */
                 Dq[d + i][3 + j] = S[i][j];
                 Dq[d + i][XP + j] = R0[j][i];
                 Dq[a + i][TP + j] = H[k][i][j]; /* d alpha_P = H (dTheta_P - Q^T dTheta0) */
-                double s = 0.0;
-                for (int m = 0; m < 3; m++)
-                    s += H[k][i][m] * Q[k][j][m];
-                Dq[a + i][3 + j] = -s;
+                Dq[a + i][3 + j] = -HQ[i][j];
             }
         /* d(d_Pdot) = skew(u) dTheta0 - skew(W0) d(d_P) */
         skew(u[k], S);
@@ -353,20 +381,16 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
         }
         skew(QTc, S);
         skew(QTW, S2);
+        double HS2[3][3], BQ[3][3];
+        mul33((const double (*)[3])H[k], (const double (*)[3])S2, 0, HS2);
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) {
-                double s = 0.0;
-                for (int m = 0; m < 3; m++)
-                    s += H[k][i][m] * S2[m][j];
-                B[i][j] = -c[i] * alpha[k][j] - 0.5 * S[i][j] - s;
-            }
+            for (int j = 0; j < 3; j++)
+                B[i][j] = -c[i] * alpha[k][j] - 0.5 * S[i][j] - HS2[i][j];
+        mul33((const double (*)[3])B, (const double (*)[3])Q[k], 1, BQ);
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++) {
                 Dqd[a + i][TP + j] = B[i][j];
-                double s = 0.0;
-                for (int m = 0; m < 3; m++)
-                    s += B[i][m] * Q[k][j][m];
-                Dqd[a + i][3 + j] = -s;
+                Dqd[a + i][3 + j] = -BQ[i][j];
             }
     }
     for (int i = 0; i < nm; i++)
@@ -615,20 +639,16 @@ static void jacobian(const ffrf_body *b, int e, const double (*R0)[3], ffrf_se_w
             }
         /* C = -g_a alpha^T + Q skew(g_a)/2 on the node rotation rows */
         skew(ga, S2);
+        double QS2[3][3], CQ[3][3];
+        mul33((const double (*)[3])Q[k], (const double (*)[3])S2, 0, QS2);
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) {
-                double s = 0.0;
-                for (int m = 0; m < 3; m++)
-                    s += Q[k][i][m] * S2[m][j];
-                C[i][j] = -ga[i] * alpha[k][j] + 0.5 * s;
-            }
+            for (int j = 0; j < 3; j++)
+                C[i][j] = -ga[i] * alpha[k][j] + 0.5 * QS2[i][j];
+        mul33((const double (*)[3])C, (const double (*)[3])Q[k], 1, CQ);
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++) {
                 Fy[eTP + i][TP + j] += C[i][j];
-                double s = 0.0;
-                for (int m = 0; m < 3; m++)
-                    s += C[i][m] * Q[k][j][m];
-                Fy[eTP + i][3 + j] -= s;
+                Fy[eTP + i][3 + j] -= CQ[i][j];
             }
         /* CM rotation rows: + skew(g_d) Dq_d, and -Q (C - skew(f_a)) eps */
         for (int i = 0; i < 3; i++) /* (Dq_d's nonzero columns: x0, Theta0, the node's x_P) */
@@ -881,19 +901,10 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
         double (*Jq)[3] = (double (*)[3])w->Jq, (*Jqd)[3] = (double (*)[3])w->Jqd;
         double (*HQ)[n] = (double (*)[n])w->HQ;
         const double (*Z)[n] = (const double (*)[n])w->Z;
-        for (int a = 0; a < 3; a++) {
-            for (int bb = 0; bb < 3; bb++) {
-                double s1 = 0.0, s2 = 0.0;
-                for (int j = 0; j < n; j++) {
-                    s1 += q[j] * W1[j][a][bb];
-                    s2 += qd[j] * W1[j][a][bb];
-                }
-                Jq[a][bb] = s1;
-                Jqd[a][bb] = s2;
-            }
+        weighted_sums(n, q, qd, W1, Jq, Jqd);
+        for (int a = 0; a < 3; a++)
             for (int j = 0; j < n; j++)
                 HQ[a][j] = Z[a][j]; /* dh/dq = Z [+ V_j Omega0] */
-        }
         if (n2 > 0) { /* V_j = sum_l q_l (W2_jl + W2_lj), Vd_j the same with qdot (deformed_inertia) */
             const double (*W2)[n2][3][3] = (const double (*)[n2][3][3])b->data.W2 + (size_t)e * n2;
             double (*V)[3][3] = (double (*)[3][3])w->V, (*Vd)[3][3] = (double (*)[3][3])w->Vd;
@@ -909,15 +920,12 @@ void ffrf_superelement(const ffrf_body *b, int e, const double *p, const double 
                         V[j][a][bb] = s1;
                         Vd[j][a][bb] = s2;
                     }
+            double qV[3][3], qdV[3][3];
+            weighted_sums(n, q, qd, (const double (*)[3][3])V, qV, qdV);
             for (int a = 0; a < 3; a++) {
                 for (int bb = 0; bb < 3; bb++) {
-                    double s1 = 0.0, s2 = 0.0;
-                    for (int j = 0; j < n; j++) {
-                        s1 += q[j] * V[j][a][bb];
-                        s2 += qd[j] * V[j][a][bb];
-                    }
-                    Jq[a][bb] += 0.5 * s1; /* q W2 q = 1/2 sum_j q_j V_j */
-                    Jqd[a][bb] += s2;
+                    Jq[a][bb] += 0.5 * qV[a][bb]; /* q W2 q = 1/2 sum_j q_j V_j */
+                    Jqd[a][bb] += qdV[a][bb];
                 }
                 for (int j = 0; j < n; j++) {
                     double s = 0.0;
