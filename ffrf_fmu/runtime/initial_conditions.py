@@ -15,6 +15,18 @@ from .coupling import add_springs
 from .ports import PortValues, StepFailure
 from .rotation import cross
 
+# the backward-Euler micro-step of the consistent rates and the relaxation's Newton iterations at most (the C
+# runtime's FFRF_MICRO_STEP in ffrf_runtime.h and FFRF_RELAX_MAX_ITER in initial.h: the same values)
+MICRO_STEP = 1e-6
+RELAX_MAX_ITER = 30
+
+
+def no_equilibrium(t: float, displaced, max_iter: int, last: float) -> StepFailure:
+    """The failure of a relaxation that found no static shape (numpy path and C runtime alike)."""
+    return StepFailure(t, f"initial port displacements {sorted(displaced)}: no static equilibrium of the deformed "
+                          f"body found ({max_iter} Newton iterations, last correction {last:.3g}); smaller "
+                          "displacements, or ports whose displacements the body can hold")
+
 
 class InitialConditions:
     """BodySystem's initial state; every attribute it reads and writes is BodySystem's."""
@@ -79,7 +91,7 @@ class InitialConditions:
         cfg_rates = self.yd[:n_cfg].copy()  # the rates of the configuration at t0, exact
         self.fN, self.tN = f_in.copy(), t_in.copy()
         # consistent ydot_0: a backward-Euler micro-step (am = af = gamma = 1) from the initial state
-        delta = 1e-6
+        delta = MICRO_STEP
         saved = self.get_state()
         yd0 = self._step(delta, fn, 1.0, 1.0, 1.0, commit_config=False)
         self.set_state(saved)
@@ -104,7 +116,7 @@ class InitialConditions:
         self.work = 0.0
         self._lu = None
 
-    def _relax(self, displaced: dict[str, np.ndarray], tol: float = 1e-12, max_iter: int = 30) -> None:
+    def _relax(self, displaced: dict[str, np.ndarray], tol: float = 1e-12, max_iter: int = RELAX_MAX_ITER) -> None:
         """Static equilibrium (no inertia, no loads) with every undisplaced port's translation and rotation
         fixed, and each displaced port fixed only along its displacement u (a force along u moved it by
         |u|; across u it is free): the smooth deformed shape through displaced ports (for a free beam with
@@ -145,7 +157,4 @@ class InitialConditions:
             self.xN, self.RN, self.x0, self.R0, self.eta, _ = self._configuration(self.xN, self.RN, delta)
             if np.max(np.abs(delta)) < tol:
                 return
-        raise StepFailure(self.t, f"initial port displacements {sorted(displaced)}: no static equilibrium of the "
-                                  f"deformed body found ({max_iter} Newton iterations, last correction "
-                                  f"{np.max(np.abs(delta)):.3g}); smaller displacements, or ports whose displacements "
-                                  "the body can hold")
+        raise no_equilibrium(self.t, displaced, max_iter, float(np.max(np.abs(delta))))

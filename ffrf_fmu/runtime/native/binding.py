@@ -17,12 +17,12 @@ import numpy as np
 from ..ports import IterationCapReached, StepFailure
 from . import build
 from ..factorization import NativeFactor
+from ..initial_conditions import MICRO_STEP, RELAX_MAX_ITER, no_equilibrium
 from .image import body_image
 
 GIVEN, SCHEDULED, EXTRAPOLATED = 0, 1, 2  # ffrf_runtime.h: where a step's inputs come from
 OK, NOT_FINITE, NOT_CONVERGED, NOT_FACTORED, ROTATION_ALIAS, BAD_STEP, ITERATION_CAP = range(7)
 NO_EQUILIBRIUM, NO_MEMORY = -1, -2  # ffrf_body_initialize's own failures
-MICRO_STEP, RELAX_MAX_ITER = 1e-6, 30  # ffrf_runtime.h FFRF_MICRO_STEP, initial.h FFRF_RELAX_MAX_ITER
 
 _LIB: dict[bool, C.CDLL] = {}
 
@@ -327,10 +327,7 @@ class NativeStep:
         status = B.lib.ffrf_body_initialize(B.ptr, float(t0), a, a + 24, a + 48, None if disp is None else disp.ctypes.data,
                                             GIVEN, nxt.ctypes.data, C.byref(last))
         if status == NO_EQUILIBRIUM:
-            raise StepFailure(system.t, f"initial port displacements {sorted(port_displacements)}: no static "
-                                        f"equilibrium of the deformed body found ({RELAX_MAX_ITER} Newton iterations, "
-                                        f"last correction {last.value:.3g}); smaller displacements, or ports whose "
-                                        "displacements the body can hold")
+            raise no_equilibrium(system.t, port_displacements, RELAX_MAX_ITER, last.value)
         if status == NO_MEMORY:
             raise MemoryError("the C runtime's initialization: out of memory")
         if status != OK:
