@@ -288,11 +288,12 @@ static const array_spec OWN[] = {
 #define COUNT(a) (sizeof(a) / sizeof((a)[0]))
 
 /* work.MG = M_bar^-1 G_k of each superelement (M_inv's columns times G_k's), for the refresh's k_q rows
- * (superelement.c `jacobian`, solved); with no Coriolis term (n_g < n) unused and left zero. */
+ * (superelement.c `jacobian`, solved); with no Coriolis term (n_g < n, or the term set without it) unused and left
+ * zero. */
 static void mass_solved_coriolis(ffrf_body *b)
 {
     const int n = b->dims.n, ng = b->dims.n_g;
-    if (ng != n)
+    if (ng != n || !(b->data.gyro & FFRF_CORIOLIS))
         return;
     for (int e = 0; e < b->dims.E; e++) {
         const double *inv = b->work.M_inv + (size_t)e * n * n; /* column m of M_bar^-1 in row m */

@@ -357,8 +357,8 @@ int ffrf_step(ffrf_body *b, double h, int last_it)
     /* the predictor missed at the last step and the matrix is not known to serve: a fresh one, unless the last step
      * kept it (KEEPS: a near miss on a matrix that contracts; integrator `_step`) */
     int after = D->refresh_min <= last_it && last_it <= D->refresh_max && lu_meta[0] != 0.0 && lu_meta[11] != 2.0;
-    int stale = after && lu_meta[11] == 0.0, trusted = after && lu_meta[11] == 1.0;
-    if (stale)
+    int trusted = after && lu_meta[11] == 1.0;
+    if (after && lu_meta[11] == 0.0) /* dropped */
         lu_meta[0] = 0.0;
     b->lu.refreshed = 0;
     /* a hard real-time bound (iteration_cap, solver.max_newton_iterations): the iterations of both attempts
